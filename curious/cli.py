@@ -1,0 +1,61 @@
+"""The `curious` command line: one sub-command per module of `curious.commands`.
+
+Each sub-command module exposes `register(subparsers)`, which adds its parser and sets
+`func` on it; heavy imports (torch, MuJoCo, Dagster, Ray) happen inside the command, so that
+`curious --help` answers at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+COMMAND_MODULES: tuple[str, ...] = (
+    "curious.commands.train",
+    "curious.commands.view",
+    "curious.commands.render",
+    "curious.commands.bench",
+    "curious.commands.reproduce",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every sub-command that is installed."""
+    parser = argparse.ArgumentParser(
+        prog="curious",
+        description=(
+            "CURIOUS: intrinsically motivated multi-task, multi-goal RL on the Multi-Task "
+            "Fetch Arm. Train agents, watch runs in Rerun, benchmark, and rebuild the "
+            "figures of the paper."
+        ),
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name == name:
+                continue
+            raise
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `curious` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if getattr(args, "func", None) is None:
+        parser.print_help()
+        return 2
+    try:
+        result = args.func(args)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    return int(result or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Sub-commands of the `curious` command line, one module each."""
