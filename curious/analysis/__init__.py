@@ -1,0 +1,75 @@
+"""Analysis of run folders: loading, statistics and the paper's figures.
+
+Pipelines and notebooks call this package; it reads run folders only (``config.json`` and
+``metrics.parquet``, docs/architecture.md) and never the Rerun recording.
+
+```python
+from curious import analysis
+
+runs = analysis.load_runs("runs/")                 # one row per (run, episode)
+binned = analysis.bin_runs(runs, bin_size=1000)     # success over achievable modules per bin
+analysis.across_seeds(binned)                       # mean, std, n per condition and bin
+analysis.welch_per_bin(binned, "curious", "mg-te")  # one-tailed Welch test per bin
+analysis.fig2a(runs, out_dir="figures/")            # figures/fig2a.png and figures/fig2a.svg
+```
+
+"Success" (Fig. 2a, the distractors figure) is the competence averaged over the run's
+achievable modules, read at the end of each episode bin; `curious.analysis.statistics` defines
+it precisely. Module and condition colours live in `curious.analysis.palette`, shared with the
+Rerun recordings.
+"""
+
+from curious.analysis.figures import distractors, fig2a, fig2b, fig2c, forgetting, table1
+from curious.analysis.loading import (
+    RunFolderError,
+    RunInfo,
+    find_run_folders,
+    load_run,
+    load_runs,
+    read_run_info,
+    run_modules,
+    runs_table,
+)
+from curious.analysis.statistics import (
+    ALPHA,
+    achievable_competence,
+    across_seeds,
+    bin_runs,
+    check_comparable,
+    final_competence,
+    most_perturbed_module,
+    nice_bin_size,
+    recovery,
+    recovery_summary,
+    welch_per_bin,
+)
+from curious.analysis.style import save_figure
+
+__all__ = [
+    "ALPHA",
+    "RunFolderError",
+    "RunInfo",
+    "achievable_competence",
+    "across_seeds",
+    "bin_runs",
+    "check_comparable",
+    "distractors",
+    "fig2a",
+    "fig2b",
+    "fig2c",
+    "final_competence",
+    "find_run_folders",
+    "forgetting",
+    "load_run",
+    "load_runs",
+    "most_perturbed_module",
+    "nice_bin_size",
+    "read_run_info",
+    "recovery",
+    "recovery_summary",
+    "run_modules",
+    "runs_table",
+    "save_figure",
+    "table1",
+    "welch_per_bin",
+]

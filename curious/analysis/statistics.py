@@ -1,0 +1,394 @@
+"""Statistics over loaded runs: success over achievable modules, episode bins, seeds, Welch tests.
+
+What "success" means here (the y axis of the paper's Fig. 2a). For each run and each episode, the
+*average success over achievable modules* is the mean, over the modules the run's config marks as
+achievable, of the ``competence/<module>`` columns of ``metrics.parquet``: each is the success rate
+of that module's last self-evaluation episodes (the agent's own competence measure, the one
+learning progress is computed from), after that episode. Distractor modules are left out of the
+mean. A NaN competence (a module not yet measured, if the agent writes NaN for that) makes the
+mean NaN, and the bin is then left out of the statistics rather than guessed.
+
+Episode bins. Bins are ``[k w, (k + 1) w)`` for a bin width of ``w`` episodes, labelled by their
+end, ``episodes = (k + 1) w`` (the number of episodes run when the bin closes). A run's value in a
+bin is its value **at the end of the bin** (the row of the last episode ``< (k + 1) w``): competence
+is already a moving average over evaluation episodes, so sampling it is a faithful, lag-free
+reading of "competence after so many episodes", where a mean inside the bin would add a lag of
+half a bin. A run contributes only the bins it completed, so seeds with equal budgets line up
+exactly.
+
+Across seeds: mean and sample standard deviation (``ddof=1``, NaN for one seed) per condition and
+bin, with the number of seeds ``n``. Between two conditions: Welch's t-test per bin
+(`scipy.stats.ttest_ind` with ``equal_var=False`` and ``alternative="greater"``: one-tailed, the
+alternative being that the first condition's mean is greater), significant where ``p < alpha``
+(alpha = 0.01 as in the paper). A bin where either condition has fewer than two seeds gets
+``p = NaN`` and is not significant.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from curious.analysis.loading import RunFolderError, _require_identity
+
+__all__ = [
+    "ALPHA",
+    "achievable_competence",
+    "across_seeds",
+    "bin_runs",
+    "check_comparable",
+    "final_competence",
+    "most_perturbed_module",
+    "nice_bin_size",
+    "recovery",
+    "recovery_summary",
+    "welch_per_bin",
+]
+
+ALPHA = 0.01
+
+_RUN_COLUMNS = (
+    "run",
+    "condition",
+    "seed",
+    "variant",
+    "preset",
+    "achievable_modules",
+    "n_distractors",
+)
+
+
+def achievable_competence(df: pd.DataFrame) -> pd.Series:
+    """Per row: mean of ``competence/<m>`` over the run's achievable modules (see module doc)."""
+    _require_identity(df)
+    out = np.full(len(df), np.nan)
+    for achievable, rows in df.groupby("achievable_modules", observed=True).indices.items():
+        modules = [m for m in str(achievable).split(",") if m]
+        if not modules:
+            raise RunFolderError("a run has no achievable module: nothing to average success over")
+        columns = [f"competence/{m}" for m in modules]
+        values = df[columns].to_numpy(dtype=np.float64)[rows]
+        out[rows] = values.mean(axis=1)
+    return pd.Series(out, index=df.index, name="achievable_competence")
+
+
+def nice_bin_size(n_episodes: int, target_bins: int = 50) -> int:
+    """The largest of 1, 2, 5, 10, 20, 50, ... that gives at least ``target_bins`` bins."""
+    if n_episodes < 1 or target_bins < 1:
+        raise ValueError(
+            f"need n_episodes >= 1 and target_bins >= 1, got {n_episodes}, {target_bins}"
+        )
+    raw = n_episodes / target_bins
+    best = 1
+    scale = 1
+    while scale <= raw:
+        for step in (1, 2, 5):
+            if step * scale <= raw:
+                best = step * scale
+        scale *= 10
+    return best
+
+
+def _run_arrays(df: pd.DataFrame, values: np.ndarray):
+    """Yields (run, first row index, episodes, values) per run, episodes ascending."""
+    for run, rows in df.groupby("run", observed=True, sort=True).indices.items():
+        episodes = df["episode"].to_numpy()[rows]
+        order = np.argsort(episodes, kind="stable")
+        yield run, rows[order[0]], episodes[order], values[rows][order]
+
+
+def _values(df: pd.DataFrame, values: pd.Series | str | None) -> np.ndarray:
+    if values is None:
+        return achievable_competence(df).to_numpy()
+    if isinstance(values, str):
+        if values not in df.columns:
+            raise KeyError(f"no column {values!r} in the table")
+        return df[values].to_numpy(dtype=np.float64)
+    if len(values) != len(df):
+        raise ValueError(f"values has {len(values)} rows, the table {len(df)}")
+    return np.asarray(values, dtype=np.float64)
+
+
+def bin_runs(
+    df: pd.DataFrame, values: pd.Series | str | None = None, bin_size: int | None = None
+) -> pd.DataFrame:
+    """Each run's value at the end of each episode bin it completed.
+
+    ``values`` is a column name, a Series aligned with ``df``, or None for
+    `achievable_competence`. ``bin_size`` defaults to `nice_bin_size` of the longest run.
+    Returns one row per (run, bin): the run's identity columns, ``bin`` (k), ``episodes`` (the bin
+    end, ``(k + 1) * bin_size``) and ``value``.
+    """
+    _require_identity(df)
+    data = _values(df, values)
+    if bin_size is None:
+        bin_size = nice_bin_size(int(df["episode"].max()) + 1)
+    if bin_size < 1:
+        raise ValueError(f"bin_size must be >= 1, got {bin_size}")
+    parts = []
+    for _run, first, episodes, run_values in _run_arrays(df, data):
+        n_bins = (int(episodes[-1]) + 1) // bin_size
+        if n_bins == 0:
+            continue
+        ends = (np.arange(n_bins) + 1) * bin_size
+        at = np.searchsorted(episodes, ends - 1, side="right") - 1
+        ok = at >= 0
+        columns = {c: np.repeat(np.array([df[c].iat[first]]), ok.sum()) for c in _RUN_COLUMNS}
+        columns["bin"] = np.arange(n_bins)[ok]
+        columns["episodes"] = ends[ok]
+        columns["value"] = run_values[at[ok]]
+        parts.append(pd.DataFrame(columns))
+    columns = [*_RUN_COLUMNS, "bin", "episodes", "value"]
+    if not parts:
+        return pd.DataFrame(columns=columns)
+    out = pd.concat(parts, ignore_index=True)
+    out.attrs["bin_size"] = bin_size
+    return out[columns]
+
+
+def check_comparable(runs: pd.DataFrame, conditions: Sequence[str] | None = None) -> None:
+    """Raises `RunFolderError` unless the runs can be averaged and compared as seeds.
+
+    The runs (rows of a loaded or binned table, restricted to ``conditions`` when given) must
+    share their achievable modules (else "average over achievable modules" means different
+    things), and each (condition, seed) must be a single run (else a seed would count twice).
+    """
+    if conditions is not None:
+        runs = runs[runs["condition"].isin(list(conditions))]
+    per_run = runs.groupby("run", observed=True)[
+        ["condition", "seed", "variant", "achievable_modules"]
+    ].first()
+    sets = sorted(per_run["achievable_modules"].astype(str).unique())
+    if len(sets) > 1:
+        raise RunFolderError(
+            "these runs have different achievable modules, so their averages do not compare: "
+            + "; ".join(f"[{s}]" for s in sets)
+            + " (select one variant first)"
+        )
+    twice = per_run.groupby(["condition", "seed"], observed=True).size()
+    twice = twice[twice > 1]
+    if not twice.empty:
+        condition, seed = twice.index[0]
+        clash = per_run[(per_run["condition"] == condition) & (per_run["seed"] == seed)]
+        raise RunFolderError(
+            f"condition '{condition}' seed {seed} has {len(clash)} runs (variants "
+            f"{', '.join(sorted(clash['variant'].astype(str)))}): select one run per seed, e.g. "
+            "by variant, before comparing"
+        )
+
+
+def across_seeds(binned: pd.DataFrame, by: Sequence[str] = ("condition",)) -> pd.DataFrame:
+    """Mean, sample std (ddof=1) and count over runs, per ``by`` + ``episodes``.
+
+    NaN values (see the module doc) are left out and not counted in ``n``.
+    """
+    keys = [*by, "episodes"]
+    valid = binned.dropna(subset=["value"])
+    grouped = valid.groupby(keys, observed=True, sort=True)["value"]
+    out = grouped.agg(mean="mean", std=lambda v: v.std(ddof=1), n="size").reset_index()
+    out["n"] = out["n"].astype(np.int64)
+    return out
+
+
+def welch_per_bin(
+    binned: pd.DataFrame, better: str, worse: str, alpha: float = ALPHA
+) -> pd.DataFrame:
+    """One-tailed Welch's t-test per bin that ``better`` has a greater mean than ``worse``.
+
+    Returns one row per bin both conditions reach: ``episodes``, ``n_better``, ``n_worse``,
+    ``mean_better``, ``mean_worse``, ``t``, ``p`` and ``significant`` (``p < alpha``; False where
+    p is NaN, i.e. fewer than two seeds on a side or no variance at all).
+    """
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    present = set(binned["condition"].astype(str))
+    for name in (better, worse):
+        if name not in present:
+            raise RunFolderError(
+                f"no runs of condition '{name}' (have: {', '.join(sorted(present)) or 'none'})"
+            )
+    check_comparable(binned, [better, worse])
+    valid = binned.dropna(subset=["value"])
+    a_groups = {
+        e: g.to_numpy() for e, g in valid[valid["condition"] == better].groupby("episodes")["value"]
+    }
+    b_groups = {
+        e: g.to_numpy() for e, g in valid[valid["condition"] == worse].groupby("episodes")["value"]
+    }
+    rows = []
+    for episodes in sorted(set(a_groups) & set(b_groups)):
+        a, b = a_groups[episodes], b_groups[episodes]
+        if len(a) >= 2 and len(b) >= 2:
+            result = stats.ttest_ind(a, b, equal_var=False, alternative="greater")
+            t, p = float(result.statistic), float(result.pvalue)
+        else:
+            t, p = np.nan, np.nan
+        rows.append(
+            {
+                "episodes": int(episodes),
+                "n_better": len(a),
+                "n_worse": len(b),
+                "mean_better": float(a.mean()),
+                "mean_worse": float(b.mean()),
+                "t": t,
+                "p": p,
+                "significant": bool(p < alpha) if np.isfinite(p) else False,
+            }
+        )
+    columns = [
+        "episodes",
+        "n_better",
+        "n_worse",
+        "mean_better",
+        "mean_worse",
+        "t",
+        "p",
+        "significant",
+    ]
+    return pd.DataFrame(rows, columns=columns)
+
+
+def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.DataFrame:
+    """Each run's average success over achievable modules after episode ``at_episode``.
+
+    ``at_episode`` defaults to the last episode that every run reached (the common budget), so
+    that longer runs are not favoured. Returns one row per run: identity columns, ``episodes``
+    (``at_episode + 1``) and ``value``.
+    """
+    _require_identity(df)
+    last_per_run = df.groupby("run", observed=True)["episode"].max()
+    if at_episode is None:
+        at_episode = int(last_per_run.min())
+    short = last_per_run[last_per_run < at_episode]
+    if not short.empty:
+        raise RunFolderError(
+            f"run {short.index[0]} ends at episode {int(short.iloc[0])}, before {at_episode}"
+        )
+    data = achievable_competence(df).to_numpy()
+    rows = []
+    for _run, first, episodes, values in _run_arrays(df, data):
+        at = int(np.searchsorted(episodes, at_episode, side="right")) - 1
+        row = {c: df[c].iat[first] for c in _RUN_COLUMNS}
+        row.update(episodes=at_episode + 1, value=float(values[at]) if at >= 0 else np.nan)
+        rows.append(row)
+    return pd.DataFrame(rows, columns=[*_RUN_COLUMNS, "episodes", "value"])
+
+
+def _perturbation_of(df: pd.DataFrame, first: int, given: int | None) -> int:
+    if given is not None:
+        return int(given)
+    value = df["perturbation_episode"].iat[first]
+    if pd.isna(value):
+        raise RunFolderError(
+            f"run {df['run'].iat[first]} has no sensor_failure_episode in its config.json: "
+            "pass perturbation_episode"
+        )
+    return int(value)
+
+
+def recovery(
+    df: pd.DataFrame,
+    module: str,
+    perturbation_episode: int | None = None,
+    fraction: float = 0.9,
+    pre_window: int | None = None,
+) -> pd.DataFrame:
+    """Episodes each run takes to regain ``fraction`` of a module's competence after a perturbation.
+
+    For a perturbation at episode ``p`` (the first episode run perturbed; defaults to each run's
+    ``perturbation_episode`` from its config):
+
+    - ``pre_competence``: mean of ``competence/<module>`` over the ``pre_window`` episodes before
+      ``p`` (default ``max(1, p // 10)``; averaging keeps one noisy reading from setting the bar);
+    - ``threshold = fraction * pre_competence``;
+    - the *trough* is the lowest competence at or after ``p`` (``min_competence``); the run
+      *dropped* if the trough is below the threshold;
+    - it *recovered* at the first episode ``e`` after the trough where competence is back at or
+      above the threshold, and ``recovery_episodes = e - p + 1`` (episodes run since the
+      perturbation). Counting from the trough, not from the first reading below the threshold,
+      keeps a noisy dip on the way down from passing for a recovery.
+
+    A run that never dropped has ``recovery_episodes = 0``; one that has not recovered by its last
+    episode, or had no competence to lose (``pre_competence == 0``), has NaN.
+    """
+    _require_identity(df)
+    if not 0 < fraction <= 1:
+        raise ValueError(f"fraction must be in (0, 1], got {fraction}")
+    if pre_window is not None and pre_window < 1:
+        raise ValueError(f"pre_window must be >= 1 episode, got {pre_window}")
+    column = f"competence/{module}"
+    if column not in df.columns:
+        raise KeyError(f"no module {module!r} in these runs (no column {column!r})")
+    data = df[column].to_numpy(dtype=np.float64)
+    rows = []
+    for run, first, episodes, values in _run_arrays(df, data):
+        p = _perturbation_of(df, first, perturbation_episode)
+        start = int(np.searchsorted(episodes, p, side="left"))
+        if start == 0:
+            raise RunFolderError(f"run {run} has no episode before the perturbation at {p}")
+        if start == len(episodes):
+            raise RunFolderError(
+                f"run {run} ends at episode {episodes[-1]}, before the perturbation at {p}"
+            )
+        window = pre_window if pre_window is not None else max(1, p // 10)
+        pre_rows = episodes[:start] >= p - window
+        pre = float(np.mean(values[:start][pre_rows]))
+        threshold = fraction * pre
+        after = values[start:]
+        trough = int(np.nanargmin(after))
+        dropped = bool(after[trough] < threshold)
+        recovered_at = np.nan
+        if pre > 0 and not dropped:
+            recovered_at = 0.0
+        elif pre > 0:
+            back = np.flatnonzero(after[trough:] >= threshold)
+            if back.size:
+                recovered_at = float(episodes[start + trough + back[0]] - p + 1)
+        row = {c: df[c].iat[first] for c in ("run", "condition", "seed", "variant")}
+        row.update(
+            module=module,
+            perturbation_episode=p,
+            pre_competence=pre,
+            threshold=threshold,
+            min_competence=float(after[trough]),
+            trough_episode=int(episodes[start + trough]),
+            dropped=dropped,
+            recovered=bool(np.isfinite(recovered_at)),
+            recovery_episodes=recovered_at,
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def recovery_summary(per_run: pd.DataFrame) -> pd.DataFrame:
+    """Per condition: runs, runs recovered, mean/std (ddof=1) of ``recovery_episodes`` of those."""
+    grouped = per_run.groupby("condition", observed=True, sort=True)
+    out = pd.DataFrame(
+        {
+            "n_runs": grouped.size(),
+            "n_recovered": grouped["recovered"].sum().astype(np.int64),
+            "mean_recovery_episodes": grouped["recovery_episodes"].mean(),
+            "std_recovery_episodes": grouped["recovery_episodes"].std(ddof=1),
+            "pre_competence": grouped["pre_competence"].mean(),
+            "threshold": grouped["threshold"].mean(),
+        }
+    )
+    return out.reset_index()
+
+
+def most_perturbed_module(df: pd.DataFrame, perturbation_episode: int | None = None) -> str:
+    """The achievable module whose competence fell most after the perturbation, averaged over runs.
+
+    The fall of a run is its competence after episode ``p - 1`` minus its lowest competence at or
+    after ``p``. Used when a forgetting figure is asked for without naming the module.
+    """
+    check_comparable(df)
+    achievable = [m for m in str(df["achievable_modules"].iat[0]).split(",") if m]
+    falls = {}
+    for module in achievable:
+        rec = recovery(df, module, perturbation_episode)
+        falls[module] = float((rec["pre_competence"] - rec["min_competence"]).mean())
+    return max(achievable, key=lambda m: (falls[m], -achievable.index(m)))

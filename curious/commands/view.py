@@ -1,0 +1,143 @@
+"""`curious view RUN_DIR [RUN_DIR ...]`: open runs' Rerun recordings in the viewer.
+
+With a display, starts the native viewer (the `rerun` binary that rerun-sdk installs) on every
+run's `recording.rrd`; several runs open side by side in one viewer, each its own recording
+under the same layout. Without a display it prints how to look at them elsewhere, and `--web`
+serves them here to a browser (or to a native viewer on another machine) instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+RECORDING_FILENAME = "recording.rrd"  # the run folder's contract (docs/architecture.md)
+DEFAULT_WEB_PORT = 9090
+DEFAULT_GRPC_PORT = 9876
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add `curious view`."""
+    parser = sub.add_parser(
+        "view",
+        help="open runs' Rerun recordings in the viewer",
+        description=(
+            "Open the Rerun recording (recording.rrd) of one run, or of several runs to compare "
+            "them. Without a display, prints how to open them elsewhere; --web serves them to a "
+            "browser instead."
+        ),
+    )
+    parser.add_argument(
+        "runs",
+        nargs="+",
+        metavar="RUN_DIR",
+        help="run folder holding recording.rrd (or the path of an .rrd file)",
+    )
+    parser.add_argument(
+        "--web",
+        action="store_true",
+        help="serve the recordings over HTTP/gRPC from here (for a browser or a remote viewer)",
+    )
+    parser.add_argument(
+        "--web-port", type=int, default=DEFAULT_WEB_PORT, help="web viewer port (with --web)"
+    )
+    parser.add_argument(
+        "--grpc-port", type=int, default=DEFAULT_GRPC_PORT, help="gRPC port (with --web)"
+    )
+    parser.set_defaults(func=run)
+
+
+def recording_paths(runs: list[str]) -> list[Path]:
+    """The `.rrd` file of each run; a clear error for a folder without one."""
+    paths: list[Path] = []
+    for run in runs:
+        path = Path(run)
+        if path.is_dir():
+            rrd = path / RECORDING_FILENAME
+            if not rrd.is_file():
+                raise FileNotFoundError(
+                    f"{path}: no {RECORDING_FILENAME} in this folder. A run folder gets one when "
+                    "`curious train` runs with recording on; check the path, or that the run "
+                    "has started."
+                )
+            paths.append(rrd)
+        elif path.is_file() and path.suffix == ".rrd":
+            paths.append(path)
+        elif path.exists():
+            raise FileNotFoundError(f"{path}: not a run folder or an .rrd file")
+        else:
+            raise FileNotFoundError(f"{path}: no such run folder")
+    return paths
+
+
+def has_display() -> bool:
+    """False on Linux without X11 or Wayland, where a native viewer cannot open a window."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def viewer_command() -> list[str]:
+    """The Rerun viewer's command: the `rerun` script on PATH, else `python -m rerun`."""
+    exe = shutil.which("rerun")
+    return [exe] if exe else [sys.executable, "-m", "rerun"]
+
+
+def elsewhere_instructions(
+    runs: list[str], paths: list[Path], web_port: int, grpc_port: int
+) -> str:
+    """How to open the recordings from a machine without a display."""
+    files = " ".join(shlex.quote(str(p.resolve())) for p in paths)
+    runs_text = " ".join(shlex.quote(r) for r in runs)
+    return "\n".join(
+        [
+            "No display here (DISPLAY and WAYLAND_DISPLAY are unset), so no viewer window can "
+            "open. To look at the recording(s):",
+            "",
+            "  1. On a machine with a display (pip install rerun-sdk==0.41.0), copy the files",
+            "     and open them:",
+            f"       rerun {files}",
+            "",
+            "  2. Or serve them from here and open them in a browser:",
+            f"       curious view --web {runs_text}",
+            f"     then open http://<this-host>:{web_port} (over ssh: ssh -L {web_port}:localhost:"
+            f"{web_port} -L {grpc_port}:localhost:{grpc_port} <this-host>,",
+            f"     then http://localhost:{web_port}), or connect a native viewer to it:",
+            f"       rerun --connect rerun+http://<this-host>:{grpc_port}/proxy",
+        ]
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Open (or serve) the recordings; exit status 2 when a run has no recording."""
+    try:
+        paths = recording_paths(args.runs)
+    except FileNotFoundError as exc:
+        print(f"curious view: {exc}", file=sys.stderr)
+        return 2
+    files = [str(p) for p in paths]
+    if args.web:
+        command = [
+            *viewer_command(),
+            "--serve-web",
+            "--web-viewer-port",
+            str(args.web_port),
+            "--port",
+            str(args.grpc_port),
+            *files,
+        ]
+        print(
+            f"Serving {len(files)} recording(s): open http://<this-host>:{args.web_port} in a "
+            f"browser, or run `rerun --connect rerun+http://<this-host>:{args.grpc_port}/proxy`. "
+            "Ctrl-C stops."
+        )
+        return subprocess.call(command)
+    if not has_display():
+        print(elsewhere_instructions(args.runs, paths, args.web_port, args.grpc_port))
+        return 0
+    return subprocess.call([*viewer_command(), *files])

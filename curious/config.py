@@ -1,0 +1,286 @@
+"""The run configuration: one dataclass, four presets, and `key=value` overrides.
+
+Defaults are the authors' settings (paper §6.2; OpenAI Baselines HER-DDPG hyper-parameters, with
+100 updates per cycle). A preset changes the scale of a run, never the algorithm; overrides from
+the command line (`--set key=value`) change single fields and are checked against the field's
+type, so a typo is an error instead of a silently ignored setting.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, fields
+from typing import Any
+
+CONDITIONS: tuple[str, ...] = ("curious", "m-uvfa", "mg-te", "her")
+ALGORITHMS: tuple[str, ...] = ("ddpg", "td3")
+DEVICES: tuple[str, ...] = ("cpu", "cuda")
+
+# Fields that may differ between a run folder's stored config and the config of a `--resume`:
+# they change how long or where a run goes on, not what it computes.
+RESUMABLE_FIELDS: frozenset[str] = frozenset(
+    {"total_episodes", "device", "torch_threads", "checkpoint_every_cycles", "progress"}
+)
+
+
+class ConfigError(ValueError):
+    """A configuration that cannot run: unknown preset, condition, key or a bad value."""
+
+
+@dataclass(frozen=True)
+class Config:
+    """Everything a training run depends on. One condition, one seed.
+
+    Scale: an *episode* is one rollout of `episode_length` steps in one worker; a *cycle* runs
+    `episodes_per_worker` rounds of `n_workers` parallel episodes, then `n_updates` gradient
+    steps, then one target-network update; an *epoch* is `n_cycles` cycles (mg-te trains one
+    expert per epoch).
+    """
+
+    # --- what is run -------------------------------------------------------------------------
+    condition: str = "curious"
+    """`curious` (LP task selection and replay), `m-uvfa` (uniform selection and replay),
+    `mg-te` (one expert per module, trained in turn), `her` (one holistic goal)."""
+    seed: int = 0
+    """Seeds networks, the agent's random choices and every environment copy."""
+    preset: str = "paper"
+    """Name of the preset the run was resolved from (recorded, not used after resolving)."""
+    variant: str = "default"
+    """Suite variant (`suite.ALL_VARIANTS`) trained on."""
+    total_episodes: int = 300_000
+    """The run stops after exactly this many episodes (evaluation episodes included)."""
+
+    # --- rollouts ----------------------------------------------------------------------------
+    n_workers: int = 19
+    """Environment copies stepped together in one process (one batched policy call per step);
+    the authors ran 19 MPI workers."""
+    episodes_per_worker: int = 2
+    """Rounds of `n_workers` parallel episodes per cycle."""
+    n_cycles: int = 25
+    """Cycles per epoch (25 x 2 x 19 = 950 episodes per epoch with the authors' sizes)."""
+    eval_every: int = 10
+    """Every `eval_every`-th episode (by global index) is a self-evaluation without noise on a
+    module drawn uniformly; its final success feeds that module's competence."""
+    noise_eps: float = 0.2
+    """Std of the Gaussian action noise, as a fraction of the maximal action (1)."""
+    random_eps: float = 0.3
+    """Probability that an exploring step takes a uniform random action instead."""
+
+    # --- learner -----------------------------------------------------------------------------
+    algorithm: str = "ddpg"
+    """`ddpg` (the authors') or `td3` (twin critics, target smoothing, delayed actor)."""
+    hidden: int = 256
+    """Units per hidden layer of actor and critic."""
+    layers: int = 3
+    """Hidden layers of actor and critic."""
+    actor_lr: float = 1e-3
+    critic_lr: float = 1e-3
+    gamma: float = 0.98
+    """Discount; targets are clipped to [-1/(1-gamma), 0] (rewards are -1 or 0)."""
+    polyak: float = 0.95
+    """target <- polyak * target + (1 - polyak) * online, once per cycle."""
+    action_l2: float = 1.0
+    """Weight of the mean squared (pre-noise) action in the actor loss."""
+    batch_per_worker: int = 256
+    """Transitions per worker per update; the minibatch is `batch_per_worker * n_workers`, which
+    equals the authors' mean of per-worker gradients."""
+    n_updates: int = 100
+    """Gradient steps per cycle."""
+    norm_clip: float = 5.0
+    """Normalised states and goals are clipped to [-norm_clip, norm_clip]."""
+    norm_eps: float = 0.01
+    """Lower bound of the normaliser's std."""
+    td3_target_noise: float = 0.2
+    td3_noise_clip: float = 0.5
+    td3_policy_delay: int = 2
+
+    # --- replay ------------------------------------------------------------------------------
+    buffer_episodes: int = 50_000
+    """Replay capacity in episodes (first in, first out)."""
+    her_p: float = 0.8
+    """Probability that a replayed goal is an outcome reached later in the same episode."""
+    replay_active_only: bool = True
+    """Replay a module only on episodes where its outcome changed (as the released code's
+    per-module buffers did); falls back to every episode while there is none."""
+    moved_threshold: float = 1e-3
+    """An outcome 'changed' when a goal coordinate moved more than this between the first and
+    the final step."""
+
+    # --- learning progress -------------------------------------------------------------------
+    lp_window: int = 300
+    """Competence is the mean of a module's last `lp_window` evaluation results; LP compares it
+    with the `lp_window` results before."""
+    lp_eps: float = 0.4
+    """p_LP = lp_eps / N + (1 - lp_eps) * LP / sum(LP)."""
+
+    # --- running -----------------------------------------------------------------------------
+    device: str = "cpu"
+    """`cpu` or `cuda` (networks and updates; environments always run on the CPU)."""
+    torch_threads: int = 1
+    """torch intra-op threads (0 keeps torch's default)."""
+    checkpoint_every_cycles: int = 50
+    """A checkpoint (and a metrics flush) every this many cycles, and at the end."""
+    progress: bool = True
+    """Show a progress bar."""
+
+    # ------------------------------------------------------------------------------------------
+    @property
+    def episodes_per_cycle(self) -> int:
+        return self.n_workers * self.episodes_per_worker
+
+    @property
+    def batch_size(self) -> int:
+        return self.batch_per_worker * self.n_workers
+
+    def validate(self) -> Config:
+        """Raise `ConfigError` naming the first field with a value that cannot run."""
+        if self.condition not in CONDITIONS:
+            raise ConfigError(
+                f"unknown condition {self.condition!r}; choose one of {', '.join(CONDITIONS)}"
+            )
+        if self.algorithm not in ALGORITHMS:
+            raise ConfigError(
+                f"unknown algorithm {self.algorithm!r}; choose one of {', '.join(ALGORITHMS)}"
+            )
+        if self.device not in DEVICES:
+            raise ConfigError(f"unknown device {self.device!r}; choose one of {DEVICES}")
+        positive = (
+            "total_episodes n_workers episodes_per_worker n_cycles eval_every hidden layers "
+            "batch_per_worker buffer_episodes lp_window checkpoint_every_cycles td3_policy_delay"
+        ).split()
+        for name in positive:
+            if getattr(self, name) <= 0:
+                raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.n_updates < 0 or self.torch_threads < 0:
+            raise ConfigError("n_updates and torch_threads must be >= 0")
+        for name in ("her_p", "lp_eps", "random_eps", "polyak"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
+        if not 0.0 < self.gamma < 1.0:
+            raise ConfigError(f"gamma must be in (0, 1), got {self.gamma}")
+        return self
+
+    def to_dict(self) -> dict[str, Any]:
+        """The settings as plain JSON-able values."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Config:
+        """Inverse of `to_dict`; unknown keys are an error."""
+        unknown = sorted(set(data) - set(setting_names()))
+        if unknown:
+            raise ConfigError(f"unknown config keys: {', '.join(unknown)}")
+        return cls(**data).validate()
+
+
+def setting_names() -> tuple[str, ...]:
+    """Names of the fields a user may set."""
+    return tuple(f.name for f in fields(Config))
+
+
+PRESETS: dict[str, dict[str, Any]] = {
+    # Seconds: for tests and CI. Tiny networks, a handful of episodes, every code path touched
+    # (evaluations, updates, target updates, a checkpoint, an epoch boundary).
+    "smoke": dict(
+        total_episodes=24,
+        n_workers=2,
+        episodes_per_worker=2,
+        n_cycles=2,
+        hidden=32,
+        layers=2,
+        batch_per_worker=32,
+        n_updates=4,
+        buffer_episodes=64,
+        lp_window=4,
+        checkpoint_every_cycles=3,
+        eval_every=5,
+    ),
+    # A few minutes on a 2-core laptop: enough for reach. The authors' networks and ratios,
+    # fewer workers, a short competence window so that competence is measured at this scale.
+    "quick": dict(
+        total_episodes=1_200,
+        n_workers=2,
+        episodes_per_worker=2,
+        n_cycles=25,
+        batch_per_worker=128,
+        n_updates=20,
+        buffer_episodes=5_000,
+        lp_window=20,
+        checkpoint_every_cycles=50,
+        eval_every=5,
+    ),
+    # Hours on 2 cores: enough episodes for the developmental phases (reach, then push).
+    "laptop": dict(
+        total_episodes=100_000,
+        n_workers=4,
+        episodes_per_worker=2,
+        n_cycles=25,
+        batch_per_worker=128,
+        n_updates=40,
+        buffer_episodes=20_000,
+        lp_window=100,
+        checkpoint_every_cycles=100,
+    ),
+    # The authors' protocol: 19 workers x 2 episodes x 25 cycles per epoch, 100 updates per
+    # cycle, ~300k episodes. For a cluster node or a GPU.
+    "paper": dict(),
+}
+
+
+def _coerce(name: str, annotation: str, text: str) -> Any:
+    """Parse an override's text into the field's type (bool, int, float or str)."""
+    kind = {"int": int, "float": float, "bool": bool, "str": str}[annotation]
+    try:
+        if kind is bool:
+            lowered = text.strip().lower()
+            if lowered in ("1", "true", "yes", "on"):
+                return True
+            if lowered in ("0", "false", "no", "off"):
+                return False
+            raise ValueError(text)
+        if kind is int:
+            return int(text.replace("_", ""))
+        if kind is float:
+            return float(text)
+        return text
+    except ValueError:
+        raise ConfigError(f"{name}={text!r}: expected a {annotation}") from None
+
+
+def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
+    """Turn `["key=value", ...]` into typed values; unknown keys and bad values are errors."""
+    types_by_name = {f.name: str(f.type) for f in fields(Config)}
+    out: dict[str, Any] = {}
+    for item in items:
+        if "=" not in item:
+            raise ConfigError(f"override {item!r} is not of the form key=value")
+        key, text = item.split("=", 1)
+        key = key.strip().replace("-", "_")
+        if key not in types_by_name:
+            raise ConfigError(
+                f"unknown config key {key!r}; known keys: {', '.join(sorted(types_by_name))}"
+            )
+        if key == "preset":
+            raise ConfigError("choose the preset with --preset, not an override")
+        out[key] = _coerce(key, types_by_name[key], text)
+    return out
+
+
+def resolve(
+    preset: str,
+    condition: str = "curious",
+    seed: int = 0,
+    overrides: dict[str, Any] | None = None,
+) -> Config:
+    """The config of a preset with a condition, a seed and overrides applied, validated."""
+    if preset not in PRESETS:
+        raise ConfigError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
+    if condition not in CONDITIONS:
+        raise ConfigError(f"unknown condition {condition!r}; choose one of {', '.join(CONDITIONS)}")
+    values: dict[str, Any] = dict(PRESETS[preset])
+    values.update(condition=condition, seed=seed, preset=preset)
+    for key, value in (overrides or {}).items():
+        if key not in setting_names():
+            raise ConfigError(f"unknown config key {key!r}")
+        values[key] = value
+    return dataclasses.replace(Config(), **values).validate()

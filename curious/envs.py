@@ -1,0 +1,193 @@
+"""The agent's view of an environment: a small array protocol, and the adapter to the suite.
+
+The agent never touches dm_control objects: it trains on anything that implements `GoalEnv`
+(the suite through `SuiteEnv`; the tests' toy env directly). Everything here is arrays:
+
+* `reset(module, g)` starts an episode practising module `module` with goal `g` in [-1, 1]^3;
+* `step(action)` returns the next `Obs` and the per-module success flags;
+* `goal_slot(module, g)` maps goals in [-1, 1]^3 to the module's 3-D goal slot (vectorised);
+* `reward(module, achieved, goal)` is the module's sparse reward in {-1, 0} for full `achieved`
+  vectors (..., sum of outcome dims) against goal slots (..., goal_dim), vectorised over the
+  leading axes: the replay recomputes rewards for whole minibatches with it.
+
+A hindsight goal for a module is the first `goal_dim` coordinates of its outcome (the module's
+slice of `achieved`); see `EnvSpec.hindsight_columns`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+from curious.config import ConfigError
+
+
+class Obs(NamedTuple):
+    """What the agent observes at one step."""
+
+    state: np.ndarray
+    """(state_dim,) float32 state features."""
+    achieved: np.ndarray
+    """(sum of outcome dims,) float32: every module's outcome, concatenated in module order."""
+
+
+@dataclass(frozen=True)
+class EnvSpec:
+    """Static facts about an environment that the agent sizes itself from."""
+
+    module_names: tuple[str, ...]
+    achievable: tuple[bool, ...]
+    state_dim: int
+    action_dim: int
+    goal_dim: int
+    """Size of every module's goal slot (3 in the suite)."""
+    outcome_slices: tuple[slice, ...]
+    """One slice per module into the `achieved` vector."""
+    episode_length: int
+
+    @property
+    def n_modules(self) -> int:
+        return len(self.module_names)
+
+    @property
+    def achieved_dim(self) -> int:
+        return max(s.stop for s in self.outcome_slices)
+
+    def hindsight_columns(self) -> np.ndarray:
+        """(n_modules, goal_dim) int: columns of `achieved` that form each module's hindsight goal.
+
+        A module whose outcome is longer than its goal slot (the suite's `stack` watches 4 numbers
+        and has a 3-D slot) relabels with the first `goal_dim` numbers of its outcome.
+        """
+        cols = np.empty((self.n_modules, self.goal_dim), dtype=np.int64)
+        for m, sl in enumerate(self.outcome_slices):
+            if sl.stop - sl.start < self.goal_dim:
+                raise ValueError(
+                    f"module {self.module_names[m]!r}: outcome of {sl.stop - sl.start} numbers is "
+                    f"shorter than its goal slot ({self.goal_dim})"
+                )
+            cols[m] = np.arange(sl.start, sl.start + self.goal_dim)
+        return cols
+
+    def module_index(self, module: int | str) -> int:
+        """Index of a module given by index or name (clear error otherwise)."""
+        if isinstance(module, str):
+            if module not in self.module_names:
+                raise KeyError(f"unknown module {module!r}; modules: {self.module_names}")
+            return self.module_names.index(module)
+        if not 0 <= int(module) < self.n_modules:
+            raise IndexError(f"module index {module} out of range 0..{self.n_modules - 1}")
+        return int(module)
+
+
+@runtime_checkable
+class GoalEnv(Protocol):
+    """The array protocol the agent trains on (see the module docstring)."""
+
+    spec: EnvSpec
+
+    def reset(self, module: int, g: np.ndarray) -> Obs: ...
+
+    def step(self, action: np.ndarray) -> tuple[Obs, np.ndarray]: ...
+
+    def goal_slot(self, module: int, g: np.ndarray) -> np.ndarray: ...
+
+    def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray: ...
+
+    def get_rng_state(self) -> Any: ...
+
+    def set_rng_state(self, state: Any) -> None: ...
+
+
+class SuiteEnv:
+    """A `suite` environment (dm_control composer) seen through the `GoalEnv` protocol.
+
+    Uses only the suite's public interface: `suite.load`, `env.task.modules`,
+    `env.task.set_next_episode`, `env.reset`, `env.step`, and each module's vectorised
+    `goal_slot` and `reward`.
+    """
+
+    EPISODE_LENGTH = 50
+    """Steps per episode in every suite variant (episodes never end early)."""
+
+    def __init__(self, variant: str = "default", seed: int = 0) -> None:
+        import suite  # imported here: MuJoCo is only needed when the real suite is used
+
+        if variant not in suite.ALL_VARIANTS:
+            raise ConfigError(
+                f"unknown suite variant {variant!r}; variants: {', '.join(suite.ALL_VARIANTS)}"
+            )
+        self._env = suite.load(variant, seed=seed)
+        self._task = self._env.task
+        self._modules = tuple(self._task.modules)
+        timestep = self._env.reset()
+        obs = timestep.observation
+        slices, start = [], 0
+        for module in self._modules:
+            slices.append(slice(start, start + int(module.outcome_dim)))
+            start += int(module.outcome_dim)
+        if start != obs["achieved"].shape[-1]:
+            raise ValueError(
+                f"suite reports {obs['achieved'].shape[-1]} outcome numbers, "
+                f"modules declare {start}"
+            )
+        self.spec = EnvSpec(
+            module_names=tuple(m.name for m in self._modules),
+            achievable=tuple(bool(m.achievable) for m in self._modules),
+            state_dim=int(obs["state"].shape[-1]),
+            action_dim=int(self._env.action_spec().shape[0]),
+            goal_dim=int(self._modules[0].goal_dim),
+            outcome_slices=tuple(slices),
+            episode_length=self.EPISODE_LENGTH,
+        )
+        self._t = 0
+
+    @property
+    def dm_env(self) -> Any:
+        """The wrapped composer environment (for rendering and recording)."""
+        return self._env
+
+    @staticmethod
+    def _obs(observation: dict[str, np.ndarray]) -> Obs:
+        return Obs(
+            np.asarray(observation["state"], dtype=np.float32),
+            np.asarray(observation["achieved"], dtype=np.float32),
+        )
+
+    def reset(self, module: int, g: np.ndarray) -> Obs:
+        self._task.set_next_episode(module=int(module), goal=np.asarray(g, dtype=np.float64))
+        self._t = 0
+        return self._obs(self._env.reset().observation)
+
+    def step(self, action: np.ndarray) -> tuple[Obs, np.ndarray]:
+        if self._t >= self.spec.episode_length:
+            raise RuntimeError("episode is over: call reset() first")
+        timestep = self._env.step(np.asarray(action, dtype=np.float64))
+        self._t += 1
+        if timestep.last() != (self._t == self.spec.episode_length):
+            raise RuntimeError(
+                f"suite episode ended at step {self._t}, expected {self.spec.episode_length}"
+            )
+        obs = timestep.observation
+        return self._obs(obs), np.asarray(obs["success"]) > 0.5
+
+    def goal_slot(self, module: int, g: np.ndarray) -> np.ndarray:
+        return np.asarray(self._modules[module].goal_slot(np.asarray(g)), dtype=np.float32)
+
+    def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
+        return np.asarray(self._modules[module].reward(outcome, np.asarray(goal)), np.float32)
+
+    def get_rng_state(self) -> Any:
+        return self._env.random_state.get_state()
+
+    def set_rng_state(self, state: Any) -> None:
+        self._env.random_state.set_state(state)
+
+
+def make_suite_envs(variant: str, seed: int, n: int) -> list[SuiteEnv]:
+    """`n` independent copies of a suite variant, seeded from one run seed."""
+    seeds = np.random.SeedSequence([seed, 0xE27]).generate_state(n)
+    return [SuiteEnv(variant, seed=int(s)) for s in seeds]

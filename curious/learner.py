@@ -1,0 +1,158 @@
+"""DDPG (the authors') and TD3 (an option) on E-UVFA inputs: one actor-critic and its update.
+
+The update follows the authors' settings (DESIGN §3): Adam 1e-3 for actor and critic, targets
+y = r + gamma * Q'(x', pi'(x')) clipped to [-1/(1-gamma), 0] (rewards are -1 or 0 and episodes
+never terminate, so there is no done mask), actor loss -Q(x, pi(x)) + action_l2 * mean(pi(x)^2),
+target networks moved by Polyak averaging once per cycle (`update_targets`).
+
+TD3 (Fujimoto et al. 2018) changes three things: two critics and the minimum of their targets,
+clipped Gaussian smoothing noise on the target action, and an actor step every
+`td3_policy_delay` critic steps. The target schedule stays the cycle's.
+
+Inputs arrive normalised (`curious.inputs.InputEncoder`); the learner only does arithmetic on
+tensors of its device.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+import torch
+from torch import nn
+
+from curious.config import Config
+from curious.networks import Actor, Critic
+
+
+def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
+    """Adam with the fastest implementation this torch offers for the device."""
+    try:
+        return torch.optim.Adam(params, lr=lr, fused=True)
+    except (RuntimeError, TypeError):  # fused not available for this device / build
+        return torch.optim.Adam(params, lr=lr, foreach=True)
+
+
+class Learner:
+    """One actor-critic pair with its targets, optimisers and update rule."""
+
+    def __init__(self, input_dim: int, action_dim: int, config: Config, seed: int = 0) -> None:
+        self.config = config
+        self.device = torch.device(config.device)
+        self.td3 = config.algorithm == "td3"
+        cpu_rng_state = torch.get_rng_state()
+        torch.manual_seed(seed)  # deterministic initial weights, independent of callers' RNG use
+        h, n_layers = config.hidden, config.layers
+        self.actor = Actor(input_dim, action_dim, h, n_layers).to(self.device)
+        n_critics = 2 if self.td3 else 1
+        self.critics = nn.ModuleList(
+            Critic(input_dim, action_dim, h, n_layers) for _ in range(n_critics)
+        ).to(self.device)
+        torch.set_rng_state(cpu_rng_state)
+        self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
+        self.critics_target = copy.deepcopy(self.critics).requires_grad_(False)
+        self.actor_opt = _adam(list(self.actor.parameters()), config.actor_lr)
+        self.critic_opt = _adam(list(self.critics.parameters()), config.critic_lr)
+        self.generator = torch.Generator(device=self.device)
+        self.generator.manual_seed(seed + 1)
+        self.clip_return = 1.0 / (1.0 - config.gamma)
+        self.n_updates = 0
+        self._actor_params = list(self.actor.parameters())
+        self._last_actor_loss = torch.zeros((), device=self.device)
+
+    # -------------------------------------------------------------------------------------------
+    @torch.no_grad()
+    def act(self, x: torch.Tensor) -> torch.Tensor:
+        """Deterministic actions pi(x), shape (B, action_dim)."""
+        return self.actor(x)
+
+    @torch.no_grad()
+    def td_target(self, reward: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+        """r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0]; TD3 smooths the target
+        action and takes the smaller of its two target critics."""
+        cfg = self.config
+        next_action = self.actor_target(x_next)
+        if self.td3:
+            noise = (
+                torch.randn(next_action.shape, generator=self.generator, device=self.device)
+                * cfg.td3_target_noise
+            )
+            noise = noise.clamp(-cfg.td3_noise_clip, cfg.td3_noise_clip)
+            next_action = (next_action + noise).clamp(-1.0, 1.0)
+            q_next = torch.minimum(
+                self.critics_target[0](x_next, next_action),
+                self.critics_target[1](x_next, next_action),
+            )
+        else:
+            q_next = self.critics_target[0](x_next, next_action)
+        return (reward + cfg.gamma * q_next).clamp(-self.clip_return, 0.0)
+
+    def update(
+        self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
+    ) -> dict[str, torch.Tensor]:
+        """One gradient step on a minibatch; returns detached losses (no device sync)."""
+        cfg = self.config
+        target = self.td_target(reward, x_next)
+        critic_loss = sum(
+            torch.nn.functional.mse_loss(critic(x, action), target) for critic in self.critics
+        )
+        self.critic_opt.zero_grad(set_to_none=True)
+        critic_loss.backward()
+        self.critic_opt.step()
+
+        self.n_updates += 1
+        if not self.td3 or self.n_updates % cfg.td3_policy_delay == 0:
+            pi = self.actor(x)
+            q_pi = self.critics[0](x, pi)
+            actor_loss = -q_pi.mean() + cfg.action_l2 * pi.pow(2).mean()
+            # Gradients for the actor's parameters only: the critic's weight gradients are
+            # neither needed nor computed.
+            grads = torch.autograd.grad(actor_loss, self._actor_params)
+            for p, g in zip(self._actor_params, grads, strict=True):
+                p.grad = g
+            self.actor_opt.step()
+            self._last_actor_loss = actor_loss.detach()
+        return {
+            "critic_loss": critic_loss.detach(),
+            "actor_loss": self._last_actor_loss,
+            "q_target_mean": target.mean(),
+        }
+
+    @torch.no_grad()
+    def update_targets(self) -> None:
+        """target <- polyak * target + (1 - polyak) * online."""
+        weight = 1.0 - self.config.polyak
+        for online, target in (
+            (self.actor, self.actor_target),
+            (self.critics, self.critics_target),
+        ):
+            t_params = list(target.parameters())
+            torch._foreach_lerp_(t_params, list(online.parameters()), weight)
+
+    # -------------------------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        return {
+            "actor": self.actor.state_dict(),
+            "critics": self.critics.state_dict(),
+            "actor_target": self.actor_target.state_dict(),
+            "critics_target": self.critics_target.state_dict(),
+            "actor_opt": self.actor_opt.state_dict(),
+            "critic_opt": self.critic_opt.state_dict(),
+            "generator": self.generator.get_state(),
+            "n_updates": self.n_updates,
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        # Copy first: torch optimisers adopt the given tensors, so loading a live learner's state
+        # without a copy would make two learners share (and both update) one set of moments.
+        state = copy.deepcopy(state)
+        self.actor.load_state_dict(state["actor"])
+        self.critics.load_state_dict(state["critics"])
+        self.actor_target.load_state_dict(state["actor_target"])
+        self.critics_target.load_state_dict(state["critics_target"])
+        self.actor_opt.load_state_dict(state["actor_opt"])
+        self.critic_opt.load_state_dict(state["critic_opt"])
+        self.generator.set_state(
+            state["generator"].cpu() if hasattr(state["generator"], "cpu") else state["generator"]
+        )
+        self.n_updates = int(state["n_updates"])

@@ -1,0 +1,24 @@
+"""Rerun recordings of training runs: per-episode scalars, rollouts in 3D, a default layout.
+
+The training loop makes one `RunRecorder` per run and calls its `log_*` methods with batches of
+arrays; rollout code fills a `RolloutCapture` from MuJoCo data each step. `curious view` opens
+the resulting `recording.rrd` files; `curious.recording.reader` reads them back.
+"""
+
+from curious.recording.recorder import (
+    APPLICATION_ID,
+    RECORDING_FILENAME,
+    RecorderSettings,
+    RunRecorder,
+)
+from curious.recording.scene import RolloutCapture, SceneLayout, wxyz_to_xyzw
+
+__all__ = [
+    "APPLICATION_ID",
+    "RECORDING_FILENAME",
+    "RecorderSettings",
+    "RolloutCapture",
+    "RunRecorder",
+    "SceneLayout",
+    "wxyz_to_xyzw",
+]

@@ -1,0 +1,688 @@
+"""`RunRecorder`: the Rerun recording of one training run (`recording.rrd` in the run folder).
+
+One recorder per run, with its own `recording_id` (a fresh UUID unless given), so that runs in
+parallel processes never merge into one recording (Rerun's default id is shared by every process
+of a job). The training loop hands over arrays for a batch of episodes at a time; scalars are
+buffered per entity and sent with `send_columns` in large chunks (every `flush_rows` rows or
+`flush_seconds`, and on `flush()`/`close()`), indexed on two timelines: `episode` (the global
+episode index, a sequence) and `wall_time` (seconds since the run started, a duration).
+
+Entity paths (fixed, so that recordings of different runs line up):
+
+| path | content |
+|---|---|
+| `competence/<module>` | competence after each episode (line, written where it changes) |
+| `lp/<module>` | absolute learning progress (line, written where it changes) |
+| `p_lp/<module>` | module selection probability (line, written where it changes) |
+| `success/eval/<module>`, `success/train/<module>` | 0/1 final success of each episode (points) |
+| `module/<module>` | the module of each episode, drawn at its slot index (points) |
+| `replay/<module>` | share of replayed transitions substituted with that module |
+| `losses/<name>`, `q/<name>` | learner statistics |
+| `scene/...` | rollouts in 3D: bodies, goal, gripper path (see `curious.recording.scene`) |
+
+Module colours and labels come from `curious.analysis.palette`, shared with the figures.
+A rollout's frames go on a third timeline, `rollout_frame` (dense: the recorded rollouts follow
+one another without gaps, so playing that timeline shows them in order), and also on `episode`
+at the rollout's episode, where the 3D view then shows how each recorded episode ended.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import uuid
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import rerun as rr
+from rerun.chunk import Chunk, OptimizationProfile, RrdReader
+
+from curious.analysis.palette import module_label, module_rgb
+from curious.recording.blueprint import default_blueprint
+from curious.recording.scene import (
+    SCENE_ROOT,
+    RolloutCapture,
+    SceneLayout,
+    log_scene_geometry,
+    wxyz_to_xyzw,
+)
+
+__all__ = [
+    "APPLICATION_ID",
+    "RECORDING_FILENAME",
+    "RecorderSettings",
+    "RunRecorder",
+    "compact_recording",
+]
+
+APPLICATION_ID = "curious"
+RECORDING_FILENAME = "recording.rrd"
+DEFAULT_VIEWER_PORT = 9876
+
+_STATS = ("competence", "lp", "p_lp")
+_NO_EPISODE = np.iinfo(np.int64).min
+
+
+@dataclass(frozen=True)
+class RecorderSettings:
+    """What a recording keeps, and how much of it (size against detail).
+
+    rollout_every: record an evaluation episode in 3D every this many evaluation episodes
+        (the 0th, K-th, 2K-th, ...); 0 records none.
+    rollout_stride: keep every k-th step of a recorded rollout (the last step always).
+    stats_on_change: write competence, LP and p_LP of a module only where they change (they
+        change on that module's evaluation episodes), drawn as steps; False writes every episode.
+    goal_radius: radius of the sphere drawn around the goal (the success threshold, metres).
+    path_radius: line radius of the gripper path (metres).
+    flush_rows: scalar rows buffered before they are sent (each send makes one chunk per
+        entity, and a chunk costs ~1.2 kB in the file whatever its length).
+    flush_seconds: longest time scalars wait in the buffer when only writing the file.
+    live_flush_seconds: the same while streaming to a viewer (`spawn`/`connect`).
+    compact_on_close: rewrite the file on `close()` with its chunks merged (several times
+        smaller; takes well under a second for a laptop run).
+    """
+
+    rollout_every: int = 50
+    rollout_stride: int = 1
+    stats_on_change: bool = True
+    goal_radius: float = 0.05
+    path_radius: float = 0.004
+    flush_rows: int = 20_000
+    flush_seconds: float = 60.0
+    live_flush_seconds: float = 2.0
+    compact_on_close: bool = True
+
+    def __post_init__(self) -> None:
+        if self.rollout_every < 0:
+            raise ValueError(f"rollout_every must be >= 0, got {self.rollout_every}")
+        if self.rollout_stride < 1:
+            raise ValueError(f"rollout_stride must be >= 1, got {self.rollout_stride}")
+        if self.goal_radius <= 0 or self.path_radius <= 0:
+            raise ValueError("goal_radius and path_radius must be > 0")
+        if self.flush_rows < 1 or self.flush_seconds < 0 or self.live_flush_seconds < 0:
+            raise ValueError("flush_rows must be >= 1 and the flush intervals >= 0")
+
+    def rollout_due(self, eval_index: int) -> bool:
+        """True when the evaluation episode with this 0-based count is to be recorded in 3D."""
+        return self.rollout_every > 0 and eval_index % self.rollout_every == 0
+
+
+class _ScalarBuffer:
+    """Scalar rows waiting to be sent, per entity path, in the order they were logged."""
+
+    def __init__(self) -> None:
+        self.parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self.rows = 0
+
+    def add(self, path: str, episodes: np.ndarray, wall: np.ndarray, values: np.ndarray) -> None:
+        """Queues copies (the caller may reuse its arrays before they are sent)."""
+        self.parts.setdefault(path, []).append(
+            (episodes.astype(np.int64), wall.astype(np.float64), values.astype(np.float64))
+        )
+        self.rows += episodes.shape[0]
+
+    def drain(self) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
+        """Everything buffered, one concatenated (path, episodes, wall, values) per entity."""
+        out = [
+            (
+                path,
+                np.concatenate([p[0] for p in parts]),
+                np.concatenate([p[1] for p in parts]),
+                np.concatenate([p[2] for p in parts]),
+            )
+            for path, parts in self.parts.items()
+        ]
+        self.parts = {}
+        self.rows = 0
+        return out
+
+
+@dataclass
+class _PreviousRecording:
+    """The chunks of a recording being resumed, and the next free rollout frame."""
+
+    chunks: list[Chunk]
+    next_frame: int
+
+
+def compact_recording(path: str | os.PathLike[str]) -> None:
+    """Rewrites a recording with its chunks merged (same ids, data and blueprint; smaller).
+
+    Each `send_columns` call is one chunk in the file, with ~1.2 kB of overhead; merging them
+    (Rerun's `OptimizationProfile.LIVE`, chunks of up to 4096 rows) shrinks a run's recording
+    several times over and makes it faster to open. Written to a temporary file, then renamed.
+    """
+    path = Path(path)
+    reader = RrdReader(path)
+    stores = reader.recordings()
+    if not stores:
+        raise ValueError(f"{path} holds no recording")
+    store = reader.stream().collect(optimize=OptimizationProfile.LIVE)
+    tmp = path.with_name(path.name + ".tmp")
+    stream = rr.RecordingStream(
+        stores[0].application_id, recording_id=stores[0].recording_id, send_properties=False
+    )
+    stream.set_sinks(rr.FileSink(str(tmp)), default_blueprint=default_blueprint())
+    stream.send_chunks(store)
+    stream.flush()
+    stream.disconnect()
+    os.replace(tmp, path)
+
+
+def _same_layout(a: SceneLayout, b: SceneLayout) -> bool:
+    """True when two layouts draw the same geoms under the same paths."""
+    return a.geom_paths == b.geom_paths and np.array_equal(a.drawn_geoms, b.drawn_geoms)
+
+
+def _has_display() -> bool:
+    """False on Linux without X11 or Wayland (a native viewer cannot open a window there)."""
+    if not sys.platform.startswith("linux"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def _as_1d(name: str, values: Any, n: int | None = None, dtype: Any = None) -> np.ndarray:
+    arr = np.atleast_1d(np.asarray(values, dtype=dtype))
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a scalar or a 1-D array, got shape {arr.shape}")
+    if n is not None and arr.shape[0] != n:
+        if arr.shape[0] == 1:
+            return np.repeat(arr, n)
+        raise ValueError(f"{name} has {arr.shape[0]} rows, expected {n} (one per episode)")
+    return arr
+
+
+class RunRecorder:
+    """Writes one run's Rerun recording; optionally streams it to a live viewer too.
+
+    Args:
+        run_dir: the run folder; the recording is `run_dir/recording.rrd`.
+        module_names: the modules in slot order (the env's `module_names`).
+        settings: what to keep (`RecorderSettings`).
+        recording_id: the recording's id; a fresh UUID by default. Keep it (e.g. in config.json).
+        run_name: the name the viewer shows for this recording (default: the folder's name).
+        spawn: also start a native viewer and stream to it live (`curious train --spawn-viewer`).
+            Where there is no display it warns and only writes the file.
+        connect: also stream to a viewer or server already listening at this gRPC url,
+            e.g. `rerun+http://127.0.0.1:9876/proxy`.
+        resume: continue an existing `recording.rrd` (same recording id, its data kept) instead
+            of starting a new one.
+        resume_after_episode: with `resume`, drop what the old recording holds after this
+            episode (the episodes after the checkpoint, which the resumed run logs again).
+    """
+
+    def __init__(
+        self,
+        run_dir: str | os.PathLike[str],
+        module_names: Sequence[str],
+        *,
+        settings: RecorderSettings | None = None,
+        recording_id: str | None = None,
+        run_name: str | None = None,
+        spawn: bool = False,
+        connect: str | None = None,
+        viewer_port: int = DEFAULT_VIEWER_PORT,
+        resume: bool = False,
+        resume_after_episode: int | None = None,
+    ) -> None:
+        self.module_names: tuple[str, ...] = tuple(module_names)
+        if not self.module_names:
+            raise ValueError("module_names is empty: a run has at least one module")
+        if len(set(self.module_names)) != len(self.module_names):
+            raise ValueError(f"module_names has duplicates: {self.module_names}")
+        self.settings = settings or RecorderSettings()
+        self.run_dir = Path(run_dir)
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        self.path = self.run_dir / RECORDING_FILENAME
+        self._module_index = {name: i for i, name in enumerate(self.module_names)}
+        self._rgb = np.array([module_rgb(n) for n in self.module_names], dtype=np.uint8)
+        self._labels = [module_label(n) for n in self.module_names]
+
+        previous: _PreviousRecording | None = None
+        if resume and self.path.exists():
+            previous, old_id = self._load_previous(resume_after_episode)
+            recording_id = recording_id or old_id
+        self.recording_id = str(recording_id or uuid.uuid4())
+        self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
+
+        sinks: list[Any] = [rr.FileSink(str(self.path))]
+        if spawn:
+            if _has_display():
+                self.stream.spawn(port=viewer_port, connect=False)
+                sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{viewer_port}/proxy"))
+            else:
+                warnings.warn(
+                    "no display (DISPLAY/WAYLAND_DISPLAY unset): not spawning a viewer; the "
+                    f"recording is still written to {self.path}. Open it on a machine with a "
+                    f"display with `rerun {self.path}`, or start `rerun --serve-web` here and "
+                    "pass its gRPC url as `connect`.",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+        if connect:
+            sinks.append(rr.GrpcSink(connect))
+        self.live = len(sinks) > 1
+        self.stream.set_sinks(*sinks, default_blueprint=default_blueprint())
+        self.stream.send_recording_name(run_name or self.run_dir.resolve().name)
+
+        self._t0 = time.perf_counter()
+        self._last_send = self._t0
+        self._buffer = _ScalarBuffer()
+        self._next_frame = 1  # frame 0 holds the scene's rest pose
+        n = len(self.module_names)
+        self._last = {k: np.full(n, np.nan) for k in _STATS}
+        self._last_wall = 0.0
+        self._logged_until = {k: np.full(n, _NO_EPISODE, dtype=np.int64) for k in _STATS}
+        self._latest_episode = _NO_EPISODE
+        self._styled: set[str] = set()
+        self._scene: SceneLayout | None = None
+        self._closed = False
+
+        if previous is not None:
+            self.stream.send_chunks(previous.chunks)
+            self._next_frame = previous.next_frame
+        self._log_styles()
+
+    # ------------------------------------------------------------------ set-up
+
+    def _load_previous(self, after_episode: int | None) -> tuple[_PreviousRecording, str]:
+        """Reads the existing recording into memory, optionally cut after an episode."""
+        reader = RrdReader(self.path)
+        stores = reader.recordings()
+        if not stores:
+            raise ValueError(f"{self.path} holds no recording to resume")
+        kept: list[Chunk] = []
+        next_frame = 1
+        for chunk in reader.stream().to_chunks():
+            batch = chunk.to_record_batch()
+            if after_episode is not None and "episode" in batch.schema.names:
+                keep = pc.less_equal(batch.column("episode"), pa.scalar(after_episode, pa.int64()))
+                if not pc.all(keep).as_py():
+                    batch = batch.filter(keep)
+                    if batch.num_rows == 0:
+                        continue
+                    kept.extend(Chunk.from_record_batch(batch))
+                else:
+                    kept.append(chunk)
+            else:
+                kept.append(chunk)
+            if "rollout_frame" in batch.schema.names:
+                last = pc.max(batch.column("rollout_frame")).as_py()
+                next_frame = max(next_frame, int(last) + 1)
+        return _PreviousRecording(kept, next_frame), stores[0].recording_id
+
+    def _log_styles(self) -> None:
+        """Static names, colours and styles of every per-module series."""
+        log = self.stream.log
+        step = "StepAfter" if self.settings.stats_on_change else "Linear"
+        for m, name in enumerate(self.module_names):
+            color, label = self._rgb[m], self._labels[m]
+            for kind in _STATS:
+                log(
+                    f"{kind}/{name}",
+                    rr.SeriesLines(colors=[color], names=[label], interpolation_mode=step),
+                    static=True,
+                )
+            log(f"replay/{name}", rr.SeriesLines(colors=[color], names=[label]), static=True)
+            for split in ("eval", "train"):
+                log(
+                    f"success/{split}/{name}",
+                    rr.SeriesPoints(colors=[color], names=[label], marker_sizes=[3.0]),
+                    static=True,
+                )
+            log(
+                f"module/{name}",
+                rr.SeriesPoints(colors=[color], names=[label], marker_sizes=[2.0]),
+                static=True,
+            )
+
+    # ------------------------------------------------------------------ helpers
+
+    def _indexes(self, episodes: np.ndarray, wall: np.ndarray) -> list[rr.TimeColumn]:
+        return [
+            rr.TimeColumn("episode", sequence=episodes),
+            rr.TimeColumn("wall_time", duration=wall),
+        ]
+
+    def _wall(self, wall_time: Any, n: int) -> np.ndarray:
+        if wall_time is None:
+            return np.full(n, time.perf_counter() - self._t0)
+        return _as_1d("wall_time", wall_time, n, np.float64)
+
+    def _modules(self, module: Any, n: int) -> np.ndarray:
+        arr = _as_1d("module", module, n)
+        if arr.dtype.kind in "UOS":
+            try:
+                return np.array([self._module_index[str(m)] for m in arr], dtype=np.int64)
+            except KeyError as exc:
+                raise ValueError(
+                    f"unknown module {exc.args[0]!r}; modules: {self.module_names}"
+                ) from None
+        idx = arr.astype(np.int64)
+        if idx.size and (idx.min() < 0 or idx.max() >= len(self.module_names)):
+            raise ValueError(
+                f"module index out of range [0, {len(self.module_names)}): {idx.min()}..{idx.max()}"
+            )
+        return idx
+
+    def _per_module(self, name: str, values: Any, n: int) -> np.ndarray:
+        arr = np.asarray(values, dtype=np.float64)
+        m = len(self.module_names)
+        if arr.ndim == 1 and n == 1:
+            arr = arr[None]
+        if arr.shape != (n, m):
+            raise ValueError(
+                f"{name} must have shape ({n}, {m}) (episodes x modules), got {arr.shape}"
+            )
+        return arr
+
+    def _send_scalars(
+        self, path: str, episodes: np.ndarray, wall: np.ndarray, values: np.ndarray
+    ) -> None:
+        """Queues scalar rows of one entity; `_maybe_send` sends them in large chunks."""
+        self._buffer.add(path, episodes, wall, np.asarray(values, dtype=np.float64))
+
+    def _maybe_send(self) -> None:
+        interval = self.settings.live_flush_seconds if self.live else self.settings.flush_seconds
+        now = time.perf_counter()
+        if self._buffer.rows >= self.settings.flush_rows or now - self._last_send >= interval:
+            self._send_buffer()
+
+    def _send_buffer(self) -> None:
+        for path, episodes, wall, values in self._buffer.drain():
+            self.stream.send_columns(
+                path,
+                indexes=self._indexes(episodes, wall),
+                columns=rr.Scalars.columns(scalars=values),
+            )
+        self._last_send = time.perf_counter()
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError(f"recorder for {self.path} is closed")
+
+    # ------------------------------------------------------------------ scalars
+
+    def log_episodes(
+        self,
+        episode: Any,
+        module: Any,
+        success: Any,
+        eval: Any,
+        competence: Any,
+        lp: Any,
+        p_lp: Any,
+        wall_time: Any = None,
+    ) -> None:
+        """Logs a batch of B finished episodes (the rows `metrics.parquet` gets).
+
+        Args:
+            episode: (B,) int, global episode indices (increasing across calls).
+            module: (B,) module of each episode, slot indices or names.
+            success: (B,) bool, final success of that module.
+            eval: (B,) bool, True for self-evaluation episodes.
+            competence, lp, p_lp: (B, n_modules) float, each module's value after each episode.
+            wall_time: (B,) seconds since the run started (default: now, for the whole batch).
+        """
+        self._check_open()
+        episodes = _as_1d("episode", episode, None, np.int64)
+        n = episodes.shape[0]
+        if n == 0:
+            return
+        wall = self._wall(wall_time, n)
+        modules = self._modules(module, n)
+        succ = _as_1d("success", success, n).astype(bool)
+        is_eval = _as_1d("eval", eval, n).astype(bool)
+        stats = {
+            "competence": self._per_module("competence", competence, n),
+            "lp": self._per_module("lp", lp, n),
+            "p_lp": self._per_module("p_lp", p_lp, n),
+        }
+        for m, name in enumerate(self.module_names):
+            mine = modules == m
+            rows = np.flatnonzero(mine)
+            if rows.size:
+                self._send_scalars(
+                    f"module/{name}", episodes[rows], wall[rows], np.full(rows.size, float(m))
+                )
+            for split, mask in (("eval", mine & is_eval), ("train", mine & ~is_eval)):
+                rows = np.flatnonzero(mask)
+                if rows.size:
+                    self._send_scalars(
+                        f"success/{split}/{name}",
+                        episodes[rows],
+                        wall[rows],
+                        succ[rows].astype(np.float64),
+                    )
+        for kind, values in stats.items():
+            self._log_stat(kind, episodes, wall, values)
+        self._latest_episode = max(self._latest_episode, int(episodes.max()))
+        self._last_wall = float(wall[-1])
+        self._maybe_send()
+
+    def _log_stat(
+        self, kind: str, episodes: np.ndarray, wall: np.ndarray, values: np.ndarray
+    ) -> None:
+        """One module statistic for a batch: every row, or only the rows where it changed."""
+        if self.settings.stats_on_change:
+            prev = np.vstack([self._last[kind][None], values[:-1]])
+            same = (values == prev) | (np.isnan(values) & np.isnan(prev))
+            keep = ~same
+        else:
+            keep = np.ones_like(values, dtype=bool)
+        for m, name in enumerate(self.module_names):
+            rows = np.flatnonzero(keep[:, m])
+            if rows.size:
+                self._send_scalars(f"{kind}/{name}", episodes[rows], wall[rows], values[rows, m])
+                self._logged_until[kind][m] = episodes[rows[-1]]
+        self._last[kind] = values[-1].copy()
+
+    def log_replay(self, episode: Any, counts: Any, wall_time: Any = None) -> None:
+        """Logs the replay composition: how often each module was substituted into replayed
+        transitions (counts or shares; each row is normalised to shares).
+
+        Args:
+            episode: int or (B,) episode index at which each row was measured.
+            counts: (n_modules,) or (B, n_modules) non-negative counts or shares.
+            wall_time: seconds since the run started (default: now).
+        """
+        self._check_open()
+        episodes = _as_1d("episode", episode, None, np.int64)
+        n = episodes.shape[0]
+        arr = self._per_module("counts", counts, n)
+        if np.any(arr < 0):
+            raise ValueError("replay counts must be non-negative")
+        total = arr.sum(axis=1, keepdims=True)
+        shares = np.divide(arr, total, out=np.zeros_like(arr), where=total > 0)
+        wall = self._wall(wall_time, n)
+        for m, name in enumerate(self.module_names):
+            self._send_scalars(f"replay/{name}", episodes, wall, shares[:, m])
+        self._maybe_send()
+
+    def log_learner(
+        self,
+        episode: Any,
+        losses: Mapping[str, Any] | None = None,
+        q: Mapping[str, Any] | None = None,
+        wall_time: Any = None,
+    ) -> None:
+        """Logs learner statistics under `losses/<name>` and `q/<name>`.
+
+        Args:
+            episode: int or (B,) episode index of each row (e.g. the episode count at the end of
+                each cycle).
+            losses: name -> scalar or (B,) array, e.g. {"critic": ..., "actor": ...}.
+            q: name -> scalar or (B,) array, e.g. {"mean": ..., "min": ..., "max": ...}.
+            wall_time: seconds since the run started (default: now).
+        """
+        self._check_open()
+        episodes = _as_1d("episode", episode, None, np.int64)
+        n = episodes.shape[0]
+        wall = self._wall(wall_time, n)
+        for group, stats in (("losses", losses or {}), ("q", q or {})):
+            for name, values in stats.items():
+                path = f"{group}/{name}"
+                if path not in self._styled:
+                    self.stream.log(path, rr.SeriesLines(names=[f"{group} {name}"]), static=True)
+                    self._styled.add(path)
+                self._send_scalars(path, episodes, wall, _as_1d(path, values, n, np.float64))
+        self._maybe_send()
+
+    # ------------------------------------------------------------------ rollouts
+
+    def rollout_due(self, eval_index: int) -> bool:
+        """True when the evaluation episode with this 0-based count is to be recorded in 3D
+        (every `settings.rollout_every`-th, starting with the first)."""
+        return self.settings.rollout_due(eval_index)
+
+    def log_scene(self, capture: RolloutCapture) -> None:
+        """Logs the static geometry of the capture's model (done by the first `log_rollout`)."""
+        self._check_open()
+        log_scene_geometry(self.stream, capture.model, capture.layout)
+        self._scene = capture.layout
+
+    def log_rollout(
+        self,
+        episode: int,
+        module: int | str,
+        capture: RolloutCapture,
+        *,
+        goal: Any,
+        success: bool,
+        gripper: Any = None,
+    ) -> None:
+        """Logs one captured episode in 3D: body poses per step, goal, gripper path, success.
+
+        Args:
+            episode: the episode's global index.
+            module: its module (slot index or name); colours the goal.
+            capture: the filled `RolloutCapture` (its `n_steps` rows are used).
+            goal: (3,) or (n_steps, 3) goal position in the world frame (a moving target, such
+                as a point above cube 2, as one row per step).
+            success: the episode's final success.
+            gripper: optional (n_steps, 3) gripper positions; default: the capture's gripper body.
+        """
+        self._check_open()
+        n = capture.n_steps
+        if n == 0:
+            raise ValueError("the capture holds no steps: call capture.record(data) each step")
+        m = int(self._modules(module, 1)[0])
+        goal_rows = np.asarray(goal, dtype=np.float64)
+        if goal_rows.shape == (3,):
+            goal_rows = np.broadcast_to(goal_rows, (n, 3))
+        if goal_rows.shape != (n, 3):
+            raise ValueError(f"goal must have shape (3,) or ({n}, 3), got {goal_rows.shape}")
+        if gripper is not None:
+            path = np.asarray(gripper, dtype=np.float64)
+            if path.shape != (n, 3):
+                raise ValueError(f"gripper must have shape ({n}, 3), got {path.shape}")
+        elif capture.gripper_id is not None:
+            path = capture.gripper[:n]
+        else:
+            path = None
+        if self._scene is None or not _same_layout(self._scene, capture.layout):
+            self.log_scene(capture)
+
+        keep = np.arange(0, n, self.settings.rollout_stride)
+        if keep[-1] != n - 1:
+            keep = np.append(keep, n - 1)
+        f = keep.size
+        frames = self._next_frame + np.arange(f, dtype=np.int64)
+        self._next_frame += f
+        index = [
+            rr.TimeColumn("rollout_frame", sequence=frames),
+            rr.TimeColumn("episode", sequence=np.full(f, int(episode), dtype=np.int64)),
+        ]
+        first = [
+            rr.TimeColumn("rollout_frame", sequence=frames[:1]),
+            rr.TimeColumn("episode", sequence=[int(episode)]),
+        ]
+        layout = capture.layout
+        quats = wxyz_to_xyzw(capture.xquat[keep])
+        for j, body in enumerate(layout.moving_bodies):
+            self.stream.send_columns(
+                layout.body_paths[body],
+                indexes=index,
+                columns=rr.Transform3D.columns(
+                    translation=capture.xpos[keep, j], quaternion=quats[:, j]
+                ),
+            )
+
+        goal_rows = goal_rows[keep]
+        outcome = "success" if success else "failure"
+        label = f"{self._labels[m]}, episode {int(episode)}: {outcome}"
+        color = self._rgb[m]
+        self.stream.send_columns(
+            f"{SCENE_ROOT}/goal", indexes=index, columns=rr.Points3D.columns(positions=goal_rows)
+        )
+        self.stream.send_columns(
+            f"{SCENE_ROOT}/goal",
+            indexes=first,
+            columns=rr.Points3D.columns(
+                colors=[color], radii=[0.012], labels=[label], show_labels=[True]
+            ),
+        )
+        r = self.settings.goal_radius
+        self.stream.send_columns(
+            f"{SCENE_ROOT}/goal_region",
+            indexes=index,
+            columns=rr.Ellipsoids3D.columns(centers=goal_rows, half_sizes=np.full((f, 3), r)),
+        )
+        self.stream.send_columns(
+            f"{SCENE_ROOT}/goal_region",
+            indexes=first,
+            columns=rr.Ellipsoids3D.columns(colors=[color], line_radii=[0.001]),
+        )
+
+        if path is not None:
+            pts = path[keep].astype(np.float32)
+            self.stream.send_columns(
+                f"{SCENE_ROOT}/gripper_path",
+                indexes=index,
+                columns=rr.LineStrips3D.columns(strips=[pts[: k + 1] for k in range(f)]),
+            )
+            self.stream.send_columns(
+                f"{SCENE_ROOT}/gripper_path",
+                indexes=first,
+                columns=rr.LineStrips3D.columns(colors=[color], radii=[self.settings.path_radius]),
+            )
+
+    # ------------------------------------------------------------------ end
+
+    def flush(self) -> None:
+        """Sends the buffered scalars and blocks until everything logged so far is written."""
+        self._check_open()
+        self._send_buffer()
+        self.stream.flush()
+
+    def close(self) -> None:
+        """Extends each module's series to the last episode, writes everything, closes the file,
+        then (with `compact_on_close`) rewrites it with its chunks merged."""
+        if self._closed:
+            return
+        if self.settings.stats_on_change and self._latest_episode != _NO_EPISODE:
+            ep = np.array([self._latest_episode], dtype=np.int64)
+            wall = np.array([self._last_wall])
+            for kind in _STATS:
+                for m, name in enumerate(self.module_names):
+                    if self._logged_until[kind][m] < self._latest_episode:
+                        self._send_scalars(f"{kind}/{name}", ep, wall, self._last[kind][m : m + 1])
+        self._send_buffer()
+        self.stream.flush()
+        self.stream.disconnect()
+        self._closed = True
+        if self.settings.compact_on_close:
+            compact_recording(self.path)
+
+    def __enter__(self) -> RunRecorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,242 @@
+"""Episode replay with sample-time relabelling: task substitution (p_LP) and HER 'future' goals.
+
+Episodes are stored whole in preallocated numpy arrays (first in, first out). A minibatch is
+built at sample time, with numpy indexing only (loops run over modules, never over transitions):
+
+1. each transition gets a *substitute module* drawn from the given module probabilities (p_LP
+   for `curious`, uniform for `m-uvfa`, the trained expert's module for `mg-te`);
+2. its episode is drawn among the episodes where that module's outcome changed
+   (`active_only`, as the released code's per-module buffers), or among all while there is none;
+   its time step t is uniform in [0, T);
+3. with probability `her_p` the goal becomes the module's outcome at a step f drawn uniformly in
+   [t+1, T] of the same episode (HER 'future'; `achieved[f]` is the outcome after f actions, so
+   the goal is always reached strictly after the transition's state s_t); otherwise it is the
+   episode's own goal when the module is the one practised, or a fresh goal drawn uniformly in
+   the module's goal space when it is not (the goal the agent would have drawn for that module);
+4. the reward is recomputed for the substitute module and goal with the environment's vectorised
+   reward, one call per module present in the batch.
+
+The holistic `her` condition replays one goal over all modules: relabelled goals put every
+module's outcome at step f into its slot, and the reward is 0 only where every module's reward is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from curious.envs import EnvSpec, GoalEnv
+
+GOAL_OWN = -1
+"""`Transitions.goal_step` of a transition that kept its episode's goal."""
+GOAL_FRESH = -2
+"""`Transitions.goal_step` of a transition given a freshly drawn goal."""
+
+
+@dataclass
+class Transitions:
+    """A relabelled minibatch (numpy, ready to be moved to the learner's device)."""
+
+    state: np.ndarray  # (B, S)
+    next_state: np.ndarray  # (B, S)
+    action: np.ndarray  # (B, A)
+    goals: np.ndarray  # (B, N, G) goal slots, zero where not masked
+    goal_mask: np.ndarray  # (B, N) float: slots that carry a goal
+    task: np.ndarray  # (B, N) float one-hot descriptor (zeros in the holistic condition)
+    reward: np.ndarray  # (B,) float32 in {-1, 0}
+    module: np.ndarray  # (B,) substitute module, -1 in the holistic condition
+    episode: np.ndarray  # (B,) buffer slot of the source episode
+    step: np.ndarray  # (B,) time step t of the transition
+    goal_step: np.ndarray  # (B,) step f of a hindsight goal, or GOAL_OWN / GOAL_FRESH
+
+
+class EpisodeReplay:
+    """Fixed-capacity store of whole episodes and the relabelling sampler."""
+
+    def __init__(
+        self,
+        spec: EnvSpec,
+        capacity: int,
+        holistic: bool = False,
+        active_only: bool = True,
+        moved_threshold: float = 1e-3,
+    ) -> None:
+        self.spec = spec
+        self.capacity = int(capacity)
+        self.holistic = holistic
+        self.active_only = active_only
+        self.moved_threshold = moved_threshold
+        T, n, g = spec.episode_length, spec.n_modules, spec.goal_dim
+        self.states = np.zeros((capacity, T + 1, spec.state_dim), np.float32)
+        self.achieved = np.zeros((capacity, T + 1, spec.achieved_dim), np.float32)
+        self.actions = np.zeros((capacity, T, spec.action_dim), np.float32)
+        self.modules = np.zeros(capacity, np.int64)
+        self.goals = np.zeros((capacity, n, g), np.float32)
+        self.moved = np.zeros((capacity, n), bool)
+        self.size = 0
+        self.ptr = 0
+        self._hindsight = spec.hindsight_columns()  # (N, G)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in (self.states, self.achieved, self.actions, self.goals))
+
+    def store(
+        self,
+        states: np.ndarray,
+        achieved: np.ndarray,
+        actions: np.ndarray,
+        modules: np.ndarray,
+        goals: np.ndarray,
+    ) -> None:
+        """Add E episodes: states/achieved (E, T+1, .), actions (E, T, A), modules (E,),
+        goals (E, N, G) (zero outside the practised slot, except in the holistic condition)."""
+        e = len(states)
+        if e > self.capacity:
+            raise ValueError(f"{e} episodes do not fit a replay of {self.capacity}")
+        idx = (self.ptr + np.arange(e)) % self.capacity
+        self.states[idx] = states
+        self.achieved[idx] = achieved
+        self.actions[idx] = actions
+        self.modules[idx] = modules
+        self.goals[idx] = goals
+        outcome = achieved[:, :, self._hindsight]  # (E, T+1, N, G)
+        change = np.abs(outcome[:, -1] - outcome[:, 0]).max(axis=-1)
+        self.moved[idx] = change > self.moved_threshold
+        self.ptr = int((self.ptr + e) % self.capacity)
+        self.size = min(self.size + e, self.capacity)
+
+    # -------------------------------------------------------------------------------------------
+    def _episodes_for(self, module: int, n: int, rng: np.random.Generator) -> np.ndarray:
+        if self.active_only:
+            pool = np.flatnonzero(self.moved[: self.size, module])
+            if pool.size:
+                return pool[rng.integers(pool.size, size=n)]
+        return rng.integers(self.size, size=n)
+
+    def sample(
+        self,
+        batch_size: int,
+        rng: np.random.Generator,
+        env: GoalEnv,
+        module_probs: np.ndarray | None = None,
+        her_p: float = 0.8,
+    ) -> Transitions:
+        """A relabelled minibatch; `module_probs` (N,) is required unless holistic."""
+        if self.size == 0:
+            raise RuntimeError("cannot sample from an empty replay")
+        if self.holistic:
+            return self._sample_holistic(batch_size, rng, env, her_p)
+        if module_probs is None:
+            raise ValueError("module_probs are needed to substitute modules")
+        spec = self.spec
+        n_mod, T, B = spec.n_modules, spec.episode_length, batch_size
+        module = rng.choice(n_mod, size=B, p=np.asarray(module_probs, dtype=np.float64))
+        episode = np.empty(B, np.int64)
+        groups = [np.flatnonzero(module == k) for k in range(n_mod)]
+        for k, sel in enumerate(groups):
+            if sel.size:
+                episode[sel] = self._episodes_for(k, sel.size, rng)
+        step = rng.integers(T, size=B)
+        her = rng.random(B) < her_p
+        future = step + 1 + (rng.random(B) * (T - step)).astype(np.int64)
+
+        goal = np.empty((B, spec.goal_dim), np.float32)
+        goal_step = np.full(B, GOAL_OWN, np.int64)
+        cols = self._hindsight[module[her]]  # (nh, G)
+        goal[her] = self.achieved[episode[her, None], future[her, None], cols]
+        goal_step[her] = future[her]
+        own = ~her & (self.modules[episode] == module)
+        goal[own] = self.goals[episode[own], module[own]]
+        fresh = ~her & ~own
+        goal_step[fresh] = GOAL_FRESH
+        next_achieved = self.achieved[episode, step + 1]
+        reward = np.empty(B, np.float32)
+        for k, sel in enumerate(groups):
+            if not sel.size:
+                continue
+            new = sel[fresh[sel]]
+            if new.size:
+                raw = rng.uniform(-1.0, 1.0, size=(new.size, spec.goal_dim))
+                goal[new] = env.goal_slot(k, raw)
+            reward[sel] = env.reward(k, next_achieved[sel], goal[sel])
+
+        goals = np.zeros((B, n_mod, spec.goal_dim), np.float32)
+        goals[np.arange(B), module] = goal
+        task = np.zeros((B, n_mod), np.float32)
+        task[np.arange(B), module] = 1.0
+        return Transitions(
+            state=self.states[episode, step],
+            next_state=self.states[episode, step + 1],
+            action=self.actions[episode, step],
+            goals=goals,
+            goal_mask=task.copy(),
+            task=task,
+            reward=reward,
+            module=module,
+            episode=episode,
+            step=step,
+            goal_step=goal_step,
+        )
+
+    def _sample_holistic(
+        self, batch_size: int, rng: np.random.Generator, env: GoalEnv, her_p: float
+    ) -> Transitions:
+        spec = self.spec
+        n_mod, T, B = spec.n_modules, spec.episode_length, batch_size
+        episode = rng.integers(self.size, size=B)
+        step = rng.integers(T, size=B)
+        her = rng.random(B) < her_p
+        future = step + 1 + (rng.random(B) * (T - step)).astype(np.int64)
+        goals = self.goals[episode]  # (B, N, G) copy
+        goals[her] = self.achieved[episode[her], future[her]][:, self._hindsight]
+        goal_step = np.where(her, future, GOAL_OWN)
+        next_achieved = self.achieved[episode, step + 1]
+        met = np.ones(B, bool)
+        for k in range(n_mod):
+            met &= env.reward(k, next_achieved, goals[:, k]) == 0
+        reward = np.where(met, 0.0, -1.0).astype(np.float32)
+        return Transitions(
+            state=self.states[episode, step],
+            next_state=self.states[episode, step + 1],
+            action=self.actions[episode, step],
+            goals=goals,
+            goal_mask=np.ones((B, n_mod), np.float32),
+            task=np.zeros((B, n_mod), np.float32),
+            reward=reward,
+            module=np.full(B, -1, np.int64),
+            episode=episode,
+            step=step,
+            goal_step=goal_step,
+        )
+
+    # -------------------------------------------------------------------------------------------
+    def state_dict(self) -> dict[str, Any]:
+        n = self.size
+        return {
+            "states": self.states[:n],
+            "achieved": self.achieved[:n],
+            "actions": self.actions[:n],
+            "modules": self.modules[:n],
+            "goals": self.goals[:n],
+            "moved": self.moved[:n],
+            "size": np.int64(n),
+            "ptr": np.int64(self.ptr),
+        }
+
+    def load_state_dict(self, state: dict[str, Any]) -> None:
+        n = int(state["size"])
+        if n > self.capacity:
+            raise ValueError(f"checkpoint replay holds {n} episodes, capacity is {self.capacity}")
+        for key in ("states", "achieved", "actions", "modules", "goals", "moved"):
+            array = np.asarray(state[key])
+            target = getattr(self, key)
+            if array.shape[1:] != target.shape[1:]:
+                raise ValueError(
+                    f"replay {key}: checkpoint shape {array.shape[1:]}, expected {target.shape[1:]}"
+                )
+            target[:n] = array
+        self.size = n
+        self.ptr = int(state["ptr"])

@@ -1,0 +1,163 @@
+"""A run folder: where one training run (one condition, one seed) keeps everything.
+
+    config.json       the resolved config and what it ran on (see `RunFolder.describe`)
+    metrics.parquet   one row per episode (`curious.metrics`)
+    recording.rrd     the Rerun recording (written by `curious.recording`)
+    checkpoints/      resumable checkpoints (`curious.checkpoint`)
+
+`prepare` checks a folder before anything is written: a non-empty folder is only accepted with
+`resume=True`, and then only for the same config (fields in `RESUMABLE_FIELDS` may change).
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform
+import subprocess
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from curious.config import RESUMABLE_FIELDS, Config
+from curious.envs import EnvSpec
+
+
+class RunFolderError(RuntimeError):
+    """A run folder that cannot be used as asked (nothing has been written)."""
+
+
+def library_versions() -> dict[str, str | None]:
+    """Installed versions of the libraries a run's results depend on."""
+    versions: dict[str, str | None] = {"python": platform.python_version()}
+    for dist in ("curious", "torch", "numpy", "mujoco", "dm-control", "rerun-sdk"):
+        try:
+            versions[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            versions[dist] = None
+    return versions
+
+
+def git_commit() -> dict[str, Any]:
+    """Commit (and whether the tree has changes) of the source tree this package runs from."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        commit = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        status = subprocess.run(
+            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout
+        return {"commit": commit, "dirty": bool(status.strip())}
+    except (OSError, subprocess.SubprocessError):
+        return {"commit": None, "dirty": None}
+
+
+def config_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
+    """Keys whose values differ between two config dicts, ignoring resumable fields."""
+    keys = (set(a) | set(b)) - RESUMABLE_FIELDS
+    return sorted(k for k in keys if a.get(k) != b.get(k))
+
+
+def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
+    os.replace(tmp, path)
+
+
+class RunFolder:
+    """Paths and checks of one run folder."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+
+    @property
+    def config_path(self) -> Path:
+        return self.path / "config.json"
+
+    @property
+    def metrics_path(self) -> Path:
+        return self.path / "metrics.parquet"
+
+    @property
+    def recording_path(self) -> Path:
+        return self.path / "recording.rrd"
+
+    @property
+    def checkpoints(self) -> Path:
+        return self.path / "checkpoints"
+
+    def read_config(self) -> Config:
+        """The config stored in config.json."""
+        data = json.loads(self.config_path.read_text())
+        return Config.from_dict(data["config"])
+
+    @classmethod
+    def prepare(cls, path: str | os.PathLike, config: Config, resume: bool) -> RunFolder:
+        """Check that `path` can hold (or go on with) a run of `config`; writes nothing."""
+        folder = cls(path)
+        exists = folder.path.exists()
+        if exists and not folder.path.is_dir():
+            raise RunFolderError(f"{folder.path} exists and is not a folder")
+        non_empty = exists and any(folder.path.iterdir())
+        if not resume:
+            if non_empty:
+                raise RunFolderError(
+                    f"{folder.path} is not empty; pass --resume to continue the run in it, "
+                    "or choose another --out"
+                )
+            return folder
+        if not folder.config_path.exists():
+            raise RunFolderError(f"nothing to resume: {folder.config_path} does not exist")
+        stored = folder.read_config()
+        diff = config_differences(stored.to_dict(), config.to_dict())
+        if diff:
+            detail = ", ".join(
+                f"{k}: {getattr(stored, k)!r} -> {getattr(config, k)!r}" for k in diff
+            )
+            raise RunFolderError(
+                f"cannot resume {folder.path} with a different config ({detail}); "
+                f"only {', '.join(sorted(RESUMABLE_FIELDS))} may change"
+            )
+        return folder
+
+    def describe(self, config: Config, spec: EnvSpec) -> dict[str, Any]:
+        """The content of config.json."""
+        return {
+            "condition": config.condition,
+            "seed": config.seed,
+            "preset": config.preset,
+            "variant": config.variant,
+            "modules": list(spec.module_names),
+            "achievable": list(spec.achievable),
+            "config": config.to_dict(),
+            "versions": library_versions(),
+            "git": git_commit(),
+            "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        }
+
+    def write_config(self, config: Config, spec: EnvSpec) -> None:
+        """Create the folder and write config.json (a resumed run records its new settings)."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        data = self.describe(config, spec)
+        if self.config_path.exists():
+            old = json.loads(self.config_path.read_text())
+            resumed = {
+                "at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "versions": data["versions"],
+                "git": data["git"],
+                "config": data["config"],
+            }
+            for key in ("created", "versions", "git"):
+                data[key] = old.get(key, data[key])
+            data["resumed"] = [*old.get("resumed", []), resumed]
+        write_json_atomic(self.config_path, data)

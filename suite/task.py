@@ -1,0 +1,548 @@
+"""`MultiTaskFetch`: the composer task that holds a set of task modules.
+
+Before an episode the caller may choose the active module and its goal
+(`set_next_episode`); otherwise the env draws both uniformly. Goals are drawn for every module
+at reset, so that `success` can be reported for all of them; the reward is the active module's.
+Episodes last 50 steps and never end early (the last step has discount 1: a time limit, not a
+terminal state).
+
+Per control step the task does its work in two places: `before_step` turns the action into a
+mocap target and finger command and moves the distractors, and the observation is computed in
+one vectorised pass (state features, every module's outcome and success) the first time any
+observable or the reward asks for it after the physics moved.
+"""
+
+from __future__ import annotations
+
+import collections
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+from dm_control import composer
+from dm_control.composer.observation import observable
+from dm_env import specs
+
+from suite import layout
+from suite.arena import TableArena
+from suite.cube import Cube, cube_colour
+from suite.distractors import DistractorWalk, start_positions
+from suite.features import StateLayout, StateReader
+from suite.fetch import FetchArm
+from suite.modules import TaskModule
+
+N_REACHABLE = 2
+OBSERVATION_KEYS = ("state", "achieved", "goal", "task", "success")
+_STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+_SETTLE_STEPS = 10  # control steps to settle the arm at construction, as the Fetch envs do
+
+
+class _ArrayObservable(observable.Generic):
+    """A task observable with a fixed float32 spec (so that no call is needed to infer it)."""
+
+    def __init__(self, fn, shape: tuple[int, ...]) -> None:
+        super().__init__(fn)
+        self._spec = specs.Array(shape=shape, dtype=np.float32)
+
+    @property
+    def array_spec(self) -> specs.Array:
+        return self._spec
+
+
+class MultiTaskFetch(composer.Task):
+    """The Multi-Task Fetch Arm: a Fetch arm, a wide table, cubes and a tuple of task modules.
+
+    Args:
+        modules: the task modules, in slot order (names must be unique).
+        n_cubes: number of cubes: cubes 1 and 2 are reachable, the others are distractors.
+        sensor_failure_cube: 1-based number of the reachable cube whose observed x can be shifted
+            (`set_sensor_failure`); None for a task without a sensory failure.
+    """
+
+    def __init__(
+        self,
+        modules: Sequence[TaskModule],
+        *,
+        n_cubes: int = 5,
+        sensor_failure_cube: int | None = None,
+    ) -> None:
+        self._modules = tuple(modules)
+        self._check_modules(n_cubes)
+        if not N_REACHABLE <= n_cubes <= N_REACHABLE + layout.MAX_DISTRACTORS:
+            raise ValueError(
+                f"n_cubes must be between {N_REACHABLE} and "
+                f"{N_REACHABLE + layout.MAX_DISTRACTORS}, got {n_cubes}"
+            )
+        if sensor_failure_cube is not None and sensor_failure_cube not in (1, 2):
+            raise ValueError(
+                f"the sensory failure shifts a reachable cube (1 or 2), got {sensor_failure_cube}"
+            )
+        self._n_cubes = n_cubes
+        self._n_distractors = n_cubes - N_REACHABLE
+        self._sensor_cube = None if sensor_failure_cube is None else sensor_failure_cube - 1
+        self._sensor_on = False
+
+        self._arena = TableArena()
+        self._robot = FetchArm()
+        self._arena.attach(self._robot)
+        self._cubes = tuple(Cube(f"cube{i + 1}", cube_colour(i)) for i in range(n_cubes))
+        # Reachable cubes are free bodies. Distractors are kinematic (mocap) bodies: the env
+        # moves them by its random walk, so simulating their dynamics would only compute motion
+        # that the next step overwrites; as mocap bodies they still collide with everything that
+        # moves, but cost no degrees of freedom and no table contacts.
+        self._cube_joints = []
+        for i, cube in enumerate(self._cubes):
+            frame = self._arena.attach(cube)
+            # A resting spot in the compiled model (qpos0), so that composer's reset, which
+            # computes the physics at qpos0 before the episode's state is set, finds no pile of
+            # overlapping cubes to resolve.
+            frame.pos = (*_parking_spot(i), layout.TABLE_TOP_Z + layout.CUBE_HALF_SIZE)
+            if i < N_REACHABLE:
+                self._cube_joints.append(
+                    frame.add(
+                        "joint", type="free", name=f"{cube.mjcf_model.model}_free", damping=0.01
+                    )
+                )
+            else:
+                frame.mocap = True
+        # The weld needs an explicit relpose: without one MuJoCo keeps the pose the two bodies
+        # had in the compiled model, and the gripper would follow the mocap at that offset.
+        self._arena.mjcf_model.equality.add(
+            "weld",
+            name="mocap_weld",
+            body1=self._arena.mocap,
+            body2=self._robot.gripper_body,
+            relpose=(0, 0, 0, 1, 0, 0, 0),
+            solimp=(0.9, 0.95, 0.001),
+            solref=(0.02, 1),
+        )
+        self.set_timesteps(layout.CONTROL_TIMESTEP, layout.PHYSICS_TIMESTEP)
+
+        # Sizes, slots and buffers that do not depend on the compiled physics.
+        n_mod = len(self._modules)
+        self._state_layout = StateLayout(n_cubes)
+        dims = [m.outcome_dim for m in self._modules]
+        starts = np.concatenate(([0], np.cumsum(dims)))
+        self._outcome_slices = tuple(
+            slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:], strict=True)
+        )
+        self._shift_idx = (
+            np.array(self._state_layout.cube_x_indices(self._sensor_cube))
+            if self._sensor_cube is not None
+            else None
+        )
+        self._state = np.zeros(self._state_layout.size, np.float32)
+        self._achieved = np.zeros(int(starts[-1]), np.float32)
+        self._goal_obs = np.zeros(3 * n_mod, np.float32)
+        self._task_obs = np.zeros(n_mod, np.float32)
+        self._success = np.zeros(n_mod, np.float32)
+        self._goals = np.zeros((n_mod, 3), np.float32)
+        self._slots = np.zeros((n_mod, 3), np.float32)
+        self._active = 0
+        self._reward = -1.0
+        self._next_module: int | None = None
+        self._next_goal: np.ndarray | None = None
+        self._walk = DistractorWalk(n_cubes, self._n_distractors)
+        self._steps = 0
+        self._tick = 0
+        self._computed_tick = -1
+        self._outcome_fns = tuple(
+            (m.outcome_fn, sl) for m, sl in zip(self._modules, self._outcome_slices, strict=True)
+        )
+        # Modules that share a success predicate (most use `within_distance`) are judged in one
+        # batched call: the predicates are vectorised and independent of the batch shape, so
+        # this gives exactly what one call per module would.
+        groups: dict[tuple, list[int]] = {}
+        for i, m in enumerate(self._modules):
+            groups.setdefault((m.success_fn, m.outcome_dim), []).append(i)
+        self._success_groups = tuple(
+            (
+                fn,
+                np.array(members, dtype=np.intp),
+                np.array(
+                    [np.arange(self._outcome_slices[i].start, self._outcome_slices[i].stop)
+                     for i in members],
+                    dtype=np.intp,
+                ),
+            )
+            for (fn, _), members in groups.items()
+        )
+        self._group_slots: list[np.ndarray] = [
+            np.zeros((len(members), 3), np.float32) for _, members, _ in self._success_groups
+        ]
+
+        self._task_observables = collections.OrderedDict(
+            (
+                ("state", _ArrayObservable(self._observe_state, self._state.shape)),
+                ("achieved", _ArrayObservable(self._observe_achieved, self._achieved.shape)),
+                ("goal", _ArrayObservable(self._observe_goal, self._goal_obs.shape)),
+                ("task", _ArrayObservable(self._observe_task, self._task_obs.shape)),
+                ("success", _ArrayObservable(self._observe_success, self._success.shape)),
+            )
+        )
+        for obs in self._task_observables.values():
+            obs.enabled = True
+
+    def _check_modules(self, n_cubes: int) -> None:
+        if not self._modules:
+            raise ValueError("a MultiTaskFetch task needs at least one module")
+        names = [m.name for m in self._modules]
+        if len(set(names)) != len(names):
+            raise ValueError(f"module names must be unique, got {names}")
+        for m in self._modules:
+            if not isinstance(m, TaskModule):
+                raise TypeError(f"modules must be suite.TaskModule, got {type(m).__name__}")
+            if m.goal_dim != 3:
+                raise ValueError(f"{m.name}: goal_dim must be 3, got {m.goal_dim}")
+            if m.cubes and max(m.cubes) >= n_cubes:
+                raise ValueError(
+                    f"{m.name} watches cube {max(m.cubes) + 1} but the scene has {n_cubes} cubes"
+                )
+
+    # -- composer.Task interface ------------------------------------------------------------------
+
+    @property
+    def root_entity(self) -> TableArena:
+        return self._arena
+
+    @property
+    def task_observables(self) -> collections.OrderedDict:
+        return self._task_observables
+
+    def action_spec(self, physics) -> specs.BoundedArray:
+        """4-D action in [-1, 1]: gripper displacement (x, y, z) and the finger command."""
+        return specs.BoundedArray(
+            shape=(4,), dtype=np.float64, minimum=-1.0, maximum=1.0, name="dx\tdy\tdz\tgripper"
+        )
+
+    def get_reward_spec(self) -> specs.Array:
+        return specs.Array(shape=(), dtype=np.float64, name="reward")
+
+    def after_compile(self, physics, random_state) -> None:
+        """Bind indices and array views to the new physics, settle the arm, snapshot it."""
+        self._bind(physics)
+        self._settle()
+
+    def initialize_episode(self, physics, random_state) -> None:
+        """Restore the settled snapshot, place the cubes, choose module and goals."""
+        mujoco.mj_setState(self._m, self._d, self._snapshot, _STATE_SPEC)
+        q = self._reach_qpos
+        q[:, 2] = self._rest_z
+        q[:, 3:] = (1.0, 0.0, 0.0, 0.0)
+        q[:, :2] = self._reachable_start(random_state)
+        self._reach_qvel[:] = 0.0
+        if self._n_distractors:
+            self._distractor_pos[:, :2] = start_positions(self._n_distractors, random_state)
+            self._distractor_pos[:, 2] = self._rest_z
+
+        n_mod = len(self._modules)
+        goals = random_state.uniform(-1.0, 1.0, size=(n_mod, 3)).astype(np.float32)
+        if self._next_module is None:
+            active = int(random_state.randint(n_mod))
+        else:
+            active = self._next_module
+        if self._next_goal is not None:
+            goals[active] = self._next_goal
+        self._next_module = None
+        self._next_goal = None
+        self._active = active
+        self._goals[:] = goals
+        for i, m in enumerate(self._modules):
+            self._slots[i] = m.goal_slot(goals[i])
+        for k, (_, members, _) in enumerate(self._success_groups):
+            self._group_slots[k] = self._slots[members]
+        self._goal_obs[:] = 0.0
+        self._goal_obs[3 * active : 3 * active + 3] = self._slots[active]
+        self._task_obs[:] = 0.0
+        self._task_obs[active] = 1.0
+        self._steps = 0
+        self._tick += 1
+
+    def before_step(self, physics, action, random_state) -> None:
+        """Check the action, set the mocap target and the fingers, move the distractors."""
+        a = self._check_action(action)
+        self._mocap_pos[0] = self._xpos[self._gripper_body] + layout.MAX_GRIPPER_DISPLACEMENT * a[:3]
+        self._ctrl[self._finger_ctrl] = self._qpos[self._finger_qpos] + a[3]
+        if self._n_distractors:
+            xy = self._cube_xy
+            xy[:N_REACHABLE] = self._reach_qpos[:, :2]
+            xy[N_REACHABLE:] = self._distractor_pos[:, :2]
+            self._distractor_pos[:, :2] = self._walk.step(xy, random_state)
+
+    def after_step(self, physics, random_state) -> None:
+        self._steps += 1
+        self._tick += 1
+
+    def get_reward(self, physics) -> float:
+        self._compute()
+        return self._reward
+
+    def should_terminate_episode(self, physics) -> bool:
+        return self._steps >= layout.EPISODE_STEPS
+
+    def get_discount(self, physics) -> float:
+        return 1.0
+
+    # -- the caller's controls --------------------------------------------------------------------
+
+    def set_next_episode(
+        self, module: int | str | None = None, goal: np.ndarray | Sequence[float] | None = None
+    ) -> None:
+        """Choose the module (index or name) and goal g in [-1, 1]^3 of the next episode.
+
+        None leaves the choice to the env's uniform draw. Applies to the next reset only.
+        """
+        index = None if module is None else self.module_index(module)
+        g = None
+        if goal is not None:
+            g = np.asarray(goal, dtype=np.float64)
+            if g.shape != (3,):
+                raise ValueError(f"goal must have shape (3,), got {g.shape}")
+            if not np.all(np.isfinite(g)):
+                raise ValueError(f"goal must be finite, got {g}")
+            if np.any(np.abs(g) > 1.0):
+                raise ValueError(f"goal must lie in [-1, 1]^3, got {g}")
+            g = g.astype(np.float32)
+        self._next_module = index
+        self._next_goal = g
+
+    def set_sensor_failure(self, on: bool) -> None:
+        """Switch the sensory failure: the observed x of one reachable cube reads 0.05 m too far.
+
+        Takes effect from the next observation. Outcomes, success and reward stay true.
+        """
+        if self._sensor_cube is None:
+            raise ValueError(
+                "this task has no sensory failure; load the 'sensor_failure' variant "
+                "(or build MultiTaskFetch with sensor_failure_cube=1 or 2)"
+            )
+        self._sensor_on = bool(on)
+        self._tick += 1
+
+    def module_index(self, module: int | str) -> int:
+        """Slot index of a module given by name or index (a clear error for unknown ones)."""
+        names = self.module_names
+        if isinstance(module, str):
+            if module not in names:
+                raise ValueError(f"unknown module {module!r}; known modules: {', '.join(names)}")
+            return names.index(module)
+        if isinstance(module, (int, np.integer)) and not isinstance(module, bool):
+            if not 0 <= module < len(names):
+                raise ValueError(
+                    f"module index {module} out of range: this task has {len(names)} modules "
+                    f"({', '.join(names)})"
+                )
+            return int(module)
+        raise ValueError(f"module must be a name or an index, got {module!r}")
+
+    # -- read-only views --------------------------------------------------------------------------
+
+    @property
+    def modules(self) -> tuple[TaskModule, ...]:
+        return self._modules
+
+    @property
+    def module_names(self) -> tuple[str, ...]:
+        return tuple(m.name for m in self._modules)
+
+    @property
+    def n_cubes(self) -> int:
+        return self._n_cubes
+
+    @property
+    def state_layout(self) -> StateLayout:
+        return self._state_layout
+
+    @property
+    def outcome_slices(self) -> tuple[slice, ...]:
+        """One slice per module into the `achieved` vector."""
+        return self._outcome_slices
+
+    @property
+    def active_module(self) -> int:
+        """Slot index of this episode's module."""
+        return self._active
+
+    @property
+    def goals(self) -> np.ndarray:
+        """This episode's g in [-1, 1]^3 for every module, (n_modules, 3) float32 (a copy)."""
+        return self._goals.copy()
+
+    @property
+    def goal_slots(self) -> np.ndarray:
+        """This episode's goal slot for every module, (n_modules, 3) float32 (a copy)."""
+        return self._slots.copy()
+
+    @property
+    def has_sensor_failure(self) -> bool:
+        return self._sensor_cube is not None
+
+    @property
+    def sensor_failure(self) -> bool:
+        """Whether the sensory failure is switched on."""
+        return self._sensor_on
+
+    @property
+    def arena(self) -> TableArena:
+        return self._arena
+
+    @property
+    def robot(self) -> FetchArm:
+        return self._robot
+
+    @property
+    def cubes(self) -> tuple[Cube, ...]:
+        return self._cubes
+
+    @property
+    def initial_gripper_pos(self) -> np.ndarray:
+        """Where the grip site starts every episode (measured after settling)."""
+        return self._grip0.copy()
+
+    # -- internals --------------------------------------------------------------------------------
+
+    def _bind(self, physics) -> None:
+        m, d = physics.model.ptr, physics.data.ptr
+        self._m, self._d = m, d
+        self._qpos, self._qvel, self._ctrl = d.qpos, d.qvel, d.ctrl
+        self._xpos, self._mocap_pos, self._mocap_quat = d.xpos, d.mocap_pos, d.mocap_quat
+        self._gripper_body = int(physics.bind(self._robot.gripper_body).element_id)
+        grip_site = int(physics.bind(self._robot.grip_site).element_id)
+        qadr = np.array([physics.bind(j).qposadr for j in self._cube_joints]).ravel()
+        vadr = np.array([physics.bind(j).dofadr for j in self._cube_joints]).ravel()
+        if not (np.all(np.diff(qadr) == 7) and np.all(np.diff(vadr) == 6)):
+            raise RuntimeError("the cubes' free joints are expected to be contiguous in qpos")
+        self._reach_qpos = d.qpos[qadr[0] : qadr[0] + 7 * N_REACHABLE].reshape(N_REACHABLE, 7)
+        self._reach_qvel = d.qvel[vadr[0] : vadr[0] + 6 * N_REACHABLE].reshape(N_REACHABLE, 6)
+        cube_bodies = np.array(
+            [m.geom_bodyid[physics.bind(c.geom).element_id] for c in self._cubes], dtype=np.intp
+        )
+        mocap_ids = m.body_mocapid[cube_bodies[N_REACHABLE:]]
+        if self._n_distractors and not (
+            np.all(mocap_ids >= 0) and np.all(np.diff(mocap_ids) == 1)
+        ):
+            raise RuntimeError("the distractors' mocap bodies are expected to be consecutive")
+        first = int(mocap_ids[0]) if self._n_distractors else 0
+        self._distractor_pos = d.mocap_pos[first : first + self._n_distractors]
+        self._cube_xy = np.zeros((self._n_cubes, 2))
+        fq = [int(physics.bind(j).qposadr) for j in self._robot.finger_joints]
+        fv = [int(physics.bind(j).dofadr) for j in self._robot.finger_joints]
+        fa = [int(physics.bind(a).element_id) for a in self._robot.finger_actuators]
+        self._finger_qpos = _as_index(fq)
+        self._finger_qvel = _as_index(fv)
+        self._finger_ctrl = _as_index(fa)
+        self._reader = StateReader(
+            m,
+            d,
+            grip_site=grip_site,
+            reach_bodies=cube_bodies[:N_REACHABLE],
+            reach_qpos=self._reach_qpos,
+            distractor_pos=self._distractor_pos,
+            finger_qpos=self._finger_qpos,
+            finger_qvel=self._finger_qvel,
+        )
+        self._grip_site = grip_site
+        self._computed_tick = -1
+
+    def _settle(self) -> None:
+        """Bring the arm to its start pose once; every reset restores this snapshot."""
+        m, d = self._m, self._d
+        mujoco.mj_resetData(m, d)
+        mujoco.mj_forward(m, d)
+        # Start the mocap on the gripper (no jerk), then move it so that the grip site lands on
+        # GRIP0 (the grip site is 0.02 below the gripper link with the fingers pointing down).
+        self._mocap_pos[0] = d.xpos[self._gripper_body]
+        self._mocap_quat[0] = d.xquat[self._gripper_body]
+        mujoco.mj_forward(m, d)
+        self._mocap_pos[0] = layout.GRIP0 + np.array([0.0, 0.0, 0.02])
+        self._mocap_quat[0] = layout.GRIPPER_QUAT
+        for _ in range(_SETTLE_STEPS):
+            mujoco.mj_step(m, d, nstep=layout.SUBSTEPS)
+        d.time = 0.0
+        mujoco.mj_forward(m, d)
+        self._rest_z = float(np.mean(self._reach_qpos[:, 2]))
+        self._distractor_pos[:, 2] = self._rest_z
+        self._grip0 = d.site_xpos[self._grip_site].copy()
+        self._snapshot = np.empty(mujoco.mj_stateSize(m, _STATE_SPEC))
+        mujoco.mj_getState(m, d, self._snapshot, _STATE_SPEC)
+
+    def _reachable_start(self, random_state: np.random.RandomState) -> np.ndarray:
+        """xy of cubes 1 and 2: grip0_xy + U(-0.15, 0.15)^2, >= 0.1 from the gripper and apart."""
+        centre = self._grip0[:2]
+        placed: list[np.ndarray] = []
+        while len(placed) < N_REACHABLE:
+            xy = centre + random_state.uniform(
+                -layout.OBJECT_RANGE, layout.OBJECT_RANGE, size=2
+            )
+            if np.linalg.norm(xy - centre) < layout.OBJECT_MIN_SEPARATION:
+                continue
+            if any(np.linalg.norm(xy - p) < layout.OBJECT_MIN_SEPARATION for p in placed):
+                continue
+            placed.append(xy)
+        return np.array(placed)
+
+    def _check_action(self, action) -> np.ndarray:
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (4,):
+            raise ValueError(f"action must have shape (4,), got {a.shape}")
+        lo, hi = a.min(), a.max()
+        if not (lo >= -1.0 and hi <= 1.0):  # also false for NaN
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"action must be finite, got {a}")
+            a = np.clip(a, -1.0, 1.0)
+        return a
+
+    def _compute(self) -> None:
+        """State features, outcomes and success of every module, once per tick."""
+        if self._computed_tick == self._tick:
+            return
+        reader = self._reader
+        state = self._state
+        state[:] = reader.read()
+        if self._sensor_on:
+            state[self._shift_idx] += np.float32(layout.SENSOR_SHIFT_X)
+        gripper, cubes = reader.gripper, reader.cubes
+        achieved, success = self._achieved, self._success
+        for outcome_fn, sl in self._outcome_fns:
+            achieved[sl] = outcome_fn(gripper, cubes)
+        for (success_fn, members, gather), slots in zip(
+            self._success_groups, self._group_slots, strict=True
+        ):
+            success[members] = success_fn(achieved[gather], slots)
+        self._reward = float(success[self._active]) - 1.0
+        self._computed_tick = self._tick
+
+    def _observe_state(self, physics) -> np.ndarray:
+        self._compute()
+        return self._state
+
+    def _observe_achieved(self, physics) -> np.ndarray:
+        self._compute()
+        return self._achieved
+
+    def _observe_goal(self, physics) -> np.ndarray:
+        return self._goal_obs
+
+    def _observe_task(self, physics) -> np.ndarray:
+        return self._task_obs
+
+    def _observe_success(self, physics) -> np.ndarray:
+        self._compute()
+        return self._success
+
+
+def _parking_spot(cube: int) -> tuple[float, float]:
+    """xy where cube `cube` (0-based) sits in the compiled model: reachable cubes either side
+    of the gripper's start, distractors on their start points."""
+    if cube < N_REACHABLE:
+        offset = -0.1 if cube == 0 else 0.1
+        return float(layout.GRIP0[0] + offset), float(layout.GRIP0[1] + offset)
+    x, y = layout.DISTRACTOR_STARTS[cube - N_REACHABLE]
+    return float(x), float(y)
+
+
+def _as_index(indices: list[int]) -> slice | np.ndarray:
+    """A slice where the indices are consecutive (a view, cheaper), else an index array."""
+    if all(b - a == 1 for a, b in zip(indices[:-1], indices[1:], strict=True)):
+        return slice(indices[0], indices[-1] + 1)
+    return np.array(indices, dtype=np.intp)

@@ -1,0 +1,108 @@
+"""Named variants of the Multi-Task Fetch Arm, registered dm_control style.
+
+```python
+@register
+def default(seed=None, **env_kwargs): ...
+
+env = load("default", seed=0)
+```
+
+A variant is a function that builds the task and returns a `SuiteEnvironment`. Its name is the
+function's name (or the name given to `register`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from suite import layout
+from suite.environment import SuiteEnvironment
+from suite.modules import standard_modules
+from suite.task import N_REACHABLE, MultiTaskFetch
+
+VariantFn = Callable[..., SuiteEnvironment]
+_REGISTRY: dict[str, VariantFn] = {}
+
+
+def register(fn_or_name: VariantFn | str | None = None) -> Callable:
+    """Register a variant under its function's name: `@register` or `@register("name")`."""
+
+    def add(fn: VariantFn, name: str) -> VariantFn:
+        if name in _REGISTRY and _REGISTRY[name] is not fn:
+            raise ValueError(f"a variant named {name!r} is already registered")
+        _REGISTRY[name] = fn
+        return fn
+
+    if callable(fn_or_name):
+        return add(fn_or_name, fn_or_name.__name__)
+
+    def decorator(fn: VariantFn) -> VariantFn:
+        return add(fn, fn_or_name or fn.__name__)
+
+    return decorator
+
+
+def all_variants() -> tuple[str, ...]:
+    """Names of the registered variants, in registration order."""
+    return tuple(_REGISTRY)
+
+
+def load(name: str, seed: int | None = None, **kwargs) -> SuiteEnvironment:
+    """Build the variant `name` with the given seed (kwargs go to the variant)."""
+    if not isinstance(name, str) or name not in _REGISTRY:
+        known = ", ".join(_REGISTRY)
+        raise ValueError(f"unknown variant {name!r}; known variants: {known}")
+    return _REGISTRY[name](seed=seed, **kwargs)
+
+
+def build(
+    n_distractors: int,
+    *,
+    seed: int | None = None,
+    sensor_failure_cube: int | None = None,
+    **env_kwargs,
+) -> SuiteEnvironment:
+    """The paper's modules with `n_distractors` distractor cubes, as an environment."""
+    if not 0 <= n_distractors <= layout.MAX_DISTRACTORS:
+        raise ValueError(
+            f"n_distractors must be between 0 and {layout.MAX_DISTRACTORS}, got {n_distractors}"
+        )
+    task = MultiTaskFetch(
+        standard_modules(n_distractors),
+        n_cubes=N_REACHABLE + n_distractors,
+        sensor_failure_cube=sensor_failure_cube,
+    )
+    return SuiteEnvironment(task, random_state=seed, **env_kwargs)
+
+
+@register
+def default(seed: int | None = None, **env_kwargs) -> SuiteEnvironment:
+    """The paper's env: 4 achievable modules and 3 distractor cubes (7 modules, 5 cubes)."""
+    return build(3, seed=seed, **env_kwargs)
+
+
+@register
+def distractors_0(seed: int | None = None, **env_kwargs) -> SuiteEnvironment:
+    """The 4 achievable modules alone (2 cubes)."""
+    return build(0, seed=seed, **env_kwargs)
+
+
+@register
+def distractors_4(seed: int | None = None, **env_kwargs) -> SuiteEnvironment:
+    """4 achievable modules and 4 distractor cubes (8 modules, 6 cubes)."""
+    return build(4, seed=seed, **env_kwargs)
+
+
+@register
+def distractors_7(seed: int | None = None, **env_kwargs) -> SuiteEnvironment:
+    """4 achievable modules and 7 distractor cubes (11 modules, 9 cubes)."""
+    return build(7, seed=seed, **env_kwargs)
+
+
+@register
+def sensor_failure(
+    seed: int | None = None, sensor_failure_cube: int = 2, **env_kwargs
+) -> SuiteEnvironment:
+    """The default env whose observed x of one reachable cube (cube 2 unless told) can be
+    shifted by +0.05 m with `env.task.set_sensor_failure(True)`, at a moment the caller chooses."""
+    return build(3, seed=seed, sensor_failure_cube=sensor_failure_cube, **env_kwargs)

@@ -1,0 +1,50 @@
+"""Presets, overrides and the errors users get for bad settings."""
+
+import pytest
+
+from curious.config import CONDITIONS, PRESETS, Config, ConfigError, parse_overrides, resolve
+
+
+@pytest.mark.parametrize("preset", list(PRESETS))
+@pytest.mark.parametrize("condition", CONDITIONS)
+def test_every_preset_and_condition_resolves(preset, condition):
+    config = resolve(preset, condition, seed=3)
+    assert (config.preset, config.condition, config.seed) == (preset, condition, 3)
+    assert Config.from_dict(config.to_dict()) == config
+
+
+def test_paper_preset_is_the_authors_protocol():
+    c = resolve("paper")
+    assert (c.n_workers, c.episodes_per_worker, c.n_cycles, c.n_updates) == (19, 2, 25, 100)
+    assert (c.hidden, c.layers, c.actor_lr, c.critic_lr) == (256, 3, 1e-3, 1e-3)
+    assert (c.gamma, c.polyak, c.action_l2, c.noise_eps, c.random_eps) == (0.98, 0.95, 1, 0.2, 0.3)
+    assert (c.her_p, c.lp_window, c.lp_eps, c.eval_every, c.norm_clip) == (0.8, 300, 0.4, 10, 5)
+    assert c.batch_size == 256 * 19 and c.episodes_per_cycle == 38
+    assert c.total_episodes == 300_000
+
+
+def test_overrides_are_typed():
+    values = parse_overrides(["hidden=64", "her_p=0.5", "progress=false", "algorithm=td3"])
+    assert values == {"hidden": 64, "her_p": 0.5, "progress": False, "algorithm": "td3"}
+    config = resolve("smoke", overrides=values)
+    assert config.hidden == 64 and config.algorithm == "td3"
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: resolve("huge"), "unknown preset 'huge'"),
+        (lambda: resolve("smoke", "curiouser"), "unknown condition 'curiouser'"),
+        (lambda: parse_overrides(["hiden=3"]), "unknown config key 'hiden'"),
+        (lambda: parse_overrides(["hidden=big"]), "hidden='big': expected a int"),
+        (lambda: parse_overrides(["hidden"]), "not of the form key=value"),
+        (lambda: parse_overrides(["progress=maybe"]), "expected a bool"),
+        (lambda: resolve("smoke", overrides={"algorithm": "sac"}), "unknown algorithm 'sac'"),
+        (lambda: resolve("smoke", overrides={"her_p": 1.5}), "her_p must be in"),
+        (lambda: resolve("smoke", overrides={"n_workers": 0}), "n_workers must be > 0"),
+        (lambda: Config.from_dict({"hidden": 3, "colour": 1}), "unknown config keys: colour"),
+    ],
+)
+def test_bad_settings_name_the_problem(call, message):
+    with pytest.raises(ConfigError, match=message):
+        call()

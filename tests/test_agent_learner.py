@@ -1,0 +1,185 @@
+"""Networks, normalisers, the E-UVFA input and the DDPG / TD3 update."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+from toy_env import ToyGoalEnv
+
+from curious.config import resolve
+from curious.inputs import InputEncoder
+from curious.learner import Learner
+from curious.networks import Actor, Critic
+from curious.normalizer import RunningNormalizer
+
+torch.set_num_threads(1)
+
+
+def small_config(**changes):
+    return dataclasses.replace(resolve("smoke"), hidden=32, layers=2, **changes)
+
+
+def batch(n=64, d=10, a=4, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    x = torch.randn(n, d, generator=g)
+    action = torch.rand(n, a, generator=g) * 2 - 1
+    reward = -(torch.rand(n, generator=g) < 0.7).float()
+    x_next = torch.randn(n, d, generator=g)
+    return x, action, reward, x_next
+
+
+def test_networks_shapes_and_bounds():
+    actor, critic = Actor(10, 4, 256, 3), Critic(10, 4, 256, 3)
+    hidden = [m for m in actor.net if isinstance(m, torch.nn.Linear)]
+    assert [layer.out_features for layer in hidden] == [256, 256, 256, 4]
+    x = torch.randn(5, 10) * 100
+    a = actor(x)
+    assert a.shape == (5, 4) and a.abs().max() <= 1
+    assert critic(x, a).shape == (5,)
+
+
+def test_normaliser_matches_numpy_and_clips():
+    rng = np.random.default_rng(0)
+    data = rng.normal(3.0, 2.0, (1000, 4))
+    data[:, 3] = 7.0  # constant feature: std floored at eps
+    norm = RunningNormalizer((4,), eps=0.01, clip=5.0)
+    norm.update(data[:600])
+    norm.update(data[600:])
+    np.testing.assert_allclose(norm.mean, data.mean(0), rtol=1e-5)
+    np.testing.assert_allclose(norm.std[:3], data[:, :3].std(0), rtol=1e-4)
+    assert norm.std[3] == pytest.approx(0.01)
+    out = norm.normalize(np.array([[3.0, 3.0, 3.0, 100.0]]))
+    assert out[0, 3] == 5.0  # clipped
+    torch_out = norm.normalize(torch.tensor([[3.0, 3.0, 3.0, 100.0]]))
+    np.testing.assert_allclose(torch_out.numpy(), out, rtol=1e-5)
+
+
+def test_grouped_normaliser_keeps_statistics_per_module():
+    rng = np.random.default_rng(1)
+    values = np.concatenate([rng.normal(-5, 1, (500, 3)), rng.normal(5, 3, (500, 3))])
+    groups = np.repeat([0, 2], 500)
+    norm = RunningNormalizer((3,), groups=3)
+    norm.update(values, groups)
+    np.testing.assert_allclose(norm.mean[0], values[:500].mean(0), rtol=1e-5)
+    np.testing.assert_allclose(norm.mean[2], values[500:].mean(0), rtol=1e-5)
+    np.testing.assert_allclose(norm.std[2], values[500:].std(0), rtol=1e-4)
+    # a module never seen is left as is
+    np.testing.assert_array_equal(norm.mean[1], 0) and np.testing.assert_array_equal(norm.std[1], 1)
+    with pytest.raises(ValueError, match="group"):
+        norm.update(values)
+
+
+def test_inactive_goal_slots_get_no_gradient():
+    spec = ToyGoalEnv.spec
+    encoder = InputEncoder(spec)
+    rng = np.random.default_rng(0)
+    encoder.update_stats(
+        rng.normal(size=(4, 11, 7)),
+        rng.normal(size=(4, 11, 9)),
+        rng.normal(size=(4, 3, 3)),
+        np.ones((4, 3), bool),
+    )
+    n = 32
+    goals = torch.tensor(rng.normal(size=(n, 3, 3)), dtype=torch.float32)
+    task = torch.zeros(n, 3)
+    task[:, 1] = 1.0  # every transition practises module 1
+    x = encoder.encode(torch.randn(n, 7), goals, task, task)
+    assert x.shape == (n, encoder.input_dim)
+    slot = lambda m: slice(7 + 3 * m, 7 + 3 * m + 3)  # noqa: E731
+    assert torch.all(x[:, slot(0)] == 0) and torch.all(x[:, slot(2)] == 0)
+    assert torch.all(x[:, slot(1)] != 0)
+    learner = Learner(encoder.input_dim, 4, small_config())
+    first = learner.critics[0].net[0].weight.detach().clone()
+    learner.update(x, torch.zeros(n, 4), -torch.ones(n), x)
+    after = learner.critics[0].net[0].weight.detach()
+    assert torch.equal(after[:, slot(0)], first[:, slot(0)])
+    assert torch.equal(after[:, slot(2)], first[:, slot(2)])
+    assert not torch.equal(after[:, slot(1)], first[:, slot(1)])
+
+
+def test_targets_are_clipped_to_the_return_range():
+    learner = Learner(10, 4, small_config())
+    _x, _, reward, x_next = batch()
+    last = learner.critics_target[0].net[-1]
+    with torch.no_grad():
+        last.bias.fill_(1e3)
+        assert torch.all(learner.td_target(reward, x_next) == 0)
+        last.bias.fill_(-1e3)
+        assert torch.allclose(learner.td_target(reward, x_next), torch.full((64,), -50.0))
+
+
+def test_polyak_update_of_targets_once_per_call():
+    learner = Learner(10, 4, small_config())
+    x, a, r, x2 = batch()
+    for _ in range(3):
+        learner.update(x, a, r, x2)
+    before_t = [p.detach().clone() for p in learner.actor_target.parameters()]
+    online = [p.detach().clone() for p in learner.actor.parameters()]
+    assert any(not torch.equal(t, o) for t, o in zip(before_t, online, strict=True))
+    learner.update_targets()
+    for t0, o, t1 in zip(before_t, online, learner.actor_target.parameters(), strict=True):
+        torch.testing.assert_close(t1, 0.95 * t0 + 0.05 * o)
+
+
+def test_critic_learns_a_constant_return():
+    learner = Learner(10, 4, small_config())
+    x, a, _, x2 = batch(n=128)
+    reward = -torch.ones(128)
+    losses = []
+    for i in range(300):
+        losses.append(float(learner.update(x, a, reward, x2)["critic_loss"]))
+        if i % 10 == 9:
+            learner.update_targets()
+    assert np.mean(losses[-20:]) < 0.2 * np.mean(losses[:20])
+
+
+def test_action_penalty_pulls_actions_to_zero_when_q_is_flat():
+    learner = Learner(10, 4, small_config(actor_lr=1e-2))
+    with torch.no_grad():  # a critic that ignores the action: only the L2 term moves the actor
+        for p in learner.critics.parameters():
+            p.zero_()
+        learner.actor.net[-1].bias.fill_(1.0)
+    x, a, _r, x2 = batch()
+    start = learner.act(x).abs().mean()
+    for _ in range(50):
+        learner.update(x, a, torch.zeros(64), x2)
+    assert learner.act(x).abs().mean() < 0.3 * start
+
+
+def test_td3_has_twin_critics_and_delays_the_actor():
+    learner = Learner(10, 4, small_config(algorithm="td3", td3_policy_delay=2))
+    assert len(learner.critics) == 2
+    x, a, r, x2 = batch()
+    actor0 = [p.detach().clone() for p in learner.actor.parameters()]
+    learner.update(x, a, r, x2)
+    assert all(torch.equal(p, q) for p, q in zip(actor0, learner.actor.parameters(), strict=True))
+    learner.update(x, a, r, x2)
+    assert not all(
+        torch.equal(p, q) for p, q in zip(actor0, learner.actor.parameters(), strict=True)
+    )
+
+
+def test_state_dict_round_trip_gives_identical_updates():
+    a = Learner(10, 4, small_config(algorithm="td3"), seed=1)
+    x, act, r, x2 = batch()
+    for _ in range(5):
+        a.update(x, act, r, x2)
+    b = Learner(10, 4, small_config(algorithm="td3"), seed=99)
+    b.load_state_dict(a.state_dict())
+    for _ in range(4):
+        la, lb = a.update(x, act, r, x2), b.update(x, act, r, x2)
+        assert torch.equal(la["critic_loss"], lb["critic_loss"])
+    for p, q in zip(a.actor.parameters(), b.actor.parameters(), strict=True):
+        assert torch.equal(p, q)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_cuda_update_matches_cpu_closely():
+    cpu = Learner(10, 4, small_config(), seed=3)
+    gpu = Learner(10, 4, small_config(device="cuda"), seed=3)
+    x, a, r, x2 = batch()
+    for _ in range(3):
+        lc = cpu.update(x, a, r, x2)
+        lg = gpu.update(x.cuda(), a.cuda(), r.cuda(), x2.cuda())
+    assert float(lc["critic_loss"]) == pytest.approx(float(lg["critic_loss"]), rel=1e-3)

@@ -1,0 +1,85 @@
+"""Competence, absolute learning progress and p_LP on hand-computed sequences."""
+
+import numpy as np
+import pytest
+
+from curious.learning_progress import CompetenceTracker, lp_probabilities
+
+
+def test_competence_and_lp_follow_hand_computed_sequence():
+    # Window 3: competence over the last 3 results, LP between the last k and the k before,
+    # k = min(3, n // 2). The 8 results overrun the 6-slot queue, so wrap-around is covered.
+    tracker = CompetenceTracker(n_modules=2, window=3)
+    results = [0, 0, 1, 1, 1, 1, 0, 0]
+    expected_competence = [0, 0, 1 / 3, 2 / 3, 1, 1, 2 / 3, 1 / 3]
+    expected_lp = [0, 0, 1, 1, 0.5, 2 / 3, 0, 2 / 3]
+    for r, c, lp in zip(results, expected_competence, expected_lp, strict=True):
+        tracker.add(0, bool(r))
+        assert tracker.competence()[0] == pytest.approx(c)
+        assert tracker.learning_progress()[0] == pytest.approx(lp)
+        # the other module has no result: no competence, no progress
+        assert tracker.competence()[1] == 0 and tracker.learning_progress()[1] == 0
+
+
+def test_lp_is_absolute_so_forgetting_counts_as_progress():
+    tracker = CompetenceTracker(n_modules=1, window=2)
+    for r in [1, 1, 0, 0]:
+        tracker.add(0, bool(r))
+    assert tracker.competence()[0] == 0
+    assert tracker.learning_progress()[0] == pytest.approx(1.0)
+
+
+def test_p_lp_hand_computed():
+    p = lp_probabilities(np.array([0.5, 0.0, 0.25, 0.25]), eps=0.4)
+    np.testing.assert_allclose(p, [0.1 + 0.6 * 0.5, 0.1, 0.1 + 0.6 * 0.25, 0.1 + 0.6 * 0.25])
+    assert p.sum() == pytest.approx(1.0)
+
+
+def test_p_lp_uniform_while_no_progress():
+    np.testing.assert_allclose(lp_probabilities(np.zeros(7)), np.full(7, 1 / 7))
+    tracker = CompetenceTracker(n_modules=4, window=300)
+    np.testing.assert_allclose(tracker.p_lp(0.4), np.full(4, 0.25))
+    # constant results give no progress either
+    for _ in range(50):
+        tracker.add(2, True)
+    np.testing.assert_allclose(tracker.p_lp(0.4), np.full(4, 0.25))
+
+
+def test_p_lp_of_a_module_without_progress_is_eps_over_n():
+    tracker = CompetenceTracker(n_modules=3, window=10)
+    for r in [0] * 10 + [1] * 10:
+        tracker.add(0, bool(r))
+    p = tracker.p_lp(0.4)
+    assert p[1] == pytest.approx(0.4 / 3) and p[2] == pytest.approx(0.4 / 3)
+    assert p[0] == pytest.approx(0.4 / 3 + 0.6)
+
+
+def test_window_300_uses_the_300_results_before():
+    tracker = CompetenceTracker(n_modules=1, window=300)
+    for r in [0] * 300 + [1] * 150 + [0] * 150:
+        tracker.add(0, bool(r))
+    assert tracker.competence()[0] == pytest.approx(0.5)
+    assert tracker.learning_progress()[0] == pytest.approx(0.5)
+    for _ in range(300):  # 600 more zeros would reach 0; 300 zeros: last 300 all 0
+        tracker.add(0, False)
+    assert tracker.competence()[0] == 0
+    assert tracker.learning_progress()[0] == pytest.approx(0.5)  # the 300 before: 150/300
+
+
+def test_state_round_trip():
+    a = CompetenceTracker(n_modules=3, window=5)
+    rng = np.random.default_rng(0)
+    for _ in range(40):
+        a.add(int(rng.integers(3)), bool(rng.random() < 0.5))
+    b = CompetenceTracker(n_modules=3, window=5)
+    b.load_state_dict(a.state_dict())
+    np.testing.assert_array_equal(a.competence(), b.competence())
+    np.testing.assert_array_equal(a.learning_progress(), b.learning_progress())
+    a.add(1, True)
+    b.add(1, True)
+    np.testing.assert_array_equal(a.p_lp(), b.p_lp())
+
+
+def test_negative_lp_rejected():
+    with pytest.raises(ValueError, match="negative"):
+        lp_probabilities(np.array([0.1, -0.2]))

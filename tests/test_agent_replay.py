@@ -1,0 +1,178 @@
+"""Replay: HER 'future' goals, task substitution by p_LP, recomputed rewards, storage."""
+
+import numpy as np
+import pytest
+from scipy import stats
+from toy_env import ToyGoalEnv
+
+from curious.replay import GOAL_FRESH, GOAL_OWN, EpisodeReplay
+
+SPEC = ToyGoalEnv.spec
+T = SPEC.episode_length
+
+
+def rollouts(n, modules, seed=0, dial_still=()):
+    """n random-action episodes, with per-step success; `dial_still` episodes leave the dial."""
+    env = ToyGoalEnv(seed)
+    rng = np.random.default_rng(seed)
+    states = np.zeros((n, T + 1, SPEC.state_dim), np.float32)
+    achieved = np.zeros((n, T + 1, SPEC.achieved_dim), np.float32)
+    actions = rng.uniform(-1, 1, (n, T, SPEC.action_dim)).astype(np.float32)
+    actions[list(dial_still), :, 3] = 0.0
+    success = np.zeros((n, T + 1, SPEC.n_modules), bool)
+    goals = np.zeros((n, SPEC.n_modules, SPEC.goal_dim), np.float32)
+    for i in range(n):
+        g = rng.uniform(-1, 1, 3)
+        obs = env.reset(modules[i], g)
+        goals[i, modules[i]] = env.goal_slot(modules[i], g)
+        states[i, 0], achieved[i, 0] = obs
+        for t in range(T):
+            obs, success[i, t + 1] = env.step(actions[i, t])
+            states[i, t + 1], achieved[i, t + 1] = obs
+    return states, achieved, actions, np.asarray(modules), goals, success
+
+
+def filled_replay(n=60, holistic=False, seed=0, **kwargs):
+    modules = np.random.default_rng(seed).integers(3, size=n)
+    states, achieved, actions, modules, goals, success = rollouts(n, modules, seed)
+    if holistic:
+        env = ToyGoalEnv(seed)
+        raw = np.random.default_rng(seed + 1).uniform(-1, 1, (n, 3, 3))
+        goals = np.stack([env.goal_slot(k, raw[:, k]) for k in range(3)], axis=1)
+    replay = EpisodeReplay(SPEC, capacity=200, holistic=holistic, **kwargs)
+    replay.store(states, achieved, actions, modules, goals)
+    return replay, success
+
+
+def test_her_goals_come_only_from_later_steps_of_the_same_episode():
+    replay, _ = filled_replay()
+    rng = np.random.default_rng(1)
+    batch = replay.sample(4000, rng, ToyGoalEnv(), np.full(3, 1 / 3), her_p=1.0)
+    assert np.all(batch.goal_step > batch.step) and np.all(batch.goal_step <= T)
+    assert set(np.unique(batch.goal_step - batch.step)) == set(range(1, T + 1))
+    cols = SPEC.hindsight_columns()
+    for i in range(len(batch.step)):
+        m, e = batch.module[i], batch.episode[i]
+        outcomes = replay.achieved[e][:, cols[m]]  # (T+1, 3) this episode's outcomes
+        matches = np.flatnonzero(np.all(outcomes == batch.goals[i, m], axis=1))
+        assert matches.size and matches.max() > batch.step[i]
+        assert np.all(batch.goals[i, np.arange(3) != m] == 0)
+        assert batch.goal_mask[i, m] == 1 and batch.goal_mask[i].sum() == 1
+    # transitions are the stored ones
+    np.testing.assert_array_equal(batch.state, replay.states[batch.episode, batch.step])
+    np.testing.assert_array_equal(batch.next_state, replay.states[batch.episode, batch.step + 1])
+    np.testing.assert_array_equal(batch.action, replay.actions[batch.episode, batch.step])
+
+
+def test_her_probability_is_respected():
+    replay, _ = filled_replay()
+    batch = replay.sample(20000, np.random.default_rng(2), ToyGoalEnv(), np.full(3, 1 / 3))
+    her = batch.goal_step >= 0
+    assert abs(her.mean() - 0.8) < 0.015
+
+
+@pytest.mark.parametrize("probs", [[0.6, 0.3, 0.1], [0.1333, 0.7334, 0.1333], [0, 0, 1]])
+def test_substituted_modules_follow_the_given_probabilities(probs):
+    replay, _ = filled_replay()
+    probs = np.array(probs)
+    batch = replay.sample(30000, np.random.default_rng(3), ToyGoalEnv(), probs)
+    counts = np.bincount(batch.module, minlength=3)
+    used = probs > 0
+    assert np.all(counts[~used] == 0)
+    if used.sum() > 1:
+        result = stats.chisquare(counts[used], probs[used] / probs[used].sum() * counts.sum())
+        assert result.pvalue > 1e-3
+    np.testing.assert_array_equal(batch.task.argmax(1), batch.module)
+
+
+def test_recomputed_rewards_equal_the_envs():
+    replay, _ = filled_replay()
+    env = ToyGoalEnv()
+    batch = replay.sample(3000, np.random.default_rng(4), env, np.full(3, 1 / 3))
+    nxt = replay.achieved[batch.episode, batch.step + 1]
+    expected = [env.reward(m, nxt[i], batch.goals[i, m]) for i, m in enumerate(batch.module)]
+    np.testing.assert_array_equal(batch.reward, expected)
+    # hindsight goals reached at the very next step give reward 0
+    at_next = batch.goal_step == batch.step + 1
+    assert at_next.any() and np.all(batch.reward[at_next] == 0)
+    assert set(np.unique(batch.reward)) == {-1.0, 0.0}
+
+
+def test_own_goals_reproduce_the_rewards_seen_in_the_episode():
+    modules = np.zeros(30, np.int64)  # every episode practises `reach`
+    states, achieved, actions, modules, goals, success = rollouts(30, modules, seed=5)
+    replay = EpisodeReplay(SPEC, capacity=50)
+    replay.store(states, achieved, actions, modules, goals)
+    batch = replay.sample(2000, np.random.default_rng(6), ToyGoalEnv(), [1, 0, 0], her_p=0.0)
+    assert np.all(batch.goal_step == GOAL_OWN)
+    seen = np.where(success[batch.episode, batch.step + 1, 0], 0.0, -1.0)
+    np.testing.assert_array_equal(batch.reward, seen)
+
+
+def test_other_modules_without_hindsight_get_fresh_goals_from_their_goal_space():
+    modules = np.zeros(30, np.int64)
+    states, achieved, actions, modules, goals, _ = rollouts(30, modules, seed=7)
+    replay = EpisodeReplay(SPEC, capacity=50)
+    replay.store(states, achieved, actions, modules, goals)
+    batch = replay.sample(2000, np.random.default_rng(8), ToyGoalEnv(), [0, 1, 0], her_p=0.0)
+    assert np.all(batch.goal_step == GOAL_FRESH)
+    dial_goals = batch.goals[:, 1]
+    assert np.all(np.abs(dial_goals[:, 0]) <= 0.9) and np.all(dial_goals[:, 1:] == 0)
+    assert dial_goals[:, 0].std() > 0.4  # spread over the goal space, not one goal
+
+
+def test_modules_replay_only_episodes_where_their_outcome_moved():
+    modules = np.zeros(20, np.int64)
+    still = range(0, 20, 2)
+    states, achieved, actions, modules, goals, _ = rollouts(20, modules, 9, dial_still=still)
+    replay = EpisodeReplay(SPEC, capacity=50, active_only=True)
+    replay.store(states, achieved, actions, modules, goals)
+    np.testing.assert_array_equal(replay.moved[:20, 1], np.arange(20) % 2 == 1)
+    batch = replay.sample(2000, np.random.default_rng(10), ToyGoalEnv(), [0.5, 0.5, 0])
+    assert np.all(batch.episode[batch.module == 1] % 2 == 1)
+    assert set(batch.episode[batch.module == 0] % 2) == {0, 1}
+    everything = EpisodeReplay(SPEC, capacity=50, active_only=False)
+    everything.store(states, achieved, actions, modules, goals)
+    batch = everything.sample(2000, np.random.default_rng(10), ToyGoalEnv(), [0, 1, 0])
+    assert set(batch.episode % 2) == {0, 1}
+
+
+def test_holistic_reward_needs_every_module():
+    replay, _ = filled_replay(holistic=True)
+    env = ToyGoalEnv()
+    batch = replay.sample(3000, np.random.default_rng(11), env, None, her_p=0.8)
+    assert np.all(batch.goal_mask == 1) and np.all(batch.task == 0) and np.all(batch.module == -1)
+    nxt = replay.achieved[batch.episode, batch.step + 1]
+    met = np.all([env.reward(k, nxt, batch.goals[:, k]) == 0 for k in range(3)], axis=0)
+    np.testing.assert_array_equal(batch.reward == 0, met)
+    her = batch.goal_step >= 0
+    cols = SPEC.hindsight_columns()
+    future = replay.achieved[batch.episode[her], batch.goal_step[her]][:, cols]
+    np.testing.assert_array_equal(batch.goals[her], future)
+    np.testing.assert_array_equal(batch.goals[~her], replay.goals[batch.episode[~her]])
+    assert np.all(batch.reward[batch.goal_step == batch.step + 1] == 0)
+
+
+def test_storage_is_first_in_first_out_and_round_trips():
+    replay = EpisodeReplay(SPEC, capacity=25)
+    data = rollouts(40, np.arange(40) % 3, seed=12)
+    replay.store(*(a[:20] for a in data[:5]))
+    replay.store(*(a[20:] for a in data[:5]))
+    assert replay.size == 25 and replay.ptr == 15
+    np.testing.assert_array_equal(replay.states[:15], data[0][25:40])  # overwritten oldest
+    np.testing.assert_array_equal(replay.states[15:25], data[0][15:25])
+    copy = EpisodeReplay(SPEC, capacity=25)
+    copy.load_state_dict(replay.state_dict())
+    a = replay.sample(500, np.random.default_rng(1), ToyGoalEnv(), np.full(3, 1 / 3))
+    b = copy.sample(500, np.random.default_rng(1), ToyGoalEnv(), np.full(3, 1 / 3))
+    np.testing.assert_array_equal(a.goals, b.goals)
+    np.testing.assert_array_equal(a.reward, b.reward)
+
+
+def test_sampling_errors_are_clear():
+    replay = EpisodeReplay(SPEC, capacity=5)
+    with pytest.raises(RuntimeError, match="empty"):
+        replay.sample(8, np.random.default_rng(0), ToyGoalEnv(), np.full(3, 1 / 3))
+    filled, _ = filled_replay()
+    with pytest.raises(ValueError, match="module_probs"):
+        filled.sample(8, np.random.default_rng(0), ToyGoalEnv(), None)

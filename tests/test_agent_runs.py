@@ -1,0 +1,231 @@
+"""Run folders: metrics.parquet contract, checkpoints, resume, bad input, SIGKILL, the CLI."""
+
+import hashlib
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+import torch
+from toy_env import make_toy_envs
+
+from curious.checkpoint import CheckpointError, list_checkpoints
+from curious.cli import main
+from curious.config import resolve
+from curious.run_folder import RunFolderError
+from curious.train import train
+
+TESTS = Path(__file__).resolve().parent
+SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)
+
+
+def toy_envs(config):
+    return make_toy_envs(config.seed, config.n_workers)
+
+
+def run(out, condition="curious", seed=0, resume=False, **changes):
+    config = resolve("smoke", condition, seed, {**SMALL, **changes})
+    return train(config, out, resume=resume, make_envs=toy_envs)
+
+
+def run_stop(out, stop, resume=False, **changes):
+    config = resolve("smoke", "curious", 0, {**SMALL, **changes})
+    return train(config, out, resume=resume, make_envs=toy_envs, stop_after_cycles=stop)
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+@pytest.mark.parametrize("condition", ["curious", "m-uvfa", "mg-te", "her"])
+def test_run_folder_holds_config_metrics_and_checkpoint(tmp_path, condition):
+    trainer = run(tmp_path / "run", condition)
+    folder = tmp_path / "run"
+    info = json.loads((folder / "config.json").read_text())
+    assert (info["condition"], info["seed"], info["preset"]) == (condition, 0, "smoke")
+    assert info["modules"] == ["reach", "dial", "beacon"]
+    assert info["achievable"] == [True, True, False]
+    assert info["config"]["total_episodes"] == 39
+    assert set(info["versions"]) >= {"torch", "numpy", "mujoco", "dm-control", "python"}
+    assert "commit" in info["git"]
+
+    table = pq.read_table(folder / "metrics.parquet")
+    names = ["reach", "dial", "beacon"]
+    expected = ["episode", "worker", "module", "g0", "g1", "g2", "success", "eval"]
+    expected += [f"{p}/{n}" for p in ("competence", "lp", "p_lp") for n in names] + ["wall_time"]
+    assert table.schema.names == expected
+    types = {f.name: str(f.type) for f in table.schema}
+    assert types["episode"] == "int64" and types["worker"] == "int32"
+    assert types["module"] == "string" and types["g0"] == "float"
+    assert types["success"] == "bool" and types["eval"] == "bool"
+    assert types["p_lp/dial"] == "float" and types["wall_time"] == "double"
+    df = table.to_pandas()
+    # episodes counted exactly (39 is not a multiple of the 4 episodes per cycle)
+    assert trainer.episodes == 39
+    np.testing.assert_array_equal(df["episode"], np.arange(39))
+    assert df["eval"].sum() == 39 // 5 and np.all(df["episode"][df["eval"]] % 5 == 4)
+    assert set(df["module"]) <= set(names)
+    p = df[[f"p_lp/{n}" for n in names]].to_numpy()
+    np.testing.assert_allclose(p.sum(1), 1, rtol=1e-5)
+    assert np.all(np.diff(df["wall_time"]) >= 0)
+    assert len(list_checkpoints(folder / "checkpoints")) == 1
+
+
+def test_resume_gives_the_same_run_as_no_interruption(tmp_path):
+    whole = run_stop(tmp_path / "whole", stop=None, total_episodes=48, checkpoint_every_cycles=3)
+    first = run_stop(tmp_path / "split", stop=5, total_episodes=48, checkpoint_every_cycles=3)
+    assert first.episodes == 20
+    rest = run_stop(
+        tmp_path / "split", stop=None, resume=True, total_episodes=48, checkpoint_every_cycles=3
+    )
+    assert rest.episodes == 48
+    for a, b in zip(
+        whole.agent.experts[0].state_dict().items(),
+        rest.agent.experts[0].state_dict().items(),
+        strict=True,
+    ):
+        assert a[0] == b[0]
+        if a[0] in ("actor", "critics", "actor_target", "critics_target"):
+            for key in a[1]:
+                assert torch.equal(a[1][key], b[1][key]), (a[0], key)
+    np.testing.assert_array_equal(whole.tracker.counts, rest.tracker.counts)
+    df_a = pq.read_table(tmp_path / "whole" / "metrics.parquet").to_pandas()
+    df_b = pq.read_table(tmp_path / "split" / "metrics.parquet").to_pandas()
+    cols = [c for c in df_a.columns if c != "wall_time"]
+    assert df_a[cols].equals(df_b[cols])
+    resumed = json.loads((tmp_path / "split" / "config.json").read_text())["resumed"]
+    assert len(resumed) == 1
+
+
+def test_resume_may_extend_a_finished_run(tmp_path):
+    run_stop(tmp_path / "r", stop=None, total_episodes=12)
+    trainer = run_stop(tmp_path / "r", stop=None, resume=True, total_episodes=20)
+    assert trainer.episodes == 20
+    df = pq.read_table(tmp_path / "r" / "metrics.parquet").to_pandas()
+    np.testing.assert_array_equal(df["episode"], np.arange(20))
+
+
+def test_non_empty_folder_without_resume_is_refused_untouched(tmp_path):
+    run(tmp_path / "r")
+    before = snapshot(tmp_path / "r")
+    with pytest.raises(RunFolderError, match="not empty; pass --resume"):
+        run(tmp_path / "r")
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    with pytest.raises(RunFolderError, match="not empty"):
+        run(other)
+    assert snapshot(tmp_path / "r") == before
+    assert [p.name for p in other.iterdir()] == ["notes.txt"]
+
+
+def test_resume_with_another_config_is_refused_untouched(tmp_path):
+    run(tmp_path / "r")
+    before = snapshot(tmp_path / "r")
+    with pytest.raises(RunFolderError, match=r"different config \(hidden: 32 -> 64"):
+        run(tmp_path / "r", resume=True, hidden=64)
+    assert snapshot(tmp_path / "r") == before
+
+
+def test_checkpoint_from_another_config_is_refused_untouched(tmp_path):
+    run(tmp_path / "seed1", seed=1)
+    run_stop(tmp_path / "seed0", stop=2)
+    shutil.rmtree(tmp_path / "seed0" / "checkpoints")
+    shutil.copytree(tmp_path / "seed1" / "checkpoints", tmp_path / "seed0" / "checkpoints")
+    before = snapshot(tmp_path / "seed0")
+    with pytest.raises(CheckpointError, match=r"another config .*seed"):
+        run(tmp_path / "seed0", resume=True)
+    assert snapshot(tmp_path / "seed0") == before
+
+
+def test_nothing_to_resume(tmp_path):
+    with pytest.raises(RunFolderError, match="nothing to resume"):
+        run(tmp_path / "absent", resume=True)
+
+
+KILL_SCRIPT = textwrap.dedent(
+    """
+    import sys
+    sys.path.insert(0, {tests!r})
+    from toy_env import make_toy_envs
+    from curious.config import resolve
+    from curious.train import train
+    config = resolve("smoke", "curious", 0, dict(
+        total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
+        buffer_episodes=64))
+    train(config, {out!r}, make_envs=lambda c: make_toy_envs(c.seed, c.n_workers))
+    """
+)
+
+
+def test_sigkill_leaves_readable_metrics_and_a_resumable_run(tmp_path):
+    out = tmp_path / "killed"
+    script = KILL_SCRIPT.format(tests=str(TESTS), out=str(out))
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.Popen([sys.executable, "-c", script], env=env)
+    try:
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            ckpts = list_checkpoints(out / "checkpoints")
+            if ckpts and int(ckpts[-1].name[3:]) >= 40:
+                break
+            assert proc.poll() is None, "training process ended early"
+            time.sleep(0.05)
+        else:
+            pytest.fail("no checkpoint after 60 s")
+        time.sleep(0.1)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    df = pq.read_table(out / "metrics.parquet").to_pandas()  # readable after SIGKILL
+    np.testing.assert_array_equal(df["episode"], np.arange(len(df)))
+    saved = int(list_checkpoints(out / "checkpoints")[-1].name[3:])
+    assert len(df) >= saved - 4  # at most one checkpoint interval (one cycle) lost
+    trainer = run_stop(
+        out,
+        stop=None,
+        resume=True,
+        total_episodes=saved + 8,
+        checkpoint_every_cycles=1,
+        buffer_episodes=64,
+        n_workers=2,
+    )
+    assert trainer.episodes == saved + 8
+    df = pq.read_table(out / "metrics.parquet").to_pandas()
+    np.testing.assert_array_equal(df["episode"], np.arange(saved + 8))
+
+
+def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
+    out = str(tmp_path / "r")
+    cases = [
+        (["--condition", "curiouser"], "unknown condition 'curiouser'"),
+        (["--preset", "weekend"], "unknown preset 'weekend'"),
+        (["--set", "hiden=3"], "unknown config key 'hiden'"),
+        (["--set", "n_workers=two"], "n_workers='two': expected a int"),
+    ]
+    for extra, message in cases:
+        assert main(["train", "--out", out, "--no-record", *extra]) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.startswith("curious train: error:")
+    assert not (tmp_path / "r").exists()
+    (tmp_path / "r").mkdir()
+    (tmp_path / "r" / "x").write_text("keep")
+    assert main(["train", "--out", out, "--preset", "smoke", "--no-record"]) == 2
+    assert "not empty; pass --resume" in capsys.readouterr().err
+    assert (tmp_path / "r" / "x").read_text() == "keep"
+    assert main(["train", "--out", str(tmp_path / "none"), "--resume", "--no-record"]) == 2
+    assert "nothing to resume" in capsys.readouterr().err

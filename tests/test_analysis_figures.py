@@ -1,0 +1,194 @@
+"""The paper's figures (curious.analysis.figures) from synthetic run folders."""
+
+from __future__ import annotations
+
+import hashlib
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.figure import Figure
+from test_analysis_synthetic import (
+    write_distractor_study,
+    write_perturbation_study,
+    write_study,
+)
+
+from curious import analysis
+from curious.analysis import palette
+from curious.analysis.style import format_episodes
+
+
+@pytest.fixture(scope="module")
+def studies(tmp_path_factory):
+    """Loaded tables of the three made-up studies (main comparison, sensory failure,
+    distractors); built once for this module."""
+    root = tmp_path_factory.mktemp("studies")
+    write_study(root / "main", seeds=(0, 1, 2), n_episodes=600)
+    write_perturbation_study(root / "failure", perturbation=300, n_episodes=900)
+    write_distractor_study(root / "distractors", counts=(0, 4, 7), seeds=(0, 1), n_episodes=300)
+    return {
+        "main": analysis.load_runs(root / "main"),
+        "failure": analysis.load_runs(root / "failure"),
+        "distractors": analysis.load_runs(root / "distractors"),
+    }
+
+
+def _build(name, studies, out_dir=None):
+    """Builds figure ``name``; returns the Figure."""
+    kw = {"out_dir": out_dir}
+    if name == "fig2a":
+        return analysis.fig2a(studies["main"], **kw)
+    if name == "fig2b":
+        return analysis.fig2b(studies["main"], **kw)
+    if name == "fig2c":
+        return analysis.fig2c(studies["main"], seed=1, **kw)
+    if name == "table1":
+        return analysis.table1(studies["main"], **kw)
+    if name == "forgetting":
+        return analysis.forgetting(studies["failure"], **kw)[0]
+    if name == "distractors":
+        return analysis.distractors(studies["distractors"], **kw)
+    raise AssertionError(name)
+
+
+FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "forgetting", "distractors")
+
+
+def _caption(fig: Figure) -> str:
+    return fig._supxlabel.get_text().replace("\n", " ")
+
+
+@pytest.mark.parametrize("name", FIGURES)
+def test_every_figure_writes_png_and_svg_and_rebuilds_byte_identical(name, studies, tmp_path):
+    first = _build(name, studies, tmp_path / "a")
+    _build(name, studies, tmp_path / "b")
+    for ext in ("png", "svg"):
+        a = (tmp_path / "a" / f"{name}.{ext}").read_bytes()
+        b = (tmp_path / "b" / f"{name}.{ext}").read_bytes()
+        assert len(a) > 10_000
+        assert hashlib.sha256(a).digest() == hashlib.sha256(b).digest(), f"{name}.{ext} differs"
+    assert (tmp_path / "a" / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    svg = ET.fromstring((tmp_path / "a" / f"{name}.svg").read_bytes())
+    assert svg.tag.endswith("svg")
+    text = (tmp_path / "a" / f"{name}.svg").read_text()
+    assert "dc:date" not in text and "Matplotlib v" not in text
+    assert not list((tmp_path / "a").glob(".*partial"))
+    # Captions say seeds and budget; x axes count episodes (the distractors figure counts
+    # distracting modules).
+    caption = _caption(first)
+    assert "seed" in caption and "episodes" in caption
+    assert "preset synthetic" in caption
+    labels = {ax.get_xlabel() for ax in first.axes if ax.get_xlabel()}
+    assert labels == ({"distracting modules"} if name == "distractors" else {"episodes"})
+
+
+def test_fig2a_dots_are_the_significant_bins(studies):
+    binned = analysis.bin_runs(studies["main"], bin_size=20)
+    test = analysis.welch_per_bin(binned, "curious", "mg-te")
+    assert 0 < test["significant"].sum() < len(test)  # the made-up data leave both kinds
+    fig = analysis.fig2a(studies["main"], bin_size=20)
+    (dots,) = [line for line in fig.axes[0].lines if line.get_label().startswith("p < 0.01")]
+    np.testing.assert_array_equal(dots.get_xdata(), test.loc[test["significant"], "episodes"])
+    assert "3 seeds (0–2)" in _caption(fig) and "600 episodes per run" in _caption(fig)
+
+
+def test_fig2a_draws_no_dots_between_equal_conditions(studies):
+    df = studies["main"]
+    # The mg-te runs against a relabelled copy of themselves: identical numbers, no dot.
+    mg_te = df[df["condition"] == "mg-te"]
+    twin = mg_te.assign(condition="curious", run=mg_te["run"].astype(str) + "-twin")
+    equal = pd.concat([mg_te.astype({"condition": str, "run": str}), twin], ignore_index=True)
+    assert not analysis.welch_per_bin(analysis.bin_runs(equal, bin_size=20), "curious", "mg-te")[
+        "significant"
+    ].any()
+    fig = analysis.fig2a(equal, bin_size=20)
+    (dots,) = [line for line in fig.axes[0].lines if line.get_label().startswith("p < 0.01")]
+    assert len(dots.get_xdata()) == 0
+
+
+def test_fig2a_without_a_compared_condition_says_so(studies):
+    only = studies["main"][studies["main"]["condition"] != "mg-te"]
+    with pytest.raises(analysis.RunFolderError, match="pass compare=None"):
+        analysis.fig2a(only)
+    fig = analysis.fig2a(only, compare=None)
+    assert not [line for line in fig.axes[0].lines if line.get_label().startswith("p <")]
+
+
+def test_module_figures_use_the_palette(studies):
+    fig = analysis.fig2b(studies["main"], seed=2)
+    lines = {line.get_label(): line for line in fig.axes[0].lines}
+    assert lines["T1 reach"].get_color() == palette.module_color("reach")
+    assert lines["T5 push cube 3 (distractor)"].get_linestyle() == "--"
+    assert "seed 2" in fig._suptitle.get_text()
+    with pytest.raises(analysis.RunFolderError, match="has no seed 9"):
+        analysis.fig2b(studies["main"], seed=9)
+
+
+def test_table1_has_a_row_per_seed(studies):
+    fig = analysis.table1(studies["main"])
+    assert len(fig.axes) == 2 * 3
+    assert [ax.get_ylabel() for ax in fig.axes[::2]] == [f"seed {s}\ncompetence" for s in range(3)]
+
+
+def test_forgetting_returns_and_states_recovery_times(studies):
+    fig, per_run = analysis.forgetting(studies["failure"], fraction=0.9)
+    assert fig.axes[0].get_ylabel() == "competence of T2 push cube 1"  # the module that fell
+    assert per_run["recovered"].all()
+    summary = analysis.recovery_summary(per_run).set_index("condition")
+    # The made-up m-uvfa runs recover with a longer time constant than the curious ones.
+    assert (
+        summary.loc["curious", "mean_recovery_episodes"]
+        < summary.loc["m-uvfa", "mean_recovery_episodes"]
+    )
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    mean = summary.loc["curious", "mean_recovery_episodes"]
+    assert any(
+        f"regained after {mean:,.0f}" in label and "(3/3 seeds)" in label for label in labels
+    )
+    assert "perturbation at episode 300" in _caption(fig)
+
+
+def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies):
+    fig = analysis.distractors(studies["distractors"])
+    ax = fig.axes[0]
+    assert list(ax.get_xticks()) == [0, 4, 7]
+    final = analysis.final_competence(studies["distractors"])
+    means = final.groupby(["condition", "n_distractors"])["value"].mean()
+    containers = {c.get_label(): c for c in ax.containers}
+    line = containers["CURIOUS"].lines[0]
+    np.testing.assert_allclose(line.get_ydata(), means.loc["curious"].to_numpy())
+
+
+def test_episode_ticks_read_in_thousands():
+    assert [format_episodes(v) for v in (0, 950, 1500, 150_000, 1_200_000)] == [
+        "0",
+        "950",
+        "1.5k",
+        "150k",
+        "1.2M",
+    ]
+
+
+def test_palette_is_fixed_and_rerun_ready():
+    assert palette.module_color("reach") == "#0072B2"
+    assert palette.module_rgb("reach") == (0x00, 0x72, 0xB2)
+    assert palette.module_label("cube1_above_cube2") == "T3 cube 1 above cube 2"
+    assert palette.condition_label("mg-te") == "MG-TE"
+    colours = [palette.condition_color(c) for c in ("curious", "mg-te", "her", "m-uvfa")]
+    assert len(set(colours)) == 4
+    # Modules beyond the table: stable labels and colours, distinct among extra distractors.
+    assert palette.module_label("push_cube9") == "push cube 9"
+    extra = [palette.module_color(f"push_cube{i}") for i in range(6, 10)]
+    assert len(set(extra)) == 4 and palette.module_color("push_cube9") == extra[-1]
+    assert palette.module_color("wave_hello") == palette.module_color("wave_hello")
+    assert all(0 <= v <= 255 for v in palette.module_rgb("wave_hello"))
+    names = ["push_cube10", "stack", "zz", "reach", "push_cube8"]
+    assert sorted(names, key=palette.module_sort_key) == [
+        "reach",
+        "stack",
+        "push_cube8",
+        "push_cube10",
+        "zz",
+    ]

@@ -1,0 +1,249 @@
+"""Statistics (curious.analysis.statistics) on hand-made numbers, checked against numpy/scipy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+from test_analysis_synthetic import DEFAULT_ACHIEVABLE, DEFAULT_MODULES, write_run
+
+from curious.analysis import (
+    RunFolderError,
+    achievable_competence,
+    across_seeds,
+    bin_runs,
+    final_competence,
+    load_runs,
+    most_perturbed_module,
+    nice_bin_size,
+    recovery,
+    recovery_summary,
+    welch_per_bin,
+)
+
+ACHIEVABLE = DEFAULT_MODULES[:4]
+DISTRACTORS = DEFAULT_MODULES[4:]
+
+
+def _run(root, condition, seed, achievable_curve, distractor_value=0.9, **kw):
+    """A run whose four achievable modules all follow ``achievable_curve`` (one value per episode)
+    and whose distractors sit at ``distractor_value`` (high, so leaking them in would show)."""
+    curve = np.asarray(achievable_curve, dtype=np.float64)
+    curves = {m: curve for m in ACHIEVABLE}
+    curves.update({m: np.full(len(curve), distractor_value) for m in DISTRACTORS})
+    return write_run(
+        root / f"{condition}-{kw.get('variant', 'default')}-{seed}",
+        condition=condition,
+        seed=seed,
+        competence=curves,
+        achievable=DEFAULT_ACHIEVABLE,
+        **kw,
+    )
+
+
+LEVELS = (0.25, 0.5, 0.75, 1.0, 1.0, 1.0, 1.0)
+
+
+def test_success_averages_the_achievable_modules_only(tmp_path):
+    curves = {m: np.full(4, v) for m, v in zip(DEFAULT_MODULES, LEVELS, strict=True)}
+    write_run(
+        tmp_path / "r",
+        condition="curious",
+        seed=0,
+        competence=curves,
+        achievable=DEFAULT_ACHIEVABLE,
+    )
+    df = load_runs(tmp_path)
+    np.testing.assert_allclose(achievable_competence(df), 0.625)
+
+
+@pytest.mark.parametrize(
+    ("n", "target", "expected"),
+    [(1, 50, 1), (99, 50, 1), (100, 50, 2), (1200, 50, 20), (300_000, 50, 5000), (5000, 10, 500)],
+)
+def test_nice_bin_size(n, target, expected):
+    assert nice_bin_size(n, target) == expected
+
+
+def test_bins_take_the_value_at_the_end_of_each_complete_bin(tmp_path):
+    values = np.arange(10) / 16.0  # exact in float32
+    _run(tmp_path, "curious", 0, values)
+    binned = bin_runs(load_runs(tmp_path), bin_size=3)
+    # Bins [0,3), [3,6), [6,9): values after episodes 2, 5, 8; episode 9 starts an unfinished bin.
+    assert binned["episodes"].tolist() == [3, 6, 9]
+    np.testing.assert_array_equal(binned["value"], values[[2, 5, 8]])
+    assert binned.attrs["bin_size"] == 3
+
+
+def test_bins_use_the_last_logged_episode_when_rows_are_missing(tmp_path):
+    episodes = np.array([0, 1, 2, 4, 7, 8])  # 3, 5, 6 missing (a killed run, say)
+    values = np.array([1, 2, 3, 4, 5, 6]) / 8.0
+    _run(tmp_path, "curious", 0, values, episodes=episodes)
+    binned = bin_runs(load_runs(tmp_path), bin_size=3)
+    # Bin ends 2, 5, 8 -> last rows at episodes 2, 4, 8.
+    np.testing.assert_array_equal(binned["value"], [3 / 8, 4 / 8, 6 / 8])
+
+
+def _two_conditions(root, better_values, worse_values, n=8):
+    """Runs whose per-seed level is the given number at every episode, per condition."""
+    for seed, v in enumerate(better_values):
+        _run(root, "curious", seed, np.full(n, v))
+    for seed, v in enumerate(worse_values):
+        _run(root, "mg-te", seed, np.full(n, v))
+    return load_runs(root)
+
+
+def test_mean_std_and_welch_match_numpy_and_scipy_on_the_same_numbers(tmp_path):
+    rng = np.random.default_rng(3)
+    n, bin_size = 12, 4
+    better = np.round(rng.uniform(0.4, 0.9, size=(5, n)) * 64) / 64  # float32-exact
+    worse = np.round(rng.uniform(0.1, 0.6, size=(4, n)) * 64) / 64
+    for seed, curve in enumerate(better):
+        _run(tmp_path, "curious", seed, curve)
+    for seed, curve in enumerate(worse):
+        _run(tmp_path, "mg-te", seed, curve)
+    binned = bin_runs(load_runs(tmp_path), bin_size=bin_size)
+    ends = [3, 7, 11]
+    summary = across_seeds(binned).set_index(["condition", "episodes"])
+    for k, end in enumerate(ends):
+        row = summary.loc[("curious", (k + 1) * bin_size)]
+        assert row["n"] == 5
+        assert row["mean"] == pytest.approx(better[:, end].mean())
+        assert row["std"] == pytest.approx(better[:, end].std(ddof=1))
+    test = welch_per_bin(binned, "curious", "mg-te")
+    assert test["episodes"].tolist() == [4, 8, 12]
+    for k, end in enumerate(ends):
+        expected = stats.ttest_ind(
+            better[:, end], worse[:, end], equal_var=False, alternative="greater"
+        )
+        assert test["t"].iat[k] == pytest.approx(expected.statistic)
+        assert test["p"].iat[k] == pytest.approx(expected.pvalue)
+        assert test["significant"].iat[k] == (expected.pvalue < 0.01)
+        assert (test["n_better"].iat[k], test["n_worse"].iat[k]) == (5, 4)
+
+
+def test_a_better_condition_gets_its_dots_and_an_equal_one_none(tmp_path):
+    better = bin_runs(
+        _two_conditions(tmp_path / "a", [0.8, 0.82, 0.85, 0.87], [0.2, 0.25, 0.3, 0.28]),
+        bin_size=2,
+    )
+    result = welch_per_bin(better, "curious", "mg-te")
+    assert len(result) == 4 and result["significant"].all()
+    assert (result["p"] < 0.01).all()
+    # The other way round (one-tailed): never significant.
+    assert not welch_per_bin(better, "mg-te", "curious")["significant"].any()
+    same = [0.5, 0.55, 0.6, 0.52]
+    equal = bin_runs(_two_conditions(tmp_path / "b", same, same), bin_size=2)
+    result = welch_per_bin(equal, "curious", "mg-te")
+    assert len(result) == 4 and not result["significant"].any()
+    np.testing.assert_allclose(result["p"], 0.5)
+
+
+def test_a_small_difference_is_not_significant_at_one_percent(tmp_path):
+    # Means differ by one std: p is between 0.01 and 0.5, so no dot at alpha = 0.01 ...
+    df = _two_conditions(tmp_path, [0.5, 0.6, 0.7], [0.4, 0.5, 0.6])
+    result = welch_per_bin(bin_runs(df, bin_size=4), "curious", "mg-te")
+    assert ((result["p"] > 0.01) & (result["p"] < 0.5)).all()
+    assert not result["significant"].any()
+    # ... but there is one at a looser level.
+    assert welch_per_bin(bin_runs(df, bin_size=4), "curious", "mg-te", alpha=0.2)[
+        "significant"
+    ].all()
+
+
+def test_one_seed_gives_no_test_and_no_std(tmp_path):
+    df = _two_conditions(tmp_path, [0.9], [0.1, 0.2])
+    binned = bin_runs(df, bin_size=4)
+    result = welch_per_bin(binned, "curious", "mg-te")
+    assert result["p"].isna().all() and not result["significant"].any()
+    assert across_seeds(binned).query("condition == 'curious'")["std"].isna().all()
+
+
+def test_comparing_runs_with_different_achievable_modules_is_refused(tmp_path):
+    _run(tmp_path, "curious", 0, np.full(8, 0.5))
+    curves = {m: np.full(8, 0.5) for m in DEFAULT_MODULES}
+    write_run(
+        tmp_path / "other",
+        condition="mg-te",
+        seed=0,
+        competence=curves,
+        achievable=(True, True, False, False, False, False, False),
+        variant="other",
+    )
+    binned = bin_runs(load_runs(tmp_path), bin_size=4)
+    with pytest.raises(RunFolderError, match="different achievable modules"):
+        welch_per_bin(binned, "curious", "mg-te")
+
+
+def test_two_runs_of_one_seed_are_refused(tmp_path):
+    _run(tmp_path, "curious", 0, np.full(8, 0.5))
+    _run(tmp_path, "curious", 0, np.full(8, 0.6), variant="again")
+    _run(tmp_path, "mg-te", 0, np.full(8, 0.5))
+    _run(tmp_path, "mg-te", 1, np.full(8, 0.5))
+    binned = bin_runs(load_runs(tmp_path), bin_size=4)
+    with pytest.raises(RunFolderError, match="'curious' seed 0 has 2 runs"):
+        welch_per_bin(binned, "curious", "mg-te")
+    with pytest.raises(RunFolderError, match="no runs of condition 'her'"):
+        welch_per_bin(binned, "her", "mg-te")
+
+
+def test_final_competence_is_read_at_the_common_budget(tmp_path):
+    _run(tmp_path, "curious", 0, np.arange(10) / 16.0)
+    _run(tmp_path, "curious", 1, np.arange(6) / 16.0)
+    final = final_competence(load_runs(tmp_path)).set_index("seed")
+    assert (final["episodes"] == 6).all()
+    assert final.loc[0, "value"] == 5 / 16 and final.loc[1, "value"] == 5 / 16
+    with pytest.raises(RunFolderError, match="before 8"):
+        final_competence(load_runs(tmp_path), at_episode=8)
+
+
+def _perturbed(root, condition, seed, curve, p=4):
+    curves = {m: np.full(len(curve), 0.75) for m in DEFAULT_MODULES}
+    curves["push_cube1"] = np.asarray(curve, dtype=np.float64)
+    return write_run(
+        root / f"{condition}{seed}",
+        condition=condition,
+        seed=seed,
+        competence=curves,
+        achievable=DEFAULT_ACHIEVABLE,
+        sensor_failure_episode=p,
+    )
+
+
+def test_recovery_counts_episodes_from_the_perturbation_to_regained_competence(tmp_path):
+    # Pre-perturbation level 0.75 (episodes 0-3), threshold 0.675. Episode 4 dips on the way
+    # down to 0.625, episode 5 reads 0.6875 by noise, trough 0.25 at episode 7, back at 0.6875 at
+    # episode 10: recovered after 10 - 4 + 1 = 7 episodes (the noisy reading at 5 does not count).
+    curve = [0.75, 0.75, 0.75, 0.75, 0.625, 0.6875, 0.5, 0.25, 0.375, 0.5, 0.6875, 0.75]
+    _perturbed(tmp_path, "curious", 0, curve)
+    # Never falls below 0.675: recovery 0. Never comes back: NaN.
+    _perturbed(tmp_path, "curious", 1, [0.75] * 4 + [0.6875] * 8)
+    _perturbed(tmp_path, "curious", 2, [0.75] * 4 + [0.25] * 8)
+    rec = recovery(load_runs(tmp_path), "push_cube1", fraction=0.9, pre_window=4)
+    rec = rec.set_index("seed")
+    assert rec.loc[0, "pre_competence"] == 0.75
+    assert rec.loc[0, "threshold"] == pytest.approx(0.675)
+    assert rec.loc[0, "trough_episode"] == 7 and rec.loc[0, "min_competence"] == 0.25
+    assert rec.loc[0, "recovery_episodes"] == 7
+    assert rec.loc[1, "recovery_episodes"] == 0 and not rec.loc[1, "dropped"]
+    assert np.isnan(rec.loc[2, "recovery_episodes"]) and not rec.loc[2, "recovered"]
+    summary = recovery_summary(rec.reset_index()).set_index("condition")
+    assert summary.loc["curious", "n_runs"] == 3 and summary.loc["curious", "n_recovered"] == 2
+    assert summary.loc["curious", "mean_recovery_episodes"] == pytest.approx(3.5)
+
+
+def test_the_most_perturbed_module_is_the_one_that_fell(tmp_path):
+    _perturbed(tmp_path, "curious", 0, [0.75] * 4 + [0.25] * 4)
+    assert most_perturbed_module(load_runs(tmp_path)) == "push_cube1"
+
+
+def test_recovery_needs_a_perturbation_episode(tmp_path):
+    _run(tmp_path, "curious", 0, np.full(8, 0.5))
+    df = load_runs(tmp_path)
+    with pytest.raises(RunFolderError, match="no sensor_failure_episode"):
+        recovery(df, "reach")
+    with pytest.raises(RunFolderError, match="no episode before the perturbation"):
+        recovery(df, "reach", perturbation_episode=0)
+    with pytest.raises(KeyError, match="no module 'fly'"):
+        recovery(df, "fly", perturbation_episode=3)
+    assert recovery(df, "reach", perturbation_episode=3)["recovery_episodes"].iat[0] == 0

@@ -1,0 +1,488 @@
+"""The run recording: what the training loop logs comes back out of `recording.rrd`.
+
+Recordings are read back with Rerun's own reader (`rerun.chunk.RrdReader`, through
+`curious.recording.reader`), so these tests check the file a user opens, not our buffers.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import signal
+import socket
+import subprocess
+import time
+import warnings
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from rerun.chunk import RrdReader
+
+from curious.analysis.palette import module_label, module_rgb
+from curious.commands.view import viewer_command
+from curious.recording import (
+    APPLICATION_ID,
+    RECORDING_FILENAME,
+    RecorderSettings,
+    RolloutCapture,
+    RunRecorder,
+    SceneLayout,
+    wxyz_to_xyzw,
+)
+from curious.recording.cost import fetch_model, measure_logging_cost, synthetic_episodes
+from curious.recording.reader import read_component, read_scalars, summarize
+
+MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
+
+
+def _log_in_batches(recorder: RunRecorder, data: dict[str, np.ndarray], batch: int) -> None:
+    n = len(data["episode"])
+    for start in range(0, n, batch):
+        sl = slice(start, start + batch)
+        recorder.log_episodes(
+            data["episode"][sl],
+            data["module"][sl],
+            data["success"][sl],
+            data["eval"][sl],
+            data["competence"][sl],
+            data["lp"][sl],
+            data["p_lp"][sl],
+            wall_time=data["episode"][sl] * 0.5,
+        )
+
+
+def _forward_fill(times: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
+    """The per-episode value a viewer shows (latest at each episode) from sparse rows."""
+    idx = np.searchsorted(times, np.arange(n), side="right") - 1
+    assert (idx >= 0).all(), "series must start at the first episode"
+    return values[idx]
+
+
+@pytest.fixture(scope="module")
+def fetch() -> mujoco.MjModel:
+    return fetch_model()
+
+
+def _fill_capture(model: mujoco.MjModel, steps: int = 12) -> RolloutCapture:
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    capture = RolloutCapture(model, steps + 1, gripper_body="robot0:gripper_link")
+    capture.record(data)
+    for _ in range(steps):
+        data.mocap_pos[0] += [0.004, -0.003, 0.002]
+        mujoco.mj_step(model, data, nstep=20)
+        capture.record(data)
+    return capture
+
+
+@pytest.mark.parametrize("on_change", [True, False])
+def test_scalars_read_back_equal_what_was_logged(tmp_path: Path, on_change: bool) -> None:
+    data = synthetic_episodes(600, len(MODULES), seed=1, window=20)
+    settings = RecorderSettings(stats_on_change=on_change)
+    with RunRecorder(tmp_path, MODULES, settings=settings) as recorder:
+        _log_in_batches(recorder, data, batch=37)
+    path = tmp_path / RECORDING_FILENAME
+    n = len(data["episode"])
+    for m, name in enumerate(MODULES):
+        for kind in ("competence", "lp", "p_lp"):
+            times, values = read_scalars(path, f"{kind}/{name}")
+            np.testing.assert_array_equal(_forward_fill(times, values, n), data[kind][:, m])
+            if not on_change:
+                np.testing.assert_array_equal(times, data["episode"])
+        mine = data["module"] == m
+        for split, mask in (("eval", mine & data["eval"]), ("train", mine & ~data["eval"])):
+            times, values = read_scalars(path, f"success/{split}/{name}")
+            np.testing.assert_array_equal(times, data["episode"][mask])
+            np.testing.assert_array_equal(values, data["success"][mask].astype(float))
+        times, values = read_scalars(path, f"module/{name}")
+        np.testing.assert_array_equal(times, data["episode"][mine])
+        assert (values == m).all()
+    # the wall-time timeline carries the same rows, in seconds
+    seconds, values = read_scalars(path, f"competence/{MODULES[0]}", timeline="wall_time")
+    np.testing.assert_allclose(seconds[0], 0.0)
+    assert seconds[-1] == pytest.approx((n - 1) * 0.5)
+
+
+def test_changes_only_keeps_the_file_smaller(tmp_path: Path) -> None:
+    data = synthetic_episodes(2000, len(MODULES), seed=2, window=30)
+    sizes = {}
+    for on_change in (True, False):
+        folder = tmp_path / str(on_change)
+        with RunRecorder(
+            folder, MODULES, settings=RecorderSettings(stats_on_change=on_change)
+        ) as r:
+            _log_in_batches(r, data, batch=40)
+        sizes[on_change] = (folder / RECORDING_FILENAME).stat().st_size
+    assert sizes[True] < 0.6 * sizes[False]
+
+
+def test_series_styles_use_the_shared_module_palette(tmp_path: Path) -> None:
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        recorder.log_episodes(0, 1, True, True, np.zeros((1, 5)), np.zeros((1, 5)), np.ones((1, 5)))
+    path = tmp_path / RECORDING_FILENAME
+    for name in MODULES:
+        _, names = read_component(path, f"competence/{name}", "SeriesLines:names", None)
+        _, colors = read_component(path, f"competence/{name}", "SeriesLines:colors", None)
+        assert names[-1] == [module_label(name)]
+        r, g, b = module_rgb(name)
+        assert colors[-1] == [(r << 24) | (g << 16) | (b << 8) | 0xFF]  # Rerun packs RGBA
+
+
+def test_replay_and_learner_statistics(tmp_path: Path) -> None:
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        recorder.log_replay([10, 20], [[1, 1, 2, 0, 0], [0, 0, 0, 0, 5]])
+        recorder.log_learner([10, 20], losses={"critic": [0.5, 0.25]}, q={"mean": [-3.0, -2.0]})
+    path = tmp_path / RECORDING_FILENAME
+    times, shares = read_scalars(path, "replay/cube1_above_cube2")
+    np.testing.assert_array_equal(times, [10, 20])
+    np.testing.assert_allclose(shares, [0.5, 0.0])
+    np.testing.assert_allclose(read_scalars(path, "losses/critic")[1], [0.5, 0.25])
+    np.testing.assert_allclose(read_scalars(path, "q/mean")[1], [-3.0, -2.0])
+
+
+def test_recording_has_ids_timelines_and_blueprint(tmp_path: Path) -> None:
+    with RunRecorder(tmp_path, MODULES, recording_id="run-abc") as recorder:
+        recorder.log_episodes(
+            [0, 1], [0, 1], [0, 1], [1, 0], np.zeros((2, 5)), np.zeros((2, 5)), np.full((2, 5), 0.2)
+        )
+    path = tmp_path / RECORDING_FILENAME
+    summary = summarize(path)
+    assert summary.application_id == APPLICATION_ID
+    assert summary.recording_ids == ("run-abc",)
+    assert {"episode", "wall_time"} <= summary.timelines
+    reader = RrdReader(path)
+    assert reader.blueprints(), "the default blueprint travels with the recording"
+    assert reader.blueprints()[0].application_id == APPLICATION_ID
+
+
+def test_bad_inputs_are_named(tmp_path: Path) -> None:
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        zeros = np.zeros((2, 5))
+        with pytest.raises(ValueError, match=r"competence must have shape \(2, 5\)"):
+            recorder.log_episodes([0, 1], [0, 1], [0, 1], [0, 0], np.zeros((2, 4)), zeros, zeros)
+        with pytest.raises(ValueError, match="unknown module 'fly'"):
+            recorder.log_episodes([0, 1], ["reach", "fly"], [0, 1], [0, 0], zeros, zeros, zeros)
+        with pytest.raises(ValueError, match="module index out of range"):
+            recorder.log_episodes([0, 1], [0, 9], [0, 1], [0, 0], zeros, zeros, zeros)
+        with pytest.raises(ValueError, match="success has 3 rows, expected 2"):
+            recorder.log_episodes([0, 1], [0, 1], [0, 1, 1], [0, 0], zeros, zeros, zeros)
+    with pytest.raises(ValueError, match="duplicates"):
+        RunRecorder(tmp_path / "x", ["reach", "reach"])
+    with pytest.raises(ValueError, match="rollout_stride"):
+        RecorderSettings(rollout_stride=0)
+
+
+def test_rollout_due_every_k_evaluations(tmp_path: Path) -> None:
+    settings = RecorderSettings(rollout_every=3)
+    due = [settings.rollout_due(i) for i in range(7)]
+    assert due == [True, False, False, True, False, False, True]
+    assert not RecorderSettings(rollout_every=0).rollout_due(0)
+    with RunRecorder(tmp_path, MODULES, settings=settings) as recorder:
+        assert [recorder.rollout_due(i) for i in range(7)] == due
+
+
+def test_wxyz_to_xyzw() -> None:
+    np.testing.assert_array_equal(wxyz_to_xyzw(np.array([1.0, 0, 0, 0])), [0, 0, 0, 1.0])
+    q = np.arange(8.0).reshape(2, 4)
+    np.testing.assert_array_equal(wxyz_to_xyzw(q), [[1, 2, 3, 0], [5, 6, 7, 4]])
+    with pytest.raises(ValueError, match="last axis of size 4"):
+        wxyz_to_xyzw(np.zeros(3))
+
+
+def test_scene_layout_is_fixed_and_poses_only_moving_bodies(fetch: mujoco.MjModel) -> None:
+    a, b = SceneLayout.from_model(fetch), SceneLayout.from_model(fetch)
+    assert a.body_paths == b.body_paths and a.geom_paths == b.geom_paths
+    moving = {a.body_names[i] for i in a.moving_bodies}
+    static = {a.body_names[i] for i in a.static_bodies}
+    assert {"object0", "robot0:gripper_link", "robot0:shoulder_pan_link"} <= moving
+    assert "table0" in static and "table0" not in moving
+    # bodies without drawn geometry (camera frames) are not posed at all
+    assert "robot0:gripper_camera_link" not in moving | static
+    assert all(":" not in p for p in a.body_paths)
+    with pytest.raises(ValueError, match="no body named 'hand'"):
+        a.body_id("hand")
+
+
+def test_capture_copies_poses_into_preallocated_rows(fetch: mujoco.MjModel) -> None:
+    data = mujoco.MjData(fetch)
+    mujoco.mj_forward(fetch, data)
+    capture = RolloutCapture(fetch, 2, gripper_body="robot0:gripper_link")
+    buffer = capture.xpos
+    capture.record(data)
+    mujoco.mj_step(fetch, data, nstep=20)
+    capture.record(data)
+    assert capture.xpos is buffer and capture.n_steps == 2
+    np.testing.assert_array_equal(capture.xpos[1], data.xpos[capture.layout.moving_bodies])
+    np.testing.assert_array_equal(capture.xquat[1], data.xquat[capture.layout.moving_bodies])
+    gripper = fetch.body("robot0:gripper_link").id
+    np.testing.assert_array_equal(capture.gripper[1], data.xpos[gripper])
+    with pytest.raises(IndexError, match="capture is full"):
+        capture.record(data)
+    capture.reset()
+    assert capture.n_steps == 0
+
+
+def test_rollout_entities_read_back(tmp_path: Path, fetch: mujoco.MjModel) -> None:
+    capture = _fill_capture(fetch, steps=12)
+    goal = np.array([1.3, 0.8, 0.43])
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        recorder.log_rollout(40, "push_cube1", capture, goal=goal, success=True)
+        recorder.log_rollout(90, 3, capture, goal=np.tile(goal, (13, 1)), success=False)
+    path = tmp_path / RECORDING_FILENAME
+    summary = summarize(path)
+    layout = capture.layout
+    cube = layout.body_paths[fetch.body("object0").id]
+    assert {"scene", "scene/goal", "scene/goal_region", "scene/gripper_path", cube} <= (
+        summary.entities
+    )
+    assert "rollout_frame" in summary.timelines
+    # static geometry: every drawn geom, meshes included, with its pose in its body
+    for g in layout.drawn_geoms:
+        assert layout.geom_paths[g] in summary.static_entities
+    arm = layout.geom_paths[fetch.geom("robot0:shoulder_pan_link").id]
+    _, vertices = read_component(path, arm, "Mesh3D:vertex_positions", None)
+    mesh = fetch.geom_dataid[fetch.geom("robot0:shoulder_pan_link").id]
+    assert len(vertices[-1]) == fetch.mesh_vertnum[mesh]
+    _, half = read_component(path, cube + "/object0", "Boxes3D:half_sizes", None)
+    np.testing.assert_allclose(half[-1][0], fetch.geom_size[fetch.geom("object0").id])
+    # per-step poses of the cube: both rollouts, in order, quaternions as xyzw
+    j = int(np.flatnonzero(layout.moving_bodies == fetch.body("object0").id)[0])
+    frames, trans = read_component(path, cube, "Transform3D:translation", "rollout_frame")
+    _, quats = read_component(path, cube, "Transform3D:quaternion", "rollout_frame")
+    np.testing.assert_array_equal(frames, np.arange(27))  # frame 0: the rest pose
+    np.testing.assert_allclose(np.array(trans)[1:14, 0], capture.xpos[:13, j], rtol=1e-6)
+    np.testing.assert_allclose(
+        np.array(quats)[1:14, 0], wxyz_to_xyzw(capture.xquat[:13, j]), atol=1e-6
+    )
+    episodes, _ = read_component(path, cube, "Transform3D:translation", "episode")
+    assert sorted(set(episodes.tolist())) == [0, 40, 90]  # 0: the rest pose
+    # goal marker coloured and labelled by module, gripper path growing step by step
+    _, labels = read_component(path, "scene/goal", "Points3D:labels", "episode")
+    assert labels == [
+        [f"{module_label('push_cube1')}, episode 40: success"],
+        [f"{module_label('stack')}, episode 90: failure"],
+    ]
+    _, strips = read_component(path, "scene/gripper_path", "LineStrips3D:strips", "rollout_frame")
+    assert [len(s[0]) for s in strips[:13]] == list(range(1, 14))
+    np.testing.assert_allclose(strips[12][0], capture.gripper[:13], rtol=1e-6)
+
+
+def test_rollout_stride_keeps_the_last_step(tmp_path: Path, fetch: mujoco.MjModel) -> None:
+    capture = _fill_capture(fetch, steps=10)  # 11 rows
+    settings = RecorderSettings(rollout_stride=4)
+    with RunRecorder(tmp_path, MODULES, settings=settings) as recorder:
+        recorder.log_rollout(5, 0, capture, goal=np.zeros(3), success=False)
+    cube = capture.layout.body_paths[fetch.body("object0").id]
+    frames, trans = read_component(
+        tmp_path / RECORDING_FILENAME, cube, "Transform3D:translation", "rollout_frame"
+    )
+    j = int(np.flatnonzero(capture.layout.moving_bodies == fetch.body("object0").id)[0])
+    np.testing.assert_allclose(np.array(trans)[1:, 0], capture.xpos[[0, 4, 8, 10], j], rtol=1e-6)
+    np.testing.assert_array_equal(frames, np.arange(5))
+
+
+PRIMITIVES = """
+<mujoco>
+  <worldbody>
+    <body name="b" pos="0 0 1">
+      <freejoint/>
+      <geom name="cap" type="capsule" size="0.1 0.3" pos="0.5 0 0"/>
+      <geom name="cyl" type="cylinder" size="0.2 0.4"/>
+      <geom name="ball" type="sphere" size="0.15" rgba="1 0 0 1"/>
+      <geom name="egg" type="ellipsoid" size="0.1 0.2 0.3"/>
+      <geom name="ghost" type="box" size="0.1 0.1 0.1" rgba="0 0 0 0"/>
+      <geom name="hidden" type="box" size="0.1 0.1 0.1" group="4"/>
+    </body>
+    <geom name="ground" type="plane" size="0 0 1"/>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_primitive_geoms_match_mujoco_sizes(tmp_path: Path) -> None:
+    model = mujoco.MjModel.from_xml_string(PRIMITIVES)
+    capture = RolloutCapture(model, 1)
+    capture.record(mujoco.MjData(model))
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        recorder.log_rollout(0, 0, capture, goal=np.zeros(3), success=False)
+    path = tmp_path / RECORDING_FILENAME
+    entities = summarize(path).entities
+    assert "scene/bodies/b/ghost" not in entities  # transparent
+    assert "scene/bodies/b/hidden" not in entities  # group 4 is hidden by default
+    _, lengths = read_component(path, "scene/bodies/b/cap", "Capsules3D:lengths", None)
+    _, offset = read_component(path, "scene/bodies/b/cap", "Capsules3D:translations", None)
+    assert lengths[-1] == pytest.approx([0.6]) and offset[-1] == [pytest.approx([0, 0, -0.3])]
+    _, cyl = read_component(path, "scene/bodies/b/cyl", "Cylinders3D:lengths", None)
+    assert cyl[-1] == pytest.approx([0.8])
+    _, ball = read_component(path, "scene/bodies/b/ball", "Ellipsoids3D:half_sizes", None)
+    assert ball[-1] == [pytest.approx([0.15, 0.15, 0.15])]
+    _, local = read_component(path, "scene/bodies/b/cap", "Transform3D:translation", None)
+    assert local[-1] == [pytest.approx([0.5, 0, 0])]
+    _, plane = read_component(path, "scene/bodies/world/ground", "Boxes3D:half_sizes", None)
+    assert plane[-1][0][:2] == pytest.approx([2.0, 2.0])  # an infinite plane, drawn 4 m wide
+
+
+def _write_run(folder: str, value: float) -> None:
+    with RunRecorder(folder, MODULES) as recorder:
+        comp = np.full((1, 5), value)
+        recorder.log_episodes(0, 0, True, True, comp, comp, comp)
+
+
+def test_two_processes_write_two_recordings(tmp_path: Path) -> None:
+    ctx = mp.get_context("spawn")
+    folders = [str(tmp_path / "a"), str(tmp_path / "b")]
+    procs = [
+        ctx.Process(target=_write_run, args=(f, v))
+        for f, v in zip(folders, (0.25, 0.75), strict=True)
+    ]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(timeout=60)
+        assert p.exitcode == 0
+    ids = [summarize(Path(f) / RECORDING_FILENAME).recording_ids for f in folders]
+    assert len(ids[0]) == 1 and len(ids[1]) == 1 and ids[0] != ids[1]
+    for folder, value in zip(folders, (0.25, 0.75), strict=True):
+        _, values = read_scalars(Path(folder) / RECORDING_FILENAME, "competence/reach")
+        assert values.tolist() == [value]
+
+
+def test_resume_keeps_the_id_and_drops_episodes_after_the_checkpoint(tmp_path: Path) -> None:
+    data = synthetic_episodes(300, len(MODULES), seed=3, window=10)
+    first = {k: v[:200] for k, v in data.items()}
+    with RunRecorder(tmp_path, MODULES, settings=RecorderSettings(stats_on_change=False)) as r:
+        _log_in_batches(r, first, batch=50)
+        run_id = r.recording_id
+    resumed = RunRecorder(
+        tmp_path,
+        MODULES,
+        settings=RecorderSettings(stats_on_change=False),
+        resume=True,
+        resume_after_episode=149,
+    )
+    assert resumed.recording_id == run_id
+    _log_in_batches(resumed, {k: v[150:] for k, v in data.items()}, batch=50)
+    resumed.close()
+    path = tmp_path / RECORDING_FILENAME
+    times, values = read_scalars(path, "p_lp/reach")
+    np.testing.assert_array_equal(times, np.arange(300))
+    np.testing.assert_array_equal(values, data["p_lp"][:, 0])
+    assert summarize(path).recording_ids == (run_id,)
+
+
+def test_spawn_without_display_warns_and_still_writes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    with pytest.warns(RuntimeWarning, match="no display"):
+        recorder = RunRecorder(tmp_path, MODULES, spawn=True)
+    recorder.log_episodes(0, 0, True, True, np.ones((1, 5)), np.ones((1, 5)), np.ones((1, 5)))
+    recorder.close()
+    assert read_scalars(tmp_path / RECORDING_FILENAME, "competence/reach")[1].tolist() == [1.0]
+
+
+def test_logging_cost_measurement_runs(tmp_path: Path, fetch: mujoco.MjModel) -> None:
+    result = measure_logging_cost(tmp_path, n_episodes=200, batch=20, n_rollouts=2, model=fetch)
+    assert result["file_bytes"] == (tmp_path / RECORDING_FILENAME).stat().st_size
+    assert result["scalar_us_per_episode"] > 0 and result["rollout_ms"] > 0
+
+
+def test_bad_rollout_inputs_log_nothing(tmp_path: Path, fetch: mujoco.MjModel) -> None:
+    capture = _fill_capture(fetch, steps=3)
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        with pytest.raises(ValueError, match=r"goal must have shape \(3,\) or \(4, 3\)"):
+            recorder.log_rollout(0, 0, capture, goal=np.zeros((3, 3)), success=False)
+        with pytest.raises(ValueError, match=r"gripper must have shape \(4, 3\)"):
+            recorder.log_rollout(0, 0, capture, goal=np.zeros(3), success=False, gripper=[1, 2])
+        capture.reset()
+        with pytest.raises(ValueError, match="holds no steps"):
+            recorder.log_rollout(0, 0, capture, goal=np.zeros(3), success=False)
+    assert "rollout_frame" not in summarize(tmp_path / RECORDING_FILENAME).timelines
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
+    port = _free_port()
+    live = tmp_path / "live.rrd"
+    server = subprocess.Popen(
+        [*viewer_command(), "--port", str(port), "--save", str(live)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,  # `rerun` is a Python launcher for the binary: stop both
+    )
+    try:
+        deadline = time.monotonic() + 30
+        while True:
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            assert time.monotonic() < deadline, "rerun server did not start"
+            time.sleep(0.1)
+        url = f"rerun+http://127.0.0.1:{port}/proxy"
+        with RunRecorder(tmp_path / "run", MODULES, connect=url) as recorder:
+            assert recorder.live
+            comp = np.linspace(0, 1, 10)[:, None] * np.ones((1, 5))
+            recorder.log_episodes(np.arange(10), 0, 1, 1, comp, comp, comp)
+        deadline = time.monotonic() + 10
+        while not live.exists() or live.stat().st_size == 0:
+            assert time.monotonic() < deadline, "nothing reached the live server"
+            time.sleep(0.1)
+        time.sleep(0.5)
+    finally:
+        os.killpg(server.pid, signal.SIGTERM)
+        server.wait(timeout=10)
+    expected = read_scalars(tmp_path / "run" / RECORDING_FILENAME, "competence/reach")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a streamed file has no footer
+        got = read_scalars(live, "competence/reach")
+    np.testing.assert_array_equal(got[0], expected[0])
+    np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_recorded_transforms_put_every_geom_where_mujoco_has_it(
+    tmp_path: Path, fetch: mujoco.MjModel
+) -> None:
+    """Body pose (per step) composed with the geom's local pose (static), as the viewer does,
+    gives MuJoCo's own geom_xpos / geom_xmat: quaternion order and hierarchy are right."""
+    from scipy.spatial.transform import Rotation
+
+    data = mujoco.MjData(fetch)
+    mujoco.mj_forward(fetch, data)
+    capture = RolloutCapture(fetch, 9)
+    capture.record(data)
+    for _ in range(8):
+        data.mocap_pos[0] += [0.01, 0.01, -0.005]
+        mujoco.mj_step(fetch, data, nstep=20)
+        capture.record(data)
+    # data.geom_xpos/xmat now come from the same kinematics pass as the last captured row
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        recorder.log_rollout(3, 0, capture, goal=np.zeros(3), success=False)
+    path = tmp_path / RECORDING_FILENAME
+    layout = capture.layout
+    checked = 0
+    for g in layout.drawn_geoms:
+        body = fetch.geom_bodyid[g]
+        body_path = layout.body_paths[body]
+        timeline = "rollout_frame" if body in layout.moving_bodies else None
+        _, t_body = read_component(path, body_path, "Transform3D:translation", timeline)
+        _, q_body = read_component(path, body_path, "Transform3D:quaternion", timeline)
+        _, t_geom = read_component(path, layout.geom_paths[g], "Transform3D:translation", None)
+        _, q_geom = read_component(path, layout.geom_paths[g], "Transform3D:quaternion", None)
+        r_body = Rotation.from_quat(q_body[-1][0])  # scipy takes (x, y, z, w), like Rerun
+        r_geom = Rotation.from_quat(q_geom[-1][0])
+        pos = np.array(t_body[-1][0]) + r_body.apply(t_geom[-1][0])
+        np.testing.assert_allclose(pos, data.geom_xpos[g], atol=1e-5)
+        np.testing.assert_allclose(
+            (r_body * r_geom).as_matrix(), data.geom_xmat[g].reshape(3, 3), atol=1e-5
+        )
+        checked += 1
+    assert checked == len(layout.drawn_geoms) > 20

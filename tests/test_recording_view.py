@@ -1,0 +1,85 @@
+"""`curious view`: opens recordings, explains itself without a display, names a bad folder."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from curious.cli import main
+from curious.commands import view
+from curious.recording import RECORDING_FILENAME
+
+
+def _run_folder(root: Path, name: str) -> Path:
+    folder = root / name
+    folder.mkdir()
+    (folder / RECORDING_FILENAME).write_bytes(b"")
+    return folder
+
+
+@pytest.fixture
+def no_display(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr(view.sys, "platform", "linux")
+
+
+def test_the_view_command_and_the_recorder_agree_on_the_file_name() -> None:
+    assert view.RECORDING_FILENAME == RECORDING_FILENAME
+
+
+def test_folder_without_recording_is_an_error_naming_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    good = _run_folder(tmp_path, "run_a")
+    empty = tmp_path / "run_b"
+    empty.mkdir()
+    assert main(["view", str(good), str(empty)]) == 2
+    err = capsys.readouterr().err
+    assert str(empty) in err and "no recording.rrd" in err
+    assert main(["view", str(tmp_path / "missing")]) == 2
+    assert "no such run folder" in capsys.readouterr().err
+
+
+def test_without_display_prints_how_to_open_elsewhere(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], no_display: None, monkeypatch
+) -> None:
+    monkeypatch.setattr(view.subprocess, "call", _no_viewer)
+    a, b = _run_folder(tmp_path, "run_a"), _run_folder(tmp_path, "run_b")
+    assert main(["view", str(a), str(b)]) == 0
+    out = capsys.readouterr().out
+    assert "No display" in out
+    files = f"{(a / RECORDING_FILENAME).resolve()} {(b / RECORDING_FILENAME).resolve()}"
+    assert f"rerun {files}" in out
+    assert f"curious view --web {a} {b}" in out
+
+
+def test_with_display_opens_every_recording_in_one_viewer(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("DISPLAY", ":0")
+    calls: list[list[str]] = []
+    monkeypatch.setattr(view.subprocess, "call", lambda cmd: calls.append(cmd) or 0)
+    a, b = _run_folder(tmp_path, "run_a"), _run_folder(tmp_path, "run_b")
+    rrd = b / RECORDING_FILENAME
+    assert main(["view", str(a), str(rrd)]) == 0
+    (command,) = calls
+    assert command[-2:] == [str(a / RECORDING_FILENAME), str(rrd)]
+    assert "rerun" in " ".join(command[:-2])
+
+
+def test_web_serves_the_recordings(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, no_display: None
+) -> None:
+    calls: list[list[str]] = []
+    monkeypatch.setattr(view.subprocess, "call", lambda cmd: calls.append(cmd) or 0)
+    a = _run_folder(tmp_path, "run_a")
+    assert main(["view", "--web", "--web-port", "9191", str(a)]) == 0
+    (command,) = calls
+    assert "--serve-web" in command and "9191" in command
+    assert command[-1] == str(a / RECORDING_FILENAME)
+
+
+def _no_viewer(cmd: list[str]) -> int:
+    raise AssertionError(f"no viewer may start without a display: {cmd}")
