@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import hashlib
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -192,3 +194,16 @@ def test_palette_is_fixed_and_rerun_ready():
         "push_cube10",
         "zz",
     ]
+
+
+def test_public_names_resolve_and_the_palette_imports_alone():
+    assert sorted(analysis.__all__) == sorted(analysis._EXPORTS)
+    for name in analysis.__all__:
+        assert getattr(analysis, name) is not None
+    # The recording code imports the palette; that must not pull in the plotting stack.
+    code = (
+        "import sys, curious.analysis.palette as p; p.module_rgb('reach'); "
+        "print(sorted(m for m in ('matplotlib', 'pandas', 'scipy') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

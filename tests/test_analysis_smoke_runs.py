@@ -19,11 +19,14 @@ SEEDS = (0, 1)
 def smoke_runs(tmp_path_factory):
     """A root of smoke runs: every condition in CONDITIONS with every seed in SEEDS."""
     root = tmp_path_factory.mktemp("smoke_runs")
-    for condition in CONDITIONS:
-        for seed in SEEDS:
-            out = root / f"{condition}-{seed}"
-            args = ["train", "--condition", condition, "--seed", str(seed), "--preset", "smoke"]
-            assert curious_cli([*args, "--out", str(out), "--no-progress"]) in (0, None)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("MUJOCO_GL", "disable")  # no rendering here, and no display to find
+        for condition in CONDITIONS:
+            for seed in SEEDS:
+                out = root / f"{condition}-{seed}"
+                args = ["train", "--condition", condition, "--seed", str(seed)]
+                args += ["--preset", "smoke", "--out", str(out), "--no-progress"]
+                assert curious_cli(args) in (0, None)
     return root
 
 

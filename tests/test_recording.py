@@ -154,7 +154,17 @@ def test_recording_has_ids_timelines_and_blueprint(tmp_path: Path) -> None:
     assert {"episode", "wall_time"} <= summary.timelines
     reader = RrdReader(path)
     assert reader.blueprints(), "the default blueprint travels with the recording"
-    assert reader.blueprints()[0].application_id == APPLICATION_ID
+    blueprint = reader.blueprints()[0]
+    assert blueprint.application_id == APPLICATION_ID
+    views = {}
+    for chunk in reader.stream(store=blueprint):
+        batch = chunk.to_record_batch()
+        if "ViewBlueprint:space_origin" in batch.schema.names:
+            origin = batch.column("ViewBlueprint:space_origin").to_pylist()[0][0]
+            views[origin] = batch.column("ViewBlueprint:display_name").to_pylist()[0][0]
+    for origin in ("/scene", "/competence", "/lp", "/p_lp", "/success/eval", "/losses"):
+        assert origin in views, f"the layout has no view of {origin}"
+    assert views["/scene"] == "Rollouts" and views["/lp"] == "Absolute learning progress"
 
 
 def test_bad_inputs_are_named(tmp_path: Path) -> None:
@@ -486,3 +496,23 @@ def test_recorded_transforms_put_every_geom_where_mujoco_has_it(
         )
         checked += 1
     assert checked == len(layout.drawn_geoms) > 20
+
+
+def test_capture_reads_dm_control_physics(tmp_path: Path) -> None:
+    """The suite steps a dm_control Physics: its model pointer and data wrapper plug in as is."""
+    from dm_control import mujoco as dm_mujoco
+
+    physics = dm_mujoco.Physics.from_xml_string(PRIMITIVES)
+    capture = RolloutCapture(physics.model.ptr, 4, gripper_body="b")
+    capture.record(physics.data)
+    for _ in range(3):
+        physics.step()
+        capture.record(physics.data)
+    np.testing.assert_array_equal(capture.gripper[3], physics.named.data.xpos["b"])
+    assert capture.gripper[3, 2] < capture.gripper[0, 2]  # the free body falls
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        recorder.log_rollout(0, "reach", capture, goal=np.zeros(3), success=False)
+    _, z = read_component(
+        tmp_path / RECORDING_FILENAME, "scene/bodies/b", "Transform3D:translation", "rollout_frame"
+    )
+    assert z[-1][0] == pytest.approx(capture.xpos[3, 0].tolist())

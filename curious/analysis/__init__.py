@@ -19,31 +19,47 @@ it precisely. Module and condition colours live in `curious.analysis.palette`, s
 Rerun recordings.
 """
 
-from curious.analysis.figures import distractors, fig2a, fig2b, fig2c, forgetting, table1
-from curious.analysis.loading import (
-    RunFolderError,
-    RunInfo,
-    find_run_folders,
-    load_run,
-    load_runs,
-    read_run_info,
-    run_modules,
-    runs_table,
-)
-from curious.analysis.statistics import (
-    ALPHA,
-    achievable_competence,
-    across_seeds,
-    bin_runs,
-    check_comparable,
-    final_competence,
-    most_perturbed_module,
-    nice_bin_size,
-    recovery,
-    recovery_summary,
-    welch_per_bin,
-)
-from curious.analysis.style import save_figure
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+# Public names and the submodule each lives in. They are imported on first use, so that
+# `import curious.analysis.palette` (the recording code does) does not pull in pandas, scipy
+# and matplotlib.
+_EXPORTS: dict[str, str] = {
+    **dict.fromkeys(("distractors", "fig2a", "fig2b", "fig2c", "forgetting", "table1"), "figures"),
+    **dict.fromkeys(
+        (
+            "RunFolderError",
+            "RunInfo",
+            "find_run_folders",
+            "load_run",
+            "load_runs",
+            "read_run_info",
+            "run_modules",
+            "runs_table",
+        ),
+        "loading",
+    ),
+    **dict.fromkeys(
+        (
+            "ALPHA",
+            "achievable_competence",
+            "across_seeds",
+            "bin_runs",
+            "check_comparable",
+            "final_competence",
+            "most_perturbed_module",
+            "nice_bin_size",
+            "recovery",
+            "recovery_summary",
+            "welch_per_bin",
+        ),
+        "statistics",
+    ),
+    "save_figure": "style",
+}
 
 __all__ = [
     "ALPHA",
@@ -73,3 +89,43 @@ __all__ = [
     "table1",
     "welch_per_bin",
 ]
+
+if TYPE_CHECKING:
+    from curious.analysis.figures import distractors, fig2a, fig2b, fig2c, forgetting, table1
+    from curious.analysis.loading import (
+        RunFolderError,
+        RunInfo,
+        find_run_folders,
+        load_run,
+        load_runs,
+        read_run_info,
+        run_modules,
+        runs_table,
+    )
+    from curious.analysis.statistics import (
+        ALPHA,
+        achievable_competence,
+        across_seeds,
+        bin_runs,
+        check_comparable,
+        final_competence,
+        most_perturbed_module,
+        nice_bin_size,
+        recovery,
+        recovery_summary,
+        welch_per_bin,
+    )
+    from curious.analysis.style import save_figure
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'curious.analysis' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"curious.analysis.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

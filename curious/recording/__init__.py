@@ -5,11 +5,13 @@ arrays; rollout code fills a `RolloutCapture` from MuJoCo data each step. `curio
 the resulting `recording.rrd` files; `curious.recording.reader` reads them back.
 """
 
+from curious.recording.blueprint import default_blueprint
 from curious.recording.recorder import (
     APPLICATION_ID,
     RECORDING_FILENAME,
     RecorderSettings,
     RunRecorder,
+    compact_recording,
 )
 from curious.recording.scene import RolloutCapture, SceneLayout, wxyz_to_xyzw
 
@@ -20,5 +22,7 @@ __all__ = [
     "RolloutCapture",
     "RunRecorder",
     "SceneLayout",
+    "compact_recording",
+    "default_blueprint",
     "wxyz_to_xyzw",
 ]

@@ -292,7 +292,9 @@ class RolloutCapture:
     `model` is a `mujoco.MjModel` (dm_control: `physics.model.ptr`); `data` any object with
     `xpos` (nbody, 3) and `xquat` (nbody, 4) arrays (`mujoco.MjData`, or dm_control's
     `physics.data`). Only the bodies that can move and carry a drawn geom are copied;
-    `geom_groups` chooses the MuJoCo geom groups drawn.
+    `geom_groups` chooses the MuJoCo geom groups drawn. (After a bare `mujoco.mj_step` the
+    poses are those of the state before the last physics step, 2 ms earlier; dm_control's
+    `physics.step()` leaves them current.)
     """
 
     def __init__(

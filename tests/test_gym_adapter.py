@@ -1,0 +1,90 @@
+"""The Gymnasium adapter: a valid goal-conditioned env that other libraries can train on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from suite.gym_adapter import ModuleGoalEnv
+
+
+@pytest.fixture(scope="module")
+def stack_env():
+    env = ModuleGoalEnv("default", "stack", seed=0)
+    yield env
+    env.close()
+
+
+def test_passes_gymnasium_env_checker():
+    env = ModuleGoalEnv("default", "push_cube1", seed=0)
+    check_env(env, skip_render_check=True)
+    env.close()
+
+
+@pytest.mark.parametrize("module", ["reach", "push_cube1", "cube1_above_cube2", "push_cube3"])
+def test_compute_reward_matches_step_reward(module):
+    env = ModuleGoalEnv("default", module, seed=1)
+    obs, _ = env.reset(seed=2)
+    rng = np.random.default_rng(0)
+    achieved, desired, rewards = [], [], []
+    truncated = False
+    while not truncated:
+        obs, reward, terminated, truncated, info = env.step(rng.uniform(-1, 1, 4))
+        assert not terminated
+        assert info["is_success"] == (reward == 0.0)
+        achieved.append(obs["achieved_goal"])
+        desired.append(obs["desired_goal"])
+        rewards.append(reward)
+    batch = env.compute_reward(np.stack(achieved), np.stack(desired), None)
+    np.testing.assert_array_equal(batch, np.array(rewards, dtype=np.float32))
+    assert len(rewards) == 50
+    env.close()
+
+
+def test_stack_goal_is_padded_to_the_outcome_size(stack_env):
+    obs, _ = stack_env.reset(seed=0)
+    assert obs["achieved_goal"].shape == obs["desired_goal"].shape == (4,)
+    assert stack_env.observation_space.contains(obs)
+    # A goal relabelled from an outcome where cube 1 sits on cube 2, gripper away, is a success.
+    placed = np.array([0.0, 0.0, 0.05, 0.2], dtype=np.float32)
+    held = np.array([0.0, 0.0, 0.05, 0.01], dtype=np.float32)
+    rewards = stack_env.compute_reward(np.stack([placed, held]), np.stack([placed, placed]), None)
+    np.testing.assert_array_equal(rewards, [0.0, -1.0])
+
+
+def test_reset_takes_a_goal_and_rejects_one_outside_the_goal_space():
+    env = ModuleGoalEnv("default", "reach", seed=0)
+    obs, _ = env.reset(options={"goal": [0.0, 0.0, -1.0]})
+    expected = env.module.goal_slot(np.array([0.0, 0.0, -1.0]))
+    np.testing.assert_allclose(obs["desired_goal"], expected)
+    with pytest.raises(ValueError, match=r"\[-1, 1\]"):
+        env.reset(options={"goal": [0.0, 0.0, 2.0]})
+    obs, _ = env.reset()  # still usable
+    assert env.observation_space.contains(obs)
+    env.close()
+
+
+def test_unknown_module_is_a_clear_error():
+    with pytest.raises(ValueError, match="unknown module 'pick'"):
+        ModuleGoalEnv("default", "pick")
+
+
+def test_stable_baselines3_her_trains_on_a_module():
+    sb3 = pytest.importorskip("stable_baselines3")
+    from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
+
+    env = ModuleGoalEnv("default", "reach", seed=0)
+    model = sb3.DDPG(
+        "MultiInputPolicy",
+        env,
+        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
+        learning_starts=100,
+        batch_size=32,
+        policy_kwargs={"net_arch": [32, 32]},
+        seed=0,
+    )
+    model.learn(total_timesteps=150)
+    assert model.replay_buffer.size() > 0
+    env.close()
