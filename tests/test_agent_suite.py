@@ -25,21 +25,30 @@ def test_suite_env_spec(env):
 
 
 def test_recomputed_suite_rewards_match_reported_success(env):
+    spec = env.spec
+    n, T = spec.n_modules, spec.episode_length
     rng = np.random.default_rng(0)
-    for module in range(env.spec.n_modules):
+    states = np.zeros((n, T + 1, spec.state_dim), np.float32)
+    achieved = np.zeros((n, T + 1, spec.achieved_dim), np.float32)
+    actions = rng.uniform(-1, 1, (n, T, spec.action_dim)).astype(np.float32)
+    goals = np.zeros((n, n, spec.goal_dim), np.float32)
+    for module in range(n):
         g = rng.uniform(-1, 1, 3)
-        obs = env.reset(module, g)
-        achieved = [obs.achieved]
-        for _ in range(env.spec.episode_length):
-            obs, success = env.step(rng.uniform(-1, 1, 4))
-            achieved.append(obs.achieved)
-            reward = env.reward(module, obs.achieved, env.goal_slot(module, g))
+        goals[module, module] = env.goal_slot(module, g)
+        states[module, 0], achieved[module, 0] = env.reset(module, g)
+        for t in range(T):
+            obs, success = env.step(actions[module, t])
+            states[module, t + 1], achieved[module, t + 1] = obs
+            reward = env.reward(module, obs.achieved, goals[module, module])
             assert (reward == 0) == success[module]
-        # a hindsight goal (the final outcome) is met at the final step, in batch form
-        replay = EpisodeReplay(env.spec, capacity=1)
-        cols = env.spec.hindsight_columns()[module]
-        final = np.asarray(achieved)[-1]
-        assert env.reward(module, final[None], final[cols][None])[0] == 0
+    # the replay's batched rewards equal the suite's reward row by row
+    replay = EpisodeReplay(spec, capacity=n)
+    replay.store(states, achieved, actions, np.arange(n), goals)
+    batch = replay.sample(700, rng, env, np.full(n, 1 / n))
+    nxt = achieved[batch.episode, batch.step + 1]
+    expected = [env.reward(m, nxt[i], batch.goals[i, m]) for i, m in enumerate(batch.module)]
+    np.testing.assert_array_equal(batch.reward, np.asarray(expected).reshape(-1))
+    assert (batch.reward == 0).any()  # hindsight goals give successes on the real suite
 
 
 def test_env_rng_state_reproduces_an_episode(env):

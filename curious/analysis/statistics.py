@@ -26,7 +26,7 @@ alternative being that the first condition's mean is greater), significant where
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 import pandas as pd
@@ -92,7 +92,9 @@ def nice_bin_size(n_episodes: int, target_bins: int = 50) -> int:
     return best
 
 
-def _run_arrays(df: pd.DataFrame, values: np.ndarray):
+def _run_arrays(
+    df: pd.DataFrame, values: np.ndarray
+) -> Iterator[tuple[str, int, np.ndarray, np.ndarray]]:
     """Yields (run, first row index, episodes, values) per run, episodes ascending."""
     for run, rows in df.groupby("run", observed=True, sort=True).indices.items():
         episodes = df["episode"].to_numpy()[rows]

@@ -1,0 +1,112 @@
+"""Headless pictures of the scene: render frames of an episode to PNG.
+
+MuJoCo renders off-screen through EGL or OSMesa; choose one with `MUJOCO_GL=egl` (or `osmesa`)
+before MuJoCo is imported. The active module's goal is drawn as a translucent sphere of the
+success radius, so a picture shows what the arm is asked to do.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from suite import layout
+
+Policy = Callable[[dict[str, np.ndarray]], np.ndarray]
+
+GL_HELP = (
+    "MuJoCo could not make an off-screen GL context. Choose a headless backend before running: "
+    "`export MUJOCO_GL=egl` (Debian/Ubuntu: apt-get install libegl1 libegl-mesa0) or "
+    "`export MUJOCO_GL=osmesa` (apt-get install libosmesa6); on a desktop `MUJOCO_GL=glfw` works."
+)
+
+
+def check_gl_backend() -> None:
+    """Refuse early, with the fix, where rendering was switched off (`MUJOCO_GL=disable`)."""
+    if os.environ.get("MUJOCO_GL", "").lower() in ("disable", "disabled", "off", "false", "0"):
+        raise RuntimeError(f"MUJOCO_GL={os.environ['MUJOCO_GL']} switches rendering off. {GL_HELP}")
+
+
+def render_episode(
+    env,
+    policy: Policy,
+    *,
+    steps: int = layout.EPISODE_STEPS,
+    every: int = 10,
+    camera: str = "front",
+    height: int = 480,
+    width: int = 640,
+) -> list[np.ndarray]:
+    """Run one episode of `env` (already told its module and goal) and return RGB frames.
+
+    Args:
+        env: a suite environment; `env.reset()` is called here.
+        policy: maps the observation dict to an action in [-1, 1]^4.
+        steps: control steps to run (at most the episode's 50).
+        every: keep one frame every `every` steps (the first and last frames are always kept).
+        camera: a camera of the scene (`front` or `top`).
+        height, width: frame size in pixels.
+    """
+    import mujoco
+
+    check_gl_backend()
+    if every < 1:
+        raise ValueError(f"every must be >= 1, got {every}")
+    if not 1 <= steps <= layout.EPISODE_STEPS:
+        raise ValueError(f"steps must be in 1..{layout.EPISODE_STEPS}, got {steps}")
+    physics = env.physics
+    try:
+        renderer = mujoco.Renderer(physics.model.ptr, height=height, width=width)
+    except Exception as exc:  # the GL libraries raise a variety of errors here
+        raise RuntimeError(f"{GL_HELP} ({type(exc).__name__}: {exc})") from exc
+    camera_id = physics.model.name2id(camera, "camera")
+    frames = []
+    try:
+        timestep = env.reset()
+        for t in range(steps + 1):
+            if t % every == 0 or t == steps:
+                renderer.update_scene(physics.data.ptr, camera=camera_id)
+                _add_goal_marker(renderer.scene, env.task)
+                frames.append(renderer.render().copy())
+            if t < steps:
+                timestep = env.step(policy(timestep.observation))
+    finally:
+        renderer.close()
+    return frames
+
+
+def save_frames(frames: list[np.ndarray], out_dir: str | Path, prefix: str = "frame") -> list[Path]:
+    """Write frames as numbered PNG files; returns their paths."""
+    from PIL import Image
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, frame in enumerate(frames):
+        path = out / f"{prefix}_{i:03d}.png"
+        Image.fromarray(frame).save(path)
+        paths.append(path)
+    return paths
+
+
+def _add_goal_marker(scene, task) -> None:
+    """Draw the active module's goal as a sphere of the success radius, in the module's colour."""
+    import mujoco
+
+    if scene.ngeom >= scene.maxgeom:
+        return
+    index = task.active_module
+    position = task.goal_positions()[index]
+    geom = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(
+        geom,
+        type=mujoco.mjtGeom.mjGEOM_SPHERE,
+        size=np.array([layout.SUCCESS_DISTANCE, 0.0, 0.0]),
+        pos=position.astype(np.float64),
+        mat=np.eye(3).ravel(),
+        rgba=np.array([1.0, 0.2, 0.2, 0.35], dtype=np.float32),
+    )
+    scene.ngeom += 1
