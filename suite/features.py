@@ -144,6 +144,7 @@ class StateReader:
         self.buffer = np.zeros(self.layout.size)
         lay = self.layout
         b = self.buffer
+        self._b_positions = b[: lay.cube_pos.stop]
         self._b_grip = b[lay.gripper_pos]
         self._b_pos = b[lay.cube_pos].reshape(-1, 3)
         self._b_rel = b[lay.cube_rel_pos].reshape(2, 3)
@@ -180,6 +181,12 @@ class StateReader:
         self._b_grip_vel[:] = vel[0, 3:]
         np.multiply(self._qvel[self._finger_qvel], dt, out=self._b_finger_vel)
         return self.buffer
+
+    @property
+    def positions(self) -> np.ndarray:
+        """[gripper, cube 1, ..., cube n] positions, flat (3 + 3 n_cubes,), from the last `read`
+        (a view into the buffer)."""
+        return self._b_positions
 
     @property
     def gripper(self) -> np.ndarray:

@@ -9,10 +9,15 @@ functions on the float32 outcomes and goal slots that it reports).
 
 The env holds a tuple of modules; adding a module means writing one here (or anywhere) and
 passing it to `MultiTaskFetch`, never editing the env.
+
+Most outcomes are linear in the positions (a cube's position, a difference of two). Such a
+module lists its outcome as `linear_terms`; its `outcome_fn` is then derived from them, and the
+env evaluates all linear modules together with one matrix product per step.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -27,6 +32,9 @@ _ONE = np.float32(1.0)
 SlotFn = Callable[[np.ndarray], np.ndarray]
 OutcomeFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 SuccessFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+# One outcome component of a linear module: a sum of (point, axis, coefficient) terms, where
+# point 0 is the gripper and point k >= 1 is cube k; axis 0, 1, 2 is x, y, z.
+LinearTerms = tuple[tuple[tuple[int, int, float], ...], ...]
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,6 +50,8 @@ class TaskModule:
         outcome_fn: (gripper (..., 3), cubes (..., n, 3)) -> outcome (..., outcome_dim).
         success_fn: (outcome (..., outcome_dim), slot (..., 3)) float32 -> bool (...,).
         goal_dim: size of g (3 for every module).
+        linear_terms: for an outcome linear in the positions, its components as terms (see
+            `LinearTerms`); `outcome_fn` must then be `linear_outcome(linear_terms)`.
     """
 
     name: str
@@ -52,6 +62,14 @@ class TaskModule:
     outcome_fn: OutcomeFn
     success_fn: SuccessFn
     goal_dim: int = 3
+    linear_terms: LinearTerms | None = None
+
+    def outcome_matrix(self, n_cubes: int) -> np.ndarray | None:
+        """W (outcome_dim, 3 + 3 n_cubes) with outcome = W @ [gripper, cube 1, ...], or None
+        for an outcome that is not linear in the positions."""
+        if self.linear_terms is None:
+            return None
+        return _outcome_matrix(self.linear_terms, n_cubes)
 
     def goal_slot(self, g: np.ndarray) -> np.ndarray:
         """Map goals g (..., 3) in [-1, 1] to goal slots (..., 3), float32; pure."""
@@ -97,6 +115,55 @@ class TaskModule:
 # -- building blocks ---------------------------------------------------------------------------
 
 
+@functools.lru_cache(maxsize=256)
+def _outcome_matrix(terms: LinearTerms, n_cubes: int) -> np.ndarray:
+    w = np.zeros((len(terms), 3 + 3 * n_cubes))
+    for row, component in enumerate(terms):
+        for point, axis, coefficient in component:
+            if not 0 <= point <= n_cubes or axis not in (0, 1, 2):
+                raise ValueError(f"bad outcome term {(point, axis, coefficient)}")
+            w[row, 3 * point + axis] += coefficient
+    w.setflags(write=False)
+    return w
+
+
+def linear_outcome(terms: LinearTerms) -> OutcomeFn:
+    """The outcome function of a module whose outcome is linear in the positions."""
+
+    def outcome(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
+        n = cubes.shape[-2]
+        points = np.concatenate((gripper[..., None, :], cubes), axis=-2)
+        flat = points.reshape(*points.shape[:-2], 3 + 3 * n)
+        return flat @ _outcome_matrix(terms, n).T
+
+    return outcome
+
+
+def _cubes_in(terms: LinearTerms) -> tuple[int, ...]:
+    return tuple(sorted({point - 1 for component in terms for point, _, _ in component if point}))
+
+
+def linear_module(
+    name: str, *, achievable: bool, terms: LinearTerms, slot_fn: SlotFn, success_fn: SuccessFn
+) -> TaskModule:
+    """A module whose outcome is linear in the positions, given by its terms."""
+    terms = tuple(tuple(tuple(t) for t in component) for component in terms)
+    return TaskModule(
+        name=name,
+        achievable=achievable,
+        outcome_dim=len(terms),
+        cubes=_cubes_in(terms),
+        slot_fn=slot_fn,
+        outcome_fn=linear_outcome(terms),
+        success_fn=success_fn,
+        linear_terms=terms,
+    )
+
+
+def _position_of(point: int) -> LinearTerms:
+    return tuple(((point, axis, 1.0),) for axis in range(3))
+
+
 def affine_slot(scale: tuple[float, float, float], offset: tuple[float, float, float]) -> SlotFn:
     """A goal slot `g * scale + offset`, computed in float32."""
     scale_arr = np.asarray(scale, dtype=np.float32)
@@ -131,13 +198,11 @@ _TOP = layout.TABLE_TOP_Z
 
 def reach() -> TaskModule:
     """T1: the gripper to a 3-D target: xy = grip0 + 0.15 g_xy, z = 0.426 + 0.225 (g_z + 1)."""
-    return TaskModule(
-        name="reach",
+    return linear_module(
+        "reach",
         achievable=True,
-        outcome_dim=3,
-        cubes=(),
+        terms=_position_of(0),
         slot_fn=affine_slot((_R, _R, 0.225), (_GX, _GY, _Z + 0.225)),
-        outcome_fn=lambda gripper, cubes: gripper.copy(),
         success_fn=within_distance,
     )
 
@@ -146,22 +211,13 @@ def push_cube(cube: int, *, achievable: bool) -> TaskModule:
     """T2 / T5-7: cube `cube` (1-based) to a 2-D target on the table, xy = grip0 + 0.15 g_xy."""
     if cube < 1:
         raise ValueError(f"cube numbers start at 1, got {cube}")
-    index = cube - 1
-    return TaskModule(
-        name=f"push_cube{cube}",
+    return linear_module(
+        f"push_cube{cube}",
         achievable=achievable,
-        outcome_dim=3,
-        cubes=(index,),
+        terms=_position_of(cube),
         slot_fn=affine_slot((_R, _R, 0.0), (_GX, _GY, _Z)),
-        outcome_fn=lambda gripper, cubes: cubes[..., index, :].copy(),
         success_fn=within_distance,
     )
-
-
-def _above_outcome(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
-    c1 = cubes[..., 0, :]
-    c2 = cubes[..., 1, :]
-    return np.concatenate((c1[..., :2] - c2[..., :2], c1[..., 2:]), axis=-1)
 
 
 def cube1_above_cube2() -> TaskModule:
@@ -169,13 +225,11 @@ def cube1_above_cube2() -> TaskModule:
 
     Outcome `(x1 - x2, y1 - y2, z1)` in cube 2's frame, goal slot `(0, 0, 0.45 + 0.2 (g_z + 1))`.
     """
-    return TaskModule(
-        name="cube1_above_cube2",
+    return linear_module(
+        "cube1_above_cube2",
         achievable=True,
-        outcome_dim=3,
-        cubes=(0, 1),
+        terms=(((1, 0, 1.0), (2, 0, -1.0)), ((1, 1, 1.0), (2, 1, -1.0)), ((1, 2, 1.0),)),
         slot_fn=affine_slot((0.0, 0.0, 0.2), (0.0, 0.0, _TOP + 0.05 + 0.2)),
-        outcome_fn=_above_outcome,
         success_fn=within_distance,
     )
 

@@ -146,8 +146,27 @@ class MultiTaskFetch(composer.Task):
         self._steps = 0
         self._tick = 0
         self._computed_tick = -1
+        # Outcomes linear in the positions come from one matrix product over all such modules;
+        # the others from their own functions.
+        linear = [
+            (m.outcome_matrix(n_cubes), sl)
+            for m, sl in zip(self._modules, self._outcome_slices, strict=True)
+            if m.linear_terms is not None
+        ]
+        self._linear_rows = (
+            np.concatenate([np.arange(sl.start, sl.stop) for _, sl in linear])
+            if linear
+            else np.zeros(0, np.intp)
+        )
+        self._linear_matrix = (
+            np.ascontiguousarray(np.concatenate([w for w, _ in linear]))
+            if linear
+            else np.zeros((0, 3 + 3 * n_cubes))
+        )
         self._outcome_fns = tuple(
-            (m.outcome_fn, sl) for m, sl in zip(self._modules, self._outcome_slices, strict=True)
+            (m.outcome_fn, sl)
+            for m, sl in zip(self._modules, self._outcome_slices, strict=True)
+            if m.linear_terms is None
         )
         # Modules that share a success predicate (most use `within_distance`) are judged in one
         # batched call: the predicates are vectorised and independent of the batch shape, so
@@ -503,6 +522,7 @@ class MultiTaskFetch(composer.Task):
             state[self._shift_idx] += np.float32(layout.SENSOR_SHIFT_X)
         gripper, cubes = reader.gripper, reader.cubes
         achieved, success = self._achieved, self._success
+        achieved[self._linear_rows] = self._linear_matrix @ reader.positions
         for outcome_fn, sl in self._outcome_fns:
             achieved[sl] = outcome_fn(gripper, cubes)
         for (success_fn, members, gather), slots in zip(
