@@ -64,7 +64,11 @@ class _MujocoWithIntJointTypes:
 def make_peer():
     """gymnasium-robotics' MujocoFetchPickAndPlaceEnv, shimmed to run on mujoco 3.17."""
     sink = io.StringIO()
-    with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink), warnings.catch_warnings():
+    with (
+        contextlib.redirect_stdout(sink),
+        contextlib.redirect_stderr(sink),
+        warnings.catch_warnings(),
+    ):
         warnings.simplefilter("ignore")
         from gymnasium_robotics.envs.fetch.pick_and_place import MujocoFetchPickAndPlaceEnv
         from gymnasium_robotics.utils import mujoco_utils

@@ -71,16 +71,11 @@ class Agent:
 
     def update(self, expert: int, batch: Transitions) -> dict[str, torch.Tensor]:
         """One gradient step of `expert` on a relabelled minibatch."""
-        goals, mask, task = (
-            self._tensor(batch.goals),
-            self._tensor(batch.goal_mask),
-            self._tensor(batch.task),
+        t = self._tensor
+        x, x_next = self.encoder.encode_pair(
+            t(batch.state), t(batch.next_state), t(batch.goals), t(batch.goal_mask), t(batch.task)
         )
-        x = self.encoder.encode(self._tensor(batch.state), goals, mask, task)
-        x_next = self.encoder.encode(self._tensor(batch.next_state), goals, mask, task)
-        return self.experts[expert].update(
-            x, self._tensor(batch.action), self._tensor(batch.reward), x_next
-        )
+        return self.experts[expert].update(x, t(batch.action), t(batch.reward), x_next)
 
     def update_targets(self, expert: int) -> None:
         self.experts[expert].update_targets()

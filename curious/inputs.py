@@ -56,6 +56,20 @@ class InputEncoder:
         g = self.goal_norm.normalize(goals) * goal_mask.unsqueeze(-1)
         return torch.cat([s, g.flatten(1), task], dim=1)
 
+    def encode_pair(
+        self,
+        state: torch.Tensor,
+        next_state: torch.Tensor,
+        goals: torch.Tensor,
+        goal_mask: torch.Tensor,
+        task: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """`encode` of a transition's two states with one goal part (half the work)."""
+        n = state.shape[0]
+        s = self.state_norm.normalize(torch.cat([state, next_state]))
+        g = (self.goal_norm.normalize(goals) * goal_mask.unsqueeze(-1)).flatten(1)
+        return torch.cat([s[:n], g, task], dim=1), torch.cat([s[n:], g, task], dim=1)
+
     def state_dict(self) -> dict:
         return {"state": self.state_norm.state_dict(), "goal": self.goal_norm.state_dict()}
 

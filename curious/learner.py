@@ -22,6 +22,7 @@ import torch
 from torch import nn
 
 from curious.config import Config
+from curious.mlp_workspace import MLPWorkspace
 from curious.networks import Actor, Critic
 
 
@@ -33,12 +34,30 @@ def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
         return torch.optim.Adam(params, lr=lr, foreach=True)
 
 
+class _Workspace:
+    """Buffers of one batch size: a workspace per network and the critic's input."""
+
+    def __init__(self, learner: Learner, batch: int) -> None:
+        self.actor = MLPWorkspace(learner.actor.net, batch)
+        self.critics = [MLPWorkspace(c.net, batch) for c in learner.critics]
+        self.actor_target = MLPWorkspace(learner.actor_target.net, batch, with_grads=False)
+        self.critics_target = [
+            MLPWorkspace(c.net, batch, with_grads=False) for c in learner.critics_target
+        ]
+        width = learner.input_dim + learner.action_dim
+        device = learner.device
+        self.critic_input = torch.empty(batch, width, device=device)
+        self.target_input = torch.empty(batch, width, device=device)
+        self.minus_mean = torch.full((batch, 1), -1.0 / batch, device=device)  # d(-mean q)/dq
+
+
 class Learner:
     """One actor-critic pair with its targets, optimisers and update rule."""
 
     def __init__(self, input_dim: int, action_dim: int, config: Config, seed: int = 0) -> None:
         self.config = config
         self.device = torch.device(config.device)
+        self.action_dim = action_dim
         self.td3 = config.algorithm == "td3"
         cpu_rng_state = torch.get_rng_state()
         torch.manual_seed(seed)  # deterministic initial weights, independent of callers' RNG use
@@ -57,7 +76,8 @@ class Learner:
         self.generator.manual_seed(seed + 1)
         self.clip_return = 1.0 / (1.0 - config.gamma)
         self.n_updates = 0
-        self._actor_params = list(self.actor.parameters())
+        self.input_dim = input_dim
+        self._workspaces: dict[int, _Workspace] = {}
         self._last_actor_loss = torch.zeros((), device=self.device)
 
     # -------------------------------------------------------------------------------------------
@@ -66,54 +86,77 @@ class Learner:
         """Deterministic actions pi(x), shape (B, action_dim)."""
         return self.actor(x)
 
+    def _workspace(self, batch: int) -> _Workspace:
+        if batch not in self._workspaces:
+            self._workspaces[batch] = _Workspace(self, batch)
+        return self._workspaces[batch]
+
     @torch.no_grad()
     def td_target(self, reward: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
         """r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0]; TD3 smooths the target
         action and takes the smaller of its two target critics."""
         cfg = self.config
-        next_action = self.actor_target(x_next)
+        ws = self._workspace(x_next.shape[0])
+        next_action = ws.actor_target.forward(x_next).tanh_()
         if self.td3:
-            noise = (
-                torch.randn(next_action.shape, generator=self.generator, device=self.device)
-                * cfg.td3_target_noise
-            )
-            noise = noise.clamp(-cfg.td3_noise_clip, cfg.td3_noise_clip)
-            next_action = (next_action + noise).clamp(-1.0, 1.0)
-            q_next = torch.minimum(
-                self.critics_target[0](x_next, next_action),
-                self.critics_target[1](x_next, next_action),
-            )
-        else:
-            q_next = self.critics_target[0](x_next, next_action)
-        return (reward + cfg.gamma * q_next).clamp(-self.clip_return, 0.0)
+            noise = torch.randn(next_action.shape, generator=self.generator, device=self.device)
+            noise.mul_(cfg.td3_target_noise).clamp_(-cfg.td3_noise_clip, cfg.td3_noise_clip)
+            next_action.add_(noise).clamp_(-1.0, 1.0)
+        inputs = ws.target_input
+        inputs[:, : self.input_dim].copy_(x_next)
+        inputs[:, self.input_dim :].copy_(next_action)
+        q_next = ws.critics_target[0].forward(inputs)[:, 0]
+        if self.td3:
+            q_next = torch.minimum(q_next, ws.critics_target[1].forward(inputs)[:, 0])
+        return (reward + cfg.gamma * q_next).clamp_(-self.clip_return, 0.0)
 
+    @torch.no_grad()
     def update(
         self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
     ) -> dict[str, torch.Tensor]:
-        """One gradient step on a minibatch; returns detached losses (no device sync)."""
+        """One gradient step on a minibatch; returns detached losses (no device sync).
+
+        Critic: minimise mean (Q(x, a) - y)^2 for each critic. Actor: minimise
+        -mean Q1(x, pi(x)) + action_l2 * mean(pi(x)^2); its gradient flows through the critic's
+        input, never into the critic's weights. DDPG takes both gradients from the current
+        networks, then steps both (as the authors' baselines code did); TD3 steps the critics
+        first and the actor, every `td3_policy_delay` steps, through the updated critic. Both
+        passes are written out (`MLPWorkspace`).
+        """
         cfg = self.config
+        batch, d = x.shape[0], self.input_dim
+        ws = self._workspace(batch)
         target = self.td_target(reward, x_next)
-        critic_loss = sum(
-            torch.nn.functional.mse_loss(critic(x, action), target) for critic in self.critics
-        )
-        self.critic_opt.zero_grad(set_to_none=True)
-        critic_loss.backward()
-        self.critic_opt.step()
+
+        inputs = ws.critic_input
+        inputs[:, :d].copy_(x)
+        inputs[:, d:].copy_(action)
+        critic_loss = torch.zeros((), device=self.device)
+        for critic_ws in ws.critics:
+            diff = critic_ws.forward(inputs)[:, 0] - target
+            critic_loss += diff.square().mean()
+            critic_ws.backward(diff.mul_(2.0 / batch).unsqueeze(1))
+        if self.td3:
+            self.critic_opt.step()
 
         self.n_updates += 1
         if not self.td3 or self.n_updates % cfg.td3_policy_delay == 0:
-            pi = self.actor(x)
-            q_pi = self.critics[0](x, pi)
-            actor_loss = -q_pi.mean() + cfg.action_l2 * pi.pow(2).mean()
-            # Gradients for the actor's parameters only: the critic's weight gradients are
-            # neither needed nor computed.
-            grads = torch.autograd.grad(actor_loss, self._actor_params)
-            for p, g in zip(self._actor_params, grads, strict=True):
-                p.grad = g
+            pi = ws.actor.forward(x).tanh_()
+            inputs[:, d:].copy_(pi)
+            q_pi = ws.critics[0].forward(inputs)
+            pi_sq = pi.square()
+            self._last_actor_loss = cfg.action_l2 * pi_sq.mean() - q_pi.mean()
+            grad_pi = ws.critics[0].backward(
+                ws.minus_mean, weight_grads=False, input_grad=True, input_columns=slice(d, None)
+            )
+            grad_pi.add_(pi, alpha=2.0 * cfg.action_l2 / pi.numel())
+            grad_pi.mul_(pi_sq.neg_().add_(1.0))  # through tanh: d tanh(z)/dz = 1 - tanh^2
+            ws.actor.backward(grad_pi)
             self.actor_opt.step()
-            self._last_actor_loss = actor_loss.detach()
+        if not self.td3:
+            self.critic_opt.step()
         return {
-            "critic_loss": critic_loss.detach(),
+            "critic_loss": critic_loss,
             "actor_loss": self._last_actor_loss,
             "q_target_mean": target.mean(),
         }

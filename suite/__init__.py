@@ -19,7 +19,9 @@ from suite.environment import SuiteEnvironment
 from suite.features import StateLayout
 from suite.modules import (
     TaskModule,
+    affine_slot,
     cube1_above_cube2,
+    distance_module,
     push_cube,
     reach,
     stack,
@@ -35,9 +37,11 @@ __all__ = [
     "StateLayout",
     "SuiteEnvironment",
     "TaskModule",
+    "affine_slot",
     "all_variants",
     "build",
     "cube1_above_cube2",
+    "distance_module",
     "load",
     "push_cube",
     "reach",

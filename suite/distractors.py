@@ -15,7 +15,6 @@ from suite import layout
 
 _LOW = np.array([layout.DISTRACTOR_X_RANGE[0], layout.DISTRACTOR_Y_RANGE[0]])
 _HIGH = np.array([layout.DISTRACTOR_X_RANGE[1], layout.DISTRACTOR_Y_RANGE[1]])
-_SEP2 = layout.DISTRACTOR_MIN_SEPARATION**2
 MAX_REDRAWS = 10
 
 
@@ -29,50 +28,83 @@ def start_positions(n: int, random_state: np.random.RandomState) -> np.ndarray:
 
 
 class DistractorWalk:
-    """One random-walk step for the distractors among `n_cubes` cubes (the last `n` ones)."""
+    """The random walk of the distractors among `n_cubes` cubes (the last `n` ones).
 
-    def __init__(self, n_cubes: int, n_distractors: int) -> None:
+    Positions are complex numbers x + iy, so that all pairwise distances come from one
+    subtraction and one `abs`, and an episode's steps are drawn at reset: at these sizes numpy's
+    per-call cost, not arithmetic, is what a step costs.
+    """
+
+    def __init__(self, n_cubes: int, n_distractors: int, episode_steps: int = 50) -> None:
         self.n_cubes = n_cubes
         self.n = n_distractors
         self.first = n_cubes - n_distractors
-        # Candidate k is compared with every current cube and every other candidate, but not
-        # with its own current position nor with itself: those pairs are pushed out of range.
+        self._episode_steps = episode_steps
+        # Every cube (the distractors at their current positions), then every candidate;
+        # candidate k is compared with all of them except its own current position and itself
+        # (those pairs get an infinite distance).
+        self._points = np.zeros(n_cubes + n_distractors, dtype=np.complex128)
+        self._points_xy = self._points.view(np.float64).reshape(-1, 2)
+        self._others = self._points_xy[: self.first]
+        self._current = self._points_xy[self.first : n_cubes]
+        self._candidate = self._points_xy[n_cubes:]
+        self._candidate_column = self._points[n_cubes:, None]
         self._self_pairs = np.zeros((n_distractors, n_cubes + n_distractors))
         for k in range(n_distractors):
             self._self_pairs[k, self.first + k] = np.inf
             self._self_pairs[k, n_cubes + k] = np.inf
-        self._points = np.zeros((n_cubes + n_distractors, 2))
+        self._moves = np.zeros((0, n_distractors, 2))
+        self._t = 0
 
-    def _colliding(self, candidate: np.ndarray) -> np.ndarray:
-        """Which candidates end within the minimum separation of another cube (or candidate)."""
-        points = self._points
-        points[self.n_cubes :] = candidate
-        diff = candidate[:, None, :] - points
-        diff *= diff
-        d2 = diff[..., 0] + diff[..., 1]
-        d2 += self._self_pairs
-        return (d2 < _SEP2).any(axis=1)
+    def reset(self, random_state: np.random.RandomState) -> None:
+        """Start an episode: draw its steps."""
+        self._moves = random_state.normal(
+            0.0, layout.DISTRACTOR_WALK_STD, (self._episode_steps, self.n, 2)
+        )
+        self._t = 0
 
-    def step(self, xy: np.ndarray, random_state: np.random.RandomState) -> np.ndarray:
-        """New xy (n, 2) of the distractors, given the current xy (n_cubes, 2) of all cubes."""
+    def _too_close(self) -> np.ndarray:
+        """Which candidates end within the minimum separation of another cube or candidate."""
+        d = np.abs(self._candidate_column - self._points)
+        d += self._self_pairs
+        return d.min(axis=1) < layout.DISTRACTOR_MIN_SEPARATION
+
+    def step(
+        self, others_xy: np.ndarray, xy: np.ndarray, random_state: np.random.RandomState
+    ) -> np.ndarray:
+        """The distractors' new xy (n, 2), given their current xy (n, 2) and the other cubes'
+        (n_cubes - n, 2). The result is a view into the walk's buffers: copy it to keep it."""
+        current, candidate = self._current, self._candidate
         if self.n == 0:
-            return np.zeros((0, 2))
-        current = xy[self.first :]
-        candidate = random_state.normal(0.0, layout.DISTRACTOR_WALK_STD, (self.n, 2))
-        candidate += current
+            return current
+        self._others[:] = others_xy
+        current[:] = xy
+        if self._t < len(self._moves):
+            move = self._moves[self._t]
+        else:  # stepped past the episode's length: draw as we go
+            move = random_state.normal(0.0, layout.DISTRACTOR_WALK_STD, (self.n, 2))
+        self._t += 1
+        np.add(current, move, out=candidate)
         np.maximum(candidate, _LOW, out=candidate)
         np.minimum(candidate, _HIGH, out=candidate)
-        self._points[: self.n_cubes] = xy
+        d = np.abs(self._candidate_column - self._points)
+        d += self._self_pairs
+        if d.min() < layout.DISTRACTOR_MIN_SEPARATION:
+            self._redraw(random_state)
+        return candidate
+
+    def _redraw(self, random_state: np.random.RandomState) -> None:
+        """Redraw the candidates that end too close to another cube; whoever still collides
+        after a few tries stays where it is. The others were checked against the current
+        positions of everyone, so every pair stays apart."""
+        current, candidate = self._current, self._candidate
         for _ in range(MAX_REDRAWS):
-            bad = self._colliding(candidate)
+            bad = self._too_close()
             if not bad.any():
-                return candidate
+                return
             redraw = current[bad] + random_state.normal(
                 0.0, layout.DISTRACTOR_WALK_STD, (int(bad.sum()), 2)
             )
             candidate[bad] = np.clip(redraw, _LOW, _HIGH)
-        # Whoever still collides stays where it is; the others were checked against the current
-        # positions of everyone, so every pair stays apart.
-        bad = self._colliding(candidate)
+        bad = self._too_close()
         candidate[bad] = current[bad]
-        return candidate

@@ -41,6 +41,7 @@ class OncePerStepUpdater:
         self._strip = strip_singleton_buffer_dim
         self._callables: list[tuple[str, object]] = []
         self._specs: collections.OrderedDict | None = None
+        self._bound_to: tuple | None = None
 
     @staticmethod
     def supports(observables) -> bool:
@@ -59,6 +60,14 @@ class OncePerStepUpdater:
         return True
 
     def reset(self, physics, random_state) -> None:
+        """Bind every enabled observable to `physics` (once per physics: binding is pure)."""
+        key = (
+            id(physics),
+            id(random_state),
+            tuple(name for name, obs in self._observables.items() if obs.enabled),
+        )
+        if self._bound_to == key and self._specs is not None:
+            return
         self._callables = []
         specs = collections.OrderedDict()
         for name, obs in self._observables.items():
@@ -73,6 +82,13 @@ class OncePerStepUpdater:
             specs[name] = dm_env.specs.Array(shape=shape, dtype=spec.dtype, name=name)
             self._callables.append((name, fn))
         self._specs = specs
+        self._bound_to = key
+
+    @property
+    def observables(self) -> dict:
+        """The observables this updater was built with (as composer's updater, it reads their
+        options again at every reset)."""
+        return self._observables
 
     def observation_spec(self) -> collections.OrderedDict:
         if self._specs is None:
@@ -110,6 +126,7 @@ class SuiteEnvironment(composer.Environment):
         kwargs.setdefault("recompile_mjcf_every_episode", False)
         kwargs.setdefault("strip_singleton_obs_buffer_dim", True)
         self._fast_observation = False
+        self._single_call: bool | None = None
         self._raw: tuple | None = None
         super().__init__(task, random_state=random_state, **kwargs)
         if self._task_model_is_static():
@@ -138,6 +155,7 @@ class SuiteEnvironment(composer.Environment):
             physics.data.ptr.warning.number,
             bool(physics.legacy_step) and not rk4,
         )
+        self._single_call = None
 
     def _make_observation_updater(self):
         observables = self._task.observables
@@ -151,9 +169,50 @@ class SuiteEnvironment(composer.Environment):
             self._delayed_observation_padding == composer.ObservationPadding.INITIAL_VALUE,
         )
 
+    def reset(self) -> dm_env.TimeStep:
+        """Start an episode (composer's reset). Observable options changed since the last reset
+        are honoured: the updater is rebuilt when they no longer allow one read per step."""
+        updater = self._observation_updater
+        if self._fast_observation and not OncePerStepUpdater.supports(updater.observables):
+            self._observation_updater = self._make_observation_updater()
+            self._single_call = None
+        return super().reset()
+
+    def _reset_attempt(self) -> dm_env.TimeStep:
+        """composer's reset, minus the default physics reset when the task restores a complete
+        MuJoCo state itself (`task.restores_full_state`): zeroing the data and computing the
+        physics at qpos0 would then only be thrown away."""
+        if (
+            not getattr(self._task, "restores_full_state", False)
+            or self._recompile_mjcf_every_episode
+            or self._mjcf_never_compiled
+        ):
+            return super()._reset_attempt()
+        if self._fixed_initial_state:
+            self._random_state.set_state(self._fixed_random_state)
+        self._hooks.initialize_episode(self._physics_proxy, self._random_state)
+        self._forward_without_actuation()
+        self._observation_updater.reset(self._physics_proxy, self._random_state)
+        self._reset_next_step = False
+        return dm_env.TimeStep(
+            step_type=dm_env.StepType.FIRST,
+            reward=None,
+            discount=None,
+            observation=self._observation_updater.get_observation(),
+        )
+
+    def add_extra_hook(self, hook_name, hook_callable) -> None:
+        super().add_extra_hook(hook_name, hook_callable)
+        self._single_call = None
+
     @property
     def single_call_stepping(self) -> bool:
         """Whether the next control step runs all its substeps in one physics call."""
+        if self._single_call is None:
+            self._single_call = self._can_step_in_one_call()
+        return self._single_call
+
+    def _can_step_in_one_call(self) -> bool:
         if not self._fast_observation or self._overridden_n_sub_steps is not None:
             return False
         task_type = type(self._task)
@@ -199,6 +258,28 @@ class SuiteEnvironment(composer.Environment):
         self._reset_next_step = True
         return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, obs)
 
+    def _forward_without_actuation(self) -> None:
+        """`Physics.after_reset`, straight to MuJoCo: `mj_forward` with actuation disabled."""
+        model, data, warnings, _ = self._raw
+        before = int(warnings.sum())
+        flags = model.opt.disableflags
+        model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_ACTUATION)
+        try:
+            mujoco.mj_forward(model, data)
+        finally:
+            model.opt.disableflags = flags
+        self._check_warnings(before)
+
+    def _check_warnings(self, before: int) -> None:
+        """Raise dm_control's PhysicsError if MuJoCo raised a warning since `before`."""
+        warnings = self._raw[2]
+        if int(warnings.sum()) > before:
+            kinds = list(mujoco.mjtWarning.__members__)
+            names = [kind for kind, count in zip(kinds, warnings, strict=False) if count]
+            raise control.PhysicsError(
+                "Physics state is invalid. Warning(s) raised: " + ", ".join(names)
+            )
+
     def _advance_physics(self) -> None:
         """All substeps of one control step in one go, as `Physics.step(n)` would run them."""
         model, data, warnings, legacy = self._raw
@@ -214,8 +295,4 @@ class SuiteEnvironment(composer.Environment):
         else:
             mujoco.mj_step(model, data, n)
         if int(warnings.sum()) > before:
-            kinds = list(mujoco.mjtWarning.__members__)
-            names = [kind for kind, count in zip(kinds, warnings, strict=False) if count]
-            raise control.PhysicsError(
-                "Physics state is invalid. Warning(s) raised: " + ", ".join(names)
-            )
+            self._check_warnings(before)

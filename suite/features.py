@@ -1,8 +1,8 @@
 """The `state` observation: its layout and its vectorised computation from MuJoCo's arrays.
 
 The layout (34 + 3 n_cubes features; 49 for five cubes) follows the paper's description and the
-Fetch envs' feature conventions (velocities are multiplied by the control timestep, i.e. they
-are displacements per env step; cube velocities are relative to the gripper's). Only cubes 1
+Fetch envs' conventions: positions in the world frame, orientations as (roll, pitch, yaw), and
+velocities multiplied by the control timestep (i.e. displacements per env step). Only cubes 1
 and 2 (the reachable ones) contribute more than their position. docs/suite.md has the table.
 """
 
@@ -14,6 +14,9 @@ import mujoco
 import numpy as np
 
 from suite import layout
+
+_SITE = int(mujoco.mjtObj.mjOBJ_SITE)
+_BODY = int(mujoco.mjtObj.mjOBJ_BODY)
 
 
 @dataclass(frozen=True)
@@ -28,6 +31,7 @@ class StateLayout:
 
     @property
     def gripper_pos(self) -> slice:
+        """Grip site position (x, y, z)."""
         return slice(0, 3)
 
     @property
@@ -41,7 +45,7 @@ class StateLayout:
 
     @property
     def cube_rel_pos(self) -> slice:
-        """Cubes 1 and 2 minus the gripper position."""
+        """Cubes 1 and 2 minus the gripper position, (x, y, z) each."""
         return self._after_cubes(0, 6)
 
     @property
@@ -51,22 +55,18 @@ class StateLayout:
 
     @property
     def cube_euler(self) -> slice:
-        """Cubes 1 and 2 orientation as (roll, pitch, yaw), radians."""
+        """Cubes 1 and 2 orientation as (roll, pitch, yaw) in radians, each."""
         return self._after_cubes(8, 6)
 
     @property
-    def cube_rel_vel(self) -> slice:
-        """Cubes 1 and 2 linear velocity minus the gripper's, times the control timestep."""
-        return self._after_cubes(14, 6)
-
-    @property
-    def cube_ang_vel(self) -> slice:
-        """Cubes 1 and 2 angular velocity (world frame), times the control timestep."""
-        return self._after_cubes(20, 6)
+    def cube_vel(self) -> slice:
+        """Cubes 1 and 2 velocity in the world frame, (angular xyz, linear xyz) each, times the
+        control timestep."""
+        return self._after_cubes(14, 12)
 
     @property
     def gripper_vel(self) -> slice:
-        """Grip site linear velocity, times the control timestep."""
+        """Grip site linear velocity in the world frame, times the control timestep."""
         return self._after_cubes(26, 3)
 
     @property
@@ -75,7 +75,7 @@ class StateLayout:
         return self._after_cubes(29, 2)
 
     def cube_x_indices(self, cube: int) -> tuple[int, ...]:
-        """Indices of features that carry cube `cube`'s (0-based) observed x position."""
+        """Indices of the features that carry cube `cube`'s (0-based) observed x position."""
         idx = [self.cube_pos.start + 3 * cube]
         if cube < 2:
             idx.append(self.cube_rel_pos.start + 3 * cube)
@@ -89,11 +89,21 @@ class StateLayout:
             ("cube_rel_pos", self.cube_rel_pos),
             ("finger_pos", self.finger_pos),
             ("cube_euler", self.cube_euler),
-            ("cube_rel_vel", self.cube_rel_vel),
-            ("cube_ang_vel", self.cube_ang_vel),
+            ("cube_vel", self.cube_vel),
             ("gripper_vel", self.gripper_vel),
             ("finger_vel", self.finger_vel),
         ]
+
+    def scale(self) -> np.ndarray:
+        """Per-feature factors from the raw quantities the reader collects: the control timestep
+        for velocities, -1 for the pitch entries (read as atan2(R20, ...))."""
+        scale = np.ones(self.size)
+        dt = layout.CONTROL_TIMESTEP
+        for group in (self.cube_vel, self.gripper_vel, self.finger_vel):
+            scale[group] = dt
+        pitch = self.cube_euler.start + 1
+        scale[[pitch, pitch + 3]] = -1.0
+        return scale
 
 
 class StateReader:
@@ -112,8 +122,8 @@ class StateReader:
         reach_bodies: np.ndarray,
         reach_qpos: np.ndarray,
         distractor_pos: np.ndarray,
-        finger_qpos: slice | np.ndarray,
-        finger_qvel: slice | np.ndarray,
+        finger_qpos: slice,
+        finger_qvel: slice,
     ) -> None:
         """Bind to `model`/`data`.
 
@@ -122,78 +132,90 @@ class StateReader:
             reach_bodies: body ids of cubes 1 and 2.
             reach_qpos: (2, 7) view of their free joints' qpos.
             distractor_pos: (n_distractors, 3) view of the distractors' mocap positions.
-            finger_qpos, finger_qvel: where the two finger joints sit in qpos and qvel.
+            finger_qpos, finger_qvel: where the two finger joints sit in qpos and qvel
+                (consecutive, so that the reader can hold views).
         """
+        if not isinstance(finger_qpos, slice) or not isinstance(finger_qvel, slice):
+            raise TypeError("the finger joints must be consecutive in qpos and qvel (slices)")
         self._n_reach = len(reach_bodies)
         self.layout = StateLayout(self._n_reach + len(distractor_pos))
         self._model = model
         self._data = data
-        self._site_xpos = data.site_xpos
-        self._xmat = data.xmat
-        self._qpos = data.qpos
-        self._qvel = data.qvel
         self._grip_site = int(grip_site)
         self._reach_bodies = np.asarray(reach_bodies, dtype=np.intp)
         self._reach_body_ids = [int(b) for b in reach_bodies]
         self._reach_qpos = reach_qpos
         self._distractor_pos = distractor_pos
-        self._finger_qpos = finger_qpos
-        self._finger_qvel = finger_qvel
-        self._dt = layout.CONTROL_TIMESTEP
-        self._vel = np.zeros((3, 6))  # [grip site, cube 1, cube 2] x (angular, linear)
-        self.buffer = np.zeros(self.layout.size)
+        self._grip_vel = np.zeros(6)  # grip site (angular, linear)
+        self.raw = np.zeros(self.layout.size)
+        self._scale = self.layout.scale()
         lay = self.layout
-        b = self.buffer
+        b = self.raw
         self._b_positions = b[: lay.cube_pos.stop]
         self._b_grip = b[lay.gripper_pos]
         self._b_pos = b[lay.cube_pos].reshape(-1, 3)
+        self._b_reach_pos = self._b_pos[: self._n_reach]
+        self._b_distractor_pos = self._b_pos[self._n_reach :]
         self._b_rel = b[lay.cube_rel_pos].reshape(2, 3)
         self._b_fingers = b[lay.finger_pos]
         self._b_euler = b[lay.cube_euler].reshape(2, 3)
-        self._b_rel_vel = b[lay.cube_rel_vel].reshape(2, 3)
-        self._b_ang_vel = b[lay.cube_ang_vel].reshape(2, 3)
+        self._b_cube_vel = b[lay.cube_vel].reshape(2, 6)
         self._b_grip_vel = b[lay.gripper_vel]
         self._b_finger_vel = b[lay.finger_vel]
+        # Views into MuJoCo's arrays (stable for the life of `data`).
+        self._grip_xpos = data.site_xpos[self._grip_site]
+        self._reach_pos = reach_qpos[:, :3]
+        self._finger_q = data.qpos[finger_qpos]
+        self._finger_v = data.qvel[finger_qvel]
+        first = int(self._reach_bodies[0])
+        consecutive = bool(np.all(np.diff(self._reach_bodies) == 1))
+        self._reach_xmat = data.xmat[first : first + 2] if consecutive else None
 
-    def read(self) -> np.ndarray:
-        """Compute the state features into `self.buffer` (float64) and return it."""
-        m, d, vel, dt = self._model, self._data, self._vel, self._dt
-        grip = self._b_grip
-        grip[:] = self._site_xpos[self._grip_site]
-        pos = self._b_pos
-        pos[: self._n_reach] = self._reach_qpos[:, :3]
-        pos[self._n_reach :] = self._distractor_pos
-        np.subtract(pos[:2], grip, out=self._b_rel)
-        self._b_fingers[:] = self._qpos[self._finger_qpos]
+    def read(self, out: np.ndarray) -> np.ndarray:
+        """Compute the state features into `out` (float32, layout size) and return it.
 
-        xm = self._xmat[self._reach_bodies]
+        The raw quantities are gathered in float64 (`self.raw`, which also keeps the true
+        positions) and scaled into `out` in one pass.
+        """
+        self._b_grip[:] = self._grip_xpos
+        self._b_reach_pos[:] = self._reach_pos
+        self._b_distractor_pos[:] = self._distractor_pos
+        np.subtract(self._b_reach_pos, self._b_grip, out=self._b_rel)
+        self._b_fingers[:] = self._finger_q
+
+        # Orientation from the rotation matrices R (rows of 9): roll = atan2(R21, R22),
+        # pitch = -atan2(R20, hypot(R21, R22)) (the sign comes with the scale), yaw =
+        # atan2(R10, R00).
+        xm = self._reach_xmat
+        if xm is None:
+            xm = self._data.xmat[self._reach_bodies]
         euler = self._b_euler
         np.arctan2(xm[:, 7], xm[:, 8], out=euler[:, 0])
-        np.arcsin(np.clip(-xm[:, 6], -1.0, 1.0), out=euler[:, 1])
+        np.hypot(xm[:, 7], xm[:, 8], out=euler[:, 1])
+        np.arctan2(xm[:, 6], euler[:, 1], out=euler[:, 1])
         np.arctan2(xm[:, 3], xm[:, 0], out=euler[:, 2])
 
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_SITE, self._grip_site, vel[0], 0)
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._reach_body_ids[0], vel[1], 0)
-        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._reach_body_ids[1], vel[2], 0)
-        vel *= dt
-        np.subtract(vel[1:, 3:], vel[0, 3:], out=self._b_rel_vel)
-        self._b_ang_vel[:] = vel[1:, :3]
-        self._b_grip_vel[:] = vel[0, 3:]
-        np.multiply(self._qvel[self._finger_qvel], dt, out=self._b_finger_vel)
-        return self.buffer
+        m, d, cube_vel = self._model, self._data, self._b_cube_vel
+        mujoco.mj_objectVelocity(m, d, _BODY, self._reach_body_ids[0], cube_vel[0], 0)
+        mujoco.mj_objectVelocity(m, d, _BODY, self._reach_body_ids[1], cube_vel[1], 0)
+        mujoco.mj_objectVelocity(m, d, _SITE, self._grip_site, self._grip_vel, 0)
+        self._b_grip_vel[:] = self._grip_vel[3:]
+        self._b_finger_vel[:] = self._finger_v
+        np.multiply(self.raw, self._scale, out=out)
+        return out
 
     @property
     def positions(self) -> np.ndarray:
-        """[gripper, cube 1, ..., cube n] positions, flat (3 + 3 n_cubes,), from the last `read`
-        (a view into the buffer)."""
+        """[gripper, cube 1, ..., cube n] true positions, flat (3 + 3 n_cubes,), float64, from
+        the last `read` (a view)."""
         return self._b_positions
 
     @property
     def gripper(self) -> np.ndarray:
-        """The grip site position from the last `read` (a view into the buffer)."""
+        """The grip site position from the last `read` (a view)."""
         return self._b_grip
 
     @property
     def cubes(self) -> np.ndarray:
-        """The (n_cubes, 3) cube positions from the last `read` (a view into the buffer)."""
+        """The (n_cubes, 3) true cube positions from the last `read` (a view)."""
         return self._b_pos

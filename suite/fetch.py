@@ -53,7 +53,7 @@ def fetch_robot_xml() -> str:
     scene = ET.parse(fetch / "pick_and_place.xml").getroot()
 
     out = ET.Element("mujoco", model="fetch")
-    ET.SubElement(out, "compiler", angle="radian", meshdir=str((assets / "stls" / "fetch")))
+    ET.SubElement(out, "compiler", angle="radian", meshdir=str(assets / "stls" / "fetch"))
     asset = ET.SubElement(out, "asset")
     for element in shared.find("asset"):
         if element.tag == "mesh" or (

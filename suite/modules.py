@@ -10,9 +10,12 @@ functions on the float32 outcomes and goal slots that it reports).
 The env holds a tuple of modules; adding a module means writing one here (or anywhere) and
 passing it to `MultiTaskFetch`, never editing the env.
 
-Most outcomes are linear in the positions (a cube's position, a difference of two). Such a
-module lists its outcome as `linear_terms`; its `outcome_fn` is then derived from them, and the
-env evaluates all linear modules together with one matrix product per step.
+Every module of the paper is a *distance module* (`distance_module`): its outcome starts with
+components linear in the positions (a cube's position, a difference of two), possibly followed by
+a few computed ones, and it succeeds when the first three components lie within 0.05 m of the
+goal slot (and, for `stack`, a guard on the rest holds). Declaring that structure lets the env
+evaluate all such modules together, with one matrix product and one distance test per step;
+modules that declare nothing are evaluated through their functions.
 """
 
 from __future__ import annotations
@@ -32,8 +35,12 @@ _ONE = np.float32(1.0)
 SlotFn = Callable[[np.ndarray], np.ndarray]
 OutcomeFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 SuccessFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+GuardFn = Callable[[np.ndarray], np.ndarray]
 # One outcome component of a linear module: a sum of (point, axis, coefficient) terms, where
-# point 0 is the gripper and point k >= 1 is cube k; axis 0, 1, 2 is x, y, z.
+# point 0 is the gripper and point k >= 1 is cube k; axis 0, 1, 2 is x, y, z. For the first
+# three components of a distance module, the first term is the watched point's coordinate (with
+# coefficient 1) and the other terms place the frame the goal slot is expressed in (e.g. minus
+# cube 2's x); `goal_frame_matrix` reads the frame from them.
 LinearTerms = tuple[tuple[tuple[int, int, float], ...], ...]
 
 
@@ -50,8 +57,15 @@ class TaskModule:
         outcome_fn: (gripper (..., 3), cubes (..., n, 3)) -> outcome (..., outcome_dim).
         success_fn: (outcome (..., outcome_dim), slot (..., 3)) float32 -> bool (...,).
         goal_dim: size of g (3 for every module).
-        linear_terms: for an outcome linear in the positions, its components as terms (see
-            `LinearTerms`); `outcome_fn` must then be `linear_outcome(linear_terms)`.
+        linear_terms: optional structure: the first `len(linear_terms)` outcome components are
+            linear in the positions, given as terms (see `LinearTerms`) ...
+        extra_outcome_fn: ... and the remaining ones come from this function (same arguments
+            as `outcome_fn`).
+        reaches_slot: optional structure: success means "the first three outcome components lie
+            within 0.05 m of the goal slot" ...
+        guard_fn: ... and `guard_fn(outcome)` holds.
+        The optional structure must agree with the functions; `distance_module` builds modules
+        where it does by construction.
     """
 
     name: str
@@ -63,13 +77,30 @@ class TaskModule:
     success_fn: SuccessFn
     goal_dim: int = 3
     linear_terms: LinearTerms | None = None
+    extra_outcome_fn: OutcomeFn | None = None
+    reaches_slot: bool = False
+    guard_fn: GuardFn | None = None
 
     def outcome_matrix(self, n_cubes: int) -> np.ndarray | None:
-        """W (outcome_dim, 3 + 3 n_cubes) with outcome = W @ [gripper, cube 1, ...], or None
-        for an outcome that is not linear in the positions."""
+        """W (len(linear_terms), 3 + 3 n_cubes) with outcome[:len(linear_terms)] =
+        W @ [gripper, cube 1, ..., cube n], or None without linear terms."""
         if self.linear_terms is None:
             return None
         return _outcome_matrix(self.linear_terms, n_cubes)
+
+    def goal_frame_matrix(self, n_cubes: int) -> np.ndarray:
+        """F (3, 3 + 3 n_cubes) with world goal position = goal slot + F @ positions.
+
+        Zero (the slot is a world position) unless the first three linear components carry
+        terms beyond their first, which then place the slot's frame (cube 2 for
+        `cube1_above_cube2` and `stack`).
+        """
+        frame = np.zeros((3, 3 + 3 * n_cubes))
+        if self.linear_terms is not None and self.reaches_slot:
+            for row, component in enumerate(self.linear_terms[:3]):
+                for point, axis, coefficient in component[1:]:
+                    frame[row, 3 * point + axis] -= coefficient
+        return frame
 
     def goal_slot(self, g: np.ndarray) -> np.ndarray:
         """Map goals g (..., 3) in [-1, 1] to goal slots (..., 3), float32; pure."""
@@ -128,13 +159,19 @@ def _outcome_matrix(terms: LinearTerms, n_cubes: int) -> np.ndarray:
 
 
 def linear_outcome(terms: LinearTerms) -> OutcomeFn:
-    """The outcome function of a module whose outcome is linear in the positions."""
+    """The outcome function `[gripper, cubes...] @ W.T` of linear terms."""
 
     def outcome(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
         n = cubes.shape[-2]
-        points = np.concatenate((gripper[..., None, :], cubes), axis=-2)
-        flat = points.reshape(*points.shape[:-2], 3 + 3 * n)
-        return flat @ _outcome_matrix(terms, n).T
+        batch = np.broadcast_shapes(gripper.shape[:-1], cubes.shape[:-2])
+        points = np.concatenate(
+            (
+                np.broadcast_to(gripper[..., None, :], (*batch, 1, 3)),
+                np.broadcast_to(cubes, (*batch, n, 3)),
+            ),
+            axis=-2,
+        )
+        return points.reshape(*batch, 3 + 3 * n) @ _outcome_matrix(terms, n).T
 
     return outcome
 
@@ -143,20 +180,55 @@ def _cubes_in(terms: LinearTerms) -> tuple[int, ...]:
     return tuple(sorted({point - 1 for component in terms for point, _, _ in component if point}))
 
 
-def linear_module(
-    name: str, *, achievable: bool, terms: LinearTerms, slot_fn: SlotFn, success_fn: SuccessFn
+def distance_module(
+    name: str,
+    *,
+    achievable: bool,
+    slot_fn: SlotFn,
+    terms: LinearTerms,
+    extra_outcome_fn: OutcomeFn | None = None,
+    extra_dim: int = 0,
+    extra_cubes: tuple[int, ...] = (),
+    guard_fn: GuardFn | None = None,
 ) -> TaskModule:
-    """A module whose outcome is linear in the positions, given by its terms."""
+    """A module whose outcome is `terms` (linear in the positions) followed by `extra_dim`
+    components from `extra_outcome_fn` (reading cubes `extra_cubes`, 0-based), and which
+    succeeds when the first three components lie within 0.05 m of the goal slot (and
+    `guard_fn(outcome)` holds, if given)."""
     terms = tuple(tuple(tuple(t) for t in component) for component in terms)
+    if len(terms) < 3:
+        raise ValueError(f"{name}: a distance module needs at least 3 linear components")
+    if (extra_outcome_fn is None) != (extra_dim == 0):
+        raise ValueError(f"{name}: give extra_outcome_fn and extra_dim together")
+    linear = linear_outcome(terms)
+    if extra_outcome_fn is None:
+        outcome_fn = linear
+    else:
+        extra = extra_outcome_fn
+
+        def outcome_fn(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
+            return np.concatenate((linear(gripper, cubes), extra(gripper, cubes)), axis=-1)
+
+    if guard_fn is None:
+        success_fn = within_distance
+    else:
+        guard = guard_fn
+
+        def success_fn(achieved: np.ndarray, goal_slot: np.ndarray) -> np.ndarray:
+            return within_distance(achieved, goal_slot) & guard(achieved)
+
     return TaskModule(
         name=name,
         achievable=achievable,
-        outcome_dim=len(terms),
-        cubes=_cubes_in(terms),
+        outcome_dim=len(terms) + extra_dim,
+        cubes=tuple(sorted(set(_cubes_in(terms)) | set(extra_cubes))),
         slot_fn=slot_fn,
-        outcome_fn=linear_outcome(terms),
+        outcome_fn=outcome_fn,
         success_fn=success_fn,
         linear_terms=terms,
+        extra_outcome_fn=extra_outcome_fn,
+        reaches_slot=True,
+        guard_fn=guard_fn,
     )
 
 
@@ -181,12 +253,24 @@ def within_distance(achieved: np.ndarray, goal_slot: np.ndarray) -> np.ndarray:
     Written component by component so that the result does not depend on the batch shape.
     """
     d = achieved[..., :3] - goal_slot
-    d = d * d
-    return d[..., 0] + d[..., 1] + d[..., 2] < _EPS2
+    d *= d
+    s = d[..., 0] + d[..., 1]
+    s += d[..., 2]
+    return s < _EPS2
 
 
-def _placed_and_released(achieved: np.ndarray, goal_slot: np.ndarray) -> np.ndarray:
-    return within_distance(achieved, goal_slot) & (achieved[..., 3] >= _AWAY)
+def _gripper_away(achieved: np.ndarray) -> np.ndarray:
+    """`stack`'s guard: the gripper (outcome component 4) at least 0.05 m from cube 1."""
+    return achieved[..., 3] >= _AWAY
+
+
+def _gripper_distance(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
+    """|gripper - cube 1|, shape (..., 1)."""
+    d = gripper - cubes[..., 0, :]
+    d *= d
+    s = d[..., 0:1] + d[..., 1:2]
+    s += d[..., 2:3]
+    return np.sqrt(s)
 
 
 # The gripper's start, the centre of the goal region of `reach` and the push modules.
@@ -198,12 +282,11 @@ _TOP = layout.TABLE_TOP_Z
 
 def reach() -> TaskModule:
     """T1: the gripper to a 3-D target: xy = grip0 + 0.15 g_xy, z = 0.426 + 0.225 (g_z + 1)."""
-    return linear_module(
+    return distance_module(
         "reach",
         achievable=True,
         terms=_position_of(0),
         slot_fn=affine_slot((_R, _R, 0.225), (_GX, _GY, _Z + 0.225)),
-        success_fn=within_distance,
     )
 
 
@@ -211,12 +294,11 @@ def push_cube(cube: int, *, achievable: bool) -> TaskModule:
     """T2 / T5-7: cube `cube` (1-based) to a 2-D target on the table, xy = grip0 + 0.15 g_xy."""
     if cube < 1:
         raise ValueError(f"cube numbers start at 1, got {cube}")
-    return linear_module(
+    return distance_module(
         f"push_cube{cube}",
         achievable=achievable,
         terms=_position_of(cube),
         slot_fn=affine_slot((_R, _R, 0.0), (_GX, _GY, _Z)),
-        success_fn=within_distance,
     )
 
 
@@ -225,21 +307,12 @@ def cube1_above_cube2() -> TaskModule:
 
     Outcome `(x1 - x2, y1 - y2, z1)` in cube 2's frame, goal slot `(0, 0, 0.45 + 0.2 (g_z + 1))`.
     """
-    return linear_module(
+    return distance_module(
         "cube1_above_cube2",
         achievable=True,
         terms=(((1, 0, 1.0), (2, 0, -1.0)), ((1, 1, 1.0), (2, 1, -1.0)), ((1, 2, 1.0),)),
         slot_fn=affine_slot((0.0, 0.0, 0.2), (0.0, 0.0, _TOP + 0.05 + 0.2)),
-        success_fn=within_distance,
     )
-
-
-def _stack_outcome(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
-    c1 = cubes[..., 0, :]
-    d = gripper - c1
-    d *= d
-    away = np.sqrt(d[..., 0:1] + d[..., 1:2] + d[..., 2:3])
-    return np.concatenate((c1 - cubes[..., 1, :], away), axis=-1)
 
 
 def stack() -> TaskModule:
@@ -248,14 +321,15 @@ def stack() -> TaskModule:
     Outcome `(x1 - x2, y1 - y2, z1 - z2, |gripper - cube1|)`; goal slot `(0, 0, 0.05)` whatever
     g; success: the first three within 0.05 of the slot and the gripper >= 0.05 from cube 1.
     """
-    return TaskModule(
-        name="stack",
+    return distance_module(
+        "stack",
         achievable=True,
-        outcome_dim=4,
-        cubes=(0, 1),
+        terms=tuple(((1, axis, 1.0), (2, axis, -1.0)) for axis in range(3)),
+        extra_outcome_fn=_gripper_distance,
+        extra_dim=1,
+        extra_cubes=(0,),
+        guard_fn=_gripper_away,
         slot_fn=affine_slot((0.0, 0.0, 0.0), (0.0, 0.0, 2 * layout.CUBE_HALF_SIZE)),
-        outcome_fn=_stack_outcome,
-        success_fn=_placed_and_released,
     )
 
 

@@ -15,6 +15,8 @@ observable or the reward asks for it after the physics moved.
 from __future__ import annotations
 
 import collections
+import itertools
+import math
 from collections.abc import Sequence
 
 import mujoco
@@ -27,6 +29,7 @@ from suite import layout
 from suite.arena import TableArena
 from suite.cube import Cube, cube_colour
 from suite.distractors import DistractorWalk, start_positions
+from suite.evaluation import ModuleEvaluator
 from suite.features import StateLayout, StateReader
 from suite.fetch import FetchArm
 from suite.modules import TaskModule
@@ -58,6 +61,10 @@ class MultiTaskFetch(composer.Task):
         sensor_failure_cube: 1-based number of the reachable cube whose observed x can be shifted
             (`set_sensor_failure`); None for a task without a sensory failure.
     """
+
+    restores_full_state = True
+    """`initialize_episode` restores a complete MuJoCo state (the settled snapshot), so the
+    environment may skip composer's default physics reset before it."""
 
     def __init__(
         self,
@@ -121,74 +128,28 @@ class MultiTaskFetch(composer.Task):
         # Sizes, slots and buffers that do not depend on the compiled physics.
         n_mod = len(self._modules)
         self._state_layout = StateLayout(n_cubes)
-        dims = [m.outcome_dim for m in self._modules]
-        starts = np.concatenate(([0], np.cumsum(dims)))
-        self._outcome_slices = tuple(
-            slice(int(a), int(b)) for a, b in zip(starts[:-1], starts[1:], strict=True)
-        )
+        self._evaluator = ModuleEvaluator(self._modules, n_cubes)
+        self._outcome_slices = self._evaluator.slices
         self._shift_idx = (
             np.array(self._state_layout.cube_x_indices(self._sensor_cube))
             if self._sensor_cube is not None
             else None
         )
         self._state = np.zeros(self._state_layout.size, np.float32)
-        self._achieved = np.zeros(int(starts[-1]), np.float32)
+        self._achieved = self._evaluator.achieved
         self._goal_obs = np.zeros(3 * n_mod, np.float32)
         self._task_obs = np.zeros(n_mod, np.float32)
-        self._success = np.zeros(n_mod, np.float32)
+        self._success = self._evaluator.success
         self._goals = np.zeros((n_mod, 3), np.float32)
         self._slots = np.zeros((n_mod, 3), np.float32)
         self._active = 0
         self._reward = -1.0
         self._next_module: int | None = None
         self._next_goal: np.ndarray | None = None
-        self._walk = DistractorWalk(n_cubes, self._n_distractors)
+        self._walk = DistractorWalk(n_cubes, self._n_distractors, layout.EPISODE_STEPS)
         self._steps = 0
         self._tick = 0
         self._computed_tick = -1
-        # Outcomes linear in the positions come from one matrix product over all such modules;
-        # the others from their own functions.
-        linear = [
-            (m.outcome_matrix(n_cubes), sl)
-            for m, sl in zip(self._modules, self._outcome_slices, strict=True)
-            if m.linear_terms is not None
-        ]
-        self._linear_rows = (
-            np.concatenate([np.arange(sl.start, sl.stop) for _, sl in linear])
-            if linear
-            else np.zeros(0, np.intp)
-        )
-        self._linear_matrix = (
-            np.ascontiguousarray(np.concatenate([w for w, _ in linear]))
-            if linear
-            else np.zeros((0, 3 + 3 * n_cubes))
-        )
-        self._outcome_fns = tuple(
-            (m.outcome_fn, sl)
-            for m, sl in zip(self._modules, self._outcome_slices, strict=True)
-            if m.linear_terms is None
-        )
-        # Modules that share a success predicate (most use `within_distance`) are judged in one
-        # batched call: the predicates are vectorised and independent of the batch shape, so
-        # this gives exactly what one call per module would.
-        groups: dict[tuple, list[int]] = {}
-        for i, m in enumerate(self._modules):
-            groups.setdefault((m.success_fn, m.outcome_dim), []).append(i)
-        self._success_groups = tuple(
-            (
-                fn,
-                np.array(members, dtype=np.intp),
-                np.array(
-                    [np.arange(self._outcome_slices[i].start, self._outcome_slices[i].stop)
-                     for i in members],
-                    dtype=np.intp,
-                ),
-            )
-            for (fn, _), members in groups.items()
-        )
-        self._group_slots: list[np.ndarray] = [
-            np.zeros((len(members), 3), np.float32) for _, members, _ in self._success_groups
-        ]
 
         self._task_observables = collections.OrderedDict(
             (
@@ -251,7 +212,8 @@ class MultiTaskFetch(composer.Task):
         q[:, :2] = self._reachable_start(random_state)
         self._reach_qvel[:] = 0.0
         if self._n_distractors:
-            self._distractor_pos[:, :2] = start_positions(self._n_distractors, random_state)
+            self._distractor_xy[:] = start_positions(self._n_distractors, random_state)
+            self._walk.reset(random_state)
             self._distractor_pos[:, 2] = self._rest_z
 
         n_mod = len(self._modules)
@@ -267,9 +229,8 @@ class MultiTaskFetch(composer.Task):
         self._active = active
         self._goals[:] = goals
         for i, m in enumerate(self._modules):
-            self._slots[i] = m.goal_slot(goals[i])
-        for k, (_, members, _) in enumerate(self._success_groups):
-            self._group_slots[k] = self._slots[members]
+            self._slots[i] = m.slot_fn(goals[i])
+        self._evaluator.set_slots(self._slots)
         self._goal_obs[:] = 0.0
         self._goal_obs[3 * active : 3 * active + 3] = self._slots[active]
         self._task_obs[:] = 0.0
@@ -280,13 +241,17 @@ class MultiTaskFetch(composer.Task):
     def before_step(self, physics, action, random_state) -> None:
         """Check the action, set the mocap target and the fingers, move the distractors."""
         a = self._check_action(action)
-        self._mocap_pos[0] = self._xpos[self._gripper_body] + layout.MAX_GRIPPER_DISPLACEMENT * a[:3]
-        self._ctrl[self._finger_ctrl] = self._qpos[self._finger_qpos] + a[3]
+        # Like the Fetch envs: the mocap goes to the gripper's current position plus the
+        # displacement (so it never runs away from a blocked gripper), and each finger's
+        # position target is its current position plus the command (clamped by MuJoCo to the
+        # actuator's range: closed or open).
+        np.multiply(a[:3], layout.MAX_GRIPPER_DISPLACEMENT, out=self._delta)
+        np.add(self._gripper_xpos, self._delta, out=self._arm_mocap_pos)
+        np.add(self._finger_q, a[3], out=self._finger_ctrl)
         if self._n_distractors:
-            xy = self._cube_xy
-            xy[:N_REACHABLE] = self._reach_qpos[:, :2]
-            xy[N_REACHABLE:] = self._distractor_pos[:, :2]
-            self._distractor_pos[:, :2] = self._walk.step(xy, random_state)
+            self._distractor_xy[:] = self._walk.step(
+                self._reach_xy, self._distractor_xy, random_state
+            )
 
     def after_step(self, physics, random_state) -> None:
         self._steps += 1
@@ -392,6 +357,12 @@ class MultiTaskFetch(composer.Task):
         """This episode's goal slot for every module, (n_modules, 3) float32 (a copy)."""
         return self._slots.copy()
 
+    def goal_positions(self) -> np.ndarray:
+        """Where every module's goal is in the world now, (n_modules, 3) float64 (for display):
+        goal slots expressed in cube 2's frame follow cube 2."""
+        self._compute()
+        return self._evaluator.goal_positions(self._reader.positions)
+
     @property
     def has_sensor_failure(self) -> bool:
         return self._sensor_cube is not None
@@ -423,8 +394,6 @@ class MultiTaskFetch(composer.Task):
     def _bind(self, physics) -> None:
         m, d = physics.model.ptr, physics.data.ptr
         self._m, self._d = m, d
-        self._qpos, self._qvel, self._ctrl = d.qpos, d.qvel, d.ctrl
-        self._xpos, self._mocap_pos, self._mocap_quat = d.xpos, d.mocap_pos, d.mocap_quat
         self._gripper_body = int(physics.bind(self._robot.gripper_body).element_id)
         grip_site = int(physics.bind(self._robot.grip_site).element_id)
         qadr = np.array([physics.bind(j).qposadr for j in self._cube_joints]).ravel()
@@ -437,19 +406,26 @@ class MultiTaskFetch(composer.Task):
             [m.geom_bodyid[physics.bind(c.geom).element_id] for c in self._cubes], dtype=np.intp
         )
         mocap_ids = m.body_mocapid[cube_bodies[N_REACHABLE:]]
-        if self._n_distractors and not (
-            np.all(mocap_ids >= 0) and np.all(np.diff(mocap_ids) == 1)
-        ):
+        if self._n_distractors and not (np.all(mocap_ids >= 0) and np.all(np.diff(mocap_ids) == 1)):
             raise RuntimeError("the distractors' mocap bodies are expected to be consecutive")
         first = int(mocap_ids[0]) if self._n_distractors else 0
         self._distractor_pos = d.mocap_pos[first : first + self._n_distractors]
-        self._cube_xy = np.zeros((self._n_cubes, 2))
+        self._distractor_xy = self._distractor_pos[:, :2]
+        self._reach_xy = self._reach_qpos[:, :2]
+        # (dm_control cannot `bind` a mocap body, so look it up by name.)
+        mocap_body = physics.model.name2id(self._arena.mocap.full_identifier, "body")
+        arm_mocap = int(m.body_mocapid[mocap_body])
+        self._arm_mocap_pos = d.mocap_pos[arm_mocap]
+        self._arm_mocap_quat = d.mocap_quat[arm_mocap]
+        self._gripper_xpos = d.xpos[self._gripper_body]
+        self._delta = np.zeros(3)
         fq = [int(physics.bind(j).qposadr) for j in self._robot.finger_joints]
         fv = [int(physics.bind(j).dofadr) for j in self._robot.finger_joints]
         fa = [int(physics.bind(a).element_id) for a in self._robot.finger_actuators]
-        self._finger_qpos = _as_index(fq)
-        self._finger_qvel = _as_index(fv)
-        self._finger_ctrl = _as_index(fa)
+        self._finger_qpos = _as_slice(fq, "finger joints in qpos")
+        self._finger_qvel = _as_slice(fv, "finger joints in qvel")
+        self._finger_q = d.qpos[self._finger_qpos]
+        self._finger_ctrl = d.ctrl[_as_slice(fa, "finger actuators")]
         self._reader = StateReader(
             m,
             d,
@@ -470,11 +446,11 @@ class MultiTaskFetch(composer.Task):
         mujoco.mj_forward(m, d)
         # Start the mocap on the gripper (no jerk), then move it so that the grip site lands on
         # GRIP0 (the grip site is 0.02 below the gripper link with the fingers pointing down).
-        self._mocap_pos[0] = d.xpos[self._gripper_body]
-        self._mocap_quat[0] = d.xquat[self._gripper_body]
+        self._arm_mocap_pos[:] = d.xpos[self._gripper_body]
+        self._arm_mocap_quat[:] = d.xquat[self._gripper_body]
         mujoco.mj_forward(m, d)
-        self._mocap_pos[0] = layout.GRIP0 + np.array([0.0, 0.0, 0.02])
-        self._mocap_quat[0] = layout.GRIPPER_QUAT
+        self._arm_mocap_pos[:] = layout.GRIP0 + np.array([0.0, 0.0, 0.02])
+        self._arm_mocap_quat[:] = layout.GRIPPER_QUAT
         for _ in range(_SETTLE_STEPS):
             mujoco.mj_step(m, d, nstep=layout.SUBSTEPS)
         d.time = 0.0
@@ -487,25 +463,27 @@ class MultiTaskFetch(composer.Task):
 
     def _reachable_start(self, random_state: np.random.RandomState) -> np.ndarray:
         """xy of cubes 1 and 2: grip0_xy + U(-0.15, 0.15)^2, >= 0.1 from the gripper and apart."""
-        centre = self._grip0[:2]
-        placed: list[np.ndarray] = []
+        cx, cy = (float(v) for v in self._grip0[:2])
+        sep = layout.OBJECT_MIN_SEPARATION
+        placed: list[tuple[float, float]] = []
         while len(placed) < N_REACHABLE:
-            xy = centre + random_state.uniform(
-                -layout.OBJECT_RANGE, layout.OBJECT_RANGE, size=2
-            )
-            if np.linalg.norm(xy - centre) < layout.OBJECT_MIN_SEPARATION:
+            dx, dy = random_state.uniform(-layout.OBJECT_RANGE, layout.OBJECT_RANGE, size=2)
+            x, y = cx + float(dx), cy + float(dy)
+            if math.hypot(x - cx, y - cy) < sep:
                 continue
-            if any(np.linalg.norm(xy - p) < layout.OBJECT_MIN_SEPARATION for p in placed):
+            if any(math.hypot(x - px, y - py) < sep for px, py in placed):
                 continue
-            placed.append(xy)
+            placed.append((x, y))
         return np.array(placed)
 
     def _check_action(self, action) -> np.ndarray:
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (4,):
             raise ValueError(f"action must have shape (4,), got {a.shape}")
-        lo, hi = a.min(), a.max()
-        if not (lo >= -1.0 and hi <= 1.0):  # also false for NaN
+        x, y, z, f = a.tolist()
+        # (Plain comparisons: a numpy reduction costs more than the rest of this check. They
+        # are all False for NaN.)
+        if not (-1.0 <= x <= 1.0 and -1.0 <= y <= 1.0 and -1.0 <= z <= 1.0 and -1.0 <= f <= 1.0):
             if not np.all(np.isfinite(a)):
                 raise ValueError(f"action must be finite, got {a}")
             a = np.clip(a, -1.0, 1.0)
@@ -516,20 +494,11 @@ class MultiTaskFetch(composer.Task):
         if self._computed_tick == self._tick:
             return
         reader = self._reader
-        state = self._state
-        state[:] = reader.read()
+        state = reader.read(self._state)
         if self._sensor_on:
             state[self._shift_idx] += np.float32(layout.SENSOR_SHIFT_X)
-        gripper, cubes = reader.gripper, reader.cubes
-        achieved, success = self._achieved, self._success
-        achieved[self._linear_rows] = self._linear_matrix @ reader.positions
-        for outcome_fn, sl in self._outcome_fns:
-            achieved[sl] = outcome_fn(gripper, cubes)
-        for (success_fn, members, gather), slots in zip(
-            self._success_groups, self._group_slots, strict=True
-        ):
-            success[members] = success_fn(achieved[gather], slots)
-        self._reward = float(success[self._active]) - 1.0
+        self._evaluator.evaluate(reader.positions, reader.gripper, reader.cubes)
+        self._reward = -1.0 + float(self._success[self._active])
         self._computed_tick = self._tick
 
     def _observe_state(self, physics) -> np.ndarray:
@@ -561,8 +530,13 @@ def _parking_spot(cube: int) -> tuple[float, float]:
     return float(x), float(y)
 
 
-def _as_index(indices: list[int]) -> slice | np.ndarray:
-    """A slice where the indices are consecutive (a view, cheaper), else an index array."""
-    if all(b - a == 1 for a, b in zip(indices[:-1], indices[1:], strict=True)):
+def _as_slice(indices: list[int], what: str) -> slice:
+    """The slice covering consecutive indices, ascending or descending (so that views can be
+    held on MuJoCo's arrays)."""
+    steps = {b - a for a, b in itertools.pairwise(indices)}
+    if len(indices) == 1 or steps == {1}:
         return slice(indices[0], indices[-1] + 1)
-    return np.array(indices, dtype=np.intp)
+    if steps == {-1}:
+        stop = indices[-1] - 1
+        return slice(indices[0], None if stop < 0 else stop, -1)
+    raise RuntimeError(f"the {what} are expected to be consecutive, got {indices}")

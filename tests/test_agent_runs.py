@@ -229,3 +229,61 @@ def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
     assert (tmp_path / "r" / "x").read_text() == "keep"
     assert main(["train", "--out", str(tmp_path / "none"), "--resume", "--no-record"]) == 2
     assert "nothing to resume" in capsys.readouterr().err
+
+
+def test_td3_option_trains(tmp_path):
+    trainer = run(tmp_path / "td3", algorithm="td3", total_episodes=12)
+    assert trainer.episodes == 12 and len(trainer.agent.experts[0].critics) == 2
+
+
+class CountingObserver:
+    def __init__(self):
+        self.rounds, self.steps, self.ended = [], [], []
+
+    def begin_round(self, episodes, modules, goals, evaluation, envs):
+        self.rounds.append((episodes.copy(), len(envs)))
+        self.steps.append([])
+
+    def after_step(self, t):
+        self.steps[-1].append(t)
+
+    def end_round(self, info):
+        self.ended.append(info.episodes.copy())
+        assert info.data.states.shape[1] == 11  # toy episodes: 10 steps
+
+
+class ListRecorder:
+    def __init__(self):
+        self.calls = []
+
+    def log_episodes(self, **columns):
+        self.calls.append(("episodes", columns))
+
+    def log_replay(self, episode, counts):
+        self.calls.append(("replay", episode, counts))
+
+    def log_learner(self, episode, losses, q):
+        self.calls.append(("learner", episode, losses, q))
+
+    def close(self):
+        self.calls.append(("close",))
+
+
+def test_observer_and_recorder_hooks_are_called_in_order(tmp_path):
+    observer, recorder = CountingObserver(), ListRecorder()
+
+    def make_recorder(trainer, folder):
+        trainer.observer = observer
+        return recorder
+
+    config = resolve("smoke", "curious", 0, {**SMALL, "total_episodes": 10})
+    train(config, tmp_path / "r", make_envs=toy_envs, make_recorder=make_recorder)
+    # rounds of 2 parallel episodes, the last one cut to what is left
+    assert [len(e) for e, _ in observer.rounds] == [2, 2, 2, 2, 2]
+    assert all(steps == list(range(11)) for steps in observer.steps)
+    np.testing.assert_array_equal(np.concatenate(observer.ended), np.arange(10))
+    kinds = [c[0] for c in recorder.calls]
+    assert kinds == ["episodes", "replay", "learner"] * 3 + ["close"]  # 3 cycles
+    episodes = recorder.calls[0][1]
+    assert episodes["competence"].shape == (4, 3) and list(episodes["episode"]) == [0, 1, 2, 3]
+    assert recorder.calls[1][2].sum() == 4 * 2 * 32  # n_updates x batch substitutions

@@ -95,11 +95,13 @@ def _recorder_factory(resume: bool):
     def make(trainer, folder):
         from curious.recording import RunRecorder
 
+        # A run killed before its first checkpoint starts over, its recording too.
+        resumed = resume and trainer.episodes > 0
         return RunRecorder(
             folder.path,
             trainer.spec.module_names,
-            resume=resume,
-            resume_after_episode=trainer.episodes - 1 if resume else None,
+            resume=resumed,
+            resume_after_episode=trainer.episodes - 1 if resumed else None,
         )
 
     return make

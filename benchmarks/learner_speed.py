@@ -1,0 +1,334 @@
+"""`curious bench learner`: DDPG+HER updates per second, ours vs the compute bound vs SB3.
+
+All three at the authors' sizes (minibatch 256, actor and critic 3 x 256 ReLU) and the suite's
+input (49 state + 21 goal + 7 task = 77 numbers, 4 actions), on the same threads:
+
+* ours: `curious.learner.Learner.update` on a fixed minibatch (one critic and one actor step,
+  Adam, no sampling); `ours_with_replay` adds relabelled sampling from a filled replay and input
+  normalisation (the training loop's full update step);
+* bound: the update's matrix products (forward, weight-gradient and input-gradient products of
+  the four networks it touches) timed alone on this machine, back to back with `torch.mm` on
+  the same shapes: the update's FLOPs over the fp32 matmul rate measured at those shapes. A
+  second figure, `bound_peak`, uses the rate of one large (2048^2) product instead;
+* peer: Stable-Baselines3's DDPG with `HerReplayBuffer` ('future', k = 4), `train()` steps at
+  the same sizes (its HER sampling included, as in `ours_with_replay`).
+
+Then one training cycle (rollouts + updates) of the `quick` and `laptop` presets on the suite,
+and where its time goes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+import torch
+
+from curious.config import Config, resolve
+from curious.envs import EnvSpec
+
+STATE, GOAL, TASKS, ACTIONS = 49, 21, 7, 4
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--batch", type=int, default=256, help="minibatch (default 256)")
+    parser.add_argument("--hidden", type=int, default=256, help="units per layer (256)")
+    parser.add_argument("--layers", type=int, default=3, help="hidden layers (3)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
+    parser.add_argument("--seconds", type=float, default=3.0, help="time per measurement")
+    parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
+    parser.add_argument("--no-peer", action="store_true", help="skip Stable-Baselines3")
+    parser.add_argument("--no-cycle", action="store_true", help="skip the training cycles")
+
+
+def _rate(step: Any, seconds: float, warmup: int = 10, sync: Any = None) -> float:
+    """Calls of `step` per second over about `seconds`."""
+    for _ in range(warmup):
+        step()
+    if sync:
+        sync()
+    n, start = 0, time.perf_counter()
+    while True:
+        step()
+        n += 1
+        if n % 10 == 0:
+            if sync:
+                sync()
+            elapsed = time.perf_counter() - start
+            if elapsed >= seconds:
+                return n / elapsed
+
+
+def _config(args: argparse.Namespace, **changes: Any) -> Config:
+    return resolve(
+        "paper",
+        overrides=dict(
+            hidden=args.hidden,
+            layers=args.layers,
+            batch_per_worker=args.batch,
+            n_workers=1,
+            device=args.device,
+            torch_threads=args.threads,
+            **changes,
+        ),
+    )
+
+
+def _sync(device: str) -> Any:
+    return torch.cuda.synchronize if device == "cuda" else None
+
+
+# ----------------------------------------------------------------------------------------------
+def update_gemms(batch: int, inputs: int, actions: int, hidden: int, layers: int) -> list[tuple]:
+    """(m, k, n, transpose_a, transpose_b) of every matrix product in one DDPG update.
+
+    Target: actor' and critic' forward. Critic step: forward, weight gradients, input gradients
+    below the first layer. Actor step: actor and critic forward, the critic's input gradients
+    (its first layer only for the action columns), actor weight gradients and input gradients
+    below its first layer.
+    """
+
+    def net(n_in: int, n_out: int) -> list[tuple[int, int]]:
+        return [(n_in, hidden)] + [(hidden, hidden)] * (layers - 1) + [(hidden, n_out)]
+
+    actor, critic = net(inputs, actions), net(inputs + actions, 1)
+    fwd = lambda L: [(batch, i, o, False, True) for i, o in L]  # noqa: E731  x @ W^T
+    wgrad = lambda L: [(o, batch, i, True, False) for i, o in L]  # noqa: E731  g^T @ h
+    igrad = lambda L: [(batch, o, i, False, False) for i, o in L[1:]]  # noqa: E731  g @ W
+    return (
+        fwd(actor) + fwd(critic)
+        + fwd(critic) + wgrad(critic) + igrad(critic)
+        + fwd(actor) + fwd(critic) + igrad(critic) + [(batch, hidden, actions, False, False)]
+        + wgrad(actor) + igrad(actor)
+    )  # fmt: skip
+
+
+def measure_bound(args: argparse.Namespace) -> dict[str, float]:
+    """The update's FLOPs, and its updates/s bound from measured matmul rates."""
+    gemms = update_gemms(args.batch, STATE + GOAL + TASKS, ACTIONS, args.hidden, args.layers)
+    flops = sum(2 * m * k * n for m, k, n, _, _ in gemms)
+    dev = torch.device(args.device)
+    operands = []
+    for m, k, n, ta, tb in gemms:
+        a = torch.randn(k, m, device=dev).t() if ta else torch.randn(m, k, device=dev)
+        b = torch.randn(n, k, device=dev).t() if tb else torch.randn(k, n, device=dev)
+        operands.append((a, b, torch.empty(m, n, device=dev)))
+
+    def all_products() -> None:
+        for a, b, c in operands:
+            torch.mm(a, b, out=c)
+
+    shaped_rate = _rate(all_products, args.seconds, sync=_sync(args.device)) * flops
+    big = torch.randn(2048, 2048, device=dev)
+    out = torch.empty_like(big)
+    peak_rate = _rate(lambda: torch.mm(big, big, out=out), args.seconds / 2, 2, _sync(args.device))
+    peak_rate *= 2 * 2048**3
+    return {
+        "bound": shaped_rate / flops,
+        "bound_peak": peak_rate / flops,
+        "flops_per_update": float(flops),
+        "matmul_gflops_at_update_shapes": shaped_rate / 1e9,
+        "matmul_gflops_2048": peak_rate / 1e9,
+    }
+
+
+# ----------------------------------------------------------------------------------------------
+class _SyntheticGoals:
+    """Goal slots and rewards with the suite's shapes: all the replay needs to relabel."""
+
+    spec = EnvSpec(
+        module_names=tuple(f"m{i}" for i in range(TASKS)),
+        achievable=(True,) * TASKS,
+        state_dim=STATE,
+        action_dim=ACTIONS,
+        goal_dim=3,
+        outcome_slices=tuple(slice(3 * i, 3 * i + 3) for i in range(TASKS - 1)) + (slice(18, 22),),
+        episode_length=50,
+    )
+
+    def goal_slot(self, module: int, g: np.ndarray) -> np.ndarray:
+        return np.asarray(g, np.float32) * 0.15
+
+    def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        out = np.asarray(achieved)[..., self.spec.outcome_slices[module]][..., :3]
+        far = np.linalg.norm(out - goal, axis=-1) > 0.05
+        return np.where(far, -1.0, 0.0).astype(np.float32)
+
+
+def measure_ours(args: argparse.Namespace) -> dict[str, float]:
+    from curious.agent import Agent
+    from curious.learner import Learner
+    from curious.replay import EpisodeReplay
+
+    config = _config(args)
+    dev = torch.device(args.device)
+    learner = Learner(STATE + GOAL + TASKS, ACTIONS, config)
+    g = torch.Generator().manual_seed(0)
+    x = torch.randn(args.batch, STATE + GOAL + TASKS, generator=g).to(dev)
+    a = (torch.rand(args.batch, ACTIONS, generator=g) * 2 - 1).to(dev)
+    r = -(torch.rand(args.batch, generator=g) < 0.8).float().to(dev)
+    x2 = torch.randn(args.batch, STATE + GOAL + TASKS, generator=g).to(dev)
+    ours = _rate(lambda: learner.update(x, a, r, x2), args.seconds, sync=_sync(args.device))
+
+    env = _SyntheticGoals()
+    spec = env.spec
+    rng = np.random.default_rng(0)
+    n_ep, T = 400, spec.episode_length
+    replay = EpisodeReplay(spec, capacity=n_ep)
+    walk = rng.normal(0, 0.01, (n_ep, T + 1, spec.achieved_dim)).cumsum(1)
+    replay.store(
+        rng.normal(size=(n_ep, T + 1, STATE)).astype(np.float32),
+        walk.astype(np.float32),
+        rng.uniform(-1, 1, (n_ep, T, ACTIONS)).astype(np.float32),
+        rng.integers(TASKS, size=n_ep),
+        rng.uniform(-0.15, 0.15, (n_ep, TASKS, 3)).astype(np.float32),
+    )
+    agent = Agent(spec, config)
+    agent.encoder.update_stats(replay.states[:50], replay.achieved[:50], replay.goals[:50],
+                               np.ones((50, TASKS), bool))  # fmt: skip
+    probs = np.full(TASKS, 1 / TASKS)
+
+    def full_step() -> None:
+        agent.update(0, replay.sample(args.batch, rng, env, probs, 0.8))
+
+    with_replay = _rate(full_step, args.seconds, sync=_sync(args.device))
+    tic = time.perf_counter()
+    for _ in range(50):
+        replay.sample(args.batch, rng, env, probs, 0.8)
+    sample_ms = (time.perf_counter() - tic) / 50 * 1e3
+    return {"ours": ours, "ours_with_replay": with_replay, "replay_sample_ms": sample_ms}
+
+
+# ----------------------------------------------------------------------------------------------
+def measure_peer(args: argparse.Namespace) -> dict[str, Any]:
+    """Stable-Baselines3 DDPG + HER `train()` steps at the same sizes."""
+    try:
+        import gymnasium as gym
+        from stable_baselines3 import DDPG, HerReplayBuffer
+        from stable_baselines3.common.logger import configure
+        from stable_baselines3.common.vec_env import DummyVecEnv
+    except ImportError as exc:
+        return {"peer": None, "peer_note": f"stable-baselines3 not installed ({exc.name})"}
+
+    # SB3 feeds [observation, achieved_goal, desired_goal]; 35 + 21 + 21 = our 77 inputs.
+    obs_dim = STATE + GOAL + TASKS - 2 * GOAL
+
+    class Stub(gym.Env):
+        observation_space = gym.spaces.Dict(
+            {
+                "observation": gym.spaces.Box(-10, 10, (obs_dim,), np.float32),
+                "achieved_goal": gym.spaces.Box(-10, 10, (GOAL,), np.float32),
+                "desired_goal": gym.spaces.Box(-10, 10, (GOAL,), np.float32),
+            }
+        )
+        action_space = gym.spaces.Box(-1, 1, (ACTIONS,), np.float32)
+
+        def reset(self, seed: int | None = None, options: Any = None) -> tuple[dict, dict]:
+            return self.observation_space.sample(), {}
+
+        def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+            return self.observation_space.sample(), -1.0, False, False, {}
+
+        def compute_reward(self, achieved: np.ndarray, desired: np.ndarray, info: Any) -> Any:
+            return -(np.linalg.norm(achieved - desired, axis=-1) > 0.05).astype(np.float32)
+
+    env = DummyVecEnv([Stub])
+    model = DDPG(
+        "MultiInputPolicy",
+        env,
+        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
+        batch_size=args.batch,
+        policy_kwargs=dict(net_arch=[args.hidden] * args.layers),
+        device=args.device,
+        seed=0,
+        verbose=0,
+    )
+    model.set_logger(configure(None, []))
+    space = Stub.observation_space
+    buffer = model.replay_buffer
+    rng = np.random.default_rng(0)
+    for _episode in range(40):
+        for t in range(50):
+            obs = {k: s.sample()[None] for k, s in space.spaces.items()}
+            nxt = {k: s.sample()[None] for k, s in space.spaces.items()}
+            done = np.array([t == 49])
+            infos = [{"TimeLimit.truncated": bool(t == 49)}]
+            action = rng.uniform(-1, 1, (1, ACTIONS)).astype(np.float32)
+            buffer.add(obs, nxt, action, np.array([-1.0]), done, infos)
+    peer = _rate(lambda: model.train(gradient_steps=1, batch_size=args.batch), args.seconds,
+                 sync=_sync(args.device))  # fmt: skip
+    import stable_baselines3
+
+    return {"peer": peer, "peer_version": f"stable-baselines3 {stable_baselines3.__version__}"}
+
+
+# ----------------------------------------------------------------------------------------------
+def measure_cycles(args: argparse.Namespace) -> dict[str, Any]:
+    """Wall-clock of one training cycle of the quick and laptop presets on the suite."""
+    try:
+        from curious.envs import make_suite_envs
+    except ImportError as exc:  # pragma: no cover - the suite is part of the package
+        return {"cycle_note": f"suite not importable: {exc}"}
+    from curious.train import Trainer
+
+    out: dict[str, Any] = {}
+    for preset in ("quick", "laptop"):
+        config = resolve(
+            preset, overrides=dict(device=args.device, torch_threads=args.threads, progress=False)
+        )
+        trainer = Trainer(config, make_suite_envs(config.variant, 0, config.n_workers))
+        trainer.cycle()  # warm-up: first allocations, normaliser, replay
+        tic = time.perf_counter()
+        result = trainer.cycle()
+        total = time.perf_counter() - tic
+        parts = {
+            k.split("/", 1)[1]: v for k, v in result.losses.items() if k.startswith("seconds/")
+        }
+        prefix = f"cycle_{preset}"
+        out[f"{prefix}_seconds"] = total
+        out[f"{prefix}_shape"] = (
+            f"{config.episodes_per_cycle} episodes x {trainer.spec.episode_length} steps, "
+            f"{config.n_updates} updates x batch {config.batch_size}"
+        )
+        for name, seconds in parts.items():
+            out[f"{prefix}_{name}_seconds"] = seconds
+        out[f"{prefix}_other_seconds"] = total - sum(parts.values())
+    return out
+
+
+def measure(args: argparse.Namespace) -> dict[str, Any]:
+    """Everything above, in one dict (keys ours, bound, peer, unit first)."""
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    if args.device == "cuda" and not torch.cuda.is_available():
+        raise SystemExit("curious bench learner: --device cuda, but torch sees no CUDA device")
+    started = time.perf_counter()
+    ours = measure_ours(args)
+    bound = measure_bound(args)
+    peer = {"peer": None} if args.no_peer else measure_peer(args)
+    result: dict[str, Any] = {
+        "ours": ours["ours"],
+        "bound": bound["bound"],
+        "peer": peer["peer"],
+        "unit": "updates/s",
+        "ours_over_bound": ours["ours"] / bound["bound"],
+        "ours_with_replay": ours["ours_with_replay"],
+        "ours_with_replay_over_peer": (
+            ours["ours_with_replay"] / peer["peer"] if peer["peer"] else None
+        ),
+        "bound_peak": bound["bound_peak"],
+        "replay_sample_ms": ours["replay_sample_ms"],
+        "flops_per_update": bound["flops_per_update"],
+        "matmul_gflops_at_update_shapes": bound["matmul_gflops_at_update_shapes"],
+        "matmul_gflops_2048": bound["matmul_gflops_2048"],
+        "sizes": f"batch {args.batch}, {args.layers} x {args.hidden}, {args.threads} thread(s), "
+        f"{args.device}",
+    }
+    result.update({k: v for k, v in peer.items() if k != "peer"})
+    if not args.no_cycle:
+        result.update(measure_cycles(args))
+    result["bench_seconds"] = time.perf_counter() - started
+    return result

@@ -1,0 +1,134 @@
+"""`curious reproduce`: train every run a preset asks for and rebuild every figure and the report.
+
+    curious reproduce                                   # preset quick into runs/quick
+    curious reproduce --preset smoke --out /tmp/smoke   # seconds per run
+    curious reproduce --experiments main,distractors    # a subset of the experiments
+    curious reproduce --preset paper --ray-address auto --runs-dir /shared/curious
+
+The assets (pipelines/) are materialised in this process on a Dagster instance kept in
+OUT/.dagster: no server to start. Training runs go to worker processes (one per core unless
+--workers says otherwise), or to Ray tasks with --ray-address. A second call with the same
+preset and --out retrains nothing that is finished and resumes what was interrupted.
+
+Errors about the input (unknown preset or experiment, an output folder made by another preset,
+a run folder holding another run, a Ray address that does not answer) are reported in one line,
+exit status 2, before anything is written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from curious.experiments import DEFAULT_PRESET, EXPERIMENTS, PRESETS_BY_NAME
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add `curious reproduce`."""
+    parser = sub.add_parser(
+        "reproduce",
+        help="train a preset's runs and rebuild every figure and report.md",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="presets:\n"
+        + "\n".join(f"  {name:8s}{p.description}" for name, p in PRESETS_BY_NAME.items()),
+    )
+    parser.add_argument(
+        "--preset", default=DEFAULT_PRESET, help=f"{', '.join(PRESETS_BY_NAME)} (default quick)"
+    )
+    parser.add_argument(
+        "--experiments",
+        default=None,
+        metavar="LIST",
+        help=f"comma-separated subset of {','.join(EXPERIMENTS)} (default: all)",
+    )
+    parser.add_argument("--out", default=None, help="output folder (default: runs/<preset>)")
+    parser.add_argument(
+        "--runs-dir",
+        default=None,
+        help="where run folders go, e.g. storage every Ray node sees (default: OUT/runs)",
+    )
+    parser.add_argument(
+        "--ray-address",
+        default=None,
+        metavar="ADDR",
+        help="train the runs as Ray tasks on the cluster at HOST:PORT, or `auto`",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="runs trained at once on this machine (default: one per core; ignored with Ray)",
+    )
+    parser.add_argument("--cpus-per-run", type=float, default=1.0, help="Ray CPUs per run")
+    parser.add_argument(
+        "--gpus-per-run",
+        type=float,
+        default=0.0,
+        help="Ray GPUs per run; > 0 trains the networks with device=cuda",
+    )
+    parser.add_argument(
+        "--no-record", action="store_true", help="do not write Rerun recordings (recording.rrd)"
+    )
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    parser.set_defaults(func=run)
+
+
+def _experiments(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    return [part.strip() for part in text.split(",")]
+
+
+def run(args: argparse.Namespace) -> int:
+    from curious.config import ConfigError
+    from curious.experiments import ExperimentError
+
+    if args.workers is not None and args.workers < 1:
+        print("curious reproduce: error: --workers must be >= 1", file=sys.stderr)
+        return 2
+    if args.cpus_per_run <= 0 or args.gpus_per_run < 0:
+        print(
+            "curious reproduce: error: --cpus-per-run must be > 0 and --gpus-per-run >= 0",
+            file=sys.stderr,
+        )
+        return 2
+
+    from pipelines.executors import PartitionFailed, RayUnavailable, make_pool
+    from pipelines.reproduce import ReproduceError, reproduce
+    from pipelines.training import RunFolderMismatch
+
+    def pool():
+        return make_pool(args.ray_address, args.workers, args.cpus_per_run, args.gpus_per_run)
+
+    try:
+        result = reproduce(
+            args.preset,
+            experiments=_experiments(args.experiments),
+            out=args.out,
+            runs_dir=args.runs_dir,
+            make_pool=pool,
+            record=not args.no_record,
+            progress=not args.no_progress,
+        )
+    except (ExperimentError, ConfigError, ReproduceError, RunFolderMismatch, RayUnavailable) as exc:
+        print(f"curious reproduce: error: {exc}", file=sys.stderr)
+        return 2
+    except PartitionFailed as exc:
+        print(f"curious reproduce: a training run failed: {exc}", file=sys.stderr)
+        return 1
+
+    layout = result.layout
+    minutes, seconds = divmod(round(result.seconds), 60)
+    print(
+        f"\nDone in {minutes}m{seconds:02d}s: {len(result.trained)} run(s) trained, "
+        f"{len(result.skipped)} already finished."
+    )
+    print(f"  report:  {layout.report}")
+    print(f"  figures: {layout.figures}")
+    print(f"  runs:    {layout.runs_root}")
+    print(
+        f"  Dagster: DAGSTER_HOME={layout.dagster_home} CURIOUS_PRESET={result.preset} "
+        f"CURIOUS_OUT={layout.out} dagster dev -m pipelines"
+    )
+    return 0

@@ -1,0 +1,352 @@
+"""What `curious reproduce` trains: the paper's experiments, per reproduce preset.
+
+An *experiment* is a set of training runs that one group of figures compares:
+
+* `main` (paper Fig. 2, Table 1): `curious`, `mg-te` and `her` on the default variant
+  (4 achievable modules + 3 distractors);
+* `distractors`: `curious` against `m-uvfa` (uniform module selection and replay) with 0, 4 and
+  7 distracting modules (suite variants `distractors_0`, `distractors_4`, `distractors_7`);
+* `sensor_failure`: `curious` against `m-uvfa` on the `sensor_failure` variant, the sensory
+  failure switched on at a set episode (`sensor_failure_episode`).
+
+A *run* (`RunSpec`) is one condition, one variant and one seed: one run folder, and one Dagster
+partition. Partitions are two-dimensional (Dagster's multi-partitions take exactly two axes):
+`condition` x `seed`. Where an experiment trains several variants its condition axis carries the
+variant as well: `curious@distractors_4`.
+
+A *reproduce preset* chooses the training preset (`curious.config.PRESETS`), the seeds and the
+episode budget of every experiment:
+
+=========  ===============================================================================
+`smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
+`quick`    the README's job: the whole `curious reproduce` in about 20 minutes on 2 cores
+`laptop`   days on 2 cores (hours on a workstation): long enough for developmental phases
+`paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
+=========  ===============================================================================
+
+The numbers behind `quick` were measured on a 2-core machine; see `ReproducePreset.notes`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import PurePosixPath
+from typing import Any
+
+from curious.config import CONDITIONS, PRESETS, Config, ConfigError, resolve
+
+EXPERIMENTS: tuple[str, ...] = ("main", "distractors", "sensor_failure")
+"""Experiment names, in the order they are trained and reported."""
+
+VARIANT_SEPARATOR = "@"
+"""Joins condition and variant on the condition axis of experiments with several variants."""
+
+
+class ExperimentError(ValueError):
+    """An unknown reproduce preset or experiment, or a bad experiment definition."""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One training run of an experiment: a condition, a variant and a seed."""
+
+    experiment: str
+    condition: str
+    variant: str
+    seed: int
+    train_preset: str
+    total_episodes: int
+    sensor_failure_episode: int | None = None
+    variant_in_key: bool = False
+    """Whether the condition axis names the variant (experiments with several variants)."""
+
+    @property
+    def condition_key(self) -> str:
+        """The run's value on the condition axis: `curious`, or `curious@distractors_4`."""
+        if self.variant_in_key:
+            return f"{self.condition}{VARIANT_SEPARATOR}{self.variant}"
+        return self.condition
+
+    @property
+    def seed_key(self) -> str:
+        return str(self.seed)
+
+    @property
+    def partition_key(self) -> str:
+        """Dagster's string for the multi-partition key (`condition|seed`)."""
+        return f"{self.condition_key}|{self.seed_key}"
+
+    @property
+    def relative_path(self) -> PurePosixPath:
+        """Where the run folder lies below the runs root: `<experiment>/<condition>/seed-<s>`."""
+        return PurePosixPath(self.experiment, self.condition_key, f"seed-{self.seed}")
+
+    @property
+    def label(self) -> str:
+        """A short human name, e.g. `distractors: curious@distractors_4 seed 0`."""
+        return f"{self.experiment}: {self.condition_key} seed {self.seed}"
+
+    def config(self, overrides: Mapping[str, Any] | None = None) -> Config:
+        """The resolved training config of this run (`overrides` change single settings)."""
+        values: dict[str, Any] = {
+            "variant": self.variant,
+            "total_episodes": self.total_episodes,
+            "progress": False,
+        }
+        values.update(overrides or {})
+        return resolve(self.train_preset, self.condition, self.seed, values)
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One experiment of a reproduce preset: what is trained, and for how long."""
+
+    name: str
+    title: str
+    conditions: tuple[str, ...]
+    variants: tuple[str, ...]
+    seeds: tuple[int, ...]
+    total_episodes: int
+    train_preset: str
+    sensor_failure_episode: int | None = None
+    compare: tuple[str, str] | None = None
+    """(better, worse): the pair of conditions of the one-tailed Welch tests in the report."""
+
+    def __post_init__(self) -> None:
+        if self.name not in EXPERIMENTS:
+            raise ExperimentError(f"unknown experiment {self.name!r}; choose from {EXPERIMENTS}")
+        unknown = [c for c in self.conditions if c not in CONDITIONS]
+        if unknown or not self.conditions:
+            raise ExperimentError(f"{self.name}: unknown or no conditions {unknown}")
+        if not self.variants or not self.seeds:
+            raise ExperimentError(f"{self.name}: needs at least one variant and one seed")
+        if len(set(self.seeds)) != len(self.seeds) or min(self.seeds) < 0:
+            raise ExperimentError(f"{self.name}: seeds must be distinct and >= 0: {self.seeds}")
+        if self.train_preset not in PRESETS:
+            raise ExperimentError(f"{self.name}: unknown training preset {self.train_preset!r}")
+        if self.total_episodes <= 0:
+            raise ExperimentError(f"{self.name}: total_episodes must be > 0")
+        p = self.sensor_failure_episode
+        if p is not None and not 0 < p < self.total_episodes:
+            raise ExperimentError(
+                f"{self.name}: sensor_failure_episode {p} must lie inside the run "
+                f"(0 < episode < {self.total_episodes})"
+            )
+        if self.compare is not None and not set(self.compare) <= set(self.conditions):
+            raise ExperimentError(f"{self.name}: compares {self.compare} outside its conditions")
+
+    @property
+    def condition_keys(self) -> tuple[str, ...]:
+        """Values of the partition's condition axis, in order."""
+        return tuple(dict.fromkeys(run.condition_key for run in self.runs()))
+
+    @property
+    def seed_keys(self) -> tuple[str, ...]:
+        return tuple(str(s) for s in self.seeds)
+
+    def runs(self) -> list[RunSpec]:
+        """Every run of the experiment: variants, then conditions, then seeds."""
+        several = len(self.variants) > 1
+        return [
+            RunSpec(
+                experiment=self.name,
+                condition=condition,
+                variant=variant,
+                seed=seed,
+                train_preset=self.train_preset,
+                total_episodes=self.total_episodes,
+                sensor_failure_episode=self.sensor_failure_episode,
+                variant_in_key=several,
+            )
+            for variant in self.variants
+            for condition in self.conditions
+            for seed in self.seeds
+        ]
+
+    def run(self, partition_key: str) -> RunSpec:
+        """The run of a partition key (`condition|seed`), with a clear error for a stranger."""
+        for spec in self.runs():
+            if spec.partition_key == partition_key:
+                return spec
+        raise ExperimentError(
+            f"experiment {self.name!r} has no partition {partition_key!r}; partitions: "
+            + ", ".join(s.partition_key for s in self.runs())
+        )
+
+    @property
+    def episodes(self) -> int:
+        """Episodes trained in all of the experiment's runs together."""
+        return self.total_episodes * len(self.runs())
+
+
+@dataclass(frozen=True)
+class ReproducePreset:
+    """A reproduce preset: the experiments `curious reproduce --preset NAME` trains."""
+
+    name: str
+    description: str
+    experiments: Mapping[str, Experiment]
+    notes: str = ""
+    """Where the budgets come from (measured timings) and what the figures can show."""
+    default_out: str = field(default="")
+
+    def __post_init__(self) -> None:
+        if tuple(self.experiments) != tuple(e for e in EXPERIMENTS if e in self.experiments):
+            raise ExperimentError(
+                f"{self.name}: experiments out of order: {tuple(self.experiments)}"
+            )
+        for key, experiment in self.experiments.items():
+            if key != experiment.name:
+                raise ExperimentError(f"{self.name}: experiment {key!r} is named {experiment.name}")
+        if not self.default_out:
+            object.__setattr__(self, "default_out", f"runs/{self.name}")
+
+    def select(self, names: Iterable[str] | None = None) -> list[Experiment]:
+        """The experiments called `names` (all when None), in the canonical order."""
+        if names is None:
+            return list(self.experiments.values())
+        wanted = [n.strip() for n in names if n.strip()]
+        if not wanted:
+            raise ExperimentError(f"no experiment named; choose from {', '.join(self.experiments)}")
+        unknown = [n for n in wanted if n not in self.experiments]
+        if unknown:
+            raise ExperimentError(
+                f"unknown experiment(s) {', '.join(map(repr, unknown))}; "
+                f"choose from {', '.join(self.experiments)}"
+            )
+        return [e for name, e in self.experiments.items() if name in wanted]
+
+    def runs(self, names: Iterable[str] | None = None) -> list[RunSpec]:
+        return [run for experiment in self.select(names) for run in experiment.runs()]
+
+
+def _main(preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
+    return Experiment(
+        name="main",
+        title="Main comparison: CURIOUS, MG-TE and HER (paper Fig. 2, Table 1)",
+        conditions=("curious", "mg-te", "her"),
+        variants=("default",),
+        seeds=tuple(seeds),
+        total_episodes=episodes,
+        train_preset=preset,
+        compare=("curious", "mg-te"),
+    )
+
+
+def _distractors(preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
+    return Experiment(
+        name="distractors",
+        title="Distracting modules: CURIOUS against M-UVFA with 0, 4 and 7 distractors",
+        conditions=("curious", "m-uvfa"),
+        variants=("distractors_0", "distractors_4", "distractors_7"),
+        seeds=tuple(seeds),
+        total_episodes=episodes,
+        train_preset=preset,
+        compare=("curious", "m-uvfa"),
+    )
+
+
+def _sensor_failure(preset: str, seeds: Sequence[int], episodes: int, at: int) -> Experiment:
+    return Experiment(
+        name="sensor_failure",
+        title="Sensory failure: CURIOUS against M-UVFA, forgetting and recovery",
+        conditions=("curious", "m-uvfa"),
+        variants=("sensor_failure",),
+        seeds=tuple(seeds),
+        total_episodes=episodes,
+        train_preset=preset,
+        sensor_failure_episode=at,
+        compare=("curious", "m-uvfa"),
+    )
+
+
+def _preset(name: str, description: str, notes: str, *experiments: Experiment) -> ReproducePreset:
+    return ReproducePreset(name, description, {e.name: e for e in experiments}, notes)
+
+
+PRESETS_BY_NAME: dict[str, ReproducePreset] = {
+    p.name: p
+    for p in (
+        _preset(
+            "smoke",
+            "seconds per run, for the tests: every figure and the report from tiny runs",
+            "Training preset `smoke` (24 episodes, small networks). Curves are flat: the figures "
+            "check that the pipeline works, not what the agent learns.",
+            _main("smoke", (0, 1), 24),
+            _distractors("smoke", (0,), 24),
+            _sensor_failure("smoke", (0,), 24, 12),
+        ),
+        _preset(
+            "quick",
+            "the README's job: every figure from small budgets in about 20 minutes on 2 cores",
+            "Training preset `quick` (2 workers, 20 updates of 256 per cycle of 4 episodes). "
+            "Measured with one torch thread per run on a shared 2-core machine: 95-100 ms per "
+            "episode on `default` and `distractors_0`, so ~2 runs of 600 episodes per core-"
+            "minute-and-a-half; 16 runs (main 3 x 2 seeds, distractors 6 x 1 seed, sensory "
+            "failure 2 x 2 seeds) of 600 episodes fit 20 minutes on 2 cores. At this budget the "
+            "agent learns reach at best; the later modules, their phases and the effects of "
+            "distractors and of the sensory failure need the `laptop` or `paper` preset.",
+            _main("quick", (0, 1), 600),
+            _distractors("quick", (0,), 600),
+            _sensor_failure("quick", (0, 1), 600, 300),
+        ),
+        _preset(
+            "laptop",
+            "days on 2 cores (or hours with Ray): long enough for the developmental phases",
+            "Training preset `laptop` (4 workers, 40 updates of 512 per cycle of 8 episodes). "
+            "Runs are independent: `--workers` runs them side by side, `--ray-address` across "
+            "a cluster.",
+            _main("laptop", (0, 1, 2), 100_000),
+            _distractors("laptop", (0, 1), 50_000),
+            _sensor_failure("laptop", (0, 1), 60_000, 40_000),
+        ),
+        _preset(
+            "paper",
+            "the authors' protocol, 5 seeds: for a cluster (--ray-address) or GPUs",
+            "Training preset `paper` (19 workers x 2 episodes x 25 cycles per epoch, 100 updates "
+            "per cycle, ~300k episodes per run as in the paper). The distractors and sensory-"
+            "failure budgets and the perturbation at 150k episodes are our choice (the 2018 "
+            "paper does not give them).",
+            _main("paper", (0, 1, 2, 3, 4), 300_000),
+            _distractors("paper", (0, 1, 2, 3, 4), 300_000),
+            _sensor_failure("paper", (0, 1, 2, 3, 4), 300_000, 150_000),
+        ),
+    )
+}
+
+DEFAULT_PRESET = "quick"
+
+
+def get_preset(name: str) -> ReproducePreset:
+    """The reproduce preset called `name` (a clear error naming the known ones otherwise)."""
+    if name not in PRESETS_BY_NAME:
+        raise ExperimentError(
+            f"unknown reproduce preset {name!r}; choose one of {', '.join(PRESETS_BY_NAME)}"
+        )
+    return PRESETS_BY_NAME[name]
+
+
+def with_overrides(preset: ReproducePreset, **changes: Any) -> ReproducePreset:
+    """A copy of `preset` whose experiments have fields changed (e.g. `seeds=(0,)`), for tests
+    and for users who want a variation without writing a preset."""
+    try:
+        experiments = {k: dataclasses.replace(e, **changes) for k, e in preset.experiments.items()}
+    except TypeError as exc:
+        raise ExperimentError(str(exc)) from None
+    return dataclasses.replace(preset, experiments=experiments)
+
+
+__all__ = [
+    "DEFAULT_PRESET",
+    "EXPERIMENTS",
+    "PRESETS_BY_NAME",
+    "ConfigError",
+    "Experiment",
+    "ExperimentError",
+    "ReproducePreset",
+    "RunSpec",
+    "get_preset",
+    "with_overrides",
+]

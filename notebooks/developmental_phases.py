@@ -1,0 +1,115 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+#   kernelspec:
+#     display_name: Python 3
+#     language: python
+#     name: python3
+# ---
+
+# %% [markdown]
+# # Developmental phases (paper Fig. 2b, 2c and Table 1)
+#
+# The paper's claim: a CURIOUS agent learns reach first, then push, then pick-and-place and
+# stack in an order that varies between seeds; the absolute learning progress (LP) of a module
+# is high while it is being learned and low once it is solved, or when it cannot be learned
+# (the distractors); module selection follows LP (p_LP).
+#
+# `out` is the output folder of `curious reproduce`; `condition` and `seed` pick the run of
+# Fig. 2b/2c (`seed = None`: the lowest).
+
+# %%
+# %matplotlib inline
+import numpy as np
+import pandas as pd
+from IPython.display import display
+from matplotlib.figure import Figure
+
+from curious import analysis
+from curious.analysis import palette
+from pipelines.resources import OutputLayout
+
+# %% tags=["parameters"]
+out = "runs/quick"
+condition = "curious"
+seed = None
+learned_at = 0.5  # a module counts as learned once its competence reaches this
+
+# %%
+layout = OutputLayout.open(out)
+df = analysis.load_runs(layout.experiment_runs("main"))
+runs = df[df["condition"] == condition]
+modules, achievable = analysis.run_modules(df, str(runs["run"].iat[0]))
+print(f"{runs['run'].nunique()} {condition} run(s); modules: {', '.join(modules)}")
+
+# %% [markdown]
+# ## Fig. 2b: competence per module
+
+# %%
+analysis.fig2b(df, condition=condition, seed=seed)
+
+# %% [markdown]
+# ## Fig. 2c: absolute learning progress per module
+
+# %%
+analysis.fig2c(df, condition=condition, seed=seed)
+
+# %% [markdown]
+# ## Module selection: p_LP over episodes
+#
+# The probability of practising each module, sampled along the run (eps = 0.4 keeps a floor
+# of 0.4 / N per module).
+
+# %%
+one = runs[runs["seed"] == (runs["seed"].min() if seed is None else seed)].sort_values("episode")
+step = max(1, len(one) // 300)
+sampled = one.iloc[::step]
+fig = Figure(figsize=(7.2, 3.6), layout="constrained")
+ax = fig.add_subplot()
+ax.stackplot(
+    sampled["episode"],
+    [sampled[f"p_lp/{m}"] for m in modules],
+    labels=[palette.module_label(m) for m in modules],
+    colors=[palette.module_color(m) for m in modules],
+    alpha=0.85,
+)
+ax.set_xlabel("episodes")
+ax.set_ylabel("p_LP (stacked)")
+ax.set_ylim(0, 1)
+ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize=8)
+display(fig)
+
+# %% [markdown]
+# ## Table 1: competence and LP of every seed
+
+# %%
+analysis.table1(df, condition=condition)
+
+# %% [markdown]
+# ## Order of learning
+#
+# The first episode at which each achievable module's competence reached `learned_at`, per
+# seed (empty: not reached within the budget). The paper sees reach, then push, then the
+# other two in either order.
+
+
+# %%
+def first_reached(run: pd.DataFrame) -> pd.Series:
+    out = {}
+    for m in achievable:
+        hit = np.flatnonzero(run[f"competence/{m}"].to_numpy() >= learned_at)
+        out[palette.module_label(m)] = int(run["episode"].iat[hit[0]]) if hit.size else None
+    return pd.Series(out)
+
+
+order = pd.DataFrame(
+    {
+        int(s): first_reached(g)
+        for s, g in runs.sort_values("episode").groupby("seed", observed=True)
+    }
+).T.rename_axis("seed")
+display(order)

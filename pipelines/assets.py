@@ -1,0 +1,243 @@
+"""The Dagster assets of one reproduce preset, one asset group per experiment.
+
+For every experiment E (`curious.experiments`), in group E:
+
+* `E/runs`: the training runs, partitioned by `condition` x `seed` (one partition = one run
+  folder). One Dagster run materialises a whole range of partitions (single-run backfill
+  policy) and trains them side by side on the pool; a partition whose folder already holds the
+  finished run is not retrained, an interrupted one resumes from its checkpoint.
+* `E/metrics`: the combined metrics table of the experiment's runs
+  (`curious.analysis.load_runs`), written to `metrics/E.parquet`.
+* one asset per figure, drawn by `curious.analysis` from that table:
+  `main/fig2a`, `main/fig2b`, `main/fig2c`, `main/table1`, `distractors/distractors`,
+  `sensor_failure/forgetting`.
+
+And `report` (group `report`): `report.md` from the figures and statistics that exist.
+"""
+
+import warnings
+from collections.abc import Callable
+
+import dagster as dg
+import pandas as pd
+from dagster import AssetExecutionContext
+
+from curious.experiments import Experiment
+from pipelines.resources import Reproduction
+from pipelines.training import FINISHED, folder_state
+
+warnings.filterwarnings("ignore", category=dg.BetaWarning)
+warnings.filterwarnings("ignore", category=dg.PreviewWarning)
+
+RESOURCE = "reproduction"
+
+# The figures of each experiment: asset name -> (function of (reproduction, table) that draws
+# it, what it shows).
+FIGURES: dict[str, tuple[str, ...]] = {
+    "main": ("fig2a", "fig2b", "fig2c", "table1"),
+    "distractors": ("distractors",),
+    "sensor_failure": ("forgetting",),
+}
+
+
+def partitions_of(experiment: Experiment) -> dg.MultiPartitionsDefinition:
+    """`condition` x `seed` for one experiment (the condition axis may carry the variant)."""
+    return dg.MultiPartitionsDefinition(
+        {
+            "condition": dg.StaticPartitionsDefinition(list(experiment.condition_keys)),
+            "seed": dg.StaticPartitionsDefinition(list(experiment.seed_keys)),
+        }
+    )
+
+
+def runs_key(experiment: str) -> dg.AssetKey:
+    return dg.AssetKey([experiment, "runs"])
+
+
+def metrics_key(experiment: str) -> dg.AssetKey:
+    return dg.AssetKey([experiment, "metrics"])
+
+
+def figure_key(experiment: str, name: str) -> dg.AssetKey:
+    return dg.AssetKey([experiment, name])
+
+
+def _runs_asset(experiment: Experiment) -> dg.AssetsDefinition:
+    name = experiment.name
+
+    @dg.asset(
+        key=runs_key(name),
+        group_name=name,
+        partitions_def=partitions_of(experiment),
+        backfill_policy=dg.BackfillPolicy.single_run(),
+        required_resource_keys={RESOURCE},
+        description=(
+            f"{experiment.title}. One run folder per partition (condition x seed), trained with "
+            f"the `{experiment.train_preset}` training preset for {experiment.total_episodes:,} "
+            "episodes; finished runs are kept, interrupted ones resume."
+        ),
+        kinds={"python"},
+    )
+    def runs(context: AssetExecutionContext) -> dg.MaterializeResult:
+        repro: Reproduction = getattr(context.resources, RESOURCE)
+        specs = [experiment.run(str(key)) for key in context.partition_keys]
+        results = repro.train(experiment, specs)
+        trained = [r for r in results if r.trained]
+        return dg.MaterializeResult(
+            metadata={
+                "runs_root": dg.MetadataValue.path(str(repro.layout.experiment_runs(name))),
+                "partitions": len(results),
+                "trained": len(trained),
+                "already_finished": len(results) - len(trained),
+                "train_seconds": round(sum(r.seconds for r in trained), 1),
+            }
+        )
+
+    return runs
+
+
+def load_metrics(repro: Reproduction, experiment: str) -> pd.DataFrame:
+    """The combined metrics table an experiment's `metrics` asset wrote."""
+    path = repro.layout.metrics(experiment)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist: materialise {experiment}/metrics first")
+    return pd.read_parquet(path)
+
+
+def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
+    name = experiment.name
+
+    @dg.asset(
+        key=metrics_key(name),
+        group_name=name,
+        deps=[runs_key(name)],
+        required_resource_keys={RESOURCE},
+        description=(
+            f"Every episode of every {name} run in one table (curious.analysis.load_runs), "
+            f"written to metrics/{name}.parquet."
+        ),
+        kinds={"pandas", "parquet"},
+    )
+    def metrics(context: AssetExecutionContext) -> dg.MaterializeResult:
+        from curious import analysis
+
+        repro: Reproduction = getattr(context.resources, RESOURCE)
+        layout = repro.layout
+        specs = experiment.runs()
+        unfinished = [
+            s.label for s in specs if folder_state(s, layout.runs_root, repro.overrides) != FINISHED
+        ]
+        if unfinished:
+            raise RuntimeError(
+                f"{len(unfinished)} run(s) of {name} are not finished ({', '.join(unfinished)}): "
+                f"materialise {name}/runs first"
+            )
+        folders = [layout.runs_root.joinpath(*s.relative_path.parts) for s in specs]
+        table = analysis.load_runs(folders)
+        layout.metrics_dir.mkdir(parents=True, exist_ok=True)
+        path = layout.metrics(name)
+        tmp = path.with_name(f".{path.name}.tmp")
+        table.to_parquet(tmp, index=False)
+        tmp.replace(path)
+        runs = analysis.runs_table(table)
+        return dg.MaterializeResult(
+            metadata={
+                "path": dg.MetadataValue.path(str(path)),
+                "runs": len(runs),
+                "rows": len(table),
+                "episodes_per_run": int(runs["n_episodes"].max()),
+            }
+        )
+
+    return metrics
+
+
+def _draw(name: str, experiment: Experiment) -> Callable[[pd.DataFrame, str], dict]:
+    """The analysis call of one figure; returns extra metadata (e.g. a statistics CSV)."""
+    from curious import analysis
+
+    def draw(table: pd.DataFrame, out_dir: str) -> dict:
+        if name == "fig2a":
+            analysis.fig2a(table, compare=experiment.compare, out_dir=out_dir)
+        elif name in ("fig2b", "fig2c", "table1"):
+            getattr(analysis, name)(table, condition="curious", out_dir=out_dir)
+        elif name == "distractors":
+            analysis.distractors(table, out_dir=out_dir)
+        elif name == "forgetting":
+            _, per_run = analysis.forgetting(table, out_dir=out_dir)
+            csv = f"{out_dir}/forgetting.csv"
+            per_run.drop(columns=["run"]).to_csv(csv, index=False, float_format="%.6g")
+            return {"recovery_csv": dg.MetadataValue.path(csv)}
+        else:  # pragma: no cover - FIGURES and this function are kept in step
+            raise KeyError(name)
+        return {}
+
+    return draw
+
+
+def _figure_asset(experiment: Experiment, name: str) -> dg.AssetsDefinition:
+    draw = _draw(name, experiment)
+
+    @dg.asset(
+        key=figure_key(experiment.name, name),
+        group_name=experiment.name,
+        deps=[metrics_key(experiment.name)],
+        required_resource_keys={RESOURCE},
+        description=f"figures/{name}.png and .svg, drawn by curious.analysis.{name}.",
+        kinds={"matplotlib"},
+    )
+    def figure(context: AssetExecutionContext) -> dg.MaterializeResult:
+        repro: Reproduction = getattr(context.resources, RESOURCE)
+        table = load_metrics(repro, experiment.name)
+        out_dir = repro.layout.figures
+        out_dir.mkdir(parents=True, exist_ok=True)
+        extra = draw(table, str(out_dir))
+        repro.say(f"  figure: {out_dir / name}.png")
+        return dg.MaterializeResult(
+            metadata={
+                "png": dg.MetadataValue.path(str(out_dir / f"{name}.png")),
+                "svg": dg.MetadataValue.path(str(out_dir / f"{name}.svg")),
+                **extra,
+            }
+        )
+
+    return figure
+
+
+def _report_asset(experiments: list[Experiment]) -> dg.AssetsDefinition:
+    @dg.asset(
+        key="report",
+        group_name="report",
+        deps=[figure_key(e.name, f) for e in experiments for f in FIGURES[e.name]],
+        required_resource_keys={RESOURCE},
+        description="report.md: the figures, seeds, budgets and statistics (Welch tests).",
+        kinds={"markdown"},
+    )
+    def report(context: AssetExecutionContext) -> dg.MaterializeResult:
+        from pipelines.report import write_report
+
+        repro: Reproduction = getattr(context.resources, RESOURCE)
+        path, included = write_report(repro)
+        return dg.MaterializeResult(
+            metadata={
+                "path": dg.MetadataValue.path(str(path)),
+                "experiments": ", ".join(included),
+            }
+        )
+
+    return report
+
+
+def experiment_assets(experiment: Experiment) -> list[dg.AssetsDefinition]:
+    """The runs, metrics and figure assets of one experiment."""
+    return [
+        _runs_asset(experiment),
+        _metrics_asset(experiment),
+        *(_figure_asset(experiment, name) for name in FIGURES[experiment.name]),
+    ]
+
+
+def all_assets(experiments: list[Experiment]) -> list[dg.AssetsDefinition]:
+    """Every experiment's assets and the report."""
+    assets = [a for e in experiments for a in experiment_assets(e)]
+    return [*assets, _report_asset(experiments)]

@@ -1,0 +1,277 @@
+"""Where training partitions run: local worker processes, or Ray tasks across a cluster.
+
+Both take the same jobs (a `RunSpec` and the runs root) and write the same run folders:
+
+* `LocalPool`: a pool of `workers` processes on this machine (default: one per core). Processes
+  are started with `spawn`, so a worker never inherits the parent's threads or open databases,
+  and are reused from partition to partition (and from experiment to experiment).
+* `RayPool`: one Ray task per partition with `cpus_per_run` CPUs and `gpus_per_run` GPUs (a run
+  with a GPU trains its networks with `device=cuda`). The runs root must be storage every node
+  sees (`--runs-dir` on a shared file system). `connect_ray` first checks that the address
+  answers, so a wrong address fails in seconds with a clear error instead of hanging.
+
+`run_all` submits jobs, shows one progress bar over every run's episodes (read from the run
+folders' metrics, which the runs flush at each checkpoint) and returns the results in order.
+The first failing run stops the others' submission and raises `PartitionFailed`.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+import socket
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+from curious.experiments import RunSpec
+from pipelines.training import PartitionResult, episodes_logged, run_folder, run_partition
+
+RAY_CONNECT_TIMEOUT_S = 10.0
+
+
+class PartitionFailed(RuntimeError):
+    """A training partition raised; the message names the run and the error."""
+
+
+class RayUnavailable(RuntimeError):
+    """--ray-address was given but no Ray cluster answers there (or Ray is not installed)."""
+
+
+@dataclass(frozen=True)
+class Job:
+    """One partition to train."""
+
+    spec: RunSpec
+    runs_root: str
+    overrides: dict[str, Any] = field(default_factory=dict)
+    record: bool = True
+
+
+def run_job(job: Job) -> PartitionResult:
+    """Entry point in a worker process or a Ray task."""
+    return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
+
+
+class Pool(Protocol):
+    """What `run_all` needs from an executor."""
+
+    description: str
+
+    def submit(self, job: Job) -> Any: ...
+
+    def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]: ...
+
+    def result(self, handle: Any) -> PartitionResult: ...
+
+    def cancel(self, handles: Sequence[Any]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class LocalPool:
+    """`workers` worker processes on this machine (started on first use, then reused)."""
+
+    def __init__(self, workers: int | None = None) -> None:
+        self.workers = max(1, int(workers or os.cpu_count() or 1))
+        self._pool: cf.ProcessPoolExecutor | None = None
+        self.description = f"{self.workers} local worker process{'es' if self.workers > 1 else ''}"
+
+    def _executor(self) -> cf.ProcessPoolExecutor:
+        if self._pool is None:
+            env = {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable"), "OMP_NUM_THREADS": "1"}
+            self._pool = cf.ProcessPoolExecutor(
+                max_workers=self.workers,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_set_environment,
+                initargs=(env,),
+            )
+        return self._pool
+
+    def submit(self, job: Job) -> cf.Future:
+        return self._executor().submit(run_job, job)
+
+    def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]:
+        done, pending = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
+        return [h for h in handles if h in done], [h for h in handles if h in pending]
+
+    def result(self, handle: cf.Future) -> PartitionResult:
+        return handle.result()
+
+    def cancel(self, handles: Sequence[Any]) -> None:
+        for handle in handles:
+            handle.cancel()
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+
+def _set_environment(env: dict[str, str]) -> None:
+    for key, value in env.items():
+        os.environ.setdefault(key, value)
+
+
+def _probe(host: str, port: int, timeout: float) -> None:
+    """Raise `RayUnavailable` unless a TCP connection to host:port opens within `timeout`."""
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            return
+    except OSError as exc:
+        raise RayUnavailable(
+            f"no Ray cluster answers at {host}:{port} ({exc.strerror or exc}); start one with "
+            f"`ray start --head --port={port}` there, or leave out --ray-address to train locally"
+        ) from None
+
+
+def resolve_ray_address(address: str) -> str:
+    """`host:port` of the cluster's GCS; `auto` reads RAY_ADDRESS or the local cluster's file."""
+    if address == "auto":
+        found = os.environ.get("RAY_ADDRESS")
+        if not found:
+            current = Path(os.environ.get("RAY_TMPDIR", "/tmp"), "ray", "ray_current_cluster")
+            if current.is_file():
+                found = current.read_text().strip()
+        if not found:
+            raise RayUnavailable(
+                "--ray-address auto found no running Ray cluster on this machine (RAY_ADDRESS is "
+                "unset and no `ray start` is running); start one with `ray start --head`"
+            )
+        address = found
+    address = address.removeprefix("ray://") if address.startswith("ray://") else address
+    host, sep, port = address.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise RayUnavailable(f"--ray-address {address!r} is not of the form HOST:PORT (or auto)")
+    return f"{host}:{port}"
+
+
+def connect_ray(address: str, timeout: float = RAY_CONNECT_TIMEOUT_S) -> tuple[str, bool]:
+    """Connect this process to the Ray cluster at `address` (checked first).
+
+    Returns (HOST:PORT, whether this call connected: False when Ray was already initialised).
+    """
+    try:
+        import ray
+    except ModuleNotFoundError:
+        raise RayUnavailable("--ray-address needs Ray: pip install 'curious[ray]'") from None
+    resolved = resolve_ray_address(address)
+    host, _, port = resolved.rpartition(":")
+    _probe(host, int(port), timeout)
+    if ray.is_initialized():
+        return resolved, False
+    env = {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable"), "OMP_NUM_THREADS": "1"}
+    try:
+        ray.init(
+            address=resolved,
+            runtime_env={"env_vars": env},
+            log_to_driver=False,
+            logging_level="ERROR",
+        )
+    except (ConnectionError, RuntimeError, TimeoutError) as exc:
+        raise RayUnavailable(f"cannot join the Ray cluster at {resolved}: {exc}") from None
+    return resolved, True
+
+
+class RayPool:
+    """One Ray task per partition on the cluster this process is connected to."""
+
+    def __init__(self, address: str, cpus_per_run: float = 1.0, gpus_per_run: float = 0.0) -> None:
+        import ray
+
+        self.address, self._connected = connect_ray(address)
+        self.cpus_per_run = float(cpus_per_run)
+        self.gpus_per_run = float(gpus_per_run)
+        self._remote = ray.remote(
+            num_cpus=self.cpus_per_run, num_gpus=self.gpus_per_run, max_retries=0
+        )(run_job)
+        gpu = f", {self.gpus_per_run:g} GPU" if self.gpus_per_run else ""
+        self.description = f"Ray tasks at {self.address} ({self.cpus_per_run:g} CPU{gpu} per run)"
+
+    def submit(self, job: Job) -> Any:
+        if self.gpus_per_run > 0:
+            job = Job(job.spec, job.runs_root, {**job.overrides, "device": "cuda"}, job.record)
+        return self._remote.remote(job)
+
+    def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]:
+        import ray
+
+        if not handles:
+            return [], []
+        done, pending = ray.wait(list(handles), num_returns=1, timeout=timeout)
+        return done, pending
+
+    def result(self, handle: Any) -> PartitionResult:
+        import ray
+
+        return ray.get(handle)
+
+    def cancel(self, handles: Sequence[Any]) -> None:
+        import ray
+
+        for handle in handles:
+            ray.cancel(handle, force=True)
+
+    def close(self) -> None:
+        """Disconnect (if this pool connected); the cluster keeps running, it is not ours."""
+        import ray
+
+        if self._connected and ray.is_initialized():
+            ray.shutdown()
+        self._connected = False
+
+
+def run_all(
+    pool: Pool,
+    jobs: Sequence[Job],
+    on_progress: Callable[[int, int], None] | None = None,
+    on_done: Callable[[Job, PartitionResult], None] | None = None,
+    poll_seconds: float = 1.0,
+) -> list[PartitionResult]:
+    """Train every job on `pool`; results in the order of `jobs`.
+
+    `on_progress(episodes_done, episodes_total)` is called about every `poll_seconds` with the
+    episodes found in the run folders; `on_done(job, result)` after each run.
+    """
+    results: dict[int, PartitionResult] = {}
+    handles = {pool.submit(job): i for i, job in enumerate(jobs)}
+    total = sum(job.spec.total_episodes for job in jobs)
+    pending = list(handles)
+    folders = [run_folder(job.spec, job.runs_root) for job in jobs]
+    try:
+        while pending:
+            done, pending = pool.wait(pending, poll_seconds)
+            for handle in done:
+                i = handles[handle]
+                try:
+                    results[i] = pool.result(handle)
+                except Exception as exc:
+                    raise PartitionFailed(
+                        f"{jobs[i].spec.label} failed: {type(exc).__name__}: {exc}"
+                    ) from exc
+                if on_done is not None:
+                    on_done(jobs[i], results[i])
+            if on_progress is not None:
+                seen = sum(
+                    results[i].episodes if i in results else episodes_logged(folders[i])
+                    for i in range(len(jobs))
+                )
+                on_progress(min(seen, total), total)
+    except BaseException:
+        pool.cancel(pending)
+        raise
+    return [results[i] for i in range(len(jobs))]
+
+
+def make_pool(
+    ray_address: str | None,
+    workers: int | None = None,
+    cpus_per_run: float = 1.0,
+    gpus_per_run: float = 0.0,
+) -> Pool:
+    """`RayPool` when an address is given, else `LocalPool`."""
+    if ray_address:
+        return RayPool(ray_address, cpus_per_run, gpus_per_run)
+    return LocalPool(workers)

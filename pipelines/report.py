@@ -1,0 +1,318 @@
+"""`report.md`: what a reproduction trained, its figures, and the statistics behind them.
+
+The report is a function of the preset, the combined metrics tables and the figures on disk
+(nothing in it depends on when it was written), so rebuilding it from the same runs gives the
+same bytes. An experiment appears once its metrics table exists; figures are linked relatively,
+so the output folder can be moved or shared as a whole.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from curious import analysis
+from curious.analysis.palette import condition_label, module_label
+from curious.experiments import Experiment
+from pipelines.resources import Reproduction
+
+FIGURE_TEXT: dict[str, str] = {
+    "fig2a": "Average success over the achievable modules per condition (paper Fig. 2a).",
+    "fig2b": "Competence of every module over one CURIOUS run (paper Fig. 2b).",
+    "fig2c": "Absolute learning progress of every module over the same run (paper Fig. 2c).",
+    "table1": "Competence and learning progress of every CURIOUS seed (paper Table 1).",
+    "distractors": "Final success over achievable modules against the number of distractors.",
+    "forgetting": "Competence and LP of the perturbed module around the sensory failure.",
+}
+MAX_WELCH_ROWS = 12
+
+
+def _fmt(value: float, digits: int = 2) -> str:
+    return "–" if value is None or not math.isfinite(float(value)) else f"{value:.{digits}f}"
+
+
+def _mean_std(values: Sequence[float]) -> str:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return "–"
+    if v.size == 1:
+        return f"{v[0]:.2f} (1 seed)"
+    return f"{v.mean():.2f} ± {v.std(ddof=1):.2f} ({v.size} seeds)"
+
+
+def _table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return [*lines, ""]
+
+
+def _figure(repro: Reproduction, name: str) -> list[str]:
+    png = repro.layout.figures / f"{name}.png"
+    if not png.is_file():
+        return [f"*Figure `{name}` has not been drawn yet.*", ""]
+    rel = png.relative_to(repro.layout.out).as_posix()
+    svg = Path(rel).with_suffix(".svg").as_posix()
+    return [f"![{name}]({rel})", "", f"{FIGURE_TEXT[name]} ([SVG]({svg}))", ""]
+
+
+def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
+    rows = []
+    for e in experiments:
+        config = e.runs()[0].config(repro.overrides)
+        perturb = f"{e.sensor_failure_episode:,}" if e.sensor_failure_episode is not None else "–"
+        rows.append(
+            (
+                e.name,
+                ", ".join(e.conditions),
+                ", ".join(e.variants),
+                ", ".join(map(str, e.seeds)),
+                f"{e.total_episodes:,}",
+                perturb,
+                f"`{e.train_preset}`: {config.n_workers} workers x {config.episodes_per_worker} "
+                f"episodes, {config.n_updates} updates of {config.batch_size} per cycle",
+                len(e.runs()),
+            )
+        )
+    header = (
+        "experiment",
+        "conditions",
+        "variants",
+        "seeds",
+        "episodes per run",
+        "sensory failure at",
+        "training preset",
+        "runs",
+    )
+    return _table(header, rows)
+
+
+def _runs_table(table: pd.DataFrame) -> list[str]:
+    runs = analysis.runs_table(table)
+    final = analysis.final_competence(table).set_index("run")["value"]
+    wall = table.groupby("run", observed=True)["wall_time"].max()
+    rows = []
+    for _, r in runs.sort_values(["variant", "condition", "seed"]).iterrows():
+        folder = Path(str(r["run"]))
+        rows.append(
+            (
+                "/".join(folder.parts[-3:]),
+                r["condition"],
+                r["variant"],
+                r["seed"],
+                f"{int(r['n_episodes']):,}",
+                f"{wall[r['run']] / 60:.1f}",
+                _fmt(final[r["run"]]),
+            )
+        )
+    header = (
+        "run folder",
+        "condition",
+        "variant",
+        "seed",
+        "episodes",
+        "wall time (min)",
+        "final success",
+    )
+    return _table(header, rows)
+
+
+def _final_by_condition(table: pd.DataFrame) -> list[str]:
+    final = analysis.final_competence(table)
+    episodes = int(final["episodes"].iat[0])
+    parts = [
+        f"{condition_label(c)} {_mean_std(g['value'].to_numpy())}"
+        for c, g in final.groupby("condition", observed=True, sort=False)
+    ]
+    return [
+        f"Success over achievable modules after {episodes:,} episodes (mean ± std over "
+        f"seeds): {'; '.join(parts)}.",
+        "",
+    ]
+
+
+def _welch(binned: pd.DataFrame, better: str, worse: str, what: str) -> list[str]:
+    test = analysis.welch_per_bin(binned, better, worse)
+    if test.empty:
+        return [f"No {what} bin is shared by both conditions.", ""]
+    hits = test[test["significant"]]
+    tested = test["p"].notna().sum()
+    lines = [
+        f"One-tailed Welch's t-test, {condition_label(better)} > {condition_label(worse)}, "
+        f"alpha = {analysis.ALPHA:g}, per {what}: significant in {len(hits)} of {len(test)} "
+        f"(testable, with at least two seeds a side and some variance: {tested}).",
+        "",
+    ]
+    if tested == 0:
+        lines += ["With fewer than two seeds per condition no test can be made.", ""]
+    shown = test
+    if len(test) > MAX_WELCH_ROWS:
+        picks = np.unique(np.linspace(0, len(test) - 1, MAX_WELCH_ROWS).round().astype(int))
+        shown = test.iloc[sorted(set(picks) | set(np.flatnonzero(test["significant"])))]
+        lines += [
+            f"{len(shown)} of {len(test)} rows shown (evenly spaced, and every significant one):",
+            "",
+        ]
+    rows = [
+        (
+            f"{int(r.episodes):,}",
+            f"{_fmt(r.mean_better)} (n={r.n_better})",
+            f"{_fmt(r.mean_worse)} (n={r.n_worse})",
+            _fmt(r.t),
+            "–" if not math.isfinite(r.p) else f"{r.p:.3g}",
+            "yes" if r.significant else "no",
+        )
+        for r in shown.itertuples()
+    ]
+    header = ("episodes", condition_label(better), condition_label(worse), "t", "p", "p < alpha")
+    return lines + _table(header, rows)
+
+
+def _main(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
+    lines = [*_figure(repro, "fig2a")]
+    lines += _final_by_condition(table)
+    if e.compare is not None:
+        n = int(table.groupby("run", observed=True)["episode"].max().max()) + 1
+        bin_size = analysis.nice_bin_size(n)
+        binned = analysis.bin_runs(table, bin_size=bin_size)
+        lines += _welch(binned, *e.compare, f"bin of {bin_size:,} episodes")
+    for name in ("fig2b", "fig2c", "table1"):
+        lines += _figure(repro, name)
+    return lines
+
+
+def _distractors(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
+    lines = [*_figure(repro, "distractors")]
+    final = analysis.final_competence(table)
+    rows = []
+    for n_d, group in final.groupby("n_distractors", observed=True):
+        row: list[object] = [int(n_d)]
+        for c in e.conditions:
+            row.append(_mean_std(group.loc[group["condition"] == c, "value"].to_numpy()))
+        rows.append(row)
+    episodes = int(final["episodes"].iat[0])
+    lines += [
+        f"Success over achievable modules after {episodes:,} episodes, mean ± std over seeds:",
+        "",
+    ]
+    lines += _table(("distracting modules", *map(condition_label, e.conditions)), rows)
+    if e.compare is not None:
+        for n_d, group in final.groupby("n_distractors", observed=True):
+            lines += _welch(
+                group, *e.compare, f"setting with {int(n_d)} distractors (final success)"
+            )
+    return lines
+
+
+def _sensor_failure(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
+    lines = [*_figure(repro, "forgetting")]
+    csv = repro.layout.figures / "forgetting.csv"
+    if not csv.is_file():
+        return lines
+    per_run = pd.read_csv(csv)
+    module = str(per_run["module"].iat[0])
+    p = int(per_run["perturbation_episode"].iat[0])
+    summary = analysis.recovery_summary(per_run)
+    rows = [
+        (
+            condition_label(r.condition),
+            f"{int(r.n_recovered)}/{int(r.n_runs)}",
+            _fmt(r.pre_competence),
+            _fmt(r.threshold),
+            "–"
+            if not math.isfinite(r.mean_recovery_episodes)
+            else f"{r.mean_recovery_episodes:,.0f}",
+            "–"
+            if not math.isfinite(r.std_recovery_episodes)
+            else f"{r.std_recovery_episodes:,.0f}",
+        )
+        for r in summary.itertuples()
+    ]
+    lines += [
+        f"Sensory failure switched on at episode {p:,}; module followed: "
+        f"{module_label(module)} (the achievable module whose competence fell most).",
+        "",
+    ]
+    lines += _table(
+        (
+            "condition",
+            "recovered",
+            "competence before",
+            "threshold (90 %)",
+            "mean recovery (episodes)",
+            "std",
+        ),
+        rows,
+    )
+    return lines
+
+
+SECTIONS = {"main": _main, "distractors": _distractors, "sensor_failure": _sensor_failure}
+
+
+def _versions(table: pd.DataFrame) -> str:
+    run = str(table["run"].iat[0])
+    try:
+        info = json.loads((Path(run) / "config.json").read_text())
+    except (OSError, ValueError):
+        return ""
+    versions = info.get("versions", {})
+    git = info.get("git", {}) or {}
+    text = ", ".join(f"{k} {v}" for k, v in versions.items() if v)
+    if git.get("commit"):
+        text += f"; git {git['commit'][:10]}{' (with local changes)' if git.get('dirty') else ''}"
+    return text
+
+
+def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
+    """Write report.md for every experiment whose metrics table exists; returns (path, names)."""
+    layout, preset = repro.layout, repro.preset
+    tables = {
+        name: pd.read_parquet(layout.metrics(name))
+        for name in preset.experiments
+        if layout.metrics(name).is_file()
+    }
+    included = [preset.experiments[name] for name in tables]
+    lines = [
+        f"# CURIOUS reproduction — preset `{preset.name}`",
+        "",
+        f"Made by `curious reproduce --preset {preset.name}`: {preset.description}.",
+        "",
+        preset.notes,
+        "",
+    ]
+    if not included:
+        lines += ["No experiment has finished yet.", ""]
+    else:
+        versions = _versions(next(iter(tables.values())))
+        if versions:
+            lines += [f"Software: {versions}.", ""]
+        lines += ["## Budgets", ""]
+        lines += _budgets(repro, included)
+        lines += [
+            "Success is the competence (self-evaluation success rate) averaged over the "
+            "achievable modules; x axes count episodes (evaluation episodes included).",
+            "",
+        ]
+    for e in included:
+        table = tables[e.name]
+        lines += [f"## {e.title}", ""]
+        lines += SECTIONS[e.name](repro, e, table)
+        lines += ["### Runs", "", *_runs_table(table)]
+    missing = [name for name in preset.experiments if name not in tables]
+    if missing and included:
+        lines += [
+            f"Not in this report (not reproduced yet): {', '.join(missing)}; run "
+            f"`curious reproduce --preset {preset.name} --experiments {','.join(missing)}`.",
+            "",
+        ]
+    layout.out.mkdir(parents=True, exist_ok=True)
+    tmp = layout.report.with_name(f".{layout.report.name}.tmp")
+    tmp.write_text("\n".join(lines).rstrip() + "\n", encoding="utf-8")
+    tmp.replace(layout.report)
+    return layout.report, [e.name for e in included]

@@ -1,0 +1,238 @@
+"""Materialise a reproduce preset in process, on a Dagster instance kept in the output folder.
+
+`reproduce(...)` is what `curious reproduce` runs:
+
+1. checks everything it can before writing anything: the preset and experiments exist; the
+   output folder is new, empty, or was made by the same preset (`reproduce.json`); every run
+   folder is empty, or holds (part of) the very run its partition should hold; the Ray cluster,
+   if one is named, answers;
+2. for each experiment, one Dagster run materialises its `runs` asset over all its partitions
+   (trained side by side on the pool; finished ones are skipped, interrupted ones resume);
+3. one Dagster run materialises the metrics tables, the figures and `report.md`.
+
+The Dagster instance lives in `OUT/.dagster` (sqlite storage, no server, no daemon), so the
+history of materialisations is kept with the results and `dagster dev` can show it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from curious.experiments import Experiment, ExperimentError, ReproducePreset, get_preset
+from pipelines.resources import OutputLayout, Reproduction
+from pipelines.training import PartitionResult, RunFolderMismatch, folder_state
+
+MANIFEST_VERSION = 1
+_DAGSTER_YAML = "telemetry:\n  enabled: false\n"
+_QUIET_LOGS = {"loggers": {"console": {"config": {"log_level": "WARNING"}}}}
+
+
+class ReproduceError(RuntimeError):
+    """The output folder cannot be used for this preset (nothing was written)."""
+
+
+@dataclass
+class ReproduceResult:
+    """What a call of `reproduce` did, and where its products are."""
+
+    preset: str
+    experiments: list[str]
+    layout: OutputLayout
+    results: list[PartitionResult] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def trained(self) -> list[PartitionResult]:
+        return [r for r in self.results if r.trained]
+
+    @property
+    def skipped(self) -> list[PartitionResult]:
+        return [r for r in self.results if not r.trained]
+
+
+def check_output_folder(layout: OutputLayout, preset: ReproducePreset) -> None:
+    """Raise `ReproduceError` unless OUT is absent, empty, or made by `preset`."""
+    out = layout.out
+    if out.exists() and not out.is_dir():
+        raise ReproduceError(f"--out {out} exists and is not a folder")
+    if layout.manifest.is_file():
+        try:
+            made_by = json.loads(layout.manifest.read_text()).get("preset")
+        except (OSError, ValueError) as exc:
+            raise ReproduceError(f"{layout.manifest} is unreadable ({exc})") from None
+        if made_by != preset.name:
+            raise ReproduceError(
+                f"{out} holds the output of preset {made_by!r}, not {preset.name!r}: pass "
+                f"--preset {made_by} to go on with it, or choose another --out "
+                f"(default for {preset.name}: {preset.default_out})"
+            )
+        return
+    if out.is_dir() and any(out.iterdir()):
+        raise ReproduceError(
+            f"{out} is not empty and was not made by `curious reproduce` (no "
+            f"{layout.manifest.name}): choose another --out"
+        )
+
+
+def check_runs(reproduction: Reproduction, experiments: Sequence[Experiment]) -> dict[str, int]:
+    """Every partition's folder state, counted; raises `RunFolderMismatch` for a stranger."""
+    counts: dict[str, int] = {}
+    for experiment in experiments:
+        for spec in experiment.runs():
+            state = folder_state(spec, reproduction.layout.runs_root, reproduction.overrides)
+            counts[state] = counts.get(state, 0) + 1
+    return counts
+
+
+def _write_manifest(layout: OutputLayout, preset: ReproducePreset) -> None:
+    layout.out.mkdir(parents=True, exist_ok=True)
+    data: dict[str, Any] = {"version": MANIFEST_VERSION, "preset": preset.name}
+    if layout.runs_root != layout.out / "runs":
+        data["runs_dir"] = str(layout.runs_root)
+    if layout.manifest.is_file():
+        old = json.loads(layout.manifest.read_text())
+        if old == data:
+            return
+    tmp = layout.manifest.with_name(f".{layout.manifest.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=2) + "\n")
+    os.replace(tmp, layout.manifest)
+
+
+def open_instance(layout: OutputLayout):
+    """The persistent Dagster instance in OUT/.dagster (created on first use)."""
+    from dagster import DagsterInstance
+    from dagster._core.instance.ref import InstanceRef
+
+    home = layout.dagster_home
+    home.mkdir(parents=True, exist_ok=True)
+    config = home / "dagster.yaml"
+    if not config.exists():
+        config.write_text(_DAGSTER_YAML)
+    return DagsterInstance.from_ref(InstanceRef.from_dir(str(home)))
+
+
+def _materialize(defs, instance, selection, tags: dict[str, str] | None = None) -> None:
+    import dagster as dg
+
+    assets = list(defs.assets or [])
+    result = dg.materialize(
+        assets,
+        instance=instance,
+        resources=dict(defs.resources or {}),
+        selection=selection,
+        tags=tags,
+        run_config=_QUIET_LOGS,
+        raise_on_error=True,
+    )
+    if not result.success:  # pragma: no cover - raise_on_error raises first
+        raise RuntimeError("a Dagster run failed")
+
+
+def reproduce(
+    preset: str,
+    experiments: Sequence[str] | None = None,
+    out: str | os.PathLike | None = None,
+    runs_dir: str | os.PathLike | None = None,
+    make_pool: Callable[[], Any] | None = None,
+    overrides: dict[str, Any] | None = None,
+    record: bool = True,
+    progress: bool = True,
+    say: Callable[[str], None] | None = None,
+    preset_object: ReproducePreset | None = None,
+) -> ReproduceResult:
+    """Train and draw everything `preset` asks for (see the module docstring).
+
+    `make_pool` builds the training pool (`pipelines.executors.make_pool`); it is called before
+    anything is written, so that a Ray cluster that does not answer fails first. `preset_object`
+    replaces the named preset (tests use shortened variants of one).
+    """
+    import dagster as dg
+
+    from pipelines.assets import FIGURES, figure_key, metrics_key, partitions_of, runs_key
+    from pipelines.definitions import build_definitions
+    from pipelines.executors import make_pool as default_pool
+
+    tic = time.perf_counter()
+    chosen = preset_object or get_preset(preset)
+    selected = chosen.select(experiments)
+    layout = OutputLayout.at(out or chosen.default_out, runs_dir)
+    check_output_folder(layout, chosen)
+    repro = Reproduction(
+        preset=chosen,
+        layout=layout,
+        make_pool=make_pool or (lambda: default_pool(None)),
+        overrides=dict(overrides or {}),
+        record=record,
+        progress=progress,
+    )
+    if say is not None:
+        repro.say = say
+    counts = check_runs(repro, selected)
+    pool = repro.pool  # connects to Ray (or fails) before anything is written
+    repro.say(
+        f"curious reproduce --preset {chosen.name}: {', '.join(e.name for e in selected)}; "
+        f"{sum(counts.values())} runs ({counts.get('finished', 0)} finished, "
+        f"{counts.get('partial', 0)} to resume, {counts.get('new', 0)} new) on {pool.description}"
+    )
+    _write_manifest(layout, chosen)
+    defs = build_definitions(repro)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", dg.BetaWarning)
+            warnings.simplefilter("ignore", dg.PreviewWarning)
+            instance = open_instance(layout)
+            try:
+                for experiment in selected:
+                    keys = partitions_of(experiment).get_partition_keys()
+                    _materialize(
+                        defs,
+                        instance,
+                        [runs_key(experiment.name)],
+                        tags={
+                            "dagster/asset_partition_range_start": keys[0],
+                            "dagster/asset_partition_range_end": keys[-1],
+                            "curious/preset": chosen.name,
+                        },
+                    )
+                downstream = [
+                    key
+                    for e in selected
+                    for key in (
+                        metrics_key(e.name),
+                        *(figure_key(e.name, f) for f in FIGURES[e.name]),
+                    )
+                ]
+                _materialize(
+                    defs,
+                    instance,
+                    [*downstream, dg.AssetKey("report")],
+                    tags={"curious/preset": chosen.name},
+                )
+            finally:
+                instance.dispose()
+    finally:
+        repro.close()
+    return ReproduceResult(
+        preset=chosen.name,
+        experiments=[e.name for e in selected],
+        layout=layout,
+        results=list(repro.results),
+        seconds=time.perf_counter() - tic,
+    )
+
+
+__all__ = [
+    "ExperimentError",
+    "ReproduceError",
+    "ReproduceResult",
+    "RunFolderMismatch",
+    "check_output_folder",
+    "open_instance",
+    "reproduce",
+]

@@ -1,0 +1,174 @@
+"""The one Dagster resource the assets share: where things live and where training runs.
+
+`Reproduction` is a plain object handed to Dagster as the `reproduction` resource. It knows the
+reproduce preset, the output folder's layout and the pool that trains partitions (created on
+first use, so building the definitions, e.g. for `dagster dev`, starts no process and contacts no
+cluster).
+
+Output folder layout (`OutputLayout`):
+
+    OUT/reproduce.json          which preset made this folder (checked on every later call)
+    OUT/runs/<experiment>/<condition>/seed-<s>/    run folders (or --runs-dir on shared storage)
+    OUT/metrics/<experiment>.parquet               the combined metrics table of an experiment
+    OUT/figures/<name>.png|.svg                    the figures
+    OUT/figures/<name>.csv                         the numbers behind a figure's statistics
+    OUT/report.md                                  figures, seeds, budgets and statistics
+    OUT/.dagster/                                  the embedded Dagster instance (DAGSTER_HOME)
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from curious.experiments import Experiment, ReproducePreset, RunSpec
+from pipelines.executors import Job, Pool, run_all
+from pipelines.training import PartitionResult
+
+
+@dataclass(frozen=True)
+class OutputLayout:
+    """Paths of one reproduction's output folder (see the module docstring)."""
+
+    out: Path
+    runs_root: Path
+
+    @classmethod
+    def at(cls, out: str | Path, runs_dir: str | Path | None = None) -> OutputLayout:
+        out = Path(out).resolve()
+        return cls(out, Path(runs_dir).resolve() if runs_dir else out / "runs")
+
+    @classmethod
+    def open(cls, out: str | Path) -> OutputLayout:
+        """The layout of an existing output folder; its runs_dir comes from reproduce.json.
+
+        A relative `out` that does not exist here is also looked for from the parent folders
+        (a notebook runs in notebooks/, the default output lies in the repository's root).
+        """
+        given = Path(out)
+        candidates = [given]
+        if not given.is_absolute():
+            candidates += [parent / given for parent in Path.cwd().parents]
+        for path in candidates:
+            manifest = path / "reproduce.json"
+            if manifest.is_file():
+                data = json.loads(manifest.read_text())
+                return cls.at(path, data.get("runs_dir"))
+        raise FileNotFoundError(
+            f"no `curious reproduce` output at {out} (no reproduce.json there or above the "
+            "current folder): run `curious reproduce` first, or pass the output folder"
+        )
+
+    @property
+    def manifest(self) -> Path:
+        return self.out / "reproduce.json"
+
+    @property
+    def figures(self) -> Path:
+        return self.out / "figures"
+
+    @property
+    def metrics_dir(self) -> Path:
+        return self.out / "metrics"
+
+    @property
+    def report(self) -> Path:
+        return self.out / "report.md"
+
+    @property
+    def dagster_home(self) -> Path:
+        return self.out / ".dagster"
+
+    def metrics(self, experiment: str) -> Path:
+        return self.metrics_dir / f"{experiment}.parquet"
+
+    def experiment_runs(self, experiment: str) -> Path:
+        return self.runs_root / experiment
+
+
+def _print(message: str) -> None:
+    from tqdm.auto import tqdm
+
+    tqdm.write(message, file=sys.stderr)
+
+
+@dataclass
+class Reproduction:
+    """Shared by every asset: preset, output layout, the training pool and the display."""
+
+    preset: ReproducePreset
+    layout: OutputLayout
+    make_pool: Callable[[], Pool]
+    overrides: dict[str, Any] = field(default_factory=dict)
+    record: bool = True
+    progress: bool = True
+    say: Callable[[str], None] = _print
+    results: list[PartitionResult] = field(default_factory=list)
+    _pool: Pool | None = None
+
+    @property
+    def pool(self) -> Pool:
+        if self._pool is None:
+            self._pool = self.make_pool()
+        return self._pool
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+    def experiment(self, name: str) -> Experiment:
+        return self.preset.experiments[name]
+
+    def train(self, experiment: Experiment, specs: Sequence[RunSpec]) -> list[PartitionResult]:
+        """Bring every run of `specs` to its budget on the pool, with a progress bar."""
+        from tqdm.auto import tqdm
+
+        jobs = [
+            Job(s, str(self.layout.runs_root), dict(self.overrides), self.record) for s in specs
+        ]
+        total = sum(s.total_episodes for s in specs)
+        bar = tqdm(
+            total=total,
+            unit="ep",
+            desc=f"{experiment.name} ({len(specs)} runs)",
+            disable=not self.progress,
+            dynamic_ncols=True,
+            file=sys.stderr,
+        )
+        tic = time.perf_counter()
+        done = {"trained": 0, "finished": 0}
+
+        def on_progress(seen: int, _total: int) -> None:
+            bar.update(seen - bar.n)
+            bar.set_postfix(done, refresh=False)
+
+        def on_done(job: Job, result: PartitionResult) -> None:
+            if result.trained:
+                done["trained"] += 1
+                how = "resumed, " if result.state_before == "partial" else ""
+                self.say(
+                    f"  {job.spec.label}: {how}{result.episodes:,} episodes in "
+                    f"{result.seconds:.0f} s"
+                )
+            else:
+                done["finished"] += 1
+
+        try:
+            results = run_all(self.pool, jobs, on_progress, on_done)
+        finally:
+            bar.close()
+        skipped = sum(not r.trained for r in results)
+        if skipped:
+            self.say(f"  {experiment.name}: {skipped} run(s) already finished, not retrained")
+        self.say(
+            f"  {experiment.name}: {len(results) - skipped} run(s) trained in "
+            f"{time.perf_counter() - tic:.0f} s on {self.pool.description}"
+        )
+        self.results.extend(results)
+        return results

@@ -1,0 +1,257 @@
+"""One partition = one training run in one run folder; what a worker process (or Ray task) runs.
+
+`run_partition(spec, runs_root)` decides from the folder alone what to do:
+
+=============  ===================================================================
+state          what happens
+=============  ===================================================================
+``new``        no folder, or an empty one: train from episode 0
+``partial``    config.json of the same run and fewer episodes than the budget (a run
+               that was interrupted): `curious.train.train(..., resume=True)` goes on
+               from its last checkpoint
+``finished``   a checkpoint at the budget and every episode in metrics.parquet:
+               nothing is done
+=============  ===================================================================
+
+A folder holding anything else (another preset's run, another condition, files that are not a
+run) raises `RunFolderMismatch` before anything is written, so a finished run is never touched.
+
+The sensory failure of the `sensor_failure` experiment is switched on through the training
+loop's round observer: before every round of parallel episodes, each environment copy gets
+`task.set_sensor_failure(episode >= sensor_failure_episode)` for the episode it is about to run.
+The episode is also written to config.json (`sensor_failure_episode`), where the analysis reads it.
+
+Nothing here imports Dagster: worker processes and Ray tasks only need `curious`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from curious.experiments import RunSpec
+
+FINISHED, PARTIAL, NEW = "finished", "partial", "new"
+SENSOR_FAILURE_KEY = "sensor_failure_episode"
+
+
+class RunFolderMismatch(RuntimeError):
+    """A partition's folder holds something other than (a part of) the run it should hold."""
+
+
+@dataclass(frozen=True)
+class PartitionResult:
+    """What one partition's training did."""
+
+    partition_key: str
+    path: str
+    state_before: str  # new, partial or finished
+    episodes: int  # episodes in the folder afterwards
+    seconds: float  # wall time of this call
+    trained: bool  # False when the run was already finished
+    runner: str = ""  # where it ran: "ray node <id>" or "local pid <pid>"
+
+
+def runner_name() -> str:
+    """Where this process runs: a Ray worker's node, or a local process id."""
+    import sys
+
+    ray = sys.modules.get("ray")
+    if ray is not None and ray.is_initialized():
+        return f"ray node {ray.get_runtime_context().get_node_id()[:12]} pid {os.getpid()}"
+    return f"local pid {os.getpid()}"
+
+
+def run_folder(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
+    return Path(runs_root, *spec.relative_path.parts)
+
+
+def _metrics_rows(path: Path) -> int:
+    import pyarrow.parquet as pq
+
+    try:
+        return int(pq.read_metadata(path).num_rows)
+    except (OSError, ValueError):
+        return 0
+
+
+def episodes_logged(folder: Path) -> int:
+    """Episodes in a run folder's metrics.parquet (0 when there is none yet)."""
+    metrics = folder / "metrics.parquet"
+    return _metrics_rows(metrics) if metrics.is_file() else 0
+
+
+def _checkpoint_episodes(folder: Path) -> int:
+    from curious.checkpoint import PREFIX, list_checkpoints
+
+    found = list_checkpoints(folder / "checkpoints")
+    return int(found[-1].name[len(PREFIX) :]) if found else 0
+
+
+def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | None = None) -> str:
+    """`new`, `partial` or `finished` (see the module docstring); raises `RunFolderMismatch`."""
+    from curious.config import ConfigError
+    from curious.run_folder import config_differences
+
+    folder = run_folder(spec, runs_root)
+    if folder.exists() and not folder.is_dir():
+        raise RunFolderMismatch(f"{folder} exists and is not a folder")
+    if not folder.exists() or not any(folder.iterdir()):
+        return NEW
+    config_path = folder / "config.json"
+    if not config_path.is_file():
+        raise RunFolderMismatch(
+            f"{folder} is not empty but holds no config.json: it is not a run folder of this "
+            "pipeline; move it away or choose another --out"
+        )
+    try:
+        stored = json.loads(config_path.read_text())
+        stored_config = stored["config"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise RunFolderMismatch(
+            f"{config_path} is unreadable ({exc}); move the folder away"
+        ) from None
+    try:
+        expected = spec.config(overrides)
+    except ConfigError as exc:
+        raise RunFolderMismatch(f"{spec.label}: {exc}") from None
+    if stored.get("preset") != expected.preset:
+        raise RunFolderMismatch(
+            f"{folder} holds a run of preset {stored.get('preset')!r}, not {expected.preset!r}: "
+            "this output folder was made by another reproduce preset; choose another --out"
+        )
+    diff = config_differences(stored_config, expected.to_dict())
+    if diff:
+        detail = ", ".join(
+            f"{k}: {stored_config.get(k)!r} != {getattr(expected, k, None)!r}" for k in diff
+        )
+        raise RunFolderMismatch(f"{folder} holds another run ({detail}); choose another --out")
+    total = expected.total_episodes
+    if _checkpoint_episodes(folder) >= total and episodes_logged(folder) >= total:
+        return FINISHED
+    return PARTIAL
+
+
+class SensorFailureSwitch:
+    """A round observer that turns the sensory failure on from a given episode on.
+
+    Before each round it sets, on every environment copy, whether the episode that copy is about
+    to run is at or after `episode`; then it hands the round on to `inner` (another observer,
+    e.g. one that records rollouts), if any.
+    """
+
+    def __init__(self, episode: int, inner: Any = None) -> None:
+        self.episode = int(episode)
+        self.inner = inner
+
+    def begin_round(self, episodes, modules, goals, evaluation, envs: Sequence[Any]) -> None:
+        for env, e in zip(envs, episodes, strict=False):
+            _task(env).set_sensor_failure(bool(e >= self.episode))
+        if self.inner is not None:
+            self.inner.begin_round(episodes, modules, goals, evaluation, envs)
+
+    def after_step(self, t: int) -> None:
+        if self.inner is not None:
+            self.inner.after_step(t)
+
+    def end_round(self, info: Any) -> None:
+        if self.inner is not None:
+            self.inner.end_round(info)
+
+
+def _task(env: Any) -> Any:
+    dm_env = getattr(env, "dm_env", None)
+    if dm_env is None:
+        raise TypeError(
+            f"{type(env).__name__} is not a suite environment: the sensory failure needs "
+            "curious.envs.SuiteEnv copies"
+        )
+    return dm_env.task
+
+
+def _mark_sensor_failure(folder: Path, episode: int) -> None:
+    """Write `sensor_failure_episode` at the top of config.json (the analysis reads it there)."""
+    from curious.run_folder import write_json_atomic
+
+    path = folder / "config.json"
+    data = json.loads(path.read_text())
+    if data.get(SENSOR_FAILURE_KEY) != episode:
+        data[SENSOR_FAILURE_KEY] = episode
+        write_json_atomic(path, data)
+
+
+def _make_recorder(spec: RunSpec, record: bool, resume: bool):
+    """The `make_recorder` hook of `train()`: a Rerun recorder, and the sensory-failure switch.
+
+    `train()` calls it once the folder is ready and a resumed trainer stands at its checkpoint,
+    which is when the switch can be installed and config.json marked.
+    """
+
+    def make(trainer, folder):
+        if spec.sensor_failure_episode is not None:
+            trainer.observer = SensorFailureSwitch(spec.sensor_failure_episode, trainer.observer)
+            _mark_sensor_failure(folder.path, spec.sensor_failure_episode)
+        if not record:
+            return None
+        from curious.recording import RunRecorder
+
+        resumed = resume and trainer.episodes > 0
+        return RunRecorder(
+            folder.path,
+            trainer.spec.module_names,
+            run_name=spec.label,
+            resume=resumed,
+            resume_after_episode=trainer.episodes - 1 if resumed else None,
+        )
+
+    return make
+
+
+def run_partition(
+    spec: RunSpec,
+    runs_root: str | os.PathLike,
+    overrides: dict | None = None,
+    record: bool = True,
+    stop_after_cycles: int | None = None,
+) -> PartitionResult:
+    """Bring one partition's run folder to its budget (see the module docstring)."""
+    os.environ.setdefault("MUJOCO_GL", "disable")
+    tic = time.perf_counter()
+    folder = run_folder(spec, runs_root)
+    state = folder_state(spec, runs_root, overrides)
+    if state == FINISHED:
+        return PartitionResult(
+            spec.partition_key,
+            str(folder),
+            state,
+            episodes_logged(folder),
+            0.0,
+            False,
+            runner_name(),
+        )
+
+    from curious.train import train
+
+    config = spec.config(overrides)
+    resume = state == PARTIAL
+    trainer = train(
+        config,
+        folder,
+        resume=resume,
+        make_recorder=_make_recorder(spec, record, resume),
+        stop_after_cycles=stop_after_cycles,
+    )
+    return PartitionResult(
+        spec.partition_key,
+        str(folder),
+        state,
+        trainer.episodes,
+        time.perf_counter() - tic,
+        True,
+        runner_name(),
+    )

@@ -1,0 +1,246 @@
+"""The environment: determinism, the caller's choice of module and goal, rewards that the
+vectorised module functions reproduce, the start state, the distractors, the sensory failure,
+and clear errors on bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import suite
+from suite import layout
+
+
+def rollout(env, actions, module=None, goal=None):
+    """Observations (stacked per key) and rewards of one episode."""
+    env.task.set_next_episode(module=module, goal=goal)
+    obs = [env.reset().observation]
+    rewards = []
+    for a in actions:
+        ts = env.step(a)
+        obs.append(ts.observation)
+        rewards.append(ts.reward)
+    return {k: np.stack([o[k] for o in obs]) for k in obs[0]}, np.array(rewards, np.float32)
+
+
+def test_same_seed_same_trajectory_other_seed_another():
+    actions = np.random.default_rng(0).uniform(-1, 1, size=(50, 4))
+    runs = []
+    for seed in (7, 7, 8):
+        env = suite.load("default", seed=seed)
+        episodes = [rollout(env, actions)[0] for _ in range(2)]
+        runs.append(episodes)
+    for first, second in zip(runs[0], runs[1], strict=True):
+        for key in first:
+            np.testing.assert_array_equal(first[key], second[key])
+    assert not np.array_equal(runs[0][0]["state"], runs[2][0]["state"])
+
+
+def test_caller_chooses_module_and_goal_for_the_next_episode_only():
+    env = suite.load("default", seed=0)
+    task = env.task
+    g = np.array([0.1, -0.3, 0.5])
+    task.set_next_episode(module="push_cube1", goal=g)
+    ts = env.reset()
+    assert task.active_module == 1
+    np.testing.assert_array_equal(task.goals[1], g.astype(np.float32))
+    expected_slot = task.modules[1].goal_slot(g)
+    np.testing.assert_array_equal(ts.observation["goal"][3:6], expected_slot)
+    np.testing.assert_array_equal(ts.observation["task"], np.eye(7, dtype=np.float32)[1])
+
+    task.set_next_episode(module=3)
+    env.reset()
+    assert task.active_module == 3
+
+    # Left to the env: over many resets every module comes up, with goals across [-1, 1]^3.
+    seen = set()
+    goals = []
+    for _ in range(60):
+        env.reset()
+        seen.add(task.active_module)
+        goals.append(task.goals)
+    assert seen == set(range(7))
+    goals = np.concatenate(goals)
+    assert goals.min() >= -1 and goals.max() <= 1 and goals.min() < -0.9 and goals.max() > 0.9
+
+
+@pytest.mark.parametrize("variant", ["default", "distractors_7"])
+def test_vectorised_reward_equals_step_reward_on_recorded_trajectories(variant):
+    """What the agent does with relabelled transitions: recompute each module's reward from the
+    recorded outcomes and a goal slot, in one batched call, and get the env's numbers."""
+    env = suite.load(variant, seed=3)
+    task = env.task
+    rng = np.random.default_rng(1)
+    seen_rewards = set()
+    for i, module in enumerate(task.modules):
+        # Aim the gripper at the goal so that the reward changes within the episode.
+        env.task.set_next_episode(module=i)
+        obs = [env.reset().observation]
+        rewards = []
+        slot = task.goal_slots[i]
+        for t in range(50):
+            grip = obs[-1]["state"][:3]
+            aim = task.goal_positions()[i] if module.name != "stack" else grip
+            action = np.r_[np.clip((aim - grip) / 0.05, -1, 1), 1.0]
+            action += rng.normal(0, 0.3 if t % 10 else 1.0, size=4)
+            ts = env.step(np.clip(action, -1, 1))
+            obs.append(ts.observation)
+            rewards.append(ts.reward)
+        achieved = np.stack([o["achieved"] for o in obs[1:]])[:, task.outcome_slices[i]]
+        recomputed = module.reward(achieved, np.broadcast_to(slot, (50, 3)))
+        np.testing.assert_array_equal(recomputed, np.array(rewards, np.float32), module.name)
+        seen_rewards.update(rewards)
+        successes = np.stack([o["success"] for o in obs[1:]])
+        # success of every module, against that module's goal, from the same outcomes
+        for j, other in enumerate(task.modules):
+            ach = np.stack([o["achieved"] for o in obs[1:]])[:, task.outcome_slices[j]]
+            np.testing.assert_array_equal(
+                other.success(ach, task.goal_slots[j]).astype(np.float32), successes[:, j]
+            )
+    assert seen_rewards == {0.0, -1.0}  # the comparison covered successes too
+
+
+def test_start_state_gripper_and_reachable_cubes():
+    env = suite.load("default", seed=5)
+    state_layout = env.task.state_layout
+    for _ in range(40):
+        state = env.reset().observation["state"]
+        grip = state[state_layout.gripper_pos]
+        cubes = state[state_layout.cube_pos].reshape(5, 3)
+        np.testing.assert_allclose(grip, layout.GRIP0, atol=2e-3)
+        np.testing.assert_allclose(cubes[:, 2], 0.425, atol=2e-3)
+        offsets = cubes[:2, :2] - grip[:2]
+        assert np.all(np.abs(offsets) <= 0.15 + 1e-3)
+        assert np.all(np.linalg.norm(offsets, axis=1) >= 0.1 - 1e-3)
+        assert np.linalg.norm(cubes[0, :2] - cubes[1, :2]) >= 0.1 - 1e-6
+        np.testing.assert_allclose(cubes[2:, :2], layout.DISTRACTOR_STARTS[:3], atol=0.021)
+        np.testing.assert_allclose(state[state_layout.cube_euler], 0.0, atol=1e-6)
+
+
+def test_reset_does_not_resimulate_the_settled_arm():
+    env = suite.load("default", seed=0)
+    first = env.reset().observation["state"]
+    for _ in range(3):
+        for _ in range(20):
+            env.step(np.array([1.0, 1.0, 1.0, -1.0]))
+        again = env.reset().observation["state"]
+        sl = env.task.state_layout
+        np.testing.assert_array_equal(again[sl.gripper_pos], first[sl.gripper_pos])
+        np.testing.assert_array_equal(again[sl.finger_pos], first[sl.finger_pos])
+
+
+@pytest.mark.parametrize("variant", ["default", "distractors_4", "distractors_7"])
+def test_distractors_random_walk_on_the_table_out_of_reach(variant):
+    env = suite.load(variant, seed=2)
+    n = env.task.n_cubes
+    low = np.array([layout.DISTRACTOR_X_RANGE[0], layout.DISTRACTOR_Y_RANGE[0]])
+    high = np.array([layout.DISTRACTOR_X_RANGE[1], layout.DISTRACTOR_Y_RANGE[1]])
+    moves = []
+    for _ in range(4):
+        obs, _ = rollout(env, np.random.default_rng(0).uniform(-1, 1, size=(50, 4)))
+        cubes = obs["state"][:, 3 : 3 + 3 * n].reshape(51, n, 3)
+        xy = cubes[:, 2:, :2]
+        assert np.all(xy >= low - 1e-6) and np.all(xy <= high + 1e-6)
+        np.testing.assert_allclose(cubes[:, 2:, 2], cubes[0, 2, 2])
+        assert cubes[0, 2, 2] == pytest.approx(0.425, abs=2e-3)
+        pair = np.linalg.norm(cubes[:, :, None, :2] - cubes[:, None, :, :2], axis=-1)
+        pair[:, np.arange(n), np.arange(n)] = np.inf
+        assert pair[:, 2:].min() >= layout.DISTRACTOR_MIN_SEPARATION - 1e-6
+        moves.append(np.diff(xy, axis=0).reshape(-1))
+    moves = np.concatenate(moves)
+    assert np.mean(moves != 0) > 0.95  # they move every step
+    assert np.std(moves) == pytest.approx(layout.DISTRACTOR_WALK_STD, rel=0.15)
+
+
+def test_sensor_shift_appears_exactly_when_switched_on():
+    env = suite.load("sensor_failure", seed=4)
+    task = env.task
+    sl = task.state_layout
+    idx = list(sl.cube_x_indices(1))  # cube 2's x: position and position relative to gripper
+    assert idx == [sl.cube_pos.start + 3, sl.cube_rel_pos.start + 3]
+    twin = suite.load("sensor_failure", seed=4)  # never switched on
+    actions = np.random.default_rng(2).uniform(-1, 1, size=(50, 4))
+    for env_ in (env, twin):
+        env_.task.set_next_episode(module="push_cube1")
+    states, twin_states = [env.reset().observation], [twin.reset().observation]
+    for t, a in enumerate(actions):
+        if t == 20:
+            task.set_sensor_failure(True)
+        if t == 35:
+            task.set_sensor_failure(False)
+        states.append(env.step(a).observation)
+        twin_states.append(twin.step(a).observation)
+    for t, (obs, ref) in enumerate(zip(states, twin_states, strict=True)):
+        shifted = 21 <= t <= 35
+        diff = obs["state"] - ref["state"]
+        expected = np.zeros_like(diff)
+        if shifted:
+            expected[idx] = layout.SENSOR_SHIFT_X
+        np.testing.assert_allclose(diff, expected, atol=1e-6, err_msg=f"step {t}")
+        for key in ("achieved", "success", "goal", "task"):
+            np.testing.assert_array_equal(obs[key], ref[key])
+    assert not task.sensor_failure
+
+
+def test_sensor_failure_is_refused_where_the_variant_has_none():
+    env = suite.load("default", seed=0)
+    assert not env.task.has_sensor_failure
+    with pytest.raises(ValueError, match="no sensory failure"):
+        env.task.set_sensor_failure(True)
+
+
+BAD_INPUTS = [
+    ("action", np.zeros(3), "shape \\(4,\\)"),
+    ("action", np.zeros((1, 4)), "shape \\(4,\\)"),
+    ("action", np.array([0.0, np.nan, 0.0, 0.0]), "finite"),
+    ("action", np.array([0.0, 0.0, np.inf, 0.0]), "finite"),
+    ("module", "fly", "unknown module 'fly'.*reach"),
+    ("module", 7, "out of range"),
+    ("module", True, "name or an index"),
+    ("goal", [0.0, 1.5, 0.0], "\\[-1, 1\\]\\^3"),
+    ("goal", [0.0, 0.0], "shape \\(3,\\)"),
+    ("goal", [np.nan, 0.0, 0.0], "finite"),
+]
+
+
+@pytest.mark.parametrize(("kind", "value", "message"), BAD_INPUTS)
+def test_bad_input_raises_a_clear_error_and_the_env_stays_usable(kind, value, message):
+    env = suite.load("default", seed=0)
+    env.reset()
+    good = np.array([0.3, -0.2, 0.1, 1.0])
+    env.step(good)
+    with pytest.raises(ValueError, match=message):
+        if kind == "action":
+            env.step(value)
+        elif kind == "module":
+            env.task.set_next_episode(module=value)
+        else:
+            env.task.set_next_episode(module="reach", goal=value)
+    # Still usable: the failed call changed nothing, the episode goes on to its 50 steps.
+    steps = 1
+    while not env.step(good).last():
+        steps += 1
+    assert steps == 49  # the bad action was not counted as a step
+    env.task.set_next_episode(module="stack", goal=[0.0, 0.0, 0.0])
+    env.reset()
+    assert env.task.active_module == 3
+
+
+def test_out_of_range_actions_are_clipped():
+    a, b = suite.load("default", seed=1), suite.load("default", seed=1)
+    a.reset(), b.reset()
+    for _ in range(5):
+        oa = a.step(np.array([3.0, -2.0, 1.5, -7.0])).observation["state"]
+        ob = b.step(np.array([1.0, -1.0, 1.0, -1.0])).observation["state"]
+    np.testing.assert_array_equal(oa, ob)
+
+
+def test_gripper_follows_the_action():
+    env = suite.load("distractors_0", seed=0)
+    start = env.reset().observation["state"][:3].copy()
+    for _ in range(10):
+        state = env.step(np.array([0.0, 1.0, 0.0, 0.0])).observation["state"]
+    # At most 5 cm per step; the weld lets the gripper lag its target, and it covers about
+    # 0.32 m in 10 full steps, as the gymnasium-robotics Fetch arm does (0.3207 measured there).
+    assert 0.29 < state[1] - start[1] < 0.35
+    np.testing.assert_allclose(state[[0, 2]], start[[0, 2]], atol=0.01)

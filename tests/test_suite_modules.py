@@ -1,0 +1,211 @@
+"""Task modules: goal slots, outcomes, success and reward, vectorised over any batch shape, and
+the env's batched evaluation agreeing exactly with the modules' own functions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import suite
+from suite import layout
+from suite.evaluation import ModuleEvaluator
+from suite.modules import TaskModule, affine_slot, within_distance
+
+MODULES = suite.standard_modules(3)
+N_CUBES = 5
+
+
+def random_positions(rng, batch):
+    gripper = rng.uniform([1.1, 0.5, 0.42], [1.6, 1.0, 0.9], size=(*batch, 3))
+    cubes = rng.uniform([1.1, 0.5, 0.42], [2.2, 1.0, 0.9], size=(*batch, N_CUBES, 3))
+    return gripper, cubes
+
+
+def test_standard_module_names_and_dims():
+    assert [m.name for m in MODULES] == [
+        "reach",
+        "push_cube1",
+        "cube1_above_cube2",
+        "stack",
+        "push_cube3",
+        "push_cube4",
+        "push_cube5",
+    ]
+    assert [m.outcome_dim for m in MODULES] == [3, 3, 3, 4, 3, 3, 3]
+    assert all(m.goal_dim == 3 for m in MODULES)
+
+
+def test_goal_slots_map_the_cube_onto_the_documented_regions():
+    corners = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
+    reach, push, above, stack = MODULES[:4]
+    gx, gy = layout.GRIP0[:2]
+    slots = reach.goal_slot(corners)
+    np.testing.assert_allclose(slots[:, 0].min(), gx - 0.15, atol=1e-6)
+    np.testing.assert_allclose(slots[:, 1].max(), gy + 0.15, atol=1e-6)
+    np.testing.assert_allclose([slots[:, 2].min(), slots[:, 2].max()], [0.426, 0.876], atol=1e-6)
+    push_slots = push.goal_slot(corners)
+    np.testing.assert_allclose(push_slots[:, 2], 0.426, atol=1e-7)
+    np.testing.assert_allclose(push_slots[:, :2], slots[:, :2])
+    above_slots = above.goal_slot(corners)
+    np.testing.assert_array_equal(above_slots[:, :2], 0.0)
+    # 0.05 to 0.45 m above the table top
+    np.testing.assert_allclose([above_slots[:, 2].min(), above_slots[:, 2].max()], [0.45, 0.85])
+    np.testing.assert_allclose(stack.goal_slot(corners), np.tile([0, 0, 0.05], (8, 1)))
+    for m in MODULES:
+        assert m.goal_slot(corners).dtype == np.float32
+
+
+@pytest.mark.parametrize("batch", [(), (5,), (2, 3)])
+def test_functions_are_vectorised_and_agree_with_one_at_a_time(batch):
+    rng = np.random.default_rng(0)
+    gripper, cubes = random_positions(rng, batch)
+    g = rng.uniform(-1, 1, size=(*batch, 3))
+    for m in MODULES:
+        outcome = m.achieved(gripper, cubes).astype(np.float32)
+        slot = m.goal_slot(g)
+        reward = m.reward(outcome, slot)
+        success = m.success(outcome, slot)
+        assert outcome.shape == (*batch, m.outcome_dim)
+        assert reward.shape == batch and reward.dtype == np.float32
+        assert success.shape == batch and success.dtype == bool
+        assert set(np.unique(reward)) <= {-1.0, 0.0}
+        np.testing.assert_array_equal(reward == 0.0, success)
+        for index in np.ndindex(*batch):
+            one = m.achieved(gripper[index], cubes[index]).astype(np.float32)
+            np.testing.assert_array_equal(one, outcome[index])
+            assert m.reward(one, m.goal_slot(g[index])) == reward[index]
+
+
+def test_outcomes_are_what_the_paper_describes():
+    rng = np.random.default_rng(1)
+    gripper, cubes = random_positions(rng, (4,))
+    reach, push1, above, stack, push3, _, push5 = MODULES
+    c1, c2 = cubes[:, 0], cubes[:, 1]
+    np.testing.assert_allclose(reach.achieved(gripper, cubes), gripper)
+    np.testing.assert_allclose(push1.achieved(gripper, cubes), c1)
+    np.testing.assert_allclose(push3.achieved(gripper, cubes), cubes[:, 2])
+    np.testing.assert_allclose(push5.achieved(gripper, cubes), cubes[:, 4])
+    np.testing.assert_allclose(
+        above.achieved(gripper, cubes), np.c_[c1[:, :2] - c2[:, :2], c1[:, 2]]
+    )
+    np.testing.assert_allclose(
+        stack.achieved(gripper, cubes), np.c_[c1 - c2, np.linalg.norm(gripper - c1, axis=1)]
+    )
+
+
+def test_success_threshold_and_the_stack_guard():
+    reach, _, _, stack = MODULES[:4]
+    slot = np.array([1.3, 0.7, 0.6], np.float32)
+    inside = slot + np.array([0.049, 0, 0], np.float32)
+    outside = slot + np.array([0.0, 0.03, 0.041], np.float32)  # 0.0506 away
+    assert reach.success(inside, slot) and not reach.success(outside, slot)
+    stacked_near = np.array([0.0, 0.0, 0.05, 0.01], np.float32)
+    stacked_away = np.array([0.0, 0.0, 0.05, 0.08], np.float32)
+    target = stack.goal_slot(np.zeros(3))
+    assert not stack.success(stacked_near, target)
+    assert stack.success(stacked_away, target)
+    assert stack.reward(np.stack([stacked_near, stacked_away]), target).tolist() == [-1.0, 0.0]
+
+
+def test_goal_slots_in_cube2_frame_are_pure_functions_of_g():
+    """A relabelled outcome of cube1_above_cube2 is a valid slot: it does not depend on where
+    cube 2 is."""
+    above = MODULES[2]
+    rng = np.random.default_rng(2)
+    gripper, cubes = random_positions(rng, (3,))
+    cubes[:, 0, :2] = cubes[:, 1, :2]  # cube 1 straight above cube 2 ...
+    cubes[:, 0, 2] = above.goal_slot(np.zeros(3))[2]  # ... at the slot's height
+    outcome = above.achieved(gripper, cubes).astype(np.float32)
+    assert np.all(above.success(outcome, above.goal_slot(np.zeros((3, 3)))))
+
+
+def test_bad_shapes_raise_clear_errors():
+    reach = MODULES[0]
+    with pytest.raises(ValueError, match="last dimension 3"):
+        reach.goal_slot(np.zeros(2))
+    with pytest.raises(ValueError, match="expected achieved"):
+        reach.reward(np.zeros(4), np.zeros(3))
+    with pytest.raises(ValueError, match="watches cube 5"):
+        MODULES[-1].achieved(np.zeros(3), np.zeros((2, 3)))
+
+
+def test_batched_evaluator_matches_each_module_exactly():
+    rng = np.random.default_rng(3)
+    evaluator = ModuleEvaluator(MODULES, N_CUBES)
+    for trial in range(200):
+        gripper, cubes = random_positions(rng, ())
+        if trial % 2:  # put things near their goals so that successes happen too
+            cubes[0] = cubes[1] + [0.0, 0.0, 0.05]
+            gripper = cubes[0] + rng.normal(0, 0.04, 3)
+        slots = np.stack([m.goal_slot(rng.uniform(-1, 1, 3)) for m in MODULES])
+        if trial % 4 == 1:
+            slots[0] = gripper + rng.normal(0, 0.02, 3)
+        evaluator.set_slots(slots)
+        positions = np.concatenate([gripper, cubes.ravel()])
+        evaluator.evaluate(positions, gripper, cubes)
+        for i, (m, sl) in enumerate(zip(MODULES, evaluator.slices, strict=True)):
+            expected = m.achieved(gripper, cubes).astype(np.float32)
+            np.testing.assert_array_equal(evaluator.achieved[sl], expected, err_msg=m.name)
+            assert evaluator.success[i] == float(m.success(expected, slots[i])), m.name
+
+
+def test_goal_positions_follow_cube2():
+    evaluator = ModuleEvaluator(MODULES, N_CUBES)
+    slots = np.stack([m.goal_slot(np.zeros(3)) for m in MODULES])
+    evaluator.set_slots(slots)
+    gripper = np.array([1.3, 0.75, 0.6])
+    cubes = np.array([[1.2, 0.7], [1.4, 0.8], *layout.DISTRACTOR_STARTS[:3]])
+    cubes = np.c_[cubes, np.full(5, 0.425)]
+    world = evaluator.goal_positions(np.concatenate([gripper, cubes.ravel()]))
+    np.testing.assert_allclose(world[0], slots[0])
+    np.testing.assert_allclose(world[2], [1.4, 0.8, slots[2][2]], rtol=1e-6)
+    np.testing.assert_allclose(world[3], [1.4, 0.8, 0.475], rtol=1e-6)
+
+
+def lift_cube1() -> TaskModule:
+    """A module without declared structure: lift cube 1 to a height (judged on z only)."""
+
+    def success(achieved, slot):
+        return np.abs(achieved[..., 0] - slot[..., 2]) < np.float32(0.02)
+
+    return TaskModule(
+        name="lift_cube1",
+        achievable=True,
+        outcome_dim=1,
+        cubes=(0,),
+        slot_fn=affine_slot((0.0, 0.0, 0.1), (0.0, 0.0, 0.55)),
+        outcome_fn=lambda gripper, cubes: cubes[..., 0, 2:3].copy(),
+        success_fn=success,
+    )
+
+
+def test_a_new_module_plugs_in_without_touching_the_env():
+    modules = (*suite.standard_modules(0), lift_cube1())
+    env = suite.SuiteEnvironment(suite.MultiTaskFetch(modules, n_cubes=2), random_state=0)
+    env.task.set_next_episode(module="lift_cube1", goal=[0.0, 0.0, -1.0])  # 0.45 m
+    ts = env.reset()
+    assert ts.observation["achieved"].shape == (14,)
+    z = ts.observation["achieved"][-1]
+    assert z == pytest.approx(0.425, abs=2e-3)
+    assert ts.observation["success"][-1] == 0.0  # on the table, 2.5 cm short of 0.45
+    ts = env.step(np.zeros(4))
+    assert ts.reward == -1.0
+
+
+def test_within_distance_does_not_depend_on_batch_layout():
+    rng = np.random.default_rng(4)
+    a = rng.normal(0, 0.03, size=(1000, 4)).astype(np.float32)
+    s = rng.normal(0, 0.001, size=(1000, 3)).astype(np.float32)
+    full = within_distance(a, s)
+    strided = within_distance(a[::-1], s[::-1])[::-1]
+    np.testing.assert_array_equal(full, strided)
+    np.testing.assert_array_equal(full, [within_distance(x, y) for x, y in zip(a, s, strict=True)])
+
+
+def test_module_list_must_be_valid():
+    with pytest.raises(ValueError, match="unique"):
+        suite.MultiTaskFetch((MODULES[0], MODULES[0]), n_cubes=5)
+    with pytest.raises(ValueError, match="watches cube 5"):
+        suite.MultiTaskFetch(MODULES, n_cubes=4)
+    with pytest.raises(ValueError, match="at least one module"):
+        suite.MultiTaskFetch((), n_cubes=2)
