@@ -140,7 +140,14 @@ def _peer_episode(peer, actions: np.ndarray) -> float:
 
 
 def measure(args: argparse.Namespace) -> dict:
-    """Interleave ours, the bound and the peer episode by episode; report steps per second."""
+    """Interleave ours, the bound and the peer episode by episode; report steps per second.
+
+    Each round records one of our episodes (untimed), replays it timed through our env (same
+    start, same actions, hence the same trajectory), then steps the bound through exactly that
+    physics, then runs the peer on the same actions. Rates come from the median episode time of
+    each contestant, which shrugs off bursts of load from other processes; means are in the
+    detail.
+    """
     from suite import layout
 
     episodes = int(getattr(args, "episodes", 30))
@@ -157,7 +164,7 @@ def measure(args: argparse.Namespace) -> dict:
         peer.reset(seed=seed)
     rng = np.random.default_rng(seed)
     substeps = layout.SUBSTEPS
-    totals = {"ours": 0.0, "bound": 0.0, "bound_static": 0.0, "peer": 0.0}
+    times: dict[str, list[float]] = {"ours": [], "bound": [], "bound_static": [], "peer": []}
 
     # One untimed round to warm caches and code paths.
     warm = rng.uniform(-1.0, 1.0, size=(EPISODE, 4))
@@ -167,26 +174,31 @@ def measure(args: argparse.Namespace) -> dict:
 
     for _ in range(episodes):
         actions = rng.uniform(-1.0, 1.0, size=(EPISODE, 4))
-        totals["ours"] += ours.episode(actions)
-        state, mocap, ctrl = ours.record(rng.uniform(-1.0, 1.0, size=(EPISODE, 4)))
-        totals["bound"] += _bound_episode(ours.model, ours.data, state, mocap, ctrl, substeps)
-        totals["bound_static"] += _bound_static_episode(
-            ours.model, ours.data, state, EPISODE, substeps
+        rng_state = ours.env.random_state.get_state()
+        state, mocap, ctrl = ours.record(actions)
+        ours.env.random_state.set_state(rng_state)
+        times["ours"].append(ours.episode(actions))
+        times["bound"].append(_bound_episode(ours.model, ours.data, state, mocap, ctrl, substeps))
+        times["bound_static"].append(
+            _bound_static_episode(ours.model, ours.data, state, EPISODE, substeps)
         )
         if peer is not None:
-            totals["peer"] += _peer_episode(peer, actions.astype(np.float32))
+            times["peer"].append(_peer_episode(peer, actions.astype(np.float32)))
 
-    steps = episodes * EPISODE
-    rate = {k: (steps / v if v > 0 else float("nan")) for k, v in totals.items()}
-    peer_rate = rate["peer"] if peer is not None else float("nan")
+    nan = float("nan")
+    median = {k: EPISODE / float(np.median(v)) if v else nan for k, v in times.items()}
+    mean = {k: EPISODE / float(np.mean(v)) if v else nan for k, v in times.items()}
     return {
-        "ours": rate["ours"],
-        "bound": rate["bound"],
-        "peer": peer_rate,
+        "ours": median["ours"],
+        "bound": median["bound"],
+        "peer": median["peer"],
         "unit": "env steps/s",
-        "ours_over_bound": rate["ours"] / rate["bound"],
-        "ours_over_peer": rate["ours"] / peer_rate if peer is not None else float("nan"),
-        "bound_static": rate["bound_static"],
+        "ours_pct_of_bound": 100.0 * median["ours"] / median["bound"],
+        "ours_pct_of_peer": 100.0 * median["ours"] / median["peer"],
+        "bound_static": median["bound_static"],
+        "mean_ours": mean["ours"],
+        "mean_bound": mean["bound"],
+        "mean_peer": mean["peer"],
         "variant": variant,
         "episodes": episodes,
         "steps_per_episode": EPISODE,

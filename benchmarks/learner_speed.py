@@ -144,7 +144,7 @@ class _SyntheticGoals:
         state_dim=STATE,
         action_dim=ACTIONS,
         goal_dim=3,
-        outcome_slices=tuple(slice(3 * i, 3 * i + 3) for i in range(TASKS - 1)) + (slice(18, 22),),
+        outcome_slices=(*(slice(3 * i, 3 * i + 3) for i in range(TASKS - 1)), slice(18, 22)),
         episode_length=50,
     )
 
@@ -288,14 +288,14 @@ def measure_cycles(args: argparse.Namespace) -> dict[str, Any]:
             k.split("/", 1)[1]: v for k, v in result.losses.items() if k.startswith("seconds/")
         }
         prefix = f"cycle_{preset}"
-        out[f"{prefix}_seconds"] = total
+        out[f"{prefix}_ms"] = total * 1e3
         out[f"{prefix}_shape"] = (
             f"{config.episodes_per_cycle} episodes x {trainer.spec.episode_length} steps, "
             f"{config.n_updates} updates x batch {config.batch_size}"
         )
         for name, seconds in parts.items():
-            out[f"{prefix}_{name}_seconds"] = seconds
-        out[f"{prefix}_other_seconds"] = total - sum(parts.values())
+            out[f"{prefix}_{name}_ms"] = seconds * 1e3
+        out[f"{prefix}_other_ms"] = (total - sum(parts.values())) * 1e3
     return out
 
 

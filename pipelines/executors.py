@@ -18,9 +18,12 @@ The first failing run stops the others' submission and raises `PartitionFailed`.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import json
 import multiprocessing
 import os
 import socket
+import subprocess
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +32,7 @@ from typing import Any, Protocol
 from curious.experiments import RunSpec
 from pipelines.training import PartitionResult, episodes_logged, run_folder, run_partition
 
-RAY_CONNECT_TIMEOUT_S = 10.0
+RAY_CONNECT_TIMEOUT_S = 30.0
 
 
 class PartitionFailed(RuntimeError):
@@ -148,20 +151,85 @@ def resolve_ray_address(address: str) -> str:
     return f"{host}:{port}"
 
 
-def connect_ray(address: str, timeout: float = RAY_CONNECT_TIMEOUT_S) -> tuple[str, bool]:
-    """Connect this process to the Ray cluster at `address` (checked first).
+_CLUSTER_CHECK = """
+import json, sys
+import ray
+ray.init(address=sys.argv[1], logging_level="ERROR", log_to_driver=False)
+nodes = [n["Resources"] for n in ray.nodes() if n["Alive"]]
+print(json.dumps(nodes))
+ray.shutdown()
+"""
 
-    Returns (HOST:PORT, whether this call connected: False when Ray was already initialised).
+
+def _use_token_if_available() -> None:
+    """Turn Ray's token authentication on where a token is at hand and nothing says otherwise.
+
+    Ray 2.60 clusters started with `ray start` require a token by default, and a driver given an
+    explicit address only sends one with RAY_AUTH_MODE=token; a token sent to a cluster without
+    authentication is ignored.
+    """
+    if "RAY_AUTH_MODE" in os.environ:
+        return
+    path = os.environ.get("RAY_AUTH_TOKEN_PATH") or str(Path.home() / ".ray" / "auth_token")
+    if os.environ.get("RAY_AUTH_TOKEN") or Path(path).is_file():
+        os.environ["RAY_AUTH_MODE"] = "token"
+
+
+def check_cluster(address: str, timeout: float = RAY_CONNECT_TIMEOUT_S) -> list[dict[str, float]]:
+    """The resources of every live node of the Ray cluster at `address` (HOST:PORT).
+
+    Asked from a child process that is killed after `timeout` seconds: `ray.init` on an address
+    where something other than Ray listens waits for minutes.
+    """
+    host, _, port = address.rpartition(":")
+    _probe(host, int(port), min(timeout, 5.0))
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", _CLUSTER_CHECK, address],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env=os.environ.copy(),
+        )
+    except subprocess.TimeoutExpired:
+        raise RayUnavailable(
+            f"no Ray cluster answered at {address} within {timeout:.0f} s (something listens "
+            "on that port, but it is not a Ray head node, or it is overloaded)"
+        ) from None
+    if done.returncode != 0:
+        text = done.stderr.strip().splitlines()
+        last = text[-1] if text else f"exit status {done.returncode}"
+        if "auth" in done.stderr.lower() and "token" in done.stderr.lower():
+            last = (
+                "the cluster requires token authentication: set RAY_AUTH_TOKEN (or put the "
+                "cluster's token in ~/.ray/auth_token) and RAY_AUTH_MODE=token"
+            )
+        raise RayUnavailable(f"cannot join the Ray cluster at {address}: {last}")
+    try:
+        return json.loads(done.stdout.strip().splitlines()[-1])
+    except (ValueError, IndexError):
+        raise RayUnavailable(
+            f"the Ray cluster at {address} did not list its nodes: {done.stdout[-300:]!r}"
+        ) from None
+
+
+def connect_ray(
+    address: str, timeout: float = RAY_CONNECT_TIMEOUT_S
+) -> tuple[str, bool, list[dict[str, float]]]:
+    """Connect this process to the Ray cluster at `address` (checked first, see `check_cluster`).
+
+    Returns (HOST:PORT, whether this call connected: False when Ray was already initialised in
+    this process, the nodes' resources).
     """
     try:
         import ray
     except ModuleNotFoundError:
         raise RayUnavailable("--ray-address needs Ray: pip install 'curious[ray]'") from None
     resolved = resolve_ray_address(address)
-    host, _, port = resolved.rpartition(":")
-    _probe(host, int(port), timeout)
+    _use_token_if_available()
+    nodes = check_cluster(resolved, timeout)
     if ray.is_initialized():
-        return resolved, False
+        return resolved, False, nodes
     env = {"MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable"), "OMP_NUM_THREADS": "1"}
     try:
         ray.init(
@@ -172,7 +240,7 @@ def connect_ray(address: str, timeout: float = RAY_CONNECT_TIMEOUT_S) -> tuple[s
         )
     except (ConnectionError, RuntimeError, TimeoutError) as exc:
         raise RayUnavailable(f"cannot join the Ray cluster at {resolved}: {exc}") from None
-    return resolved, True
+    return resolved, True, nodes
 
 
 class RayPool:
@@ -181,9 +249,22 @@ class RayPool:
     def __init__(self, address: str, cpus_per_run: float = 1.0, gpus_per_run: float = 0.0) -> None:
         import ray
 
-        self.address, self._connected = connect_ray(address)
         self.cpus_per_run = float(cpus_per_run)
         self.gpus_per_run = float(gpus_per_run)
+        self.address, self._connected, nodes = connect_ray(address)
+        fits = [
+            n
+            for n in nodes
+            if n.get("CPU", 0.0) >= self.cpus_per_run and n.get("GPU", 0.0) >= self.gpus_per_run
+        ]
+        if not fits:
+            self.close()
+            have = "; ".join(f"{n.get('CPU', 0):g} CPU, {n.get('GPU', 0):g} GPU" for n in nodes)
+            raise RayUnavailable(
+                f"no node of the Ray cluster at {self.address} has {self.cpus_per_run:g} CPU and "
+                f"{self.gpus_per_run:g} GPU for one run (nodes: {have or 'none'}): lower "
+                "--cpus-per-run / --gpus-per-run"
+            )
         self._remote = ray.remote(
             num_cpus=self.cpus_per_run, num_gpus=self.gpus_per_run, max_retries=0
         )(run_job)

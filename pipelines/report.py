@@ -122,12 +122,12 @@ def _runs_table(table: pd.DataFrame) -> list[str]:
     return _table(header, rows)
 
 
-def _final_by_condition(table: pd.DataFrame) -> list[str]:
+def _final_by_condition(e: Experiment, table: pd.DataFrame) -> list[str]:
     final = analysis.final_competence(table)
     episodes = int(final["episodes"].iat[0])
     parts = [
-        f"{condition_label(c)} {_mean_std(g['value'].to_numpy())}"
-        for c, g in final.groupby("condition", observed=True, sort=False)
+        f"{condition_label(c)} {_mean_std(final.loc[final['condition'] == c, 'value'])}"
+        for c in e.conditions
     ]
     return [
         f"Success over achievable modules after {episodes:,} episodes (mean ± std over "
@@ -136,26 +136,38 @@ def _final_by_condition(table: pd.DataFrame) -> list[str]:
     ]
 
 
-def _welch(binned: pd.DataFrame, better: str, worse: str, what: str) -> list[str]:
+def _welch_summary(test: pd.DataFrame, better: str, worse: str, what: str) -> list[str]:
+    """One sentence on a table of `analysis.welch_per_bin` results."""
+    tested = int(test["p"].notna().sum())
+    text = (
+        f"One-tailed Welch's t-test per {what}, {condition_label(better)} > "
+        f"{condition_label(worse)}, alpha = {analysis.ALPHA:g}: significant in "
+        f"{int(test['significant'].sum())} of {len(test)}"
+    )
+    if tested == 0 and len(test):
+        few = int(min(test["n_better"].min(), test["n_worse"].min())) < 2
+        why = "fewer than two seeds a side" if few else "no variance across seeds"
+        text += f" (none could be tested: {why})"
+    elif tested < len(test):
+        text += f" ({len(test) - tested} could not be tested: fewer than two seeds or no variance)"
+    return [text + ".", ""]
+
+
+def _p(value: float) -> str:
+    return "–" if not math.isfinite(value) else f"{value:.3g}"
+
+
+def _welch_bins(binned: pd.DataFrame, better: str, worse: str, bin_size: int) -> list[str]:
     test = analysis.welch_per_bin(binned, better, worse)
     if test.empty:
-        return [f"No {what} bin is shared by both conditions.", ""]
-    hits = test[test["significant"]]
-    tested = test["p"].notna().sum()
-    lines = [
-        f"One-tailed Welch's t-test, {condition_label(better)} > {condition_label(worse)}, "
-        f"alpha = {analysis.ALPHA:g}, per {what}: significant in {len(hits)} of {len(test)} "
-        f"(testable, with at least two seeds a side and some variance: {tested}).",
-        "",
-    ]
-    if tested == 0:
-        lines += ["With fewer than two seeds per condition no test can be made.", ""]
+        return ["No episode bin is shared by both conditions.", ""]
+    lines = _welch_summary(test, better, worse, f"{bin_size:,}-episode bin")
     shown = test
     if len(test) > MAX_WELCH_ROWS:
         picks = np.unique(np.linspace(0, len(test) - 1, MAX_WELCH_ROWS).round().astype(int))
         shown = test.iloc[sorted(set(picks) | set(np.flatnonzero(test["significant"])))]
         lines += [
-            f"{len(shown)} of {len(test)} rows shown (evenly spaced, and every significant one):",
+            f"Bins shown: {len(shown)} of {len(test)} (evenly spaced, and every significant one).",
             "",
         ]
     rows = [
@@ -164,7 +176,7 @@ def _welch(binned: pd.DataFrame, better: str, worse: str, what: str) -> list[str
             f"{_fmt(r.mean_better)} (n={r.n_better})",
             f"{_fmt(r.mean_worse)} (n={r.n_worse})",
             _fmt(r.t),
-            "–" if not math.isfinite(r.p) else f"{r.p:.3g}",
+            _p(r.p),
             "yes" if r.significant else "no",
         )
         for r in shown.itertuples()
@@ -175,12 +187,12 @@ def _welch(binned: pd.DataFrame, better: str, worse: str, what: str) -> list[str
 
 def _main(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
     lines = [*_figure(repro, "fig2a")]
-    lines += _final_by_condition(table)
+    lines += _final_by_condition(e, table)
     if e.compare is not None:
         n = int(table.groupby("run", observed=True)["episode"].max().max()) + 1
         bin_size = analysis.nice_bin_size(n)
         binned = analysis.bin_runs(table, bin_size=bin_size)
-        lines += _welch(binned, *e.compare, f"bin of {bin_size:,} episodes")
+        lines += _welch_bins(binned, *e.compare, bin_size)
     for name in ("fig2b", "fig2c", "table1"):
         lines += _figure(repro, name)
     return lines
@@ -189,23 +201,29 @@ def _main(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
 def _distractors(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
     lines = [*_figure(repro, "distractors")]
     final = analysis.final_competence(table)
+    episodes = int(final["episodes"].iat[0])
+    tests = []
+    if e.compare is not None:
+        for n_d, group in final.groupby("n_distractors", observed=True):
+            tests.append(analysis.welch_per_bin(group, *e.compare).assign(n_distractors=n_d))
+    test = pd.concat(tests, ignore_index=True).set_index("n_distractors") if tests else None
     rows = []
     for n_d, group in final.groupby("n_distractors", observed=True):
         row: list[object] = [int(n_d)]
-        for c in e.conditions:
-            row.append(_mean_std(group.loc[group["condition"] == c, "value"].to_numpy()))
+        row += [_mean_std(group.loc[group["condition"] == c, "value"]) for c in e.conditions]
+        if test is not None and n_d in test.index:
+            row += [_fmt(test.loc[n_d, "t"]), _p(test.loc[n_d, "p"])]
         rows.append(row)
-    episodes = int(final["episodes"].iat[0])
+    header: tuple[str, ...] = ("distracting modules", *map(condition_label, e.conditions))
+    if test is not None:
+        header += ("Welch t", "p")
     lines += [
         f"Success over achievable modules after {episodes:,} episodes, mean ± std over seeds:",
         "",
+        *_table(header, rows),
     ]
-    lines += _table(("distracting modules", *map(condition_label, e.conditions)), rows)
-    if e.compare is not None:
-        for n_d, group in final.groupby("n_distractors", observed=True):
-            lines += _welch(
-                group, *e.compare, f"setting with {int(n_d)} distractors (final success)"
-            )
+    if test is not None:
+        lines += _welch_summary(test, *e.compare, "setting (final success)")
     return lines
 
 

@@ -28,7 +28,14 @@ from typing import Any
 
 from curious.experiments import Experiment, ReproducePreset, RunSpec
 from pipelines.executors import Job, Pool, run_all
-from pipelines.training import PartitionResult
+from pipelines.training import (
+    FINISHED,
+    PARTIAL,
+    PartitionResult,
+    episodes_logged,
+    folder_state,
+    run_folder,
+)
 
 
 @dataclass(frozen=True)
@@ -126,49 +133,61 @@ class Reproduction:
         return self.preset.experiments[name]
 
     def train(self, experiment: Experiment, specs: Sequence[RunSpec]) -> list[PartitionResult]:
-        """Bring every run of `specs` to its budget on the pool, with a progress bar."""
+        """Bring every run of `specs` to its budget on the pool, with a progress bar.
+
+        Runs whose folders already hold the finished run are not sent to the pool at all.
+        """
+
+        root = self.layout.runs_root
+        results: dict[str, PartitionResult] = {}
+        todo: list[Job] = []
+        for spec in specs:
+            if folder_state(spec, root, self.overrides) == FINISHED:
+                folder = run_folder(spec, root)
+                results[spec.partition_key] = PartitionResult(
+                    spec.partition_key, str(folder), FINISHED, episodes_logged(folder), 0.0, False
+                )
+            else:
+                todo.append(Job(spec, str(root), dict(self.overrides), self.record))
+        if results:
+            self.say(f"  {experiment.name}: {len(results)} run(s) already finished, not retrained")
+        if todo:
+            results.update(self._train(experiment, todo))
+        ordered = [results[s.partition_key] for s in specs]
+        self.results.extend(ordered)
+        return ordered
+
+    def _train(self, experiment: Experiment, jobs: list[Job]) -> dict[str, PartitionResult]:
         from tqdm.auto import tqdm
 
-        jobs = [
-            Job(s, str(self.layout.runs_root), dict(self.overrides), self.record) for s in specs
-        ]
-        total = sum(s.total_episodes for s in specs)
         bar = tqdm(
-            total=total,
+            total=sum(j.spec.total_episodes for j in jobs),
             unit="ep",
-            desc=f"{experiment.name} ({len(specs)} runs)",
+            desc=f"{experiment.name} ({len(jobs)} runs)",
             disable=not self.progress,
             dynamic_ncols=True,
             file=sys.stderr,
         )
         tic = time.perf_counter()
-        done = {"trained": 0, "finished": 0}
+        done = {"trained": 0}
 
         def on_progress(seen: int, _total: int) -> None:
             bar.update(seen - bar.n)
             bar.set_postfix(done, refresh=False)
 
         def on_done(job: Job, result: PartitionResult) -> None:
-            if result.trained:
-                done["trained"] += 1
-                how = "resumed, " if result.state_before == "partial" else ""
-                self.say(
-                    f"  {job.spec.label}: {how}{result.episodes:,} episodes in "
-                    f"{result.seconds:.0f} s"
-                )
-            else:
-                done["finished"] += 1
+            done["trained"] += 1
+            how = "resumed, " if result.state_before == PARTIAL else ""
+            self.say(
+                f"  {job.spec.label}: {how}{result.episodes:,} episodes in {result.seconds:.0f} s"
+            )
 
         try:
             results = run_all(self.pool, jobs, on_progress, on_done)
         finally:
             bar.close()
-        skipped = sum(not r.trained for r in results)
-        if skipped:
-            self.say(f"  {experiment.name}: {skipped} run(s) already finished, not retrained")
         self.say(
-            f"  {experiment.name}: {len(results) - skipped} run(s) trained in "
+            f"  {experiment.name}: {len(results)} run(s) trained in "
             f"{time.perf_counter() - tic:.0f} s on {self.pool.description}"
         )
-        self.results.extend(results)
-        return results
+        return {r.partition_key: r for r in results}

@@ -75,9 +75,10 @@ class TableArena(composer.Arena):
             specular=(0.3, 0.3, 0.3),
             castshadow=False,
         )
-        # A view of the whole table from the front-left, and one from above.
+        # The Fetch envs' default view (from beyond the table's far right corner, looking back
+        # at the robot), moved out to take in the wide table; and a view from above.
         root.worldbody.add(
-            "camera", name="front", mode="targetbody", target=self._table, pos=(0.35, -0.6, 1.35)
+            "camera", name="front", mode="targetbody", target=self._table, pos=(3.3, -1.15, 1.25)
         )
         root.worldbody.add("camera", name="top", pos=(1.65, 0.75, 2.6), quat=(1, 0, 0, 0))
 

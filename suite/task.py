@@ -148,8 +148,11 @@ class MultiTaskFetch(composer.Task):
         self._next_goal: np.ndarray | None = None
         self._walk = DistractorWalk(n_cubes, self._n_distractors, layout.EPISODE_STEPS)
         self._steps = 0
+        # The observation is computed once per (tick, physics time): ticks mark resets, steps
+        # and switches; the time tells substeps apart when composer's own updater reads the
+        # observables between substeps.
         self._tick = 0
-        self._computed_tick = -1
+        self._computed = (-1, -1.0)
 
         self._task_observables = collections.OrderedDict(
             (
@@ -437,7 +440,7 @@ class MultiTaskFetch(composer.Task):
             finger_qvel=self._finger_qvel,
         )
         self._grip_site = grip_site
-        self._computed_tick = -1
+        self._computed = (-1, -1.0)
 
     def _settle(self) -> None:
         """Bring the arm to its start pose once; every reset restores this snapshot."""
@@ -491,7 +494,8 @@ class MultiTaskFetch(composer.Task):
 
     def _compute(self) -> None:
         """State features, outcomes and success of every module, once per tick."""
-        if self._computed_tick == self._tick:
+        key = (self._tick, self._d.time)
+        if self._computed == key:
             return
         reader = self._reader
         state = reader.read(self._state)
@@ -499,7 +503,7 @@ class MultiTaskFetch(composer.Task):
             state[self._shift_idx] += np.float32(layout.SENSOR_SHIFT_X)
         self._evaluator.evaluate(reader.positions, reader.gripper, reader.cubes)
         self._reward = -1.0 + float(self._success[self._active])
-        self._computed_tick = self._tick
+        self._computed = key
 
     def _observe_state(self, physics) -> np.ndarray:
         self._compute()

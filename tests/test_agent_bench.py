@@ -1,0 +1,36 @@
+"""`curious bench learner`: the FLOP accounting of the bound, and the result's shape."""
+
+import argparse
+
+import pytest
+import torch
+from torch.utils.flop_counter import FlopCounterMode
+
+from benchmarks.learner_speed import add_arguments, measure, update_gemms
+from curious.config import resolve
+from curious.learner import Learner
+
+
+@pytest.mark.parametrize("algorithm_sizes", [(256, 77, 4, 256, 3), (32, 10, 2, 16, 2)])
+def test_bound_counts_exactly_the_products_of_one_update(algorithm_sizes):
+    batch, inputs, actions, hidden, layers = algorithm_sizes
+    config = resolve("paper", overrides=dict(hidden=hidden, layers=layers))
+    learner = Learner(inputs, actions, config)
+    x, x2 = torch.randn(batch, inputs), torch.randn(batch, inputs)
+    a, r = torch.rand(batch, actions) * 2 - 1, -torch.ones(batch)
+    learner.update(x, a, r, x2)
+    with FlopCounterMode(display=False) as counter:
+        learner.update(x, a, r, x2)
+    counted = sum(2 * m * k * n for m, k, n, _, _ in update_gemms(*algorithm_sizes))
+    assert counter.get_total_flops() == counted
+
+
+def test_measure_reports_ours_bound_peer_unit():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--json", action="store_true")
+    add_arguments(parser)
+    args = parser.parse_args(["--seconds", "0.1", "--no-peer", "--no-cycle", "--batch", "64"])
+    result = measure(args)
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    assert result["ours"] > 0 and result["bound"] > 0 and result["peer"] is None
+    assert result["unit"] == "updates/s" and result["ours_with_replay"] > 0

@@ -1,0 +1,65 @@
+"""The notebooks (jupytext percent files in notebooks/) execute against the smoke reproduction.
+
+Each notebook is read with jupytext, given the smoke output folder as its `out` parameter the
+way papermill does it (a cell injected after the one tagged `parameters`), and executed with
+nbclient in a fresh kernel from the notebooks folder.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import jupytext
+import nbformat
+import pytest
+from nbclient import NotebookClient
+from pipeline_smoke import smoke_output
+
+from curious.experiments import DEFAULT_PRESET, get_preset
+
+NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
+NAMES = (
+    "main_comparison",
+    "developmental_phases",
+    "forgetting_and_sensor_failure",
+    "distractors",
+)
+
+
+@pytest.fixture(scope="session")
+def smoke(tmp_path_factory):
+    return smoke_output(tmp_path_factory)
+
+
+def parameters_cell(nb: nbformat.NotebookNode) -> int:
+    tagged = [i for i, c in enumerate(nb.cells) if "parameters" in c.metadata.get("tags", [])]
+    assert len(tagged) == 1, "a notebook has exactly one cell tagged `parameters`"
+    return tagged[0]
+
+
+def test_every_notebook_is_listed_and_defaults_to_the_quick_output():
+    assert sorted(p.stem for p in NOTEBOOKS.glob("*.py")) == sorted(NAMES)
+    default = get_preset(DEFAULT_PRESET).default_out
+    for name in NAMES:
+        nb = jupytext.read(NOTEBOOKS / f"{name}.py")
+        assert f'out = "{default}"' in nb.cells[parameters_cell(nb)].source
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_notebook_executes_against_the_smoke_output(name, smoke):
+    nb = jupytext.read(NOTEBOOKS / f"{name}.py")
+    injected = nbformat.v4.new_code_cell(
+        f"out = {str(smoke.out)!r}", metadata={"tags": ["injected-parameters"]}
+    )
+    nb.cells.insert(parameters_cell(nb) + 1, injected)
+    client = NotebookClient(
+        nb,
+        timeout=300,
+        kernel_name="python3",
+        resources={"metadata": {"path": str(NOTEBOOKS)}},
+    )
+    client.execute()  # raises CellExecutionError, with the cell and traceback, on any error
+    outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert not [o for o in outputs if o.get("output_type") == "error"]
+    images = [o for o in outputs if "image/png" in o.get("data", {})]
+    assert images, f"{name} drew no figure"

@@ -1,0 +1,309 @@
+"""`curious reproduce` and the Dagster pipeline behind it, on the smoke preset.
+
+One smoke reproduction (every experiment, 14 runs of 24 episodes) is built once per session
+(`pipeline_smoke`) and shared with the notebook tests.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+from pipeline_smoke import smoke_output
+
+from curious.cli import main as curious_cli
+from curious.experiments import get_preset
+from pipelines.executors import LocalPool
+from pipelines.reproduce import reproduce
+from pipelines.training import FINISHED, folder_state, run_folder, run_partition
+
+FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "distractors", "forgetting")
+SMOKE = get_preset("smoke")
+
+
+@pytest.fixture(scope="session")
+def smoke(tmp_path_factory):
+    return smoke_output(tmp_path_factory)
+
+
+def hashes(folder: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+# ------------------------------------------------------------------------------ the smoke output
+
+
+def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
+    out = smoke.out
+    for name in FIGURES:
+        for ext in ("png", "svg"):
+            assert (out / "figures" / f"{name}.{ext}").stat().st_size > 1000, (name, ext)
+    report = (out / "report.md").read_text()
+    for name in FIGURES:
+        assert f"](figures/{name}.png)" in report
+    for experiment in SMOKE.experiments.values():
+        assert experiment.title in report
+    assert "Welch's t-test" in report and "24 episodes" in report
+    assert "Sensory failure switched on at episode 12" in report
+    # the command ends by saying where the products are
+    assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
+    assert json.loads((out / "reproduce.json").read_text())["preset"] == "smoke"
+
+
+def test_every_partition_is_one_finished_run_folder(smoke):
+    runs_root = smoke.out / "runs"
+    specs = SMOKE.runs()
+    assert len(specs) == 14
+    for spec in specs:
+        folder = run_folder(spec, runs_root)
+        assert folder_state(spec, runs_root) == FINISHED, spec.label
+        config = json.loads((folder / "config.json").read_text())
+        assert (config["condition"], config["variant"], config["seed"]) == (
+            spec.condition,
+            spec.variant,
+            spec.seed,
+        )
+        episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
+        assert episodes.to_pylist() == list(range(24))
+        assert (folder / "recording.rrd").is_file()
+        if spec.experiment == "sensor_failure":
+            assert config["sensor_failure_episode"] == 12
+        else:
+            assert "sensor_failure_episode" not in config
+    # the combined metrics tables hold every run's every episode
+    for name, experiment in SMOKE.experiments.items():
+        table = pq.read_table(smoke.out / "metrics" / f"{name}.parquet")
+        assert table.num_rows == 24 * len(experiment.runs())
+
+
+def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
+    import dagster as dg
+
+    from pipelines.reproduce import open_instance
+    from pipelines.resources import OutputLayout
+
+    instance = open_instance(OutputLayout.at(smoke.out))
+    try:
+        for name, experiment in SMOKE.experiments.items():
+            done = instance.get_materialized_partitions(dg.AssetKey([name, "runs"]))
+            assert done == {s.partition_key for s in experiment.runs()}
+            assert instance.get_latest_materialization_event(dg.AssetKey([name, "metrics"]))
+        assert instance.get_latest_materialization_event(dg.AssetKey("report"))
+        assert instance.get_latest_materialization_event(dg.AssetKey(["main", "fig2a"]))
+    finally:
+        instance.dispose()
+
+
+def test_second_reproduce_retrains_nothing(smoke):
+    runs_before = hashes(smoke.out / "runs")
+    figures_before = hashes(smoke.out / "figures")
+    tic = time.perf_counter()
+    result = reproduce("smoke", out=smoke.out, progress=False, say=lambda _: None)
+    assert time.perf_counter() - tic < smoke.seconds
+    assert result.trained == [] and len(result.skipped) == 14
+    assert hashes(smoke.out / "runs") == runs_before  # not one byte of a run changed
+    assert hashes(smoke.out / "figures") == figures_before  # figures rebuild byte-identical
+
+
+# ------------------------------------------------------------------------------ interruption
+
+
+class InterruptingPool:
+    """Trains in this process; the second run is stopped after one cycle, as a kill would."""
+
+    description = "this process (interrupting the second run)"
+
+    def __init__(self) -> None:
+        self.submitted = 0
+
+    def submit(self, job):
+        self.submitted += 1
+        if self.submitted == 1:
+            return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
+        run_partition(
+            job.spec, job.runs_root, job.overrides, record=job.record, stop_after_cycles=1
+        )
+        raise KeyboardInterrupt  # the run is gone between two checkpoints
+
+    def wait(self, handles, timeout):
+        return list(handles), []
+
+    def result(self, handle):
+        return handle
+
+    def cancel(self, handles):
+        pass
+
+    def close(self):
+        pass
+
+
+def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        reproduce(
+            "smoke",
+            ["sensor_failure"],
+            out=out,
+            make_pool=InterruptingPool,
+            progress=False,
+            say=lambda _: None,
+        )
+    runs_root = out / "runs"
+    finished, killed = get_preset("smoke").experiments["sensor_failure"].runs()
+    assert folder_state(finished, runs_root) == FINISHED
+    assert folder_state(killed, runs_root) == "partial"
+    kept = hashes(run_folder(finished, runs_root))
+
+    result = reproduce(
+        "smoke",
+        ["sensor_failure"],
+        out=out,
+        make_pool=lambda: LocalPool(1),
+        progress=False,
+        say=lambda _: None,
+    )
+    by_key = {r.partition_key: r for r in result.results}
+    assert not by_key[finished.partition_key].trained
+    assert by_key[killed.partition_key].state_before == "partial"
+    assert by_key[killed.partition_key].trained
+    assert hashes(run_folder(finished, runs_root)) == kept
+    folder = run_folder(killed, runs_root)
+    config = json.loads((folder / "config.json").read_text())
+    assert len(config["resumed"]) == 1  # went on from its checkpoint, not from scratch
+    assert config["sensor_failure_episode"] == 12
+    episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
+    assert episodes.to_pylist() == list(range(24))
+    assert (out / "figures" / "forgetting.png").is_file()
+
+
+# ------------------------------------------------------------------------------ bad input
+
+
+def run_cli(args: list[str], capsys) -> tuple[int, str]:
+    code = curious_cli(["reproduce", "--no-progress", *args])
+    return code, capsys.readouterr().err
+
+
+def test_unknown_preset_or_experiment_is_a_clear_error(tmp_path, capsys):
+    code, err = run_cli(["--preset", "huge", "--out", str(tmp_path / "a")], capsys)
+    assert code == 2 and "unknown reproduce preset 'huge'" in err and "quick" in err
+    code, err = run_cli(["--preset", "smoke", "--experiments", "main,colours"], capsys)
+    assert code == 2 and "unknown experiment(s) 'colours'" in err and "distractors" in err
+    assert not (tmp_path / "a").exists()
+
+
+def test_output_of_another_preset_is_refused_untouched(smoke, tmp_path, capsys):
+    before = hashes(smoke.out)
+    code, err = run_cli(["--preset", "quick", "--out", str(smoke.out)], capsys)
+    assert code == 2 and "holds the output of preset 'smoke'" in err
+    # the same runs given as --runs-dir of a new output folder: refused run by run
+    code, err = run_cli(
+        [
+            "--preset",
+            "quick",
+            "--out",
+            str(tmp_path / "new"),
+            "--runs-dir",
+            str(smoke.out / "runs"),
+        ],
+        capsys,
+    )
+    assert code == 2 and "holds a run of preset 'smoke', not 'quick'" in err
+    assert hashes(smoke.out) == before
+    assert not (tmp_path / "new").exists()
+
+
+def test_a_folder_that_is_not_a_reproduction_is_refused(tmp_path, capsys):
+    (tmp_path / "notes.txt").write_text("mine")
+    code, err = run_cli(["--preset", "smoke", "--out", str(tmp_path)], capsys)
+    assert code == 2 and "not made by `curious reproduce`" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+def test_ray_address_that_does_not_answer_fails_fast(tmp_path, capsys):
+    tic = time.perf_counter()
+    port = free_port()
+    code, err = run_cli(
+        ["--preset", "smoke", "--out", str(tmp_path / "o"), "--ray-address", f"127.0.0.1:{port}"],
+        capsys,
+    )
+    assert code == 2 and f"no Ray cluster answers at 127.0.0.1:{port}" in err
+    assert time.perf_counter() - tic < 15
+    assert not (tmp_path / "o").exists()
+    code, err = run_cli(["--preset", "smoke", "--ray-address", "nonsense"], capsys)
+    assert code == 2 and "HOST:PORT" in err
+
+
+# ------------------------------------------------------------------------------ definitions
+
+
+def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monkeypatch):
+    import dagster as dg
+
+    from pipelines.definitions import definitions_from_environment
+
+    monkeypatch.setenv("CURIOUS_PRESET", "smoke")
+    monkeypatch.setenv("CURIOUS_OUT", str(tmp_path))
+    defs = definitions_from_environment()
+    graph = defs.resolve_asset_graph()
+    groups = {key.to_user_string(): graph.get(key).group_name for key in graph.get_all_asset_keys()}
+    assert groups["report"] == "report"
+    for name in ("main", "distractors", "sensor_failure"):
+        assert {k for k, g in groups.items() if g == name} >= {f"{name}/runs", f"{name}/metrics"}
+    assert {k for k, g in groups.items() if g == "main"} == {
+        "main/runs",
+        "main/metrics",
+        "main/fig2a",
+        "main/fig2b",
+        "main/fig2c",
+        "main/table1",
+    }
+    distractors = graph.get(dg.AssetKey(["distractors", "runs"])).partitions_def
+    assert set(distractors.get_partition_keys()) == {
+        s.partition_key for s in SMOKE.experiments["distractors"].runs()
+    }
+    assert "curious@distractors_7|0" in distractors.get_partition_keys()
+    # `dagster dev -m pipelines` finds the same definitions (without a server: validate)
+    env = {**os.environ, "CURIOUS_PRESET": "smoke", "CURIOUS_OUT": str(tmp_path)}
+    done = subprocess.run(
+        [sys.executable, "-m", "dagster", "definitions", "validate", "-m", "pipelines"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert not any(tmp_path.iterdir())  # loading the definitions writes nothing
+
+
+def test_sensor_failure_switch_follows_each_copys_episode():
+    from curious.envs import make_suite_envs
+    from pipelines.training import SensorFailureSwitch
+
+    envs = make_suite_envs("sensor_failure", 0, 2)
+    switch = SensorFailureSwitch(12)
+    switch.begin_round([10, 11], [0, 0], None, [False, False], envs)
+    assert [env.dm_env.task.sensor_failure for env in envs] == [False, False]
+    switch.begin_round([11, 12], [0, 0], None, [False, False], envs)
+    assert [env.dm_env.task.sensor_failure for env in envs] == [False, True]
+    switch.begin_round([40, 41], [0, 0], None, [False, False], envs)
+    assert [env.dm_env.task.sensor_failure for env in envs] == [True, True]

@@ -1,0 +1,134 @@
+"""Training partitions as Ray tasks, on a real one-machine cluster that the test starts.
+
+The cluster is `ray start --head --block` on loopback with a free port and its own temp folder;
+the test stops it by terminating that process, which shuts down what it started.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+
+import pyarrow.parquet as pq
+import pytest
+
+from curious.experiments import get_preset
+from pipelines.executors import RayPool, RayUnavailable, check_cluster, resolve_ray_address
+from pipelines.reproduce import reproduce
+from pipelines.training import FINISHED, folder_state, run_folder
+
+pytest.importorskip("ray")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def ray_cluster(tmp_path_factory):
+    """HOST:PORT of a fresh one-machine Ray cluster with 2 CPUs."""
+    port = free_port()
+    temp = tmp_path_factory.mktemp("ray")
+    command = [
+        sys.executable,
+        "-m",
+        "ray.scripts.scripts",
+        "start",
+        "--head",
+        "--block",
+        f"--port={port}",
+        "--node-ip-address=127.0.0.1",
+        f"--ray-client-server-port={free_port()}",
+        "--num-cpus=2",
+        "--num-gpus=0",
+        "--include-dashboard=false",
+        "--disable-usage-stats",
+        f"--temp-dir={temp}",
+    ]
+    process = subprocess.Popen(
+        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                if process.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError("the test's Ray head node did not start") from None
+                time.sleep(0.2)
+        yield f"127.0.0.1:{port}"
+    finally:
+        process.send_signal(signal.SIGTERM)
+        try:
+            process.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+def test_two_partitions_train_as_ray_tasks(ray_cluster, tmp_path):
+    os.environ.setdefault("MUJOCO_GL", "disable")
+    out = tmp_path / "out"
+    experiment = get_preset("smoke").experiments["sensor_failure"]
+    assert len(experiment.runs()) == 2
+    result = reproduce(
+        "smoke",
+        ["sensor_failure"],
+        out=out,
+        runs_dir=tmp_path / "shared" / "runs",
+        make_pool=lambda: RayPool(ray_cluster),
+        progress=False,
+        say=lambda _: None,
+    )
+    assert len(result.trained) == 2
+    for r in result.trained:
+        assert r.runner.startswith("ray node"), r.runner
+    runs_root = tmp_path / "shared" / "runs"
+    for spec in experiment.runs():
+        assert folder_state(spec, runs_root) == FINISHED
+        metrics = pq.read_table(run_folder(spec, runs_root) / "metrics.parquet")
+        assert metrics.num_rows == spec.total_episodes
+    assert json.loads((out / "reproduce.json").read_text())["runs_dir"] == str(runs_root)
+    assert (out / "figures" / "forgetting.png").is_file() and (out / "report.md").is_file()
+    assert not (out / "runs").exists()  # the run folders live on the shared path only
+
+
+def test_ray_pool_refuses_runs_no_node_can_hold(ray_cluster):
+    with pytest.raises(RayUnavailable, match="no node of the Ray cluster"):
+        RayPool(ray_cluster, cpus_per_run=1, gpus_per_run=1)
+
+
+def test_a_port_that_answers_but_is_not_ray_times_out_clearly():
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    accepted: list[socket.socket] = []
+    thread = threading.Thread(
+        target=lambda: accepted.extend(server.accept() for _ in range(8)), daemon=True
+    )
+    thread.start()
+    address = f"127.0.0.1:{server.getsockname()[1]}"
+    tic = time.perf_counter()
+    try:
+        with pytest.raises(RayUnavailable, match="no Ray cluster answered"):
+            check_cluster(address, timeout=4)
+    finally:
+        server.close()
+    assert time.perf_counter() - tic < 15
+
+
+def test_auto_without_a_local_cluster_is_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    monkeypatch.setenv("RAY_TMPDIR", str(tmp_path))
+    with pytest.raises(RayUnavailable, match="found no running Ray cluster"):
+        resolve_ray_address("auto")
