@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 COMMAND_MODULES: tuple[str, ...] = (
@@ -54,6 +55,13 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except (ValueError, RuntimeError, FileNotFoundError, FileExistsError) as exc:
+        # Bad input and unusable folders are reported in one line; CURIOUS_DEBUG=1 shows the
+        # traceback.
+        if os.environ.get("CURIOUS_DEBUG"):
+            raise
+        print(f"curious {args.command}: error: {exc}", file=sys.stderr)
+        return 2
     return int(result or 0)
 
 

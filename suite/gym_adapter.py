@@ -1,9 +1,10 @@
 """A Gymnasium view of one module of the suite: a goal-conditioned env for other libraries.
 
 `ModuleGoalEnv` exposes a single module of a registered variant as a goal-conditioned
-`gymnasium.Env` (the shape of gymnasium-robotics' `GoalEnv`): a dict observation with `observation` (the state features), `achieved_goal` (the module's outcome) and
-`desired_goal` (its goal slot), and a vectorised `compute_reward`, so that libraries built for
-goal-conditioned Gymnasium envs (Stable-Baselines3's HER replay buffer, say) train on our tasks.
+`gymnasium.Env` (the shape of gymnasium-robotics' `GoalEnv`): a dict observation with
+`observation` (the state features), `achieved_goal` (the module's outcome) and `desired_goal`
+(its goal slot), and a vectorised `compute_reward`, so that libraries built for goal-conditioned
+Gymnasium envs (Stable-Baselines3's HER replay buffer, say) train on our tasks.
 
 HER substitutes an achieved goal for the desired one, so both have the same size. For modules
 whose outcome has more entries than the goal slot (`stack` watches the gripper's distance from
@@ -14,7 +15,7 @@ goal is then still a valid goal for the module.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium
 import numpy as np
@@ -38,7 +39,7 @@ class ModuleGoalEnv(gymnasium.Env):
     g in [-1, 1]^3).
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 25}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 25}
 
     def __init__(
         self,
