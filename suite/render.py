@@ -18,7 +18,7 @@ from suite import layout
 Policy = Callable[[dict[str, np.ndarray]], np.ndarray]
 
 GL_HELP = (
-    "MuJoCo could not make an off-screen GL context. Choose a headless backend before running: "
+    "Choose a headless GL backend before running: "
     "`export MUJOCO_GL=egl` (Debian/Ubuntu: apt-get install libegl1 libegl-mesa0) or "
     "`export MUJOCO_GL=osmesa` (apt-get install libosmesa6); on a desktop `MUJOCO_GL=glfw` works."
 )
@@ -61,7 +61,10 @@ def render_episode(
     try:
         renderer = mujoco.Renderer(physics.model.ptr, height=height, width=width)
     except Exception as exc:  # the GL libraries raise a variety of errors here
-        raise RuntimeError(f"{GL_HELP} ({type(exc).__name__}: {exc})") from exc
+        raise RuntimeError(
+            f"MuJoCo could not make an off-screen GL context ({type(exc).__name__}: {exc}). "
+            f"{GL_HELP}"
+        ) from exc
     camera_id = physics.model.name2id(camera, "camera")
     frames = []
     try:
