@@ -13,8 +13,9 @@ input (49 state + 21 goal + 7 task = 77 numbers, 4 actions), on the same threads
 * peer: Stable-Baselines3's DDPG with `HerReplayBuffer` ('future', k = 4), `train()` steps at
   the same sizes (its HER sampling included, as in `ours_with_replay`).
 
-Then one training cycle (rollouts + updates) of the `quick` and `laptop` presets on the suite,
-and where its time goes.
+Each contender runs in three interleaved rounds and keeps its best round, so that all of them
+meet the same share of a shared machine's load. Then one training cycle (rollouts + updates) of
+the `quick` and `laptop` presets on the suite, and where its time goes.
 """
 
 from __future__ import annotations
@@ -37,28 +38,45 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--hidden", type=int, default=256, help="units per layer (256)")
     parser.add_argument("--layers", type=int, default=3, help="hidden layers (3)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
-    parser.add_argument("--seconds", type=float, default=3.0, help="time per measurement")
+    parser.add_argument(
+        "--seconds",
+        type=float,
+        default=1.5,
+        help="seconds per contender and round (3 interleaved rounds)",
+    )
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
     parser.add_argument("--no-peer", action="store_true", help="skip Stable-Baselines3")
     parser.add_argument("--no-cycle", action="store_true", help="skip the training cycles")
 
 
-def _rate(step: Any, seconds: float, warmup: int = 10, sync: Any = None) -> float:
+def _rate(step: Any, seconds: float, sync: Any = None) -> float:
     """Calls of `step` per second over about `seconds`."""
-    for _ in range(warmup):
-        step()
-    if sync:
-        sync()
     n, start = 0, time.perf_counter()
     while True:
         step()
         n += 1
-        if n % 10 == 0:
+        if n % 5 == 0:
             if sync:
                 sync()
             elapsed = time.perf_counter() - start
             if elapsed >= seconds:
                 return n / elapsed
+
+
+def best_rates(steps: dict[str, Any], seconds: float, rounds: int = 3, sync: Any = None) -> dict:
+    """Best calls/s of each step over `rounds` interleaved rounds of `seconds / rounds` each.
+
+    Interleaving gives every contender the same share of a shared machine's quiet and busy
+    moments; the best round is the least disturbed one.
+    """
+    for step in steps.values():  # warm-up: allocations, caches, lazy initialisation
+        for _ in range(5):
+            step()
+    best = dict.fromkeys(steps, 0.0)
+    for _ in range(rounds):
+        for name, step in steps.items():
+            best[name] = max(best[name], _rate(step, seconds / rounds, sync))
+    return best
 
 
 def _config(args: argparse.Namespace, **changes: Any) -> Config:
@@ -105,8 +123,8 @@ def update_gemms(batch: int, inputs: int, actions: int, hidden: int, layers: int
     )  # fmt: skip
 
 
-def measure_bound(args: argparse.Namespace) -> dict[str, float]:
-    """The update's FLOPs, and its updates/s bound from measured matmul rates."""
+def bound_steps(args: argparse.Namespace) -> tuple[dict[str, Any], int]:
+    """Steps that run one update's matrix products alone, and a large product; the FLOPs."""
     gemms = update_gemms(args.batch, STATE + GOAL + TASKS, ACTIONS, args.hidden, args.layers)
     flops = sum(2 * m * k * n for m, k, n, _, _ in gemms)
     dev = torch.device(args.device)
@@ -120,18 +138,9 @@ def measure_bound(args: argparse.Namespace) -> dict[str, float]:
         for a, b, c in operands:
             torch.mm(a, b, out=c)
 
-    shaped_rate = _rate(all_products, args.seconds, sync=_sync(args.device)) * flops
     big = torch.randn(2048, 2048, device=dev)
     out = torch.empty_like(big)
-    peak_rate = _rate(lambda: torch.mm(big, big, out=out), args.seconds / 2, 2, _sync(args.device))
-    peak_rate *= 2 * 2048**3
-    return {
-        "bound": shaped_rate / flops,
-        "bound_peak": peak_rate / flops,
-        "flops_per_update": float(flops),
-        "matmul_gflops_at_update_shapes": shaped_rate / 1e9,
-        "matmul_gflops_2048": peak_rate / 1e9,
-    }
+    return {"bound": all_products, "big": lambda: torch.mm(big, big, out=out)}, flops
 
 
 # ----------------------------------------------------------------------------------------------
@@ -157,7 +166,9 @@ class _SyntheticGoals:
         return np.where(far, -1.0, 0.0).astype(np.float32)
 
 
-def measure_ours(args: argparse.Namespace) -> dict[str, float]:
+def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
+    """Our update alone, and the training loop's step (sample + encode + update); the time
+    of one relabelled sample in ms."""
     from curious.agent import Agent
     from curious.learner import Learner
     from curious.replay import EpisodeReplay
@@ -170,7 +181,6 @@ def measure_ours(args: argparse.Namespace) -> dict[str, float]:
     a = (torch.rand(args.batch, ACTIONS, generator=g) * 2 - 1).to(dev)
     r = -(torch.rand(args.batch, generator=g) < 0.8).float().to(dev)
     x2 = torch.randn(args.batch, STATE + GOAL + TASKS, generator=g).to(dev)
-    ours = _rate(lambda: learner.update(x, a, r, x2), args.seconds, sync=_sync(args.device))
 
     env = _SyntheticGoals()
     spec = env.spec
@@ -193,24 +203,24 @@ def measure_ours(args: argparse.Namespace) -> dict[str, float]:
     def full_step() -> None:
         agent.update(0, replay.sample(args.batch, rng, env, probs, 0.8))
 
-    with_replay = _rate(full_step, args.seconds, sync=_sync(args.device))
     tic = time.perf_counter()
     for _ in range(50):
         replay.sample(args.batch, rng, env, probs, 0.8)
     sample_ms = (time.perf_counter() - tic) / 50 * 1e3
-    return {"ours": ours, "ours_with_replay": with_replay, "replay_sample_ms": sample_ms}
+    steps = {"ours": lambda: learner.update(x, a, r, x2), "ours_with_replay": full_step}
+    return steps, sample_ms
 
 
 # ----------------------------------------------------------------------------------------------
-def measure_peer(args: argparse.Namespace) -> dict[str, Any]:
-    """Stable-Baselines3 DDPG + HER `train()` steps at the same sizes."""
+def peer_step(args: argparse.Namespace) -> tuple[Any, str]:
+    """One Stable-Baselines3 DDPG + HER `train()` step at the same sizes (None if missing)."""
     try:
         import gymnasium as gym
         from stable_baselines3 import DDPG, HerReplayBuffer
         from stable_baselines3.common.logger import configure
         from stable_baselines3.common.vec_env import DummyVecEnv
     except ImportError as exc:
-        return {"peer": None, "peer_note": f"stable-baselines3 not installed ({exc.name})"}
+        return None, f"stable-baselines3 not installed ({exc.name})"
 
     # SB3 feeds [observation, achieved_goal, desired_goal]; 35 + 21 + 21 = our 77 inputs.
     obs_dim = STATE + GOAL + TASKS - 2 * GOAL
@@ -258,11 +268,12 @@ def measure_peer(args: argparse.Namespace) -> dict[str, Any]:
             infos = [{"TimeLimit.truncated": bool(t == 49)}]
             action = rng.uniform(-1, 1, (1, ACTIONS)).astype(np.float32)
             buffer.add(obs, nxt, action, np.array([-1.0]), done, infos)
-    peer = _rate(lambda: model.train(gradient_steps=1, batch_size=args.batch), args.seconds,
-                 sync=_sync(args.device))  # fmt: skip
     import stable_baselines3
 
-    return {"peer": peer, "peer_version": f"stable-baselines3 {stable_baselines3.__version__}"}
+    def step() -> None:
+        model.train(gradient_steps=1, batch_size=args.batch)
+
+    return step, f"stable-baselines3 {stable_baselines3.__version__}"
 
 
 # ----------------------------------------------------------------------------------------------
@@ -306,28 +317,34 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     if args.device == "cuda" and not torch.cuda.is_available():
         raise SystemExit("curious bench learner: --device cuda, but torch sees no CUDA device")
     started = time.perf_counter()
-    ours = measure_ours(args)
-    bound = measure_bound(args)
-    peer = {"peer": None} if args.no_peer else measure_peer(args)
+    steps, sample_ms = our_steps(args)
+    bound, flops = bound_steps(args)
+    steps.update(bound)
+    peer, peer_version = (None, "skipped") if args.no_peer else peer_step(args)
+    if peer is not None:
+        steps["peer"] = peer
+    rates = best_rates(steps, 3 * args.seconds, rounds=3, sync=_sync(args.device))
+    big_flops = 2 * 2048**3
     result: dict[str, Any] = {
-        "ours": ours["ours"],
-        "bound": bound["bound"],
-        "peer": peer["peer"],
+        "ours": rates["ours"],
+        "bound": rates["bound"],
+        "peer": rates.get("peer"),
         "unit": "updates/s",
-        "ours_over_bound": ours["ours"] / bound["bound"],
-        "ours_with_replay": ours["ours_with_replay"],
+        "ours_over_bound": rates["ours"] / rates["bound"],
+        "ours_with_replay": rates["ours_with_replay"],
         "ours_with_replay_over_peer": (
-            ours["ours_with_replay"] / peer["peer"] if peer["peer"] else None
+            rates["ours_with_replay"] / rates["peer"] if "peer" in rates else None
         ),
-        "bound_peak": bound["bound_peak"],
-        "replay_sample_ms": ours["replay_sample_ms"],
-        "flops_per_update": bound["flops_per_update"],
-        "matmul_gflops_at_update_shapes": bound["matmul_gflops_at_update_shapes"],
-        "matmul_gflops_2048": bound["matmul_gflops_2048"],
+        "ours_over_peer": rates["ours"] / rates["peer"] if "peer" in rates else None,
+        "bound_peak": rates["big"] * big_flops / flops,
+        "replay_sample_ms": sample_ms,
+        "flops_per_update": float(flops),
+        "matmul_gflops_at_update_shapes": rates["bound"] * flops / 1e9,
+        "matmul_gflops_2048": rates["big"] * big_flops / 1e9,
         "sizes": f"batch {args.batch}, {args.layers} x {args.hidden}, {args.threads} thread(s), "
         f"{args.device}",
+        "peer_version": peer_version,
     }
-    result.update({k: v for k, v in peer.items() if k != "peer"})
     if not args.no_cycle:
         result.update(measure_cycles(args))
     result["bench_seconds"] = time.perf_counter() - started

@@ -288,9 +288,9 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
             "failure 2 x 2 seeds) of 600 episodes fit 20 minutes on 2 cores. At this budget the "
             "agent learns reach at best; the later modules, their phases and the effects of "
             "distractors and of the sensory failure need the `laptop` or `paper` preset.",
-            _main("quick", (0, 1), 600),
-            _distractors("quick", (0,), 600),
-            _sensor_failure("quick", (0, 1), 600, 300),
+            _main("quick", (0, 1), 1_000),
+            _distractors("quick", (0,), 1_000),
+            _sensor_failure("quick", (0, 1), 1_000, 500),
         ),
         _preset(
             "laptop",

@@ -78,6 +78,7 @@ class EpisodeReplay:
         self.size = 0
         self.ptr = 0
         self._hindsight = spec.hindsight_columns()  # (N, G)
+        self._pools: list[np.ndarray] | None = None  # per module: episodes its outcome moved in
 
     @property
     def nbytes(self) -> int:
@@ -107,11 +108,15 @@ class EpisodeReplay:
         self.moved[idx] = change > self.moved_threshold
         self.ptr = int((self.ptr + e) % self.capacity)
         self.size = min(self.size + e, self.capacity)
+        self._pools = None
 
     # -------------------------------------------------------------------------------------------
     def _episodes_for(self, module: int, n: int, rng: np.random.Generator) -> np.ndarray:
         if self.active_only:
-            pool = np.flatnonzero(self.moved[: self.size, module])
+            if self._pools is None:  # recomputed once per store, not per minibatch
+                moved = self.moved[: self.size]
+                self._pools = [np.flatnonzero(moved[:, k]) for k in range(moved.shape[1])]
+            pool = self._pools[module]
             if pool.size:
                 return pool[rng.integers(pool.size, size=n)]
         return rng.integers(self.size, size=n)
@@ -240,3 +245,4 @@ class EpisodeReplay:
             target[:n] = array
         self.size = n
         self.ptr = int(state["ptr"])
+        self._pools = None

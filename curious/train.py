@@ -150,7 +150,10 @@ class Trainer:
         return self.elapsed + time.perf_counter() - self._started
 
     def _goals(self, modules: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Goal slots, slot mask and task descriptor of n episodes, and the holistic raw goals."""
+        """Goal slots (n, N, G), slot mask (n, N) and task descriptor (n, N) of n episodes.
+
+        The holistic condition draws a goal for every module (the scored module keeps `raw`).
+        """
         spec, env = self.spec, self.envs[0]
         n, n_mod, g = len(modules), spec.n_modules, spec.goal_dim
         goals = np.zeros((n, n_mod, g), np.float32)
@@ -371,7 +374,8 @@ def _progress_text(trainer: Trainer) -> dict[str, str]:
     achievable = np.array(spec.achievable, bool)
     success = competence[achievable].mean() if achievable.any() else float("nan")
     p = trainer.condition.practice_probs(trainer.tracker, trainer.epoch)
-    p_text = " ".join(f"{name[:6]}:{v:.2f}" for name, v in zip(spec.module_names, p, strict=True))
+    short = [name.replace("cube", "c").replace("_", "") for name in spec.module_names]
+    p_text = " ".join(f"{name}:{v:.2f}" for name, v in zip(short, p, strict=True))
     return {"success": f"{success:.2f}", "p_LP": p_text}
 
 

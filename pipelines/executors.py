@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import json
+import logging
 import multiprocessing
 import os
 import socket
@@ -164,15 +165,25 @@ ray.shutdown()
 def _use_token_if_available() -> None:
     """Turn Ray's token authentication on where a token is at hand and nothing says otherwise.
 
-    Ray 2.60 clusters started with `ray start` require a token by default, and a driver given an
-    explicit address only sends one with RAY_AUTH_MODE=token; a token sent to a cluster without
-    authentication is ignored.
+    Ray 2.60 clusters started with `ray start` require a token once one exists on the machine
+    (~/.ray/auth_token), but a driver given an explicit address only sends it with
+    RAY_AUTH_MODE=token (a token sent to a cluster without authentication is ignored). Ray's own
+    helper for `address="auto"` sets the mode and refreshes Ray's cached configuration, which an
+    environment variable alone cannot do once Ray is imported.
     """
     if "RAY_AUTH_MODE" in os.environ:
         return
-    path = os.environ.get("RAY_AUTH_TOKEN_PATH") or str(Path.home() / ".ray" / "auth_token")
-    if os.environ.get("RAY_AUTH_TOKEN") or Path(path).is_file():
-        os.environ["RAY_AUTH_MODE"] = "token"
+    try:
+        from ray._private.authentication import authentication_token_setup as auth
+    except ImportError:  # a Ray without token authentication: nothing to do
+        return
+    logger = logging.getLogger(auth.__name__)
+    level = logger.level
+    logger.setLevel(logging.ERROR)
+    try:
+        auth.maybe_enable_token_auth_if_token_available(warn_if_disabled=False)
+    finally:
+        logger.setLevel(level)
 
 
 def check_cluster(address: str, timeout: float = RAY_CONNECT_TIMEOUT_S) -> list[dict[str, float]]:

@@ -68,6 +68,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="Ray GPUs per run; > 0 trains the networks with device=cuda",
     )
     parser.add_argument(
+        "--device",
+        choices=("cpu", "cuda"),
+        default=None,
+        help="where the networks train in local runs (default cpu; Ray runs with GPUs use cuda)",
+    )
+    parser.add_argument(
         "--no-record", action="store_true", help="do not write Rerun recordings (recording.rrd)"
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
@@ -94,6 +100,13 @@ def run(args: argparse.Namespace) -> int:
         )
         return 2
 
+    if args.device == "cuda" and not args.ray_address:
+        import torch
+
+        if not torch.cuda.is_available():
+            print("curious reproduce: error: --device cuda, but torch sees no GPU", file=sys.stderr)
+            return 2
+
     from pipelines.executors import PartitionFailed, RayUnavailable, make_pool
     from pipelines.reproduce import ReproduceError, reproduce
     from pipelines.training import RunFolderMismatch
@@ -108,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
             out=args.out,
             runs_dir=args.runs_dir,
             make_pool=pool,
+            overrides={"device": args.device} if args.device else None,
             record=not args.no_record,
             progress=not args.no_progress,
         )
