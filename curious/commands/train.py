@@ -3,6 +3,7 @@
     curious train --condition curious --seed 0 --preset quick --out runs/curious-0
     curious train ... --set n_workers=8 --set algorithm=td3      # override single settings
     curious train ... --resume                                    # go on from the last checkpoint
+    curious train ... --spawn-viewer --rollout-every 10           # watch it live in Rerun
 
 Errors about the input (unknown condition, preset or setting, a bad value, a non-empty folder
 without --resume, a checkpoint from another config) are reported in one line, exit status 2, and
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Any
 
 from curious.config import CONDITIONS, PRESETS, ConfigError, parse_overrides, resolve
 
@@ -53,6 +55,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--no-record", action="store_true", help="do not write the Rerun recording (recording.rrd)"
     )
+    parser.add_argument(
+        "--spawn-viewer",
+        action="store_true",
+        help="also stream the recording live to a Rerun viewer (recording.rrd is still written)",
+    )
+    parser.add_argument(
+        "--rollout-every",
+        type=int,
+        default=None,
+        metavar="K",
+        help="record every K-th evaluation episode in 3D; 0 records none "
+        "(default: curious.recording.RecorderSettings.rollout_every)",
+    )
     parser.set_defaults(func=run)
 
 
@@ -69,13 +84,26 @@ def run(args: argparse.Namespace) -> int:
         if args.no_progress:
             overrides["progress"] = False
         config = resolve(args.preset, args.condition, args.seed, overrides)
+        if args.no_record and (args.spawn_viewer or args.rollout_every is not None):
+            raise ConfigError(
+                "--spawn-viewer and --rollout-every need the recording: drop --no-record"
+            )
+        if args.rollout_every is not None and args.rollout_every < 0:
+            raise ConfigError(f"--rollout-every must be >= 0, got {args.rollout_every}")
     except ConfigError as exc:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 2
 
     from curious.train import train
 
-    make_recorder = None if args.no_record else _recorder_factory(args.resume)
+    make_recorder = None
+    if not args.no_record:
+        from curious.recording import RecorderSettings
+
+        settings = RecorderSettings()
+        if args.rollout_every is not None:
+            settings = RecorderSettings(rollout_every=args.rollout_every)
+        make_recorder = _recorder_factory(args.resume, settings, args.spawn_viewer)
     try:
         trainer = train(config, args.out, resume=args.resume, make_recorder=make_recorder)
     except (ConfigError, RunFolderError, CheckpointError) as exc:
@@ -89,19 +117,26 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _recorder_factory(resume: bool):
-    """A factory of the run's Rerun recorder (`curious.recording.RunRecorder`)."""
+def _recorder_factory(resume: bool, settings: Any, spawn: bool = False):
+    """A factory of the run's Rerun recorder (`curious.recording.RunRecorder`), which also
+    installs the observer that records evaluation episodes in 3D."""
 
     def make(trainer, folder):
         from curious.recording import RunRecorder
+        from curious.recording.rollouts import attach_rollout_recording
 
         # A run killed before its first checkpoint starts over, its recording too.
         resumed = resume and trainer.episodes > 0
-        return RunRecorder(
+        recorder = RunRecorder(
             folder.path,
             trainer.spec.module_names,
+            settings=settings,
+            spawn=spawn,
             resume=resumed,
             resume_after_episode=trainer.episodes - 1 if resumed else None,
         )
+        if settings.rollout_every > 0:
+            attach_rollout_recording(trainer, recorder)
+        return recorder
 
     return make
