@@ -20,6 +20,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "benchmarks.learner_speed",
         "DDPG+HER updates/s: ours vs the fp32 compute bound vs Stable-Baselines3",
     ),
+    "recording": (
+        "benchmarks.recording_overhead",
+        "training with vs without the Rerun recording: % overhead and .rrd size",
+    ),
 }
 
 
