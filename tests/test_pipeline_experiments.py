@@ -1,0 +1,85 @@
+"""The experiment definitions of the reproduce presets (curious/experiments.py)."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from curious.experiments import (
+    DEFAULT_PRESET,
+    EXPERIMENTS,
+    PRESETS_BY_NAME,
+    Experiment,
+    ExperimentError,
+    get_preset,
+)
+
+
+@pytest.mark.parametrize("name", list(PRESETS_BY_NAME))
+def test_every_run_of_every_preset_resolves_to_a_valid_config(name):
+    preset = get_preset(name)
+    assert tuple(preset.experiments) == EXPERIMENTS
+    runs = preset.runs()
+    assert len({r.relative_path for r in runs}) == len(runs)  # one folder per run
+    for experiment in preset.experiments.values():
+        keys = [r.partition_key for r in experiment.runs()]
+        assert len(set(keys)) == len(keys)  # one partition per run
+        assert len(keys) == len(experiment.condition_keys) * len(experiment.seed_keys)
+    for run in runs:
+        config = run.config()
+        assert (config.condition, config.seed, config.variant) == (
+            run.condition,
+            run.seed,
+            run.variant,
+        )
+        assert config.total_episodes == run.total_episodes and config.preset == run.train_preset
+        if run.sensor_failure_episode is not None:
+            assert 0 < run.sensor_failure_episode < run.total_episodes
+            assert run.variant == "sensor_failure"
+
+
+def test_presets_compare_what_the_paper_compares():
+    for preset in PRESETS_BY_NAME.values():
+        main, distractors, sensor = (preset.experiments[n] for n in EXPERIMENTS)
+        assert main.conditions == ("curious", "mg-te", "her") and main.variants == ("default",)
+        assert distractors.conditions == ("curious", "m-uvfa")
+        assert distractors.variants == ("distractors_0", "distractors_4", "distractors_7")
+        assert sensor.conditions == ("curious", "m-uvfa") and sensor.sensor_failure_episode
+    assert get_preset("paper").experiments["main"].seeds == (0, 1, 2, 3, 4)
+    assert get_preset("paper").experiments["main"].total_episodes == 300_000
+
+
+def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several():
+    smoke = get_preset("smoke")
+    assert smoke.experiments["main"].condition_keys == ("curious", "mg-te", "her")
+    assert "m-uvfa@distractors_4" in smoke.experiments["distractors"].condition_keys
+    spec = smoke.experiments["distractors"].run("curious@distractors_7|0")
+    assert (spec.condition, spec.variant, spec.seed) == ("curious", "distractors_7", 0)
+    assert str(spec.relative_path) == "distractors/curious@distractors_7/seed-0"
+    with pytest.raises(ExperimentError, match=re.escape("no partition 'curious|9'")):
+        smoke.experiments["main"].run("curious|9")
+
+
+def test_the_quick_preset_is_the_default_and_small():
+    quick = get_preset(DEFAULT_PRESET)
+    assert quick.name == "quick" and quick.default_out == "runs/quick"
+    assert sum(len(e.runs()) * e.total_episodes for e in quick.experiments.values()) <= 16_000
+
+
+def test_unknown_names_and_bad_definitions_are_clear_errors():
+    with pytest.raises(ExperimentError, match=r"unknown reproduce preset 'fast'.*smoke, quick"):
+        get_preset("fast")
+    with pytest.raises(ExperimentError, match=r"unknown experiment.*'forgetting'"):
+        get_preset("smoke").select(["main", "forgetting"])
+    assert [e.name for e in get_preset("smoke").select(["sensor_failure", "main"])] == [
+        "main",
+        "sensor_failure",
+    ]
+    base = dict(name="main", title="t", variants=("default",), seeds=(0,), train_preset="smoke")
+    with pytest.raises(ExperimentError, match="unknown or no conditions"):
+        Experiment(conditions=("curious", "random"), total_episodes=10, **base)
+    with pytest.raises(ExperimentError, match="must lie inside the run"):
+        Experiment(conditions=("curious",), total_episodes=10, sensor_failure_episode=10, **base)
+    with pytest.raises(ExperimentError, match="compares"):
+        Experiment(conditions=("curious",), total_episodes=10, compare=("curious", "her"), **base)
