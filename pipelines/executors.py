@@ -115,8 +115,20 @@ class LocalPool:
 
 
 def _set_environment(env: dict[str, str]) -> None:
+    """Worker start-up: the environment, and on Linux, death with the parent process.
+
+    Without the second, a worker whose `curious reproduce` was killed (SIGKILL reaches only the
+    parent) would go on training alone.
+    """
     for key, value in env.items():
         os.environ.setdefault(key, value)
+    if sys.platform.startswith("linux"):
+        import ctypes
+        import signal
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
 
 
 def _probe(host: str, port: int, timeout: float) -> None:

@@ -26,7 +26,7 @@ from typing import Any
 
 from curious.experiments import Experiment, ExperimentError, ReproducePreset, get_preset
 from pipelines.resources import OutputLayout, Reproduction
-from pipelines.training import PartitionResult, RunFolderMismatch, folder_state
+from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy, folder_state
 
 MANIFEST_VERSION = 1
 _DAGSTER_YAML = "telemetry:\n  enabled: false\n"
@@ -81,10 +81,15 @@ def check_output_folder(layout: OutputLayout, preset: ReproducePreset) -> None:
 
 
 def check_runs(reproduction: Reproduction, experiments: Sequence[Experiment]) -> dict[str, int]:
-    """Every partition's folder state, counted; raises `RunFolderMismatch` for a stranger."""
+    """Every partition's folder state, counted; raises `RunFolderMismatch` for a stranger.
+
+    Every run's config is resolved first, so a bad override fails before anything is written.
+    """
     counts: dict[str, int] = {}
     for experiment in experiments:
         for spec in experiment.runs():
+            spec.config(reproduction.overrides)
+            check_not_busy(spec, reproduction.layout.runs_root)
             state = folder_state(spec, reproduction.layout.runs_root, reproduction.overrides)
             counts[state] = counts.get(state, 0) + 1
     return counts
@@ -144,13 +149,12 @@ def reproduce(
     record: bool = True,
     progress: bool = True,
     say: Callable[[str], None] | None = None,
-    preset_object: ReproducePreset | None = None,
 ) -> ReproduceResult:
     """Train and draw everything `preset` asks for (see the module docstring).
 
     `make_pool` builds the training pool (`pipelines.executors.make_pool`); it is called before
-    anything is written, so that a Ray cluster that does not answer fails first. `preset_object`
-    replaces the named preset (tests use shortened variants of one).
+    anything is written, so that a Ray cluster that does not answer fails first. `overrides`
+    change single training settings of every run (`--device`); `say` prints progress lines.
     """
     import dagster as dg
 
@@ -159,7 +163,7 @@ def reproduce(
     from pipelines.executors import make_pool as default_pool
 
     tic = time.perf_counter()
-    chosen = preset_object or get_preset(preset)
+    chosen = get_preset(preset)
     selected = chosen.select(experiments)
     layout = OutputLayout.at(out or chosen.default_out, runs_dir)
     check_output_folder(layout, chosen)

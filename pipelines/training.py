@@ -15,6 +15,8 @@ state          what happens
 
 A folder holding anything else (another preset's run, another condition, files that are not a
 run) raises `RunFolderMismatch` before anything is written, so a finished run is never touched.
+While a process trains a run it holds a lock beside the folder (`.seed-<s>.lock`, an advisory
+`flock` that dies with the process), so two reproductions never train the same folder at once.
 
 The sensory failure of the `sensor_failure` experiment is switched on through the training
 loop's round observer: before every round of parallel episodes, each environment copy gets
@@ -26,10 +28,14 @@ Nothing here imports Dagster: worker processes and Ray tasks only need `curious`
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
 import os
+import socket
+import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -42,6 +48,10 @@ SENSOR_FAILURE_KEY = "sensor_failure_episode"
 
 class RunFolderMismatch(RuntimeError):
     """A partition's folder holds something other than (a part of) the run it should hold."""
+
+
+class RunFolderBusy(RunFolderMismatch):
+    """Another process is training the partition's run folder right now."""
 
 
 @dataclass(frozen=True)
@@ -59,8 +69,6 @@ class PartitionResult:
 
 def runner_name() -> str:
     """Where this process runs: a Ray worker's node, or a local process id."""
-    import sys
-
     ray = sys.modules.get("ray")
     if ray is not None and ray.is_initialized():
         return f"ray node {ray.get_runtime_context().get_node_id()[:12]} pid {os.getpid()}"
@@ -212,6 +220,48 @@ def _make_recorder(spec: RunSpec, record: bool, resume: bool):
     return make
 
 
+def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
+    """The lock file beside a run folder (inside it, it would make a new run's folder non-empty)."""
+    folder = run_folder(spec, runs_root)
+    return folder.with_name(f".{folder.name}.lock")
+
+
+@contextlib.contextmanager
+def training_lock(spec: RunSpec, runs_root: str | os.PathLike) -> Iterator[None]:
+    """Hold the run's lock while training it; raise `RunFolderBusy` if another process does.
+
+    An advisory `flock`: the system drops it when its process dies, however it dies, so a killed
+    run never leaves a stale lock behind, and two reproductions can never train one folder.
+    """
+    path = lock_path(spec, runs_root)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "another process"
+            raise RunFolderBusy(
+                f"{run_folder(spec, runs_root)} is being trained by {holder}; wait for it, or "
+                "stop it, before training this run again"
+            ) from None
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
+        handle.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def check_not_busy(spec: RunSpec, runs_root: str | os.PathLike) -> None:
+    """Raise `RunFolderBusy` if some process is training this run right now."""
+    if lock_path(spec, runs_root).exists():
+        with training_lock(spec, runs_root):
+            pass
+
+
 def run_partition(
     spec: RunSpec,
     runs_root: str | os.PathLike,
@@ -221,6 +271,17 @@ def run_partition(
 ) -> PartitionResult:
     """Bring one partition's run folder to its budget (see the module docstring)."""
     os.environ.setdefault("MUJOCO_GL", "disable")
+    with training_lock(spec, runs_root):
+        return _run_partition(spec, runs_root, overrides, record, stop_after_cycles)
+
+
+def _run_partition(
+    spec: RunSpec,
+    runs_root: str | os.PathLike,
+    overrides: dict | None,
+    record: bool,
+    stop_after_cycles: int | None,
+) -> PartitionResult:
     tic = time.perf_counter()
     folder = run_folder(spec, runs_root)
     state = folder_state(spec, runs_root, overrides)

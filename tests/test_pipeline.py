@@ -239,6 +239,17 @@ def test_a_folder_that_is_not_a_reproduction_is_refused(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
 
 
+def test_a_run_being_trained_elsewhere_is_not_touched(smoke, capsys):
+    from pipelines.training import training_lock
+
+    spec = SMOKE.experiments["main"].runs()[0]
+    before = hashes(smoke.out)
+    with training_lock(spec, smoke.out / "runs"):  # as a worker of another reproduction would
+        code, err = run_cli(["--preset", "smoke", "--out", str(smoke.out)], capsys)
+    assert code == 2 and f"is being trained by {socket.gethostname()} pid {os.getpid()}" in err
+    assert hashes(smoke.out) == before
+
+
 def test_ray_address_that_does_not_answer_fails_fast(tmp_path, capsys):
     tic = time.perf_counter()
     port = free_port()
