@@ -227,11 +227,14 @@ def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
 
 
 @contextlib.contextmanager
-def training_lock(spec: RunSpec, runs_root: str | os.PathLike) -> Iterator[None]:
+def training_lock(
+    spec: RunSpec, runs_root: str | os.PathLike, claim: bool = True
+) -> Iterator[None]:
     """Hold the run's lock while training it; raise `RunFolderBusy` if another process does.
 
     An advisory `flock`: the system drops it when its process dies, however it dies, so a killed
     run never leaves a stale lock behind, and two reproductions can never train one folder.
+    With `claim`, the file names the holder (host and pid) for the error others get.
     """
     path = lock_path(spec, runs_root)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -245,10 +248,11 @@ def training_lock(spec: RunSpec, runs_root: str | os.PathLike) -> Iterator[None]
                 f"{run_folder(spec, runs_root)} is being trained by {holder}; wait for it, or "
                 "stop it, before training this run again"
             ) from None
-        handle.seek(0)
-        handle.truncate()
-        handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
-        handle.flush()
+        if claim:
+            handle.seek(0)
+            handle.truncate()
+            handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
+            handle.flush()
         try:
             yield
         finally:
@@ -258,7 +262,7 @@ def training_lock(spec: RunSpec, runs_root: str | os.PathLike) -> Iterator[None]
 def check_not_busy(spec: RunSpec, runs_root: str | os.PathLike) -> None:
     """Raise `RunFolderBusy` if some process is training this run right now."""
     if lock_path(spec, runs_root).exists():
-        with training_lock(spec, runs_root):
+        with training_lock(spec, runs_root, claim=False):
             pass
 
 
