@@ -26,18 +26,12 @@ import numpy as np
 
 from curious.recording.recorder import RecorderSettings, RunRecorder
 from curious.recording.scene import RolloutCapture
+from suite import standard_modules
 
 __all__ = ["fetch_model", "measure_logging_cost", "synthetic_episodes"]
 
-MODULES = (
-    "reach",
-    "push_cube1",
-    "cube1_above_cube2",
-    "stack",
-    "push_cube3",
-    "push_cube4",
-    "push_cube5",
-)
+# The paper's seven modules, named as the suite names them.
+MODULES = tuple(module.name for module in standard_modules(3))
 FETCH_GRIPPER = "robot0:gripper_link"
 
 
