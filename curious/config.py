@@ -113,6 +113,12 @@ class Config:
     lp_eps: float = 0.4
     """p_LP = lp_eps / N + (1 - lp_eps) * LP / sum(LP)."""
 
+    # --- perturbation --------------------------------------------------------------------------
+    sensor_failure_episode: int = -1
+    """From this episode on (global, 0-based) every episode runs with the sensory failure of the
+    `sensor_failure` variant (one cube's observed x reads 5 cm too far; paper §6.3); -1 never.
+    The switch follows each episode's index, so a resumed run switches at the same episode."""
+
     # --- running -----------------------------------------------------------------------------
     device: str = "cpu"
     """`cpu` or `cuda` (networks and updates; environments always run on the CPU)."""
@@ -153,6 +159,11 @@ class Config:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
         if self.n_updates < 0 or self.torch_threads < 0:
             raise ConfigError("n_updates and torch_threads must be >= 0")
+        if self.sensor_failure_episode < -1:
+            raise ConfigError(
+                f"sensor_failure_episode must be an episode (>= 0) or -1 for never, "
+                f"got {self.sensor_failure_episode}"
+            )
         for name in ("her_p", "lp_eps", "random_eps", "polyak"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")

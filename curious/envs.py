@@ -10,6 +10,9 @@ The agent never touches dm_control objects: it trains on anything that implement
   vectors (..., sum of outcome dims) against goal slots (..., goal_dim), vectorised over the
   leading axes: the replay recomputes rewards for whole minibatches with it.
 
+An environment with a perturbation also offers `set_sensor_failure(on)`, which the trainer
+calls before every episode of a run with `Config.sensor_failure_episode >= 0`.
+
 A hindsight goal for a module is the first `goal_dim` coordinates of its outcome (the module's
 slice of `achieved`); see `EnvSpec.hindsight_columns`.
 """
@@ -179,6 +182,16 @@ class SuiteEnv:
     def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
         outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
         return np.asarray(self._modules[module].reward(outcome, np.asarray(goal)), np.float32)
+
+    def set_sensor_failure(self, on: bool) -> None:
+        """Switch the variant's sensory failure for the episodes that follow (the suite's
+        `task.set_sensor_failure`); a `ConfigError` on a variant that has none."""
+        if not self._task.has_sensor_failure:
+            raise ConfigError(
+                "this suite variant has no sensory failure: use the 'sensor_failure' variant "
+                "with sensor_failure_episode"
+            )
+        self._task.set_sensor_failure(on)
 
     def get_rng_state(self) -> Any:
         return self._env.random_state.get_state()

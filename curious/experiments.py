@@ -94,6 +94,8 @@ class RunSpec:
             "total_episodes": self.total_episodes,
             "progress": False,
         }
+        if self.sensor_failure_episode is not None:
+            values["sensor_failure_episode"] = self.sensor_failure_episode
         values.update(overrides or {})
         return resolve(self.train_preset, self.condition, self.seed, values)
 

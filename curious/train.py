@@ -8,7 +8,8 @@ call of `Trainer.cycle()`:
    is a self-evaluation when e % eval_every == eval_every - 1: no noise, a module drawn
    uniformly, and its final success goes to that module's competence queue. Other episodes
    practise a module drawn by the condition (p_LP for `curious`) with a goal uniform in
-   [-1, 1]^3, with exploration noise;
+   [-1, 1]^3, with exploration noise. With `sensor_failure_episode >= 0`, each environment copy
+   runs its episode with the sensory failure switched on when the episode's index has reached it;
 2. stores the episodes in the replay and the normaliser statistics;
 3. runs `n_updates` gradient steps on relabelled minibatches of `batch_per_worker * n_workers`
    transitions, then one Polyak update of the target networks.
@@ -136,6 +137,14 @@ class Trainer:
         self._started = time.perf_counter()
         self._names = np.array(self.spec.module_names, dtype=object)
         self.observer: RoundObserver | None = None
+        if config.sensor_failure_episode >= 0:
+            for env in self.envs:
+                if not callable(getattr(env, "set_sensor_failure", None)):
+                    raise ConfigError(
+                        f"sensor_failure_episode is set but {type(env).__name__} has no "
+                        "set_sensor_failure()"
+                    )
+                env.set_sensor_failure(False)  # raises on a variant without the failure
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -196,6 +205,9 @@ class Trainer:
         def act(states: np.ndarray, t: int) -> np.ndarray:
             return self.agent.act(states, goals, mask, task, experts, explore, self.rng)
 
+        if cfg.sensor_failure_episode >= 0:
+            for env, e in zip(envs, episodes, strict=True):
+                env.set_sensor_failure(bool(e >= cfg.sensor_failure_episode))
         observer = self.observer
         if observer is not None:
             observer.begin_round(episodes, modules, goals, evaluation, envs)

@@ -18,10 +18,9 @@ run) raises `RunFolderMismatch` before anything is written, so a finished run is
 While a process trains a run it holds a lock beside the folder (`.seed-<s>.lock`, an advisory
 `flock` that dies with the process), so two reproductions never train the same folder at once.
 
-The sensory failure of the `sensor_failure` experiment is switched on through the training
-loop's round observer: before every round of parallel episodes, each environment copy gets
-`task.set_sensor_failure(episode >= sensor_failure_episode)` for the episode it is about to run.
-The episode is also written to config.json (`sensor_failure_episode`), where the analysis reads it.
+The sensory failure of the `sensor_failure` experiment is a training setting
+(`Config.sensor_failure_episode`, set by `RunSpec.config`): the trainer switches it for each
+episode, and config.json records it, where the analysis reads it.
 
 Nothing here imports Dagster: worker processes and Ray tasks only need `curious`.
 """
@@ -35,15 +34,13 @@ import os
 import socket
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from curious.experiments import RunSpec
 
 FINISHED, PARTIAL, NEW = "finished", "partial", "new"
-SENSOR_FAILURE_KEY = "sensor_failure_episode"
 
 
 class RunFolderMismatch(RuntimeError):
@@ -145,79 +142,14 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
     return PARTIAL
 
 
-class SensorFailureSwitch:
-    """A round observer that turns the sensory failure on from a given episode on.
-
-    Before each round it sets, on every environment copy, whether the episode that copy is about
-    to run is at or after `episode`; then it hands the round on to `inner` (another observer,
-    e.g. one that records rollouts), if any.
-    """
-
-    def __init__(self, episode: int, inner: Any = None) -> None:
-        self.episode = int(episode)
-        self.inner = inner
-
-    def begin_round(self, episodes, modules, goals, evaluation, envs: Sequence[Any]) -> None:
-        for env, e in zip(envs, episodes, strict=False):
-            _task(env).set_sensor_failure(bool(e >= self.episode))
-        if self.inner is not None:
-            self.inner.begin_round(episodes, modules, goals, evaluation, envs)
-
-    def after_step(self, t: int) -> None:
-        if self.inner is not None:
-            self.inner.after_step(t)
-
-    def end_round(self, info: Any) -> None:
-        if self.inner is not None:
-            self.inner.end_round(info)
-
-
-def _task(env: Any) -> Any:
-    dm_env = getattr(env, "dm_env", None)
-    if dm_env is None:
-        raise TypeError(
-            f"{type(env).__name__} is not a suite environment: the sensory failure needs "
-            "curious.envs.SuiteEnv copies"
-        )
-    return dm_env.task
-
-
-def _mark_sensor_failure(folder: Path, episode: int) -> None:
-    """Write `sensor_failure_episode` at the top of config.json (the analysis reads it there)."""
-    from curious.run_folder import write_json_atomic
-
-    path = folder / "config.json"
-    data = json.loads(path.read_text())
-    if data.get(SENSOR_FAILURE_KEY) != episode:
-        data[SENSOR_FAILURE_KEY] = episode
-        write_json_atomic(path, data)
-
-
 def _make_recorder(spec: RunSpec, record: bool, resume: bool):
-    """The `make_recorder` hook of `train()`: a Rerun recorder, and the sensory-failure switch.
+    """The `make_recorder` hook of `train()`: the run's Rerun recorder (with 3-D rollouts), as
+    `curious train` makes it, or none."""
+    if not record:
+        return None
+    from curious.recording.rollouts import recorder_factory
 
-    `train()` calls it once the folder is ready and a resumed trainer stands at its checkpoint,
-    which is when the switch can be installed and config.json marked.
-    """
-
-    def make(trainer, folder):
-        if spec.sensor_failure_episode is not None:
-            trainer.observer = SensorFailureSwitch(spec.sensor_failure_episode, trainer.observer)
-            _mark_sensor_failure(folder.path, spec.sensor_failure_episode)
-        if not record:
-            return None
-        from curious.recording import RunRecorder
-
-        resumed = resume and trainer.episodes > 0
-        return RunRecorder(
-            folder.path,
-            trainer.spec.module_names,
-            run_name=spec.label,
-            resume=resumed,
-            resume_after_episode=trainer.episodes - 1 if resumed else None,
-        )
-
-    return make
+    return recorder_factory(resume, run_name=spec.label)
 
 
 def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:

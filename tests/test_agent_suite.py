@@ -7,8 +7,10 @@ import pyarrow.parquet as pq
 import pytest
 
 from curious.cli import main
-from curious.envs import SuiteEnv
+from curious.config import resolve
+from curious.envs import SuiteEnv, make_suite_envs
 from curious.replay import EpisodeReplay
+from curious.train import Trainer
 
 
 @pytest.fixture(scope="module")
@@ -75,3 +77,39 @@ def test_smoke_run_of_every_condition(tmp_path, condition):
         main([*args, "--no-progress", "--no-record", "--resume", "--set", "total_episodes=26"]) == 0
     )
     assert len(pq.read_table(out / "metrics.parquet")) == 26
+
+
+def test_sensor_failure_follows_each_episode_index():
+    """Each copy runs its episode with the failure exactly when its index has reached the
+    configured episode, also when one round straddles it."""
+    overrides = {"variant": "sensor_failure", "sensor_failure_episode": 5}
+    config = resolve("smoke", "curious", 0, overrides)
+    trainer = Trainer(config, make_suite_envs("sensor_failure", 0, config.n_workers))
+    seen: list[tuple[int, bool]] = []
+
+    class Watch:
+        def begin_round(self, episodes, modules, goals, evaluation, envs):
+            seen.extend(
+                (int(e), env.dm_env.task.sensor_failure)
+                for e, env in zip(episodes, envs, strict=True)
+            )
+
+        def after_step(self, t):
+            pass
+
+        def end_round(self, info):
+            pass
+
+    trainer.observer = Watch()
+    for _ in range(2):  # 8 episodes in rounds of 2: 4-5 straddles episode 5
+        trainer.cycle()
+    assert seen == [(e, e >= 5) for e in range(8)]
+
+
+def test_sensor_failure_on_a_variant_without_one_is_refused(tmp_path, capsys):
+    args = ["train", "--preset", "smoke", "--out", str(tmp_path / "run"), "--no-progress"]
+    assert main([*args, "--set", "sensor_failure_episode=5"]) == 2
+    assert "no sensory failure" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+    assert main([*args, "--set", "sensor_failure_episode=-2"]) == 2
+    assert "sensor_failure_episode" in capsys.readouterr().err

@@ -85,10 +85,8 @@ def test_every_partition_is_one_finished_run_folder(smoke):
         episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
         assert episodes.to_pylist() == list(range(24))
         assert (folder / "recording.rrd").is_file()
-        if spec.experiment == "sensor_failure":
-            assert config["sensor_failure_episode"] == 12
-        else:
-            assert "sensor_failure_episode" not in config
+        expected = 12 if spec.experiment == "sensor_failure" else -1
+        assert config["config"]["sensor_failure_episode"] == expected
     # the combined metrics tables hold every run's every episode
     for name, experiment in SMOKE.experiments.items():
         table = pq.read_table(smoke.out / "metrics" / f"{name}.parquet")
@@ -190,7 +188,7 @@ def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
     folder = run_folder(killed, runs_root)
     config = json.loads((folder / "config.json").read_text())
     assert len(config["resumed"]) == 1  # went on from its checkpoint, not from scratch
-    assert config["sensor_failure_episode"] == 12
+    assert config["config"]["sensor_failure_episode"] == 12
     episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
     assert episodes.to_pylist() == list(range(24))
     assert (out / "figures" / "forgetting.png").is_file()
@@ -305,17 +303,3 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert not any(tmp_path.iterdir())  # loading the definitions writes nothing
-
-
-def test_sensor_failure_switch_follows_each_copys_episode():
-    from curious.envs import make_suite_envs
-    from pipelines.training import SensorFailureSwitch
-
-    envs = make_suite_envs("sensor_failure", 0, 2)
-    switch = SensorFailureSwitch(12)
-    switch.begin_round([10, 11], [0, 0], None, [False, False], envs)
-    assert [env.dm_env.task.sensor_failure for env in envs] == [False, False]
-    switch.begin_round([11, 12], [0, 0], None, [False, False], envs)
-    assert [env.dm_env.task.sensor_failure for env in envs] == [False, True]
-    switch.begin_round([40, 41], [0, 0], None, [False, False], envs)
-    assert [env.dm_env.task.sensor_failure for env in envs] == [True, True]

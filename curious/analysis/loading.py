@@ -14,8 +14,9 @@ Keys read from ``config.json`` (top level):
 ``modules``                list of str, the modules in slot order
 ``achievable``             list of bool, one per module (False for distractors)
 ``sensor_failure_episode`` optional int or null: the first episode run with the sensory failure
-                           on; looked up at the top level, then anywhere inside nested objects
-                           (the resolved config), so it may sit in the run's settings
+                           on (-1 or null: never); looked up at the top level, then anywhere
+                           inside nested objects (the resolved config, where `curious train`
+                           writes it)
 =========================  ===================================================================
 
 Identity columns of the table (the same on every row of a run):
@@ -246,6 +247,8 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
             f"'modules'), got {achievable!r}"
         )
     _, perturbation = _find_key(config, PERTURBATION_KEY)
+    if perturbation == -1:  # the training setting's "never"
+        perturbation = None
     if perturbation is not None and (
         not isinstance(perturbation, int) or isinstance(perturbation, bool) or perturbation < 0
     ):

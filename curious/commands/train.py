@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
 
 from curious.config import CONDITIONS, PRESETS, ConfigError, parse_overrides, resolve
 
@@ -99,11 +98,12 @@ def run(args: argparse.Namespace) -> int:
     make_recorder = None
     if not args.no_record:
         from curious.recording import RecorderSettings
+        from curious.recording.rollouts import recorder_factory
 
         settings = RecorderSettings()
         if args.rollout_every is not None:
             settings = RecorderSettings(rollout_every=args.rollout_every)
-        make_recorder = _recorder_factory(args.resume, settings, args.spawn_viewer)
+        make_recorder = recorder_factory(args.resume, settings, args.spawn_viewer)
     try:
         trainer = train(config, args.out, resume=args.resume, make_recorder=make_recorder)
     except (ConfigError, RunFolderError, CheckpointError) as exc:
@@ -115,28 +115,3 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"{trainer.episodes} episodes in {args.out}; competence: {summary}")
     return 0
-
-
-def _recorder_factory(resume: bool, settings: Any, spawn: bool = False):
-    """A factory of the run's Rerun recorder (`curious.recording.RunRecorder`), which also
-    installs the observer that records evaluation episodes in 3D."""
-
-    def make(trainer, folder):
-        from curious.recording import RunRecorder
-        from curious.recording.rollouts import attach_rollout_recording
-
-        # A run killed before its first checkpoint starts over, its recording too.
-        resumed = resume and trainer.episodes > 0
-        recorder = RunRecorder(
-            folder.path,
-            trainer.spec.module_names,
-            settings=settings,
-            spawn=spawn,
-            resume=resumed,
-            resume_after_episode=trainer.episodes - 1 if resumed else None,
-        )
-        if settings.rollout_every > 0:
-            attach_rollout_recording(trainer, recorder)
-        return recorder
-
-    return make

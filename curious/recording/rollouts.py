@@ -13,15 +13,15 @@ Evaluation episodes are those with `episode % eval_every == eval_every - 1`, so 
 evaluation count is `episode // eval_every`: it is the same in a resumed run as in one that was
 never interrupted.
 
-The observer hands every call on to `inner` (another observer, such as the sensory-failure
-switch of the pipelines), so observers chain in either order.
+The observer hands every call on to `inner` (another observer), so observers chain.
 
     observer = attach_rollout_recording(trainer, recorder)   # trainer.observer now records
+    train(config, out, make_recorder=recorder_factory(resume))   # what `curious train` does
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,7 +29,7 @@ import numpy as np
 
 from curious.recording.scene import RolloutCapture
 
-__all__ = ["RolloutObserver", "attach_rollout_recording"]
+__all__ = ["RolloutObserver", "attach_rollout_recording", "recorder_factory"]
 
 
 @dataclass
@@ -170,3 +170,37 @@ def attach_rollout_recording(trainer: Any, recorder: Any) -> RolloutObserver:
     )
     trainer.observer = observer
     return observer
+
+
+def recorder_factory(
+    resume: bool,
+    settings: Any = None,
+    spawn: bool = False,
+    run_name: str | None = None,
+) -> Callable[[Any, Any], Any]:
+    """The `make_recorder` hook of `curious.train.train`: a run's `RunRecorder`, with the
+    observer that records evaluation episodes in 3D installed when `settings.rollout_every > 0`.
+
+    `curious train` and the reproduction pipeline both record their runs through it.
+    """
+    from curious.recording.recorder import RecorderSettings, RunRecorder
+
+    settings = settings if settings is not None else RecorderSettings()
+
+    def make(trainer: Any, folder: Any) -> RunRecorder:
+        # A run killed before its first checkpoint starts over, its recording too.
+        resumed = resume and trainer.episodes > 0
+        recorder = RunRecorder(
+            folder.path,
+            trainer.spec.module_names,
+            settings=settings,
+            run_name=run_name,
+            spawn=spawn,
+            resume=resumed,
+            resume_after_episode=trainer.episodes - 1 if resumed else None,
+        )
+        if settings.rollout_every > 0:
+            attach_rollout_recording(trainer, recorder)
+        return recorder
+
+    return make
