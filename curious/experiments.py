@@ -191,6 +191,8 @@ class ReproducePreset:
     experiments: Mapping[str, Experiment]
     notes: str = ""
     """Where the budgets come from (measured timings) and what the figures can show."""
+    caption_note: str = ""
+    """A sentence ending every figure's caption (how the budget compares with the paper's)."""
     default_out: str = field(default="")
 
     def __post_init__(self) -> None:
@@ -263,8 +265,10 @@ def _sensor_failure(preset: str, seeds: Sequence[int], episodes: int, at: int) -
     )
 
 
-def _preset(name: str, description: str, notes: str, *experiments: Experiment) -> ReproducePreset:
-    return ReproducePreset(name, description, {e.name: e for e in experiments}, notes)
+def _preset(
+    name: str, description: str, notes: str, caption_note: str, *experiments: Experiment
+) -> ReproducePreset:
+    return ReproducePreset(name, description, {e.name: e for e in experiments}, notes, caption_note)
 
 
 PRESETS_BY_NAME: dict[str, ReproducePreset] = {
@@ -275,6 +279,8 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
             "seconds per run, for the tests: every figure and the report from tiny runs",
             "Training preset `smoke` (24 episodes, small networks). Curves are flat: the figures "
             "check that the pipeline works, not what the agent learns.",
+            "Smoke-test budget (reproduce preset smoke): the curves check the pipeline, not what "
+            "the agent learns.",
             _main("smoke", (0, 1), 24),
             _distractors("smoke", (0,), 24),
             _sensor_failure("smoke", (0,), 24, 12),
@@ -290,6 +296,8 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
             "whole reproduction 16 min (1,258 CPU-seconds). At this budget the agent learns "
             "reach and starts on push; the later modules, their phases and the effects of "
             "distractors and of the sensory failure need the `laptop` or `paper` preset.",
+            "Small budget (reproduce preset quick): 1,000 episodes per run, 1/300 of the "
+            "paper's; at this budget only the first modules are learned.",
             _main("quick", (0, 1), 1_000),
             _distractors("quick", (0,), 1_000),
             _sensor_failure("quick", (0, 1), 1_000, 500),
@@ -301,6 +309,8 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
             "98 ms per episode on one core (measured), so 1.74 M episodes in 25 runs take about "
             "24 h on 2 cores, 6 h on 8. The runs are independent: `--workers` runs them side by "
             "side, `--ray-address` across a cluster; an interrupted reproduction resumes.",
+            "Reduced budget (reproduce preset laptop): a third of the paper's episodes per run "
+            "and fewer seeds.",
             _main("laptop", (0, 1, 2), 100_000),
             _distractors("laptop", (0, 1), 50_000),
             _sensor_failure("laptop", (0, 1), 60_000, 40_000),
@@ -312,6 +322,7 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
             "per cycle, ~300k episodes per run as in the paper). The distractors and sensory-"
             "failure budgets and the perturbation at 150k episodes are our choice (the 2018 "
             "paper does not give them).",
+            "",
             _main("paper", (0, 1, 2, 3, 4), 300_000),
             _distractors("paper", (0, 1, 2, 3, 4), 300_000),
             _sensor_failure("paper", (0, 1, 2, 3, 4), 300_000, 150_000),

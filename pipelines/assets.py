@@ -149,25 +149,28 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
     return metrics
 
 
-def _draw(name: str, experiment: Experiment) -> Callable[[pd.DataFrame, str], dict]:
-    """The analysis call of one figure; returns extra metadata (e.g. a statistics CSV)."""
+def _draw(name: str, experiment: Experiment) -> Callable[[pd.DataFrame, str, str], dict]:
+    """The analysis call of one figure, with the preset's caption note; returns the figure's
+    metadata: its caption, and extras such as a statistics CSV."""
     from curious import analysis
 
-    def draw(table: pd.DataFrame, out_dir: str) -> dict:
+    def draw(table: pd.DataFrame, out_dir: str, note: str) -> dict:
+        extra = {}
         if name == "fig2a":
-            analysis.fig2a(table, compare=experiment.compare, out_dir=out_dir)
+            fig = analysis.fig2a(table, compare=experiment.compare, note=note, out_dir=out_dir)
         elif name in ("fig2b", "fig2c", "table1"):
-            getattr(analysis, name)(table, condition="curious", out_dir=out_dir)
+            fig = getattr(analysis, name)(table, condition="curious", note=note, out_dir=out_dir)
         elif name == "distractors":
-            analysis.distractors(table, out_dir=out_dir)
+            fig = analysis.distractors(table, note=note, out_dir=out_dir)
         elif name == "forgetting":
-            _, per_run = analysis.forgetting(table, out_dir=out_dir)
+            fig, per_run = analysis.forgetting(table, note=note, out_dir=out_dir)
             csv = f"{out_dir}/forgetting.csv"
             per_run.drop(columns=["run"]).to_csv(csv, index=False, float_format="%.6g")
-            return {"recovery_csv": dg.MetadataValue.path(csv)}
+            extra["recovery_csv"] = dg.MetadataValue.path(csv)
         else:  # pragma: no cover - FIGURES and this function are kept in step
             raise KeyError(name)
-        return {}
+        caption = " ".join(fig.get_supxlabel().split())  # unwrapped
+        return {"caption": dg.MetadataValue.text(caption), **extra}
 
     return draw
 
@@ -188,7 +191,7 @@ def _figure_asset(experiment: Experiment, name: str) -> dg.AssetsDefinition:
         table = load_metrics(repro, experiment.name)
         out_dir = repro.layout.figures
         out_dir.mkdir(parents=True, exist_ok=True)
-        extra = draw(table, str(out_dir))
+        extra = draw(table, str(out_dir), repro.preset.caption_note)
         repro.say(f"  figure: {out_dir / name}.png")
         return dg.MaterializeResult(
             metadata={

@@ -16,7 +16,9 @@ history of materialisations is kept with the results and `dagster dev` can show 
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 import os
 import time
 import warnings
@@ -122,19 +124,45 @@ def open_instance(layout: OutputLayout):
     return DagsterInstance.from_ref(InstanceRef.from_dir(str(home)))
 
 
+@contextlib.contextmanager
+def _logging_handlers_kept() -> Any:
+    """Keep the process's logging handlers open through a Dagster run.
+
+    An instance with settings (ours turns telemetry off) builds its log handlers with
+    `logging.config.dictConfig` at the start of every run, and dictConfig first closes every
+    handler registered in the process: a notebook's, absl's (whose `close` also closes the stream
+    it writes to, which may be a test runner's capture file), the caller's own. For the length of
+    the run the existing handlers are taken off logging's registry, so that dictConfig does not
+    see them; they stay attached to their loggers and keep working, and go back on the registry
+    (which `logging.shutdown` closes at exit) afterwards.
+    """
+    with logging._lock:  # the registry is private to logging; its shape is stable since 2.x
+        kept, named = logging._handlerList[:], dict(logging._handlers)
+        del logging._handlerList[:]
+        logging._handlers.clear()
+    try:
+        yield
+    finally:
+        with logging._lock:
+            logging._handlerList[:0] = [ref for ref in kept if ref() is not None]
+            for name, handler in named.items():
+                logging._handlers.setdefault(name, handler)
+
+
 def _materialize(defs, instance, selection, tags: dict[str, str] | None = None) -> None:
     import dagster as dg
 
     assets = list(defs.assets or [])
-    result = dg.materialize(
-        assets,
-        instance=instance,
-        resources=dict(defs.resources or {}),
-        selection=selection,
-        tags=tags,
-        run_config=_QUIET_LOGS,
-        raise_on_error=True,
-    )
+    with _logging_handlers_kept():
+        result = dg.materialize(
+            assets,
+            instance=instance,
+            resources=dict(defs.resources or {}),
+            selection=selection,
+            tags=tags,
+            run_config=_QUIET_LOGS,
+            raise_on_error=True,
+        )
     if not result.success:  # pragma: no cover - raise_on_error raises first
         raise RuntimeError("a Dagster run failed")
 

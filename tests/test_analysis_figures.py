@@ -37,9 +37,9 @@ def studies(tmp_path_factory):
     }
 
 
-def _build(name, studies, out_dir=None):
+def _build(name, studies, out_dir=None, note=None):
     """Builds figure ``name``; returns the Figure."""
-    kw = {"out_dir": out_dir}
+    kw = {"out_dir": out_dir, "note": note}
     if name == "fig2a":
         return analysis.fig2a(studies["main"], **kw)
     if name == "fig2b":
@@ -84,6 +84,14 @@ def test_every_figure_writes_png_and_svg_and_rebuilds_byte_identical(name, studi
     assert "preset synthetic" in caption
     labels = {ax.get_xlabel() for ax in first.axes if ax.get_xlabel()}
     assert labels == ({"distracting modules"} if name == "distractors" else {"episodes"})
+
+
+@pytest.mark.parametrize("name", FIGURES)
+def test_every_caption_ends_with_the_note_it_is_given(name, studies):
+    plain = _caption(_build(name, studies))
+    noted = _caption(_build(name, studies, note="Small budget (quick preset)."))
+    assert "Small budget" not in plain
+    assert noted.startswith(plain) and noted.endswith("Small budget (quick preset).")
 
 
 def test_fig2a_dots_are_the_significant_bins(studies):

@@ -21,6 +21,7 @@ from pipeline_smoke import smoke_output
 
 from curious.cli import main as curious_cli
 from curious.experiments import get_preset
+from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
 from pipelines.reproduce import reproduce
 from pipelines.training import FINISHED, folder_state, run_folder, run_partition
@@ -106,17 +107,41 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
             assert done == {s.partition_key for s in experiment.runs()}
             assert instance.get_latest_materialization_event(dg.AssetKey([name, "metrics"]))
         assert instance.get_latest_materialization_event(dg.AssetKey("report"))
-        assert instance.get_latest_materialization_event(dg.AssetKey(["main", "fig2a"]))
+        # every figure's caption ends by saying the budget is a smoke test's
+        note = SMOKE.caption_note
+        assert note
+        for name in SMOKE.experiments:
+            for figure in FIGURES_OF[name]:
+                event = instance.get_latest_materialization_event(dg.AssetKey([name, figure]))
+                metadata = event.asset_materialization.metadata
+                assert metadata["caption"].value.endswith(note), (name, figure)
     finally:
         instance.dispose()
 
 
-def test_second_reproduce_retrains_nothing(smoke):
+def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smoke):
+    import logging
+
+    class Handler(logging.Handler):
+        closed = False
+
+        def emit(self, record):
+            pass
+
+        def close(self):
+            Handler.closed = True
+            super().close()
+
+    handler = Handler()  # a caller's handler (a notebook's, absl's) must survive the Dagster runs
+    logging.getLogger("caller").addHandler(handler)
     runs_before = hashes(smoke.out / "runs")
     figures_before = hashes(smoke.out / "figures")
-    tic = time.perf_counter()
-    result = reproduce("smoke", out=smoke.out, progress=False, say=lambda _: None)
-    assert time.perf_counter() - tic < smoke.seconds
+    try:
+        result = reproduce("smoke", out=smoke.out, progress=False, say=lambda _: None)
+    finally:
+        logging.getLogger("caller").removeHandler(handler)
+    assert not Handler.closed
+    assert any(ref() is handler for ref in logging._handlerList)  # closed at exit as usual
     assert result.trained == [] and len(result.skipped) == 14
     assert hashes(smoke.out / "runs") == runs_before  # not one byte of a run changed
     assert hashes(smoke.out / "figures") == figures_before  # figures rebuild byte-identical
@@ -257,7 +282,7 @@ def test_ray_address_that_does_not_answer_fails_fast(tmp_path, capsys):
         capsys,
     )
     assert code == 2 and f"no Ray cluster answers at 127.0.0.1:{port}" in err
-    assert time.perf_counter() - tic < 15
+    assert time.perf_counter() - tic < 60  # an error, not Ray's minutes-long connect retries
     assert not (tmp_path / "o").exists()
     code, err = run_cli(["--preset", "smoke", "--ray-address", "nonsense"], capsys)
     assert code == 2 and "HOST:PORT" in err

@@ -15,8 +15,9 @@ Every function takes the loaded table, returns a `matplotlib.figure.Figure` and,
 ============  ===========================================================================
 
 Every x axis counts episodes (bar the distractors figure's), and every caption names the seeds,
-the budget in episodes, the preset and the variant of the runs drawn. Colours and labels of
-modules and conditions come from `curious.analysis.palette`.
+the budget in episodes, the preset and the variant of the runs drawn; ``note`` adds a sentence
+at its end (the reproduction says there when a budget is far below the paper's). Colours and
+labels of modules and conditions come from `curious.analysis.palette`.
 """
 
 from __future__ import annotations
@@ -145,7 +146,10 @@ def _episodes_text(n: int) -> str:
     return "episode" if n == 1 else f"{n:,} episodes"
 
 
-def _caption(fig: Figure, text: str) -> None:
+def _caption(fig: Figure, text: str, note: str | None = None) -> None:
+    """The caption under the axes; ``note`` (e.g. "Small budget: ...") ends it."""
+    if note:
+        text = f"{text} {note.strip()}"
     width = fig.get_figwidth()
     fig.supxlabel(wrap_caption(text, width), fontsize=_CAPTION_SIZE, ha="left", x=0.01)
 
@@ -217,6 +221,7 @@ def fig2a(
     variant: str | None = None,
     bin_size: int | None = None,
     alpha: float = ALPHA,
+    note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "fig2a",
 ) -> Figure:
@@ -300,6 +305,7 @@ def fig2a(
             f"({_setting_text(runs)}). Mean ± std across seeds of the competence (self-evaluation "
             f"success rate) averaged over the {n_achievable} achievable modules, read at the end "
             f"of each {bin_size:,}-episode bin.{test_text}",
+            note,
         )
     return _finish(fig, out_dir, name)
 
@@ -315,6 +321,7 @@ def _one_run_figure(
     prefix: str,
     title: str,
     what: str,
+    note: str | None,
 ) -> Figure:
     run = _one_run(df, condition, seed, variant)
     runs = _runs_of(run)
@@ -338,6 +345,7 @@ def _one_run_figure(
             f"One run: {palette.condition_label(condition)}, seed {seed_value}; "
             f"{budget_text([n_episodes])} ({_setting_text(runs)}). {what} Sampled {sampled}; "
             "dashed: distractor modules.",
+            note,
         )
     return fig
 
@@ -347,6 +355,7 @@ def fig2b(
     condition: str = "curious",
     seed: int | None = None,
     variant: str | None = None,
+    note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "fig2b",
 ) -> Figure:
@@ -359,6 +368,7 @@ def fig2b(
         "competence/",
         "Fig. 2b — competence per module",
         "Competence: success rate of the module's recent self-evaluation episodes.",
+        note,
     )
     return _finish(fig, out_dir, name)
 
@@ -368,6 +378,7 @@ def fig2c(
     condition: str = "curious",
     seed: int | None = None,
     variant: str | None = None,
+    note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "fig2c",
 ) -> Figure:
@@ -380,6 +391,7 @@ def fig2c(
         "lp/",
         "Fig. 2c — absolute learning progress per module",
         "Absolute LP: |competence over the latest evaluation window − over the window before|.",
+        note,
     )
     return _finish(fig, out_dir, name)
 
@@ -391,6 +403,7 @@ def table1(
     df: pd.DataFrame,
     condition: str = "curious",
     variant: str | None = None,
+    note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "table1",
 ) -> Figure:
@@ -429,6 +442,7 @@ def table1(
             f"{palette.condition_label(condition)}: {seeds_text(runs['seed'])}, one row per seed; "
             f"{budget_text(runs['n_episodes'])} ({_setting_text(runs)}). Dashed: distractor "
             "modules.",
+            note,
         )
     return _finish(fig, out_dir, name)
 
@@ -445,6 +459,7 @@ def forgetting(
     variant: str | None = None,
     before: int | None = None,
     pre_window: int | None = None,
+    note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "forgetting",
 ) -> tuple[Figure, pd.DataFrame]:
@@ -540,6 +555,7 @@ def forgetting(
             f"{_episodes_text(window)} before it (mean over seeds). Recovery time: episodes from "
             f"the perturbation until a run's competence, after its lowest point, is back at "
             f"{fraction:.0%} of its own earlier level.",
+            note,
         )
     return _finish(fig, out_dir, name), per_run
 
@@ -563,6 +579,7 @@ def distractors(
     df: pd.DataFrame,
     conditions: Sequence[str] | None = None,
     at_episode: int | None = None,
+    note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "distractors",
 ) -> Figure:
@@ -626,6 +643,7 @@ def distractors(
             f"{seeds}. Success after {episodes:,} episodes (the budget every run reached; "
             f"runs of {budget_text(runs['n_episodes'])}, {_setting_text(runs)}). Mean ± std "
             f"across seeds of the competence averaged over the {n_achievable} achievable modules.",
+            note,
         )
     return _finish(fig, out_dir, name)
 
