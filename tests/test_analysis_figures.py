@@ -120,7 +120,7 @@ def test_fig2a_draws_no_dots_between_equal_conditions(studies):
 
 def test_fig2a_without_a_compared_condition_says_so(studies):
     only = studies["main"][studies["main"]["condition"] != "mg-te"]
-    with pytest.raises(analysis.RunFolderError, match="pass compare=None"):
+    with pytest.raises(analysis.AnalysisError, match="pass compare=None"):
         analysis.fig2a(only)
     fig = analysis.fig2a(only, compare=None)
     assert not [line for line in fig.axes[0].lines if line.get_label().startswith("p <")]
@@ -132,7 +132,7 @@ def test_module_figures_use_the_palette(studies):
     assert lines["T1 reach"].get_color() == palette.module_color("reach")
     assert lines["T5 push cube 3 (distractor)"].get_linestyle() == "--"
     assert "seed 2" in fig._suptitle.get_text()
-    with pytest.raises(analysis.RunFolderError, match="has no seed 9"):
+    with pytest.raises(analysis.AnalysisError, match="has no seed 9"):
         analysis.fig2b(studies["main"], seed=9)
 
 

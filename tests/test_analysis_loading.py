@@ -16,7 +16,7 @@ from test_analysis_synthetic import (
     write_study,
 )
 
-from curious.analysis import RunFolderError, find_run_folders, load_run, load_runs, runs_table
+from curious.analysis import AnalysisError, find_run_folders, load_run, load_runs, runs_table
 
 
 def _flat_run(folder, condition="curious", seed=0, n=30, modules=DEFAULT_MODULES, **kw):
@@ -93,20 +93,20 @@ def _edit_config(folder, **changes):
 
 
 def test_missing_paths_and_files_are_named(tmp_path):
-    with pytest.raises(RunFolderError, match="does not exist"):
+    with pytest.raises(AnalysisError, match="does not exist"):
         load_runs(tmp_path / "nowhere")
     (tmp_path / "empty").mkdir()
-    with pytest.raises(RunFolderError, match="holds none"):
+    with pytest.raises(AnalysisError, match="holds none"):
         load_runs(tmp_path / "empty")
     (tmp_path / "file.txt").write_text("x")
-    with pytest.raises(RunFolderError, match="is not a run folder"):
+    with pytest.raises(AnalysisError, match="is not a run folder"):
         load_runs(tmp_path / "file.txt")
     half = tmp_path / "half"
     half.mkdir()
     (half / "config.json").write_text("{}")
-    with pytest.raises(RunFolderError, match=r"no metrics\.parquet"):
+    with pytest.raises(AnalysisError, match=r"no metrics\.parquet"):
         load_runs(half)
-    with pytest.raises(RunFolderError, match=r"no run folders given"):
+    with pytest.raises(AnalysisError, match=r"no run folders given"):
         load_runs([])
 
 
@@ -120,7 +120,7 @@ def test_hidden_folders_under_a_root_are_not_searched(tmp_path):
 
 def test_same_folder_twice_is_refused(tmp_path):
     folder = _flat_run(tmp_path / "a")
-    with pytest.raises(RunFolderError, match="more than once"):
+    with pytest.raises(AnalysisError, match="more than once"):
         find_run_folders([folder, tmp_path])
 
 
@@ -138,14 +138,14 @@ def test_same_folder_twice_is_refused(tmp_path):
 def test_bad_config_is_named(tmp_path, change, message):
     folder = _flat_run(tmp_path / "run")
     _edit_config(folder, **change)
-    with pytest.raises(RunFolderError, match=message):
+    with pytest.raises(AnalysisError, match=message):
         load_runs(folder)
 
 
 def test_config_that_is_not_json_is_named(tmp_path):
     folder = _flat_run(tmp_path / "run")
     (folder / "config.json").write_text("{not json")
-    with pytest.raises(RunFolderError, match="not valid JSON"):
+    with pytest.raises(AnalysisError, match="not valid JSON"):
         load_runs(folder)
 
 
@@ -153,23 +153,23 @@ def test_metrics_that_disagree_with_config_are_named(tmp_path):
     folder = _flat_run(tmp_path / "run")
     metrics = pd.read_parquet(folder / "metrics.parquet")
     metrics.drop(columns=["lp/stack"]).to_parquet(folder / "metrics.parquet")
-    with pytest.raises(RunFolderError, match=r"lacks column\(s\) lp/stack"):
+    with pytest.raises(AnalysisError, match=r"lacks column\(s\) lp/stack"):
         load_runs(folder)
     metrics.assign(**{"competence/jump": 0.0}).to_parquet(folder / "metrics.parquet")
-    with pytest.raises(RunFolderError, match=r"competence/jump for modules that config\.json"):
+    with pytest.raises(AnalysisError, match=r"competence/jump for modules that config\.json"):
         load_runs(folder)
     (folder / "metrics.parquet").write_text("not parquet")
-    with pytest.raises(RunFolderError, match="not a readable parquet"):
+    with pytest.raises(AnalysisError, match="not a readable parquet"):
         load_runs(folder)
     metrics.iloc[:0].to_parquet(folder / "metrics.parquet")
-    with pytest.raises(RunFolderError, match="no episodes yet"):
+    with pytest.raises(AnalysisError, match="no episodes yet"):
         load_runs(folder)
 
 
 def test_an_episode_logged_twice_is_refused(tmp_path):
     episodes = np.array([0, 1, 2, 2, 3], dtype=np.int64)
     folder = _flat_run(tmp_path / "run", n=5, episodes=episodes)
-    with pytest.raises(RunFolderError, match=r"more than once \(e\.g\. \[2\]\)"):
+    with pytest.raises(AnalysisError, match=r"more than once \(e\.g\. \[2\]\)"):
         load_runs(folder)
 
 
@@ -177,10 +177,10 @@ def test_runs_of_one_variant_with_different_modules_are_refused(tmp_path):
     _flat_run(tmp_path / "a")
     names, achievable = distractor_modules(4)
     _flat_run(tmp_path / "b", seed=1, modules=names, achievable=achievable)
-    with pytest.raises(RunFolderError, match="runs of variant 'default' disagree on their modules"):
+    with pytest.raises(AnalysisError, match="runs of variant 'default' disagree on their modules"):
         load_runs(tmp_path)
 
 
 def test_tables_not_from_load_runs_are_refused():
-    with pytest.raises(RunFolderError, match=r"pass a table from curious\.analysis\.load_runs"):
+    with pytest.raises(AnalysisError, match=r"pass a table from curious\.analysis\.load_runs"):
         runs_table(pd.DataFrame({"episode": [0, 1]}))

@@ -8,7 +8,7 @@ from scipy import stats
 from test_analysis_synthetic import DEFAULT_ACHIEVABLE, DEFAULT_MODULES, write_run
 
 from curious.analysis import (
-    RunFolderError,
+    AnalysisError,
     achievable_competence,
     across_seeds,
     bin_runs,
@@ -171,7 +171,7 @@ def test_comparing_runs_with_different_achievable_modules_is_refused(tmp_path):
         variant="other",
     )
     binned = bin_runs(load_runs(tmp_path), bin_size=4)
-    with pytest.raises(RunFolderError, match="different achievable modules"):
+    with pytest.raises(AnalysisError, match="different achievable modules"):
         welch_per_bin(binned, "curious", "mg-te")
 
 
@@ -181,9 +181,9 @@ def test_two_runs_of_one_seed_are_refused(tmp_path):
     _run(tmp_path, "mg-te", 0, np.full(8, 0.5))
     _run(tmp_path, "mg-te", 1, np.full(8, 0.5))
     binned = bin_runs(load_runs(tmp_path), bin_size=4)
-    with pytest.raises(RunFolderError, match="'curious' seed 0 has 2 runs"):
+    with pytest.raises(AnalysisError, match="'curious' seed 0 has 2 runs"):
         welch_per_bin(binned, "curious", "mg-te")
-    with pytest.raises(RunFolderError, match="no runs of condition 'her'"):
+    with pytest.raises(AnalysisError, match="no runs of condition 'her'"):
         welch_per_bin(binned, "her", "mg-te")
 
 
@@ -193,7 +193,7 @@ def test_final_competence_is_read_at_the_common_budget(tmp_path):
     final = final_competence(load_runs(tmp_path)).set_index("seed")
     assert (final["episodes"] == 6).all()
     assert final.loc[0, "value"] == 5 / 16 and final.loc[1, "value"] == 5 / 16
-    with pytest.raises(RunFolderError, match="before 8"):
+    with pytest.raises(AnalysisError, match="before 8"):
         final_competence(load_runs(tmp_path), at_episode=8)
 
 
@@ -240,9 +240,9 @@ def test_the_most_perturbed_module_is_the_one_that_fell(tmp_path):
 def test_recovery_needs_a_perturbation_episode(tmp_path):
     _run(tmp_path, "curious", 0, np.full(8, 0.5))
     df = load_runs(tmp_path)
-    with pytest.raises(RunFolderError, match="no sensor_failure_episode"):
+    with pytest.raises(AnalysisError, match="no sensor_failure_episode"):
         recovery(df, "reach")
-    with pytest.raises(RunFolderError, match="no episode before the perturbation"):
+    with pytest.raises(AnalysisError, match="no episode before the perturbation"):
         recovery(df, "reach", perturbation_episode=0)
     with pytest.raises(KeyError, match="no module 'fly'"):
         recovery(df, "fly", perturbation_episode=3)

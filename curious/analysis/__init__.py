@@ -31,7 +31,7 @@ _EXPORTS: dict[str, str] = {
     **dict.fromkeys(("distractors", "fig2a", "fig2b", "fig2c", "forgetting", "table1"), "figures"),
     **dict.fromkeys(
         (
-            "RunFolderError",
+            "AnalysisError",
             "RunInfo",
             "find_run_folders",
             "load_run",
@@ -63,7 +63,7 @@ _EXPORTS: dict[str, str] = {
 
 __all__ = [
     "ALPHA",
-    "RunFolderError",
+    "AnalysisError",
     "RunInfo",
     "achievable_competence",
     "across_seeds",
@@ -93,7 +93,7 @@ __all__ = [
 if TYPE_CHECKING:
     from curious.analysis.figures import distractors, fig2a, fig2b, fig2c, forgetting, table1
     from curious.analysis.loading import (
-        RunFolderError,
+        AnalysisError,
         RunInfo,
         find_run_folders,
         load_run,

@@ -31,7 +31,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from curious.analysis import palette
-from curious.analysis.loading import RunFolderError, _require_identity, run_modules
+from curious.analysis.loading import AnalysisError, _require_identity, run_modules
 from curious.analysis.statistics import (
     ALPHA,
     across_seeds,
@@ -79,7 +79,7 @@ def _ordered_conditions(df: pd.DataFrame, conditions: Sequence[str] | None) -> l
         return known + sorted(c for c in present if c not in CONDITION_ORDER)
     missing = [c for c in conditions if c not in present]
     if missing:
-        raise RunFolderError(
+        raise AnalysisError(
             f"no runs of condition(s) {', '.join(missing)} (have: {', '.join(sorted(present))})"
         )
     return list(conditions)
@@ -90,7 +90,7 @@ def _restrict(df: pd.DataFrame, conditions: Sequence[str], variant: str | None) 
     if variant is not None:
         variants = set(df["variant"].astype(str))
         if variant not in variants:
-            raise RunFolderError(
+            raise AnalysisError(
                 f"no runs of variant '{variant}' (have: {', '.join(sorted(variants))})"
             )
         df = df[df["variant"] == variant]
@@ -106,14 +106,14 @@ def _one_run(
     if seed is None:
         seed = seeds[0]
     elif seed not in seeds:
-        raise RunFolderError(
+        raise AnalysisError(
             f"condition '{condition}' has no seed {seed} (seeds: {', '.join(map(str, seeds))})"
         )
     rows = rows[rows["seed"] == seed]
     runs = rows["run"].astype(str).unique()
     if len(runs) > 1:
         variants = ", ".join(sorted(rows["variant"].astype(str).unique()))
-        raise RunFolderError(
+        raise AnalysisError(
             f"condition '{condition}' seed {seed} has {len(runs)} runs (variants {variants}): "
             "pass variant= to choose one"
         )
@@ -237,7 +237,7 @@ def fig2a(
     if compare is not None:
         for c in compare:
             if c not in conditions:
-                raise RunFolderError(
+                raise AnalysisError(
                     f"fig2a compares '{compare[0]}' with '{compare[1]}' but there are no runs of "
                     f"'{c}' among {', '.join(conditions)}: pass compare=None or other conditions"
                 )
@@ -480,12 +480,12 @@ def forgetting(
     if perturbation_episode is None:
         marks = rows.groupby("run", observed=True)["perturbation_episode"].first()
         if marks.isna().any():
-            raise RunFolderError(
+            raise AnalysisError(
                 f"run {marks[marks.isna()].index[0]} has no sensor_failure_episode in its "
                 "config.json: pass perturbation_episode"
             )
         if marks.nunique() > 1:
-            raise RunFolderError(
+            raise AnalysisError(
                 "these runs were perturbed at different episodes "
                 f"({', '.join(map(str, sorted(marks.unique())))}): select runs that share one"
             )
@@ -594,7 +594,7 @@ def distractors(
     per_run = rows.groupby("run", observed=True)[["achievable_modules"]].first()
     sets = sorted(per_run["achievable_modules"].astype(str).unique())
     if len(sets) > 1:
-        raise RunFolderError(
+        raise AnalysisError(
             "the distractors figure needs runs with the same achievable modules, got "
             + "; ".join(f"[{s}]" for s in sets)
         )
@@ -602,7 +602,7 @@ def distractors(
     clash = final.groupby(["condition", "n_distractors", "seed"], observed=True).size()
     if (clash > 1).any():
         condition, n_d, seed = clash[clash > 1].index[0]
-        raise RunFolderError(
+        raise AnalysisError(
             f"condition '{condition}' with {n_d} distractors has several runs of seed {seed}"
         )
     stats_table = (

@@ -46,7 +46,7 @@ __all__ = [
     "IDENTITY_COLUMNS",
     "METRICS_FILE",
     "PER_MODULE_PREFIXES",
-    "RunFolderError",
+    "AnalysisError",
     "RunInfo",
     "find_run_folders",
     "load_run",
@@ -91,8 +91,10 @@ PERTURBATION_KEY = "sensor_failure_episode"
 PathsOrRoot = str | PathLike[str] | Iterable[str | PathLike[str]]
 
 
-class RunFolderError(ValueError):
-    """A folder is not a readable run folder, or a set of runs cannot be analysed together."""
+class AnalysisError(ValueError):
+    """A folder is not a readable run folder, or a set of runs cannot be analysed together.
+
+    (Training's own folder errors are `curious.run_folder.RunFolderError`.)"""
 
 
 @dataclass(frozen=True)
@@ -126,7 +128,7 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
     (a run folder's own sub-folders, such as ``checkpoints/``, and hidden folders are not
     searched).
 
-    Raises `RunFolderError` when a path does not exist, when a search finds no run folder, when a
+    Raises `AnalysisError` when a path does not exist, when a search finds no run folder, when a
     folder has ``config.json`` but no ``metrics.parquet`` (a run that has not logged an episode,
     or not a run folder), or when the same folder is named twice.
     """
@@ -135,13 +137,13 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
     else:
         given = [Path(p) for p in paths_or_root]
     if not given:
-        raise RunFolderError("no run folders given: pass a run folder, several, or a root folder")
+        raise AnalysisError("no run folders given: pass a run folder, several, or a root folder")
     found: list[Path] = []
     for path in given:
         if not path.exists():
-            raise RunFolderError(f"{path} does not exist")
+            raise AnalysisError(f"{path} does not exist")
         if not path.is_dir():
-            raise RunFolderError(
+            raise AnalysisError(
                 f"{path} is not a run folder: a run folder is a directory holding "
                 f"{CONFIG_FILE} and {METRICS_FILE}"
             )
@@ -150,7 +152,7 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
             continue
         below = _search(path)
         if not below:
-            raise RunFolderError(
+            raise AnalysisError(
                 f"{path} is not a run folder and holds none: no directory below it has both "
                 f"{CONFIG_FILE} and {METRICS_FILE}"
             )
@@ -161,13 +163,13 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
         seen[p] = seen.get(p, 0) + 1
     twice = sorted(str(p) for p, n in seen.items() if n > 1)
     if twice:
-        raise RunFolderError(f"run folder(s) named more than once: {', '.join(twice)}")
+        raise AnalysisError(f"run folder(s) named more than once: {', '.join(twice)}")
     return sorted(resolved)
 
 
 def _checked_run_folder(path: Path) -> Path:
     if not (path / METRICS_FILE).is_file():
-        raise RunFolderError(
+        raise AnalysisError(
             f"{path} has {CONFIG_FILE} but no {METRICS_FILE}: it is not a run folder, or its run "
             "has not logged an episode yet"
         )
@@ -210,23 +212,23 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
     folder = Path(path)
     config_path = folder / CONFIG_FILE
     if not config_path.is_file():
-        raise RunFolderError(
+        raise AnalysisError(
             f"{folder} is not a run folder: no {CONFIG_FILE} (a run folder holds {CONFIG_FILE} "
             f"and {METRICS_FILE}; see docs/architecture.md)"
         )
     try:
         config = json.loads(config_path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
-        raise RunFolderError(f"{config_path} is not valid JSON: {exc}") from exc
+        raise AnalysisError(f"{config_path} is not valid JSON: {exc}") from exc
     if not isinstance(config, dict):
-        raise RunFolderError(f"{config_path} must hold a JSON object, not {type(config).__name__}")
+        raise AnalysisError(f"{config_path} must hold a JSON object, not {type(config).__name__}")
 
     def need(key: str, kind: type | tuple[type, ...], what: str) -> Any:
         if key not in config:
-            raise RunFolderError(f"{config_path} has no '{key}' ({what})")
+            raise AnalysisError(f"{config_path} has no '{key}' ({what})")
         value = config[key]
         if not isinstance(value, kind) or (isinstance(value, bool) and kind is int):
-            raise RunFolderError(f"{config_path}: '{key}' must be {what}, got {value!r}")
+            raise AnalysisError(f"{config_path}: '{key}' must be {what}, got {value!r}")
         return value
 
     condition = need("condition", str, "a string")
@@ -236,13 +238,13 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
     names = need("modules", list, "a list of module names in slot order")
     achievable = need("achievable", list, "a list of booleans, one per module")
     if not names or not all(isinstance(n, str) and n for n in names):
-        raise RunFolderError(f"{config_path}: 'modules' must be non-empty strings: {names!r}")
+        raise AnalysisError(f"{config_path}: 'modules' must be non-empty strings: {names!r}")
     if len(set(names)) != len(names):
-        raise RunFolderError(f"{config_path}: 'modules' repeats a name: {names!r}")
+        raise AnalysisError(f"{config_path}: 'modules' repeats a name: {names!r}")
     if any("," in n for n in names):
-        raise RunFolderError(f"{config_path}: module names may not contain commas: {names!r}")
+        raise AnalysisError(f"{config_path}: module names may not contain commas: {names!r}")
     if len(achievable) != len(names) or not all(isinstance(a, bool) for a in achievable):
-        raise RunFolderError(
+        raise AnalysisError(
             f"{config_path}: 'achievable' must be {len(names)} booleans (one per module in "
             f"'modules'), got {achievable!r}"
         )
@@ -252,7 +254,7 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
     if perturbation is not None and (
         not isinstance(perturbation, int) or isinstance(perturbation, bool) or perturbation < 0
     ):
-        raise RunFolderError(
+        raise AnalysisError(
             f"{config_path}: '{PERTURBATION_KEY}' must be a non-negative integer or null, "
             f"got {perturbation!r}"
         )
@@ -271,17 +273,17 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
 def _read_metrics(info: RunInfo) -> pd.DataFrame:
     metrics_path = info.path / METRICS_FILE
     if not metrics_path.is_file():
-        raise RunFolderError(f"{info.path} is not a run folder: no {METRICS_FILE}")
+        raise AnalysisError(f"{info.path} is not a run folder: no {METRICS_FILE}")
     try:
         metrics = pd.read_parquet(metrics_path)
     except Exception as exc:  # pyarrow raises several types for unreadable files
-        raise RunFolderError(f"{metrics_path} is not a readable parquet file: {exc}") from exc
+        raise AnalysisError(f"{metrics_path} is not a readable parquet file: {exc}") from exc
     expected = list(BASE_COLUMNS) + [
         prefix + m for prefix in PER_MODULE_PREFIXES for m in info.module_names
     ]
     missing = [c for c in expected if c not in metrics.columns]
     if missing:
-        raise RunFolderError(
+        raise AnalysisError(
             f"{metrics_path} lacks column(s) {', '.join(missing)} (modules in {CONFIG_FILE}: "
             f"{', '.join(info.module_names)})"
         )
@@ -291,23 +293,23 @@ def _read_metrics(info: RunInfo) -> pd.DataFrame:
         if c.startswith(PER_MODULE_PREFIXES) and c.split("/", 1)[1] not in info.module_names
     )
     if strangers:
-        raise RunFolderError(
+        raise AnalysisError(
             f"{metrics_path} has column(s) {', '.join(strangers)} for modules that {CONFIG_FILE} "
             f"does not list ({', '.join(info.module_names)}): metrics and config disagree"
         )
     if metrics.empty:
-        raise RunFolderError(f"{metrics_path} has no episodes yet")
+        raise AnalysisError(f"{metrics_path} has no episodes yet")
     if not pd.api.types.is_integer_dtype(metrics["episode"]):
-        raise RunFolderError(
+        raise AnalysisError(
             f"{metrics_path}: 'episode' must be integers, got {metrics['episode'].dtype}"
         )
     episodes = metrics["episode"].to_numpy()
     if episodes.min() < 0:
-        raise RunFolderError(f"{metrics_path}: negative episode index {int(episodes.min())}")
+        raise AnalysisError(f"{metrics_path}: negative episode index {int(episodes.min())}")
     values, counts = np.unique(episodes, return_counts=True)
     if (counts > 1).any():
         twice = values[counts > 1][:5].tolist()
-        raise RunFolderError(
+        raise AnalysisError(
             f"{metrics_path}: episode indices logged more than once (e.g. {twice}); each episode "
             "must have exactly one row"
         )
@@ -343,7 +345,7 @@ def load_runs(paths_or_root: PathsOrRoot) -> pd.DataFrame:
     """Any set of run folders (or a root holding them) as one long table, one row per episode.
 
     Rows are ordered by run folder path, then episode. String columns are categorical, so the
-    repetition costs little memory. Raises `RunFolderError`, naming the folder and the
+    repetition costs little memory. Raises `AnalysisError`, naming the folder and the
     problem, for anything that is not a run folder following docs/architecture.md, and when two
     runs of the same variant list different modules (one of them was not run on that variant).
     """
@@ -355,7 +357,7 @@ def load_runs(paths_or_root: PathsOrRoot) -> pd.DataFrame:
         modules = (table["modules"].iat[0], table["achievable_modules"].iat[0])
         first = by_variant.setdefault(variant, (table["run"].iat[0], *modules))
         if first[1:] != modules:
-            raise RunFolderError(
+            raise AnalysisError(
                 f"runs of variant '{variant}' disagree on their modules: {first[0]} has "
                 f"[{first[1]}] (achievable [{first[2]}]) but {table['run'].iat[0]} has "
                 f"[{modules[0]}] (achievable [{modules[1]}])"
@@ -382,7 +384,7 @@ def run_modules(df: pd.DataFrame, run: str) -> tuple[tuple[str, ...], tuple[str,
     _require_identity(df)
     rows = df.loc[df["run"] == run, ["modules", "achievable_modules"]]
     if rows.empty:
-        raise RunFolderError(f"no run {run!r} in this table")
+        raise AnalysisError(f"no run {run!r} in this table")
     modules, achievable = rows.iloc[0]
     return tuple(str(modules).split(",")), tuple(a for a in str(achievable).split(",") if a)
 
@@ -390,6 +392,6 @@ def run_modules(df: pd.DataFrame, run: str) -> tuple[tuple[str, ...], tuple[str,
 def _require_identity(df: pd.DataFrame) -> None:
     missing = [c for c in (*IDENTITY_COLUMNS, "episode") if c not in df.columns]
     if missing:
-        raise RunFolderError(
+        raise AnalysisError(
             f"this table lacks {', '.join(missing)}: pass a table from curious.analysis.load_runs"
         )

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from curious.analysis.loading import RunFolderError, _require_identity
+from curious.analysis.loading import AnalysisError, _require_identity
 
 __all__ = [
     "ALPHA",
@@ -68,7 +68,7 @@ def achievable_competence(df: pd.DataFrame) -> pd.Series:
     for achievable, rows in df.groupby("achievable_modules", observed=True).indices.items():
         modules = [m for m in str(achievable).split(",") if m]
         if not modules:
-            raise RunFolderError("a run has no achievable module: nothing to average success over")
+            raise AnalysisError("a run has no achievable module: nothing to average success over")
         columns = [f"competence/{m}" for m in modules]
         values = df[columns].to_numpy(dtype=np.float64)[rows]
         out[rows] = values.mean(axis=1)
@@ -152,7 +152,7 @@ def bin_runs(
 
 
 def check_comparable(runs: pd.DataFrame, conditions: Sequence[str] | None = None) -> None:
-    """Raises `RunFolderError` unless the runs can be averaged and compared as seeds.
+    """Raises `AnalysisError` unless the runs can be averaged and compared as seeds.
 
     The runs (rows of a loaded or binned table, restricted to ``conditions`` when given) must
     share their achievable modules (else "average over achievable modules" means different
@@ -165,7 +165,7 @@ def check_comparable(runs: pd.DataFrame, conditions: Sequence[str] | None = None
     ].first()
     sets = sorted(per_run["achievable_modules"].astype(str).unique())
     if len(sets) > 1:
-        raise RunFolderError(
+        raise AnalysisError(
             "these runs have different achievable modules, so their averages do not compare: "
             + "; ".join(f"[{s}]" for s in sets)
             + " (select one variant first)"
@@ -175,7 +175,7 @@ def check_comparable(runs: pd.DataFrame, conditions: Sequence[str] | None = None
     if not twice.empty:
         condition, seed = twice.index[0]
         clash = per_run[(per_run["condition"] == condition) & (per_run["seed"] == seed)]
-        raise RunFolderError(
+        raise AnalysisError(
             f"condition '{condition}' seed {seed} has {len(clash)} runs (variants "
             f"{', '.join(sorted(clash['variant'].astype(str)))}): select one run per seed, e.g. "
             "by variant, before comparing"
@@ -209,7 +209,7 @@ def welch_per_bin(
     present = set(binned["condition"].astype(str))
     for name in (better, worse):
         if name not in present:
-            raise RunFolderError(
+            raise AnalysisError(
                 f"no runs of condition '{name}' (have: {', '.join(sorted(present)) or 'none'})"
             )
     check_comparable(binned, [better, worse])
@@ -266,7 +266,7 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
         at_episode = int(last_per_run.min())
     short = last_per_run[last_per_run < at_episode]
     if not short.empty:
-        raise RunFolderError(
+        raise AnalysisError(
             f"run {short.index[0]} ends at episode {int(short.iloc[0])}, before {at_episode}"
         )
     data = achievable_competence(df).to_numpy()
@@ -284,7 +284,7 @@ def _perturbation_of(df: pd.DataFrame, first: int, given: int | None) -> int:
         return int(given)
     value = df["perturbation_episode"].iat[first]
     if pd.isna(value):
-        raise RunFolderError(
+        raise AnalysisError(
             f"run {df['run'].iat[first]} has no sensor_failure_episode in its config.json: "
             "pass perturbation_episode"
         )
@@ -330,9 +330,9 @@ def recovery(
         p = _perturbation_of(df, first, perturbation_episode)
         start = int(np.searchsorted(episodes, p, side="left"))
         if start == 0:
-            raise RunFolderError(f"run {run} has no episode before the perturbation at {p}")
+            raise AnalysisError(f"run {run} has no episode before the perturbation at {p}")
         if start == len(episodes):
-            raise RunFolderError(
+            raise AnalysisError(
                 f"run {run} ends at episode {episodes[-1]}, before the perturbation at {p}"
             )
         window = pre_window if pre_window is not None else max(1, p // 10)

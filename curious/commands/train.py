@@ -33,9 +33,15 @@ def register(sub: argparse._SubParsersAction) -> None:
             + "\nsettings: see curious/config.py (Config)"
         ),
     )
-    parser.add_argument("--condition", default="curious", help="curious, m-uvfa, mg-te or her")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--preset", default="quick", help="smoke, quick, laptop or paper")
+    parser.add_argument(
+        "--condition", default="curious", help="curious, m-uvfa, mg-te or her (default curious)"
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seeds networks, rollouts and replay (default 0)"
+    )
+    parser.add_argument(
+        "--preset", default="quick", help="smoke, quick, laptop or paper (default quick)"
+    )
     parser.add_argument("--out", required=True, help="run folder (must be empty unless --resume)")
     parser.add_argument(
         "--set",

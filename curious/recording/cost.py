@@ -24,6 +24,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from curious.learning_progress import CompetenceTracker, lp_probabilities
 from curious.recording.recorder import RecorderSettings, RunRecorder
 from curious.recording.scene import RolloutCapture
 from suite import standard_modules
@@ -50,8 +51,8 @@ def synthetic_episodes(
 
     Module i's success probability rises along a logistic curve starting at a module-dependent
     episode (the last modules never rise, like distractors); every tenth episode is an
-    evaluation; competence, absolute LP (last `window` vs the `window` before) and p_LP
-    (eps = 0.4) follow the paper's definitions.
+    evaluation; competence, absolute LP and p_LP come from the agent's own
+    `curious.learning_progress` (last `window` results against the `window` before, eps = 0.4).
     """
     rng = np.random.default_rng(seed)
     episodes = np.arange(n_episodes, dtype=np.int64)
@@ -62,23 +63,13 @@ def synthetic_episodes(
     is_eval = episodes % 10 == 0
     competence = np.zeros((n_episodes, n_modules))
     lp = np.zeros((n_episodes, n_modules))
-    history: list[list[bool]] = [[] for _ in range(n_modules)]
-    comp = np.zeros(n_modules)
-    prog = np.zeros(n_modules)
-    for e in np.flatnonzero(is_eval):
-        m = modules[e]
-        h = history[m]
-        h.append(bool(success[e]))
-        recent = h[-window:]
-        comp[m] = np.mean(recent)
-        before = h[-2 * window : -window]
-        prog[m] = abs(comp[m] - np.mean(before)) if before else 0.0
-        competence[e:] = comp
-        lp[e:] = prog
-    eps = 0.4
-    total = lp.sum(axis=1, keepdims=True)
-    share = np.divide(lp, total, out=np.full_like(lp, 1.0 / n_modules), where=total > 0)
-    p_lp = eps / n_modules + (1 - eps) * share
+    p_lp = np.full((n_episodes, n_modules), 1.0 / n_modules)
+    tracker = CompetenceTracker(n_modules, window)
+    for e in np.flatnonzero(is_eval):  # the agent's own bookkeeping, one evaluation at a time
+        tracker.add(int(modules[e]), bool(success[e]))
+        competence[e:] = tracker.competence()
+        lp[e:] = tracker.learning_progress()
+        p_lp[e:] = lp_probabilities(lp[e])
     return {
         "episode": episodes,
         "module": modules,
