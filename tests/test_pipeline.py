@@ -328,3 +328,65 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert not any(tmp_path.iterdir())  # loading the definitions writes nothing
+
+
+def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke, tmp_path):
+    """What `dagster dev -m pipelines` serves, on a copy of the smoke output."""
+    import shutil
+    import urllib.request
+
+    pytest.importorskip("dagster_webserver")
+    out = tmp_path / "out"
+    shutil.copytree(smoke.out, out)
+    env = {
+        **os.environ,
+        "DAGSTER_HOME": str(out / ".dagster"),
+        "CURIOUS_PRESET": "smoke",
+        "CURIOUS_OUT": str(out),
+    }
+    port = free_port()
+    command = [sys.executable, "-m", "dagster_webserver", "-m", "pipelines", "-h", "127.0.0.1"]
+    server = subprocess.Popen(
+        [*command, "-p", str(port)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    url = f"http://127.0.0.1:{port}"
+
+    def graphql(query: str) -> dict:
+        request = urllib.request.Request(
+            f"{url}/graphql",
+            data=json.dumps({"query": query}).encode(),
+            headers={"Content-Type": "application/json"},
+        )
+        with urllib.request.urlopen(request, timeout=30) as answer:
+            return json.loads(answer.read())["data"]
+
+    try:
+        for _ in range(240):  # it answers once the definitions are loaded
+            if server.poll() is not None:
+                pytest.fail(f"the webserver exited: {server.stderr.read()[-2000:]}")
+            try:
+                urllib.request.urlopen(f"{url}/server_info", timeout=2).close()
+                break
+            except OSError:
+                time.sleep(0.5)
+        nodes = graphql("{ assetNodes { assetKey { path } groupName } }")["assetNodes"]
+        groups = {"/".join(n["assetKey"]["path"]): n["groupName"] for n in nodes}
+        assert groups["main/runs"] == "main" and groups["report"] == "report"
+        assert {k for k, g in groups.items() if g == "sensor_failure"} == {
+            "sensor_failure/runs",
+            "sensor_failure/metrics",
+            "sensor_failure/forgetting",
+        }
+        status = graphql(
+            '{ assetNodeOrError(assetKey: {path: ["main", "runs"]}) { ... on AssetNode {'
+            " assetPartitionStatuses { ... on MultiPartitionStatuses {"
+            " ranges { primaryDimStartKey primaryDimEndKey } } } } } }"
+        )["assetNodeOrError"]["assetPartitionStatuses"]["ranges"]
+        assert status == [{"primaryDimStartKey": "curious", "primaryDimEndKey": "her"}]
+    finally:
+        server.terminate()
+        server.wait(timeout=60)
