@@ -21,6 +21,7 @@ from pipeline_smoke import smoke_output
 
 from curious.cli import main as curious_cli
 from curious.experiments import get_preset
+from curious.recording.reader import summarize
 from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
 from pipelines.reproduce import reproduce
@@ -85,7 +86,8 @@ def test_every_partition_is_one_finished_run_folder(smoke):
         )
         episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
         assert episodes.to_pylist() == list(range(24))
-        assert (folder / "recording.rrd").is_file()
+        entities = summarize(folder / "recording.rrd").entities
+        assert "scene/goal" in entities and "scene/gripper_path" in entities  # a 3-D rollout
         expected = 12 if spec.experiment == "sensor_failure" else -1
         assert config["config"]["sensor_failure_episode"] == expected
     # the combined metrics tables hold every run's every episode
