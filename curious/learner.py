@@ -49,6 +49,24 @@ def _flatten(module: nn.Module, grads: bool) -> torch.Tensor:
     return flat
 
 
+def _flat_adam_state(state: dict[str, Any]) -> dict[str, Any]:
+    """An Adam state saved per weight and bias (checkpoints written before `_flatten`) as the
+    state of the one flat tensor; a flat state is returned unchanged. The moments concatenate
+    in `parameters()` order, the order `_flatten` lays the parameters out in."""
+    group = state["param_groups"][0]
+    if len(state["param_groups"]) != 1 or len(group["params"]) == 1:
+        return state
+    per_param = [state["state"][i] for i in group["params"] if i in state["state"]]
+    flat: dict[str, Any] = {}
+    if per_param:
+        flat = {
+            "step": per_param[0]["step"],
+            "exp_avg": torch.cat([s["exp_avg"].reshape(-1) for s in per_param]),
+            "exp_avg_sq": torch.cat([s["exp_avg_sq"].reshape(-1) for s in per_param]),
+        }
+    return {"state": {0: flat} if flat else {}, "param_groups": [{**group, "params": [0]}]}
+
+
 def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
     """Adam with the fastest implementation this torch offers for the device."""
     try:
@@ -215,8 +233,8 @@ class Learner:
         self.critics.load_state_dict(state["critics"])
         self.actor_target.load_state_dict(state["actor_target"])
         self.critics_target.load_state_dict(state["critics_target"])
-        self.actor_opt.load_state_dict(state["actor_opt"])
-        self.critic_opt.load_state_dict(state["critic_opt"])
+        self.actor_opt.load_state_dict(_flat_adam_state(state["actor_opt"]))
+        self.critic_opt.load_state_dict(_flat_adam_state(state["critic_opt"]))
         self.generator.set_state(
             state["generator"].cpu() if hasattr(state["generator"], "cpu") else state["generator"]
         )

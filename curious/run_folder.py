@@ -63,9 +63,15 @@ def git_commit() -> dict[str, Any]:
 
 
 def config_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
-    """Keys whose values differ between two config dicts, ignoring resumable fields."""
+    """Keys whose values differ between two config dicts, ignoring resumable fields.
+
+    A setting missing from one side (a run saved before the setting existed) counts as its
+    default value, so that adding a setting does not orphan the runs made before it.
+    """
+
+    defaults = Config().to_dict()
     keys = (set(a) | set(b)) - RESUMABLE_FIELDS
-    return sorted(k for k in keys if a.get(k) != b.get(k))
+    return sorted(k for k in keys if a.get(k, defaults.get(k)) != b.get(k, defaults.get(k)))
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:

@@ -236,3 +236,23 @@ def test_encode_pair_equals_two_encodes():
     x, x2 = encoder.encode_pair(s, s2, goals, mask, task)
     torch.testing.assert_close(x, encoder.encode(s, goals, mask, task))
     torch.testing.assert_close(x2, encoder.encode(s2, goals, mask, task))
+
+
+def test_checkpoints_with_an_adam_state_per_weight_still_load():
+    """Runs checkpointed before the parameters were flattened resume with the same moments."""
+    config = resolve("smoke", "curious", 0, {})
+    learner = Learner(12, 4, config)
+    old_style = torch.optim.Adam(learner.actor.parameters(), lr=config.actor_lr)
+    for p in learner.actor.parameters():
+        p.grad.normal_()
+    old_style.step()
+    state = learner.state_dict()
+    state["actor_opt"] = old_style.state_dict()
+    fresh = Learner(12, 4, config)
+    fresh.load_state_dict(state)
+    (moments,) = fresh.actor_opt.state.values()
+    expected = torch.cat(
+        [old_style.state[p]["exp_avg"].reshape(-1) for p in learner.actor.parameters()]
+    )
+    assert torch.equal(moments["exp_avg"], expected)
+    assert float(moments["step"]) == 1.0

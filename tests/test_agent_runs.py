@@ -287,3 +287,14 @@ def test_observer_and_recorder_hooks_are_called_in_order(tmp_path):
     episodes = recorder.calls[0][1]
     assert episodes["competence"].shape == (4, 3) and list(episodes["episode"]) == [0, 1, 2, 3]
     assert recorder.calls[1][2].sum() == 4 * 2 * 32  # n_updates x batch substitutions
+
+
+def test_a_setting_added_later_takes_its_default_in_older_configs():
+    from curious.run_folder import config_differences
+
+    config = resolve("smoke", "curious", 0, {}).to_dict()
+    older = {k: v for k, v in config.items() if k != "sensor_failure_episode"}
+    assert config_differences(older, config) == []
+    assert config_differences(older, {**config, "sensor_failure_episode": 5}) == [
+        "sensor_failure_episode"
+    ]
