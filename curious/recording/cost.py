@@ -61,15 +61,19 @@ def synthetic_episodes(
     p = 1.0 / (1.0 + np.exp(-(episodes[:, None] - onset[None]) / (0.05 * n_episodes + 1)))
     success = rng.random(n_episodes) < p[episodes, modules]
     is_eval = episodes % 10 == 0
-    competence = np.zeros((n_episodes, n_modules))
-    lp = np.zeros((n_episodes, n_modules))
-    p_lp = np.full((n_episodes, n_modules), 1.0 / n_modules)
+    # The agent's own bookkeeping, one evaluation at a time; row i + 1 holds the values after
+    # the i-th evaluation, row 0 those before any. Each episode then reads the row of the last
+    # evaluation at or before it.
+    evals = np.flatnonzero(is_eval)
+    after = np.zeros((3, len(evals) + 1, n_modules))
+    after[2, 0] = 1.0 / n_modules
     tracker = CompetenceTracker(n_modules, window)
-    for e in np.flatnonzero(is_eval):  # the agent's own bookkeeping, one evaluation at a time
+    for i, e in enumerate(evals, start=1):
         tracker.add(int(modules[e]), bool(success[e]))
-        competence[e:] = tracker.competence()
-        lp[e:] = tracker.learning_progress()
-        p_lp[e:] = lp_probabilities(lp[e])
+        after[0, i] = tracker.competence()
+        after[1, i] = tracker.learning_progress()
+        after[2, i] = lp_probabilities(after[1, i])
+    competence, lp, p_lp = after[:, np.searchsorted(evals, episodes, side="right")]
     return {
         "episode": episodes,
         "module": modules,
