@@ -22,50 +22,41 @@ import torch
 from torch import nn
 
 from curious.config import Config
-from curious.mlp_workspace import MLPWorkspace
+from curious.mlp_workspace import MLPWorkspace, fold_parameters
 from curious.networks import Actor, Critic
 
 
-def _flatten(module: nn.Module, grads: bool) -> torch.Tensor:
-    """Moves all of `module`'s parameters into one contiguous tensor, and returns it.
+def _positions(module: nn.Module, flat: torch.Tensor) -> torch.Tensor:
+    """Where each element of `module.parameters()`, in that order and flattened, lies in `flat`
+    (the tensor `fold_parameters` returned for the module)."""
+    index = torch.arange(flat.numel(), device=flat.device)
+    base = flat.storage_offset()
+    return torch.cat(
+        [
+            index.as_strided(p.shape, p.stride(), p.storage_offset() - base).reshape(-1)
+            for p in module.parameters()
+        ]
+    )
 
-    The parameters stay the module's (state dicts, `forward` and the tests see no difference) but
-    become views of the returned tensor; with `grads`, their gradients become views of its
-    `.grad`. Adam and the Polyak update then run once over one tensor per network instead of
-    once per weight and bias (Adam's share of an update fell from 0.54 to 0.40 ms; see
-    docs/benchmarks.md).
+
+def _folded_adam_state(state: dict[str, Any], positions: torch.Tensor) -> dict[str, Any]:
+    """An Adam state of a checkpoint written before `fold_parameters`, as the state of the
+    folded tensor.
+
+    Such checkpoints held one state per weight and bias, or one flat state whose moments run
+    in `parameters()` order; either way the moments, concatenated, are in `parameters()` order,
+    and `positions` (from `_positions`) says where each element goes.
     """
-    params = list(module.parameters())
-    flat = torch.cat([p.detach().reshape(-1) for p in params])
-    if grads:
-        flat = nn.Parameter(flat)
-        flat.grad = torch.zeros_like(flat)
-    offset = 0
-    for p in params:
-        n = p.numel()
-        p.data = flat.data[offset : offset + n].view_as(p)
-        if grads:
-            p.grad = flat.grad[offset : offset + n].view_as(p)
-        offset += n
-    return flat
-
-
-def _flat_adam_state(state: dict[str, Any]) -> dict[str, Any]:
-    """An Adam state saved per weight and bias (checkpoints written before `_flatten`) as the
-    state of the one flat tensor; a flat state is returned unchanged. The moments concatenate
-    in `parameters()` order, the order `_flatten` lays the parameters out in."""
     group = state["param_groups"][0]
-    if len(state["param_groups"]) != 1 or len(group["params"]) == 1:
-        return state
     per_param = [state["state"][i] for i in group["params"] if i in state["state"]]
-    flat: dict[str, Any] = {}
+    folded: dict[str, Any] = {}
     if per_param:
-        flat = {
-            "step": per_param[0]["step"],
-            "exp_avg": torch.cat([s["exp_avg"].reshape(-1) for s in per_param]),
-            "exp_avg_sq": torch.cat([s["exp_avg_sq"].reshape(-1) for s in per_param]),
-        }
-    return {"state": {0: flat} if flat else {}, "param_groups": [{**group, "params": [0]}]}
+        folded = {"step": per_param[0]["step"]}
+        for key in ("exp_avg", "exp_avg_sq"):
+            moments = torch.cat([s[key].reshape(-1) for s in per_param])
+            folded[key] = torch.empty_like(moments)
+            folded[key][positions.to(moments.device)] = moments
+    return {"state": {0: folded} if folded else {}, "param_groups": [{**group, "params": [0]}]}
 
 
 def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
@@ -74,6 +65,43 @@ def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
         return torch.optim.Adam(params, lr=lr, fused=True)
     except (RuntimeError, TypeError):  # fused not available for this device / build
         return torch.optim.Adam(params, lr=lr, foreach=True)
+
+
+def _adam_step(optimizer: torch.optim.Adam) -> None:
+    """`optimizer.step()` for one fused Adam over one tensor, minus the per-call bookkeeping.
+
+    `Optimizer.step` regroups the tensors by device and dtype and runs its hooks on every call,
+    about 60 us at the authors' sizes, twice per update (docs/benchmarks.md). With one
+    parameter and its state in place, the fused kernel is called directly, on the optimizer's
+    own state, with the same arguments `step` would pass (for torch 2.13, the pinned version;
+    a test checks that both give the same bits). The first step, which creates the state,
+    and an unfused optimizer take the ordinary path.
+    """
+    (group,) = optimizer.param_groups
+    (param,) = group["params"]
+    state = optimizer.state.get(param)
+    if not group["fused"] or not state or group["amsgrad"] or group["maximize"]:
+        optimizer.step()
+        return
+    state["step"].add_(1)
+    beta1, beta2 = group["betas"]
+    torch._fused_adam_(
+        [param],
+        [param.grad],
+        [state["exp_avg"]],
+        [state["exp_avg_sq"]],
+        [],
+        [state["step"]],
+        amsgrad=False,
+        lr=group["lr"],
+        beta1=beta1,
+        beta2=beta2,
+        weight_decay=group["weight_decay"],
+        eps=group["eps"],
+        maximize=False,
+        grad_scale=None,
+        found_inf=None,
+    )
 
 
 class _Workspace:
@@ -86,11 +114,8 @@ class _Workspace:
         self.critics_target = [
             MLPWorkspace(c.net, batch, with_grads=False) for c in learner.critics_target
         ]
-        width = learner.input_dim + learner.action_dim
-        device = learner.device
-        self.critic_input = torch.empty(batch, width, device=device)
-        self.target_input = torch.empty(batch, width, device=device)
-        self.minus_mean = torch.full((batch, 1), -1.0 / batch, device=device)  # d(-mean q)/dq
+        # d(-mean q)/dq, the actor loss's gradient at the critic's output
+        self.minus_mean = torch.full((batch, 1), -1.0 / batch, device=learner.device)
 
 
 class Learner:
@@ -112,10 +137,13 @@ class Learner:
         torch.set_rng_state(cpu_rng_state)
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self.critics_target = copy.deepcopy(self.critics).requires_grad_(False)
-        self._online = [_flatten(self.actor, grads=True), _flatten(self.critics, grads=True)]
+        self._online = [
+            fold_parameters(self.actor, grads=True),
+            fold_parameters(self.critics, grads=True),
+        ]
         self._targets = [
-            _flatten(self.actor_target, grads=False),
-            _flatten(self.critics_target, grads=False),
+            fold_parameters(self.actor_target, grads=False),
+            fold_parameters(self.critics_target, grads=False),
         ]
         self.actor_opt = _adam([self._online[0]], config.actor_lr)
         self.critic_opt = _adam([self._online[1]], config.critic_lr)
@@ -149,7 +177,7 @@ class Learner:
             noise = torch.randn(next_action.shape, generator=self.generator, device=self.device)
             noise.mul_(cfg.td3_target_noise).clamp_(-cfg.td3_noise_clip, cfg.td3_noise_clip)
             next_action.add_(noise).clamp_(-1.0, 1.0)
-        inputs = ws.target_input
+        inputs = ws.critics_target[0].input
         inputs[:, : self.input_dim].copy_(x_next)
         inputs[:, self.input_dim :].copy_(next_action)
         q_next = ws.critics_target[0].forward(inputs)[:, 0]
@@ -175,7 +203,7 @@ class Learner:
         ws = self._workspace(batch)
         target = self.td_target(reward, x_next)
 
-        inputs = ws.critic_input
+        inputs = ws.critics[0].input
         inputs[:, :d].copy_(x)
         inputs[:, d:].copy_(action)
         critic_loss = torch.zeros((), device=self.device)
@@ -184,7 +212,7 @@ class Learner:
             critic_loss += diff.square().mean()
             critic_ws.backward(diff.mul_(2.0 / batch).unsqueeze(1))
         if self.td3:
-            self.critic_opt.step()
+            _adam_step(self.critic_opt)
 
         self.n_updates += 1
         if not self.td3 or self.n_updates % cfg.td3_policy_delay == 0:
@@ -199,9 +227,9 @@ class Learner:
             grad_pi.add_(pi, alpha=2.0 * cfg.action_l2 / pi.numel())
             grad_pi.mul_(pi_sq.neg_().add_(1.0))  # through tanh: d tanh(z)/dz = 1 - tanh^2
             ws.actor.backward(grad_pi)
-            self.actor_opt.step()
+            _adam_step(self.actor_opt)
         if not self.td3:
-            self.critic_opt.step()
+            _adam_step(self.critic_opt)
         return {
             "critic_loss": critic_loss,
             "actor_loss": self._last_actor_loss,
@@ -224,6 +252,7 @@ class Learner:
             "critic_opt": self.critic_opt.state_dict(),
             "generator": self.generator.get_state(),
             "n_updates": self.n_updates,
+            "parameter_layout": "folded",
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -234,8 +263,12 @@ class Learner:
         self.critics.load_state_dict(state["critics"])
         self.actor_target.load_state_dict(state["actor_target"])
         self.critics_target.load_state_dict(state["critics_target"])
-        self.actor_opt.load_state_dict(_flat_adam_state(state["actor_opt"]))
-        self.critic_opt.load_state_dict(_flat_adam_state(state["critic_opt"]))
+        actor_opt, critic_opt = state["actor_opt"], state["critic_opt"]
+        if state.get("parameter_layout") != "folded":
+            actor_opt = _folded_adam_state(actor_opt, _positions(self.actor, self._online[0]))
+            critic_opt = _folded_adam_state(critic_opt, _positions(self.critics, self._online[1]))
+        self.actor_opt.load_state_dict(actor_opt)
+        self.critic_opt.load_state_dict(critic_opt)
         self.generator.set_state(
             state["generator"].cpu() if hasattr(state["generator"], "cpu") else state["generator"]
         )

@@ -8,6 +8,12 @@ buffer allocated once per batch size, ReLU runs in place, its backward is one fu
 `.grad`, where the optimiser reads them. The arithmetic is that of autograd (the tests compare
 the gradients); the networks stay ordinary `nn.Module`s.
 
+Biases ride inside the products. `fold_parameters` stores each Linear layer as one
+(out, in + 1) block [W | b], so that the weight and the bias are views of it, and every
+activation buffer carries a last column of ones. A layer's forward is then one product
+[h, 1] @ [W | b]^T, and its weight and bias gradients one product g^T @ [h, 1], instead of a
+product plus a broadcast copy of the bias, and a product plus a column sum (docs/benchmarks.md).
+
 An MLP here is what `curious.networks.mlp` builds: Linear, ReLU, ..., Linear.
 """
 
@@ -19,38 +25,105 @@ from torch import nn
 _relu_backward = torch.ops.aten.threshold_backward.grad_input
 
 
+def fold_parameters(module: nn.Module, grads: bool) -> torch.Tensor:
+    """Moves all of `module`'s Linear layers into one flat tensor, and returns it.
+
+    Each layer becomes a contiguous (out, in + 1) block [W | b] of the tensor; its weight and
+    bias stay the module's parameters (state dicts, `forward` and the tests see no difference)
+    but become views of the block. With `grads`, the returned tensor is a Parameter and the
+    layers' gradients become views of the same blocks of its `.grad`. One tensor per network
+    lets Adam and the Polyak update run once per network; the blocks let `MLPWorkspace` fold
+    the biases into its products.
+    """
+    linears = [m for m in module.modules() if isinstance(m, nn.Linear)]
+    if any(lin.bias is None for lin in linears) or sum(1 for _ in module.parameters()) != 2 * len(
+        linears
+    ):
+        raise ValueError("fold_parameters expects parameters only in Linear layers with biases")
+    shapes = [(lin.out_features, lin.in_features + 1) for lin in linears]
+    weight = linears[0].weight
+    flat = torch.empty(sum(o * i for o, i in shapes), device=weight.device, dtype=weight.dtype)
+    if grads:
+        flat = nn.Parameter(flat)
+        flat.grad = torch.zeros_like(flat)
+    offset = 0
+    for lin, (n_out, n_in) in zip(linears, shapes, strict=True):
+        block = flat.data[offset : offset + n_out * n_in].view(n_out, n_in)
+        block[:, :-1].copy_(lin.weight.detach())
+        block[:, -1].copy_(lin.bias.detach())
+        lin.weight.data, lin.bias.data = block[:, :-1], block[:, -1]
+        if grads:
+            grad = flat.grad[offset : offset + n_out * n_in].view(n_out, n_in)
+            lin.weight.grad, lin.bias.grad = grad[:, :-1], grad[:, -1]
+        offset += n_out * n_in
+    return flat
+
+
+def _block(weight: torch.Tensor, bias: torch.Tensor) -> torch.Tensor:
+    """The (out, in + 1) block [W | b] that `fold_parameters` made `weight` and `bias` views of."""
+    n_out, n_in = weight.shape
+    folded = (
+        weight.stride() == (n_in + 1, 1)
+        and bias.stride() == (n_in + 1,)
+        and bias.data_ptr() == weight.data_ptr() + n_in * weight.element_size()
+    )
+    if not folded:
+        raise ValueError("MLPWorkspace needs the layers laid out by fold_parameters")
+    return weight.detach().as_strided((n_out, n_in + 1), (n_in + 1, 1))
+
+
+def _with_ones(batch: int, width: int, like: torch.Tensor) -> torch.Tensor:
+    """A (batch, width + 1) buffer whose last column is ones (the biases' input)."""
+    buffer = torch.empty(batch, width + 1, device=like.device, dtype=like.dtype)
+    buffer[:, -1] = 1.0
+    return buffer
+
+
 class MLPWorkspace:
-    """Buffers and passes for one `nn.Sequential` MLP at one batch size."""
+    """Buffers and passes for one `nn.Sequential` MLP at one batch size.
+
+    `input` is a (batch, in) view of the first layer's buffer: callers may write the input
+    there in place (the learner assembles the critic's [x, a] in it) and call `forward(input)`.
+    """
 
     def __init__(self, net: nn.Sequential, batch: int, with_grads: bool = True) -> None:
         self.linears = [m for m in net if isinstance(m, nn.Linear)]
         expected = 2 * len(self.linears) - 1
         if len(net) != expected or not all(isinstance(m, nn.ReLU) for m in list(net)[1::2]):
             raise ValueError("MLPWorkspace expects Linear, ReLU, ..., Linear")
-        weight = self.linears[0].weight
-        kw = {"device": weight.device, "dtype": weight.dtype}
-        self.outputs = [torch.empty(batch, lin.out_features, **kw) for lin in self.linears]
-        self.input_grads = [torch.empty(batch, lin.in_features, **kw) for lin in self.linears]
-        self.input: torch.Tensor | None = None
+        self.blocks = [_block(lin.weight, lin.bias) for lin in self.linears]
+        self.grad_blocks = (
+            [_block(lin.weight.grad, lin.bias.grad) for lin in self.linears] if with_grads else []
+        )
+        like = self.blocks[0]
+        first, *hidden = self.linears
+        self._input = _with_ones(batch, first.in_features, like)
+        self.input = self._input[:, :-1]
+        self._hidden = [_with_ones(batch, lin.in_features, like) for lin in hidden]
+        self._output = like.new_empty(batch, self.linears[-1].out_features)
+        self.input_grads = [like.new_empty(batch, lin.in_features) for lin in self.linears]
         self._column_grads: dict[tuple[int, int], torch.Tensor] = {}
-        for lin in self.linears if with_grads else ():
-            for p in lin.parameters():
-                if p.grad is None or p.grad.shape != p.shape:
-                    p.grad = torch.zeros_like(p)
+        self._ready = False
+
+    def _below(self, i: int) -> torch.Tensor:
+        """Layer i's input with its column of ones."""
+        return self._hidden[i - 1] if i > 0 else self._input
 
     @torch.no_grad()
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """The MLP's output for x (batch, in); keeps the activations for `backward`."""
-        self.input = x
-        h = x
+        if x.data_ptr() != self.input.data_ptr():
+            self.input.copy_(x)
         last = len(self.linears) - 1
-        for i, lin in enumerate(self.linears):
-            out = self.outputs[i]
-            torch.addmm(lin.bias, h, lin.weight.t(), out=out)
+        for i, block in enumerate(self.blocks):
             if i < last:
-                out.clamp_min_(0.0)
-            h = out
-        return h
+                # ReLU over the whole buffer: max(1, 0) leaves the column of ones as it is
+                torch.mm(self._below(i), block.t(), out=self._hidden[i][:, :-1])
+                self._hidden[i].clamp_min_(0.0)
+            else:
+                torch.mm(self._below(i), block.t(), out=self._output)
+        self._ready = True
+        return self._output
 
     @torch.no_grad()
     def backward(
@@ -66,27 +139,25 @@ class MLPWorkspace:
         `input_grad`, returns dL/d(input), or only its `input_columns` (the critic's action
         part), as a buffer valid until the next call.
         """
-        if self.input is None:
+        if not self._ready:
             raise RuntimeError("backward() before forward()")
         g = grad_output
         for i in range(len(self.linears) - 1, -1, -1):
-            lin = self.linears[i]
-            below = self.outputs[i - 1] if i > 0 else self.input
+            block, below = self.blocks[i], self._below(i)
             if weight_grads:
-                torch.mm(g.t(), below, out=lin.weight.grad)
-                torch.sum(g, dim=0, out=lin.bias.grad)
+                torch.mm(g.t(), below, out=self.grad_blocks[i])
             if i == 0:
                 if not input_grad:
                     return None
                 if input_columns is not None:
-                    start, stop, _ = input_columns.indices(lin.in_features)
+                    start, stop, _ = input_columns.indices(block.shape[1] - 1)
                     key = (start, stop)
                     if key not in self._column_grads:
                         self._column_grads[key] = g.new_empty(g.shape[0], stop - start)
-                    return torch.mm(g, lin.weight[:, start:stop], out=self._column_grads[key])
+                    return torch.mm(g, block[:, start:stop], out=self._column_grads[key])
             grad_in = self.input_grads[i]
-            torch.mm(g, lin.weight, out=grad_in)
+            torch.mm(g, block[:, :-1], out=grad_in)
             if i > 0:
-                _relu_backward(grad_in, below, 0.0, grad_input=grad_in)
+                _relu_backward(grad_in, below[:, :-1], 0.0, grad_input=grad_in)
             g = grad_in
         return g

@@ -238,21 +238,61 @@ def test_encode_pair_equals_two_encodes():
     torch.testing.assert_close(x2, encoder.encode(s2, goals, mask, task))
 
 
-def test_checkpoints_with_an_adam_state_per_weight_still_load():
-    """Runs checkpointed before the parameters were flattened resume with the same moments."""
+@pytest.mark.parametrize("saved_as", ["per_weight", "flat_in_parameter_order"])
+def test_checkpoints_written_before_the_folded_layout_resume_with_the_same_moments(saved_as):
+    """Runs checkpointed with an Adam state per weight and bias, or with one flat state in
+    `parameters()` order, resume with each parameter's own moments."""
     config = resolve("smoke", "curious", 0, {})
     learner = Learner(12, 4, config)
-    old_style = torch.optim.Adam(learner.actor.parameters(), lr=config.actor_lr)
-    for p in learner.actor.parameters():
-        p.grad.normal_()
+    params = [p.detach().clone().requires_grad_() for p in learner.actor.parameters()]
+    old_style = torch.optim.Adam(params, lr=config.actor_lr)
+    for p in params:
+        p.grad = torch.randn_like(p)
     old_style.step()
+    saved = old_style.state_dict()
+    if saved_as == "flat_in_parameter_order":
+        moments = saved["state"].values()
+        saved = {
+            "state": {
+                0: {
+                    "step": saved["state"][0]["step"],
+                    **{
+                        k: torch.cat([m[k].reshape(-1) for m in moments])
+                        for k in ("exp_avg", "exp_avg_sq")
+                    },
+                }
+            },
+            "param_groups": [{**saved["param_groups"][0], "params": [0]}],
+        }
     state = learner.state_dict()
-    state["actor_opt"] = old_style.state_dict()
+    del state["parameter_layout"]
+    state["actor_opt"] = saved
+
     fresh = Learner(12, 4, config)
     fresh.load_state_dict(state)
     (moments,) = fresh.actor_opt.state.values()
-    expected = torch.cat(
-        [old_style.state[p]["exp_avg"].reshape(-1) for p in learner.actor.parameters()]
-    )
-    assert torch.equal(moments["exp_avg"], expected)
     assert float(moments["step"]) == 1.0
+    for p, old in zip(fresh.actor.parameters(), params, strict=True):
+        # the moment of parameter p sits where p sits in the folded tensor
+        offset = p.storage_offset() - fresh._online[0].storage_offset()
+        for key in ("exp_avg", "exp_avg_sq"):
+            at_p = moments[key].as_strided(p.shape, p.stride(), offset)
+            assert torch.equal(at_p, old_style.state[old][key])
+
+
+def test_direct_adam_step_gives_the_same_bits_as_optimizer_step():
+    from curious.learner import _adam, _adam_step
+
+    torch.manual_seed(0)
+    params = [torch.nn.Parameter(torch.randn(1000)) for _ in range(2)]
+    params[1].data.copy_(params[0].data)
+    ours, reference = _adam([params[0]], 1e-3), _adam([params[1]], 1e-3)
+    for _ in range(4):
+        grad = torch.randn(1000)
+        params[0].grad, params[1].grad = grad.clone(), grad.clone()
+        _adam_step(ours)
+        reference.step()
+    assert torch.equal(params[0], params[1])
+    state, ref_state = ours.state[params[0]], reference.state[params[1]]
+    assert torch.equal(state["exp_avg_sq"], ref_state["exp_avg_sq"])
+    assert float(state["step"]) == float(ref_state["step"]) == 4.0
