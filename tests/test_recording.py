@@ -105,6 +105,29 @@ def test_scalars_read_back_equal_what_was_logged(tmp_path: Path, on_change: bool
     assert seconds[-1] == pytest.approx((n - 1) * 0.5)
 
 
+def test_a_value_that_holds_is_rewritten_so_live_lines_reach_the_present(tmp_path: Path) -> None:
+    """Reach's competence sits at 1.0 for most of a run; a viewer watching live (or a recording
+    cut short) draws its line only up to the last point written, so that point must be recent."""
+    n, every = 3000, 400
+    episodes = np.arange(n)
+    held = np.ones((n, len(MODULES)))
+    held[:10] = 0.0  # one change at episode 10, then nothing
+    settings = RecorderSettings(stats_keyframe_every=every, compact_on_close=False)
+    with RunRecorder(tmp_path, MODULES, settings=settings) as recorder:
+        for start in range(0, n, 64):
+            rows = slice(start, start + 64)
+            count = len(episodes[rows])
+            recorder.log_episodes(
+                episodes[rows], np.zeros(count, int), np.ones(count, bool), np.zeros(count, bool),
+                held[rows], held[rows] * 0.0, held[rows] / len(MODULES),
+            )  # fmt: skip
+    times, values = read_scalars(tmp_path / RECORDING_FILENAME, f"competence/{MODULES[0]}")
+    assert times[0] == 0 and times[1] == 10 and times[-1] == n - 1
+    assert np.diff(times).max() <= every + 64  # a point at least once per keyframe interval
+    assert len(times) < 3 + n // every + 1  # and only then: the file stays small
+    assert (values[1:] == 1.0).all()
+
+
 def test_changes_only_keeps_the_file_smaller(tmp_path: Path) -> None:
     data = synthetic_episodes(2000, len(MODULES), seed=2, window=30)
     sizes = {}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from urllib.parse import parse_qs, urlparse
 
 import pytest
 
@@ -75,10 +76,30 @@ def test_web_serves_the_recordings(
     calls: list[list[str]] = []
     monkeypatch.setattr(view.subprocess, "call", lambda cmd: calls.append(cmd) or 0)
     a = _run_folder(tmp_path, "run_a")
-    assert main(["view", "--web", "--web-port", "9191", str(a)]) == 0
+    assert main(["view", "--web", "--web-port", "9191", "--grpc-port", "9292", str(a)]) == 0
     (command,) = calls
-    assert "--serve-web" in command and "9191" in command
+    assert "--serve-web" in command and "9191" in command and "9292" in command
     assert command[-1] == str(a / RECORDING_FILENAME)
+
+
+def test_the_printed_browser_address_loads_the_served_recordings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch, no_display: None
+) -> None:
+    """The page alone shows the viewer's welcome screen: the address must name the gRPC proxy
+    in its `url` query, with the `+` escaped (a bare one reads as a space)."""
+    monkeypatch.setattr(view.subprocess, "call", lambda cmd: 0)
+    a = _run_folder(tmp_path, "run_a")
+    for args, web, grpc in (
+        (["--web", "--web-port", "9191", "--grpc-port", "9292"], 9191, 9292),
+        ([], 9090, 9876),  # printed without a display, for the default ports
+    ):
+        assert main(["view", *args, str(a)]) == 0
+        out = capsys.readouterr().out.replace("<this-host>", "localhost")
+        addresses = [w for w in out.split() if w.startswith(f"http://localhost:{web}")]
+        assert addresses
+        for address in addresses:
+            query = parse_qs(urlparse(address).query)
+            assert query == {"url": [f"rerun+http://localhost:{grpc}/proxy"]}
 
 
 def _no_viewer(cmd: list[str]) -> int:

@@ -88,6 +88,15 @@ def viewer_command() -> list[str]:
     return [exe] if exe else [sys.executable, "-m", "rerun"]
 
 
+def web_viewer_url(host: str, web_port: int, grpc_port: int) -> str:
+    """The address that opens the served recordings in a browser.
+
+    The page alone opens the viewer's welcome screen; the `url` query names the gRPC proxy to
+    load from, with its `+` escaped (a bare `+` in a query reads as a space).
+    """
+    return f"http://{host}:{web_port}/?url=rerun%2Bhttp://{host}:{grpc_port}/proxy"
+
+
 def elsewhere_instructions(
     runs: list[str], paths: list[Path], web_port: int, grpc_port: int
 ) -> str:
@@ -103,11 +112,14 @@ def elsewhere_instructions(
             "     and open them:",
             f"       rerun {files}",
             "",
-            "  2. Or serve them from here and open them in a browser:",
+            "  2. Or serve them from here:",
             f"       curious view --web {runs_text}",
-            f"     then open http://<this-host>:{web_port} (over ssh: ssh -L {web_port}:localhost:"
-            f"{web_port} -L {grpc_port}:localhost:{grpc_port} <this-host>,",
-            f"     then http://localhost:{web_port}), or connect a native viewer to it:",
+            "     then open in a browser",
+            f"       {web_viewer_url('<this-host>', web_port, grpc_port)}",
+            f"     (over ssh: ssh -L {web_port}:localhost:{web_port} -L {grpc_port}:localhost:"
+            f"{grpc_port} <this-host>, then",
+            f"       {web_viewer_url('localhost', web_port, grpc_port)} ),",
+            "     or connect a native viewer to it:",
             f"       rerun --connect rerun+http://<this-host>:{grpc_port}/proxy",
         ]
     )
@@ -132,9 +144,10 @@ def run(args: argparse.Namespace) -> int:
             *files,
         ]
         print(
-            f"Serving {len(files)} recording(s): open http://<this-host>:{args.web_port} in a "
-            f"browser, or run `rerun --connect rerun+http://<this-host>:{args.grpc_port}/proxy`. "
-            "Ctrl-C stops."
+            f"Serving {len(files)} recording(s). Open "
+            f"{web_viewer_url('<this-host>', args.web_port, args.grpc_port)} in a browser "
+            "(<this-host>: localhost here, or this machine's name), or run "
+            f"`rerun --connect rerun+http://<this-host>:{args.grpc_port}/proxy`. Ctrl-C stops."
         )
         return subprocess.call(command)
     if not has_display():

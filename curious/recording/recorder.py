@@ -79,6 +79,10 @@ class RecorderSettings:
     rollout_stride: keep every k-th step of a recorded rollout (the last step always).
     stats_on_change: write competence, LP and p_LP of a module only where they change (they
         change on that module's evaluation episodes), drawn as steps; False writes every episode.
+    stats_keyframe_every: with `stats_on_change`, also write a module's unchanged value once it
+        was last written this many episodes ago, so that a run watched live, or a recording cut
+        short, draws a module whose value holds (reach at 1.0) up to the present instead of
+        ending its line at its last change; 0 never (`close()` writes the final values anyway).
     goal_radius: radius of the sphere drawn around the goal (the success threshold, metres).
     path_radius: line radius of the gripper path (metres).
     flush_rows: scalar rows buffered before they are sent (each send makes one chunk per
@@ -92,6 +96,7 @@ class RecorderSettings:
     rollout_every: int = 50
     rollout_stride: int = 1
     stats_on_change: bool = True
+    stats_keyframe_every: int = 500
     goal_radius: float = 0.05
     path_radius: float = 0.004
     flush_rows: int = 20_000
@@ -104,6 +109,8 @@ class RecorderSettings:
             raise ValueError(f"rollout_every must be >= 0, got {self.rollout_every}")
         if self.rollout_stride < 1:
             raise ValueError(f"rollout_stride must be >= 1, got {self.rollout_stride}")
+        if self.stats_keyframe_every < 0:
+            raise ValueError(f"stats_keyframe_every must be >= 0, got {self.stats_keyframe_every}")
         if self.goal_radius <= 0 or self.path_radius <= 0:
             raise ValueError("goal_radius and path_radius must be > 0")
         if self.flush_rows < 1 or self.flush_seconds < 0 or self.live_flush_seconds < 0:
@@ -470,11 +477,17 @@ class RunRecorder:
     def _log_stat(
         self, kind: str, episodes: np.ndarray, wall: np.ndarray, values: np.ndarray
     ) -> None:
-        """One module statistic for a batch: every row, or only the rows where it changed."""
+        """One module statistic for a batch: every row, or only the rows where it changed (and
+        the last row of a module not written for `stats_keyframe_every` episodes)."""
         if self.settings.stats_on_change:
             prev = np.vstack([self._last[kind][None], values[:-1]])
             same = (values == prev) | (np.isnan(values) & np.isnan(prev))
             keep = ~same
+            every = self.settings.stats_keyframe_every
+            if every > 0:
+                last_row = keep.shape[0] - 1 - np.argmax(keep[::-1], axis=0)
+                written = np.where(keep.any(axis=0), episodes[last_row], self._logged_until[kind])
+                keep[-1] |= (written <= episodes[-1] - every) & ~np.isnan(values[-1])
         else:
             keep = np.ones_like(values, dtype=bool)
         for m, name in enumerate(self.module_names):
