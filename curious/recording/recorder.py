@@ -11,14 +11,17 @@ Entity paths (fixed, so that recordings of different runs line up):
 
 | path | content |
 |---|---|
-| `competence/<module>` | competence after each episode (line, written where it changes) |
-| `lp/<module>` | absolute learning progress (line, written where it changes) |
-| `p_lp/<module>` | module selection probability (line, written where it changes) |
+| `competence/<module>` | competence after each episode (line, written where it changes*) |
+| `lp/<module>` | absolute learning progress (line, written where it changes*) |
+| `p_lp/<module>` | module selection probability (line, written where it changes*) |
 | `success/eval/<module>`, `success/train/<module>` | 0/1 final success of each episode (points) |
 | `module/<module>` | the module of each episode, drawn at its slot index (points) |
 | `replay/<module>` | share of replayed transitions substituted with that module |
 | `losses/<name>`, `q/<name>` | learner statistics |
 | `scene/...` | rollouts in 3D: bodies, goal, gripper path (see `curious.recording.scene`) |
+
+*and again every `stats_keyframe_every` (500) episodes while it holds, so that a live view draws
+a held value up to the present.
 
 Module colours and labels come from `curious.analysis.palette`, shared with the figures.
 A rollout's frames go on a third timeline, `rollout_frame` (dense: the recorded rollouts follow
