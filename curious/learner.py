@@ -105,7 +105,7 @@ def _adam_step(optimizer: torch.optim.Adam) -> None:
 
 
 class _Workspace:
-    """Buffers of one batch size: a workspace per network and the critic's input."""
+    """Buffers of one batch size: a workspace per network (each holds its own input buffer)."""
 
     def __init__(self, learner: Learner, batch: int) -> None:
         self.actor = MLPWorkspace(learner.actor.net, batch)
