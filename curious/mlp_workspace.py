@@ -36,9 +36,8 @@ def fold_parameters(module: nn.Module, grads: bool) -> torch.Tensor:
     the biases into its products.
     """
     linears = [m for m in module.modules() if isinstance(m, nn.Linear)]
-    if any(lin.bias is None for lin in linears) or sum(1 for _ in module.parameters()) != 2 * len(
-        linears
-    ):
+    n_params = len(list(module.parameters()))
+    if any(lin.bias is None for lin in linears) or n_params != 2 * len(linears):
         raise ValueError("fold_parameters expects parameters only in Linear layers with biases")
     shapes = [(lin.out_features, lin.in_features + 1) for lin in linears]
     weight = linears[0].weight
