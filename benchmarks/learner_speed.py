@@ -170,6 +170,7 @@ def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
     """Our update alone, and the training loop's step (sample + encode + update); the time
     of one relabelled sample in ms."""
     from curious.agent import Agent
+    from curious.inputs import GoalBox
     from curious.learner import Learner
     from curious.replay import EpisodeReplay
 
@@ -195,9 +196,8 @@ def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
         rng.integers(TASKS, size=n_ep),
         rng.uniform(-0.15, 0.15, (n_ep, TASKS, 3)).astype(np.float32),
     )
-    agent = Agent(spec, config)
-    agent.encoder.update_stats(replay.states[:50], replay.achieved[:50], replay.goals[:50],
-                               np.ones((50, TASKS), bool))  # fmt: skip
+    agent = Agent(spec, config, GoalBox.of(env))
+    agent.encoder.update_stats(replay.states[:50])
     probs = np.full(TASKS, 1 / TASKS)
 
     def full_step() -> None:

@@ -16,7 +16,7 @@ import torch
 
 from curious.config import Config
 from curious.envs import EnvSpec
-from curious.inputs import InputEncoder
+from curious.inputs import GoalBox, InputEncoder
 from curious.learner import Learner
 from curious.replay import Transitions
 
@@ -24,11 +24,13 @@ from curious.replay import Transitions
 class Agent:
     """Everything with parameters or statistics: encoder and experts."""
 
-    def __init__(self, spec: EnvSpec, config: Config, n_experts: int = 1) -> None:
+    def __init__(
+        self, spec: EnvSpec, config: Config, goal_box: GoalBox, n_experts: int = 1
+    ) -> None:
         self.spec = spec
         self.config = config
         self.device = torch.device(config.device)
-        self.encoder = InputEncoder(spec, config.norm_eps, config.norm_clip)
+        self.encoder = InputEncoder(spec, goal_box, config.norm_eps, config.norm_clip)
         self.experts = [
             Learner(self.encoder.input_dim, spec.action_dim, config, seed=config.seed * 1009 + k)
             for k in range(n_experts)

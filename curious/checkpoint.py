@@ -18,7 +18,9 @@ import numpy as np
 import torch
 
 PREFIX = "ep-"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""2: goals enter the networks through a fixed map (no goal statistics), Xavier-initialised
+networks, the authors' stack guard and T3 heights; a format-1 run cannot go on with this agent."""
 
 
 class CheckpointError(RuntimeError):
@@ -89,6 +91,8 @@ def load(
         raise CheckpointError(f"cannot read checkpoint {path}: {exc}") from exc
     if state.get("format") != FORMAT_VERSION:
         raise CheckpointError(
-            f"checkpoint {path} has format {state.get('format')}, expected {FORMAT_VERSION}"
+            f"checkpoint {path} has format {state.get('format')}, this curious reads format "
+            f"{FORMAT_VERSION}: it was written by another version of the agent, so the run "
+            "cannot go on here; start a new run (or use the curious version that wrote it)"
         )
     return state, replay

@@ -95,8 +95,12 @@ class Config:
     td3_policy_delay: int = 2
 
     # --- replay ------------------------------------------------------------------------------
-    buffer_episodes: int = 50_000
-    """Replay capacity in episodes (first in, first out)."""
+    buffer_episodes: int = 0
+    """Replay capacity in episodes; 0 keeps every episode of the run (capacity
+    `total_episodes`). The authors' per-task buffers (1e6 transitions per worker) evicted nothing
+    in a 300k-episode run, so every preset keeps the whole run. A lower capacity evicts the
+    oldest episodes first (first in, first out): early experience, such as the first pushes,
+    is then no longer replayed. The memory it takes is checked before training starts."""
     her_p: float = 0.8
     """Probability that a replayed goal is an outcome reached later in the same episode."""
     replay_active_only: bool = True
@@ -138,6 +142,11 @@ class Config:
     def batch_size(self) -> int:
         return self.batch_per_worker * self.n_workers
 
+    @property
+    def replay_capacity(self) -> int:
+        """Episodes the replay holds: `buffer_episodes`, or the whole run when it is 0."""
+        return self.buffer_episodes or self.total_episodes
+
     def validate(self) -> Config:
         """Raise `ConfigError` naming the first field with a value that cannot run."""
         if self.condition not in CONDITIONS:
@@ -152,11 +161,15 @@ class Config:
             raise ConfigError(f"unknown device {self.device!r}; choose one of {DEVICES}")
         positive = (
             "total_episodes n_workers episodes_per_worker n_cycles eval_every hidden layers "
-            "batch_per_worker buffer_episodes lp_window checkpoint_every_cycles td3_policy_delay"
+            "batch_per_worker lp_window checkpoint_every_cycles td3_policy_delay"
         ).split()
         for name in positive:
             if getattr(self, name) <= 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.buffer_episodes < 0:
+            raise ConfigError(
+                f"buffer_episodes must be >= 0 (0 keeps the whole run), got {self.buffer_episodes}"
+            )
         if self.n_updates < 0 or self.torch_threads < 0:
             raise ConfigError("n_updates and torch_threads must be >= 0")
         if self.sensor_failure_episode < -1:
@@ -201,7 +214,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         layers=2,
         batch_per_worker=32,
         n_updates=4,
-        buffer_episodes=64,
         lp_window=4,
         checkpoint_every_cycles=3,
         eval_every=5,
@@ -215,7 +227,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         n_cycles=25,
         batch_per_worker=128,
         n_updates=20,
-        buffer_episodes=5_000,
         lp_window=20,
         checkpoint_every_cycles=50,
         eval_every=5,
@@ -228,7 +239,6 @@ PRESETS: dict[str, dict[str, Any]] = {
         n_cycles=25,
         batch_per_worker=128,
         n_updates=40,
-        buffer_episodes=20_000,
         lp_window=100,
         checkpoint_every_cycles=100,
     ),

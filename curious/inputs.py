@@ -1,60 +1,128 @@
-"""The E-UVFA input: [normalised state, masked normalised goal vector, task descriptor].
+"""The E-UVFA input: [normalised state, masked scaled goal vector, task descriptor].
 
 The goal vector has one 3-D slot per module. Modular conditions fill only the practised module's
 slot and set the one-hot task descriptor; the holistic `her` condition fills every slot and leaves
-the descriptor at zero. Each slot is normalised with statistics of that module's goals only, and
-inactive slots are zero *after* normalisation, so that their first-layer weights receive no
-gradient (the masking of paper §3).
+the descriptor at zero. Inactive slots are zero *after* scaling, so that their first-layer weights
+receive no gradient (the masking of paper §3).
+
+States are normalised with running statistics (mean and std of every step's state, the OpenAI
+Baselines rule, clip 5). Goals are not: each module's goal space is a known box (the module maps
+g in [-1, 1]^3 affinely into it), and a slot is fed to the networks as its coordinates in that box,
+`(slot - centre) / half_width`, a fixed map (`GoalBox`). A goal anywhere in the goal space gives
+the g it was drawn from: distinct goals give distinct inputs, none clipped, from the first cycle of
+a run to its last. Hindsight goals outside the box (a cube pushed far) get values beyond 1, clipped
+at `norm_clip` half-widths.
+
+Why not running statistics for goals: taken from every step's hindsight outcome (where relabelled
+goals come from) they follow cubes that mostly rest on the table, whose spread is tiny; then goals
+of `cube1_above_cube2` at different heights all encoded to the clip value. The authors' release
+trained without any normalisation (`--normalize_obs` defaults to False in its train.py), which
+keeps goals distinct too; the fixed map keeps that property and gives inputs of unit scale.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 
-from curious.envs import EnvSpec
+from curious.envs import EnvSpec, GoalEnv
 from curious.normalizer import RunningNormalizer
 
 
-class InputEncoder:
-    """Owns the state and goal normalisers and builds network inputs from raw arrays."""
+@dataclass(frozen=True)
+class GoalBox:
+    """Per-module affine goal spaces: `goal_slot(k, g) = centre[k] + half_width[k] * g`.
 
-    def __init__(self, spec: EnvSpec, norm_eps: float = 0.01, norm_clip: float = 5.0) -> None:
+    `scale` is what the encoder divides by: the half-width where the goal space spans a
+    coordinate, and where it does not (push goals lie on the table, `stack` has one goal), the
+    smallest half-width of the whole environment, so that hindsight outcomes that move along that
+    coordinate keep a comparable scale.
+    """
+
+    centre: np.ndarray  # (N, G)
+    half_width: np.ndarray  # (N, G), 0 on coordinates the goal space does not span
+
+    @property
+    def scale(self) -> np.ndarray:
+        spanned = self.half_width > 0
+        if not spanned.any():
+            return np.ones_like(self.half_width)
+        fallback = self.half_width[spanned].min()
+        return np.where(spanned, self.half_width, fallback).astype(np.float32)
+
+    @classmethod
+    def of(cls, env: GoalEnv, atol: float = 1e-5) -> GoalBox:
+        """Read the box off `env.goal_slot` (centre at g = 0, half-widths at the unit vectors);
+        a `ValueError` if some module's map is not affine, since the encoding relies on it."""
+        spec = env.spec
+        n, g = spec.n_modules, spec.goal_dim
+        centre = np.empty((n, g), np.float64)
+        half = np.empty((n, g), np.float64)
+        probe = np.random.default_rng(0).uniform(-1.0, 1.0, (16, g))
+        for k in range(n):
+            centre[k] = env.goal_slot(k, np.zeros(g))
+            plus = np.asarray(env.goal_slot(k, np.eye(g)), np.float64)
+            minus = np.asarray(env.goal_slot(k, -np.eye(g)), np.float64)
+            jacobian = (plus - minus) / 2.0  # row d: the slot's change per unit of g_d
+            off_diagonal = jacobian - np.diag(np.diag(jacobian))
+            predicted = centre[k] + probe * np.diag(jacobian)
+            actual = np.asarray(env.goal_slot(k, probe), np.float64)
+            if np.abs(off_diagonal).max() > atol or np.abs(predicted - actual).max() > atol:
+                raise ValueError(
+                    f"module {spec.module_names[k]!r}: goal_slot is not an axis-aligned affine "
+                    "map of g, which the goal encoding needs"
+                )
+            half[k] = np.abs(np.diag(jacobian))
+        half[half < atol] = 0.0
+        return cls(centre.astype(np.float32), half.astype(np.float32))
+
+
+class InputEncoder:
+    """Owns the state normaliser and the goal map; builds network inputs from raw arrays."""
+
+    def __init__(
+        self, spec: EnvSpec, goal_box: GoalBox, norm_eps: float = 0.01, norm_clip: float = 5.0
+    ) -> None:
         self.spec = spec
         self.state_norm = RunningNormalizer((spec.state_dim,), eps=norm_eps, clip=norm_clip)
-        self.goal_norm = RunningNormalizer(
-            (spec.goal_dim,), groups=spec.n_modules, eps=norm_eps, clip=norm_clip
-        )
-        self._hindsight = spec.hindsight_columns()
+        expected = (spec.n_modules, spec.goal_dim)
+        if goal_box.centre.shape != expected or goal_box.half_width.shape != expected:
+            raise ValueError(f"goal box of shape {goal_box.centre.shape}, spec needs {expected}")
+        self.goal_box = goal_box
+        self.clip = float(norm_clip)
+        self._goal_centre = goal_box.centre.astype(np.float32)
+        self._goal_scale = goal_box.scale
+        self._torch: dict[str, tuple[torch.Tensor, torch.Tensor]] = {}
         n, g = spec.n_modules, spec.goal_dim
         self.input_dim = spec.state_dim + n * g + n
 
-    def update_stats(
-        self, states: np.ndarray, achieved: np.ndarray, goals: np.ndarray, goal_mask: np.ndarray
-    ) -> None:
-        """Add a batch of episodes to the statistics.
-
-        states (E, T+1, S); achieved (E, T+1, A); goals (E, N, G) the episodes' goal slots;
-        goal_mask (E, N) which slots were set. Goal statistics take every module's hindsight
-        goals (the outcomes the replay will relabel with) and the episodes' own goals.
-        """
-        n = self.spec.n_modules
+    def update_stats(self, states: np.ndarray) -> None:
+        """Add the states of a batch of episodes, (E, T+1, S), to the state statistics."""
         self.state_norm.update(states.reshape(-1, self.spec.state_dim))
-        hindsight = achieved[..., self._hindsight]  # (E, T+1, N, G)
-        flat = hindsight.reshape(-1, self.spec.goal_dim)
-        groups = np.broadcast_to(np.arange(n), hindsight.shape[:-1]).reshape(-1)
-        mask = np.asarray(goal_mask, dtype=bool)
-        own = goals[mask]
-        own_groups = np.nonzero(mask)[1]
-        self.goal_norm.update(np.concatenate([flat, own]), np.concatenate([groups, own_groups]))
+
+    def _goal_map(self, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+        key = str(device)
+        if key not in self._torch:
+            self._torch[key] = (
+                torch.as_tensor(self._goal_centre, device=device),
+                torch.as_tensor(self._goal_scale, device=device),
+            )
+        return self._torch[key]
+
+    def encode_goals(self, goals: torch.Tensor, goal_mask: torch.Tensor) -> torch.Tensor:
+        """(B, N * G) network goal inputs from goal slots (B, N, G) and their mask (B, N)."""
+        centre, scale = self._goal_map(goals.device)
+        scaled = torch.clamp((goals - centre) / scale, -self.clip, self.clip)
+        return (scaled * goal_mask.unsqueeze(-1)).flatten(1)
 
     def encode(
         self, state: torch.Tensor, goals: torch.Tensor, goal_mask: torch.Tensor, task: torch.Tensor
     ) -> torch.Tensor:
         """(B, input_dim) from state (B, S), goals (B, N, G), goal_mask (B, N), task (B, N)."""
         s = self.state_norm.normalize(state)
-        g = self.goal_norm.normalize(goals) * goal_mask.unsqueeze(-1)
-        return torch.cat([s, g.flatten(1), task], dim=1)
+        return torch.cat([s, self.encode_goals(goals, goal_mask), task], dim=1)
 
     def encode_pair(
         self,
@@ -67,12 +135,11 @@ class InputEncoder:
         """`encode` of a transition's two states with one goal part (half the work)."""
         n = state.shape[0]
         s = self.state_norm.normalize(torch.cat([state, next_state]))
-        g = (self.goal_norm.normalize(goals) * goal_mask.unsqueeze(-1)).flatten(1)
+        g = self.encode_goals(goals, goal_mask)
         return torch.cat([s[:n], g, task], dim=1), torch.cat([s[n:], g, task], dim=1)
 
     def state_dict(self) -> dict:
-        return {"state": self.state_norm.state_dict(), "goal": self.goal_norm.state_dict()}
+        return {"state": self.state_norm.state_dict()}
 
     def load_state_dict(self, state: dict) -> None:
         self.state_norm.load_state_dict(state["state"])
-        self.goal_norm.load_state_dict(state["goal"])

@@ -4,10 +4,11 @@ Each module keeps its self-evaluation results (1 success, 0 failure) in a queue 
 2 x `window` results. With n results recorded for a module:
 
 * competence = mean of the last min(n, window) results (0 before any result);
-* LP = |mean of the last k results - mean of the k results before them|, k = min(window, n // 2)
-  (0 while n < 2): the paper's "current competence against the one measured `window` results
-  before", with the window shrunk to what has been recorded so far so that progress shows from
-  the first evaluations on, as the released code did;
+* LP = |mean of the last k results - mean of the k results before them|, k = min(window, n // 2),
+  from the third result on (0 while n < 3, as the authors' `CompetenceQueue`, which updates only
+  when it holds more than 2 results; flowersteam/curious, baselines/her/queues.py): the paper's
+  "current competence against the one measured `window` results before", with the window shrunk
+  to what has been recorded so far so that progress shows from the first evaluations on;
 * p_LP = eps / N + (1 - eps) * LP / sum(LP), and uniform while sum(LP) = 0.
 
 (The released code divided LP by 2 and measured competence over k results; neither changes p_LP.)
@@ -16,6 +17,9 @@ Each module keeps its self-evaluation results (1 success, 0 failure) in a queue 
 from __future__ import annotations
 
 import numpy as np
+
+MIN_RESULTS_FOR_LP = 3
+"""A module's LP is 0 until it has this many evaluation results (the authors' queue: size > 2)."""
 
 
 def lp_probabilities(lp: np.ndarray, eps: float = 0.4) -> np.ndarray:
@@ -62,7 +66,7 @@ class CompetenceTracker:
         w = self.window
         self._competence[m] = self._last(m, 0, min(n, w)).mean() if n else 0.0
         k = min(w, n // 2)
-        if k == 0:
+        if n < MIN_RESULTS_FOR_LP:
             self._lp[m] = 0.0
         else:
             recent = self._last(m, 0, k).mean()

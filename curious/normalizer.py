@@ -1,4 +1,4 @@
-"""Running mean/std normalisers for the policy's inputs (states and goal slots).
+"""The running mean/std normaliser of the policy's state input.
 
 Statistics accumulate in float64 on the CPU; `normalize` works on numpy arrays or on torch
 tensors (on any device) using float32 copies of the current mean and std. Normalised values are
@@ -14,64 +14,36 @@ import torch
 
 
 class RunningNormalizer:
-    """Per-feature running mean and std over `shape`, optionally one set of statistics per group.
+    """Per-feature running mean and std over `shape`."""
 
-    With `groups=None` the statistics have `shape` (e.g. the state features). With `groups=N` they
-    have shape (N, *shape) and every update names the group of each sample: the goal normaliser
-    keeps one set per module slot, so that a slot's statistics come only from goals of that
-    module (zeros of inactive slots never enter them).
-    """
-
-    def __init__(
-        self,
-        shape: tuple[int, ...],
-        groups: int | None = None,
-        eps: float = 0.01,
-        clip: float = 5.0,
-    ) -> None:
+    def __init__(self, shape: tuple[int, ...], eps: float = 0.01, clip: float = 5.0) -> None:
         self.shape = tuple(shape)
-        self.groups = groups
         self.eps = float(eps)
         self.clip = float(clip)
-        stat_shape = ((groups,) if groups else ()) + self.shape
-        self.count = np.zeros((groups,) if groups else (), dtype=np.float64)
-        self.sum = np.zeros(stat_shape, dtype=np.float64)
-        self.sumsq = np.zeros(stat_shape, dtype=np.float64)
-        self.mean = np.zeros(stat_shape, dtype=np.float32)
-        self.std = np.ones(stat_shape, dtype=np.float32)
+        self.count = np.zeros((), dtype=np.float64)
+        self.sum = np.zeros(self.shape, dtype=np.float64)
+        self.sumsq = np.zeros(self.shape, dtype=np.float64)
+        self.mean = np.zeros(self.shape, dtype=np.float32)
+        self.std = np.ones(self.shape, dtype=np.float32)
         self._torch: dict[str, tuple[torch.Tensor, torch.Tensor]] = {}
 
-    def update(self, x: np.ndarray, group: np.ndarray | None = None) -> None:
-        """Add samples `x` of shape (n, *shape); `group` (n,) ints when grouped."""
+    def update(self, x: np.ndarray) -> None:
+        """Add samples `x` of shape (n, *shape)."""
         x = np.asarray(x, dtype=np.float64).reshape((-1, *self.shape))
-        if self.groups:
-            if group is None:
-                raise ValueError("a grouped normaliser needs the group of every sample")
-            group = np.asarray(group, dtype=np.int64).reshape(-1)
-            flat = x.reshape(len(x), -1)
-            n = self.groups
-            self.count += np.bincount(group, minlength=n)
-            sums = np.zeros((n, flat.shape[1]))
-            sumsq = np.zeros((n, flat.shape[1]))
-            np.add.at(sums, group, flat)
-            np.add.at(sumsq, group, flat * flat)
-            self.sum += sums.reshape(self.sum.shape)
-            self.sumsq += sumsq.reshape(self.sumsq.shape)
-        else:
-            self.count += len(x)
-            self.sum += x.sum(axis=0)
-            self.sumsq += (x * x).sum(axis=0)
+        self.count += len(x)
+        self.sum += x.sum(axis=0)
+        self.sumsq += (x * x).sum(axis=0)
         self._recompute()
 
     def _recompute(self) -> None:
-        count = self.count.reshape(self.count.shape + (1,) * len(self.shape))
-        safe = np.maximum(count, 1.0)
-        mean = self.sum / safe
-        var = self.sumsq / safe - mean * mean
-        std = np.sqrt(np.maximum(self.eps**2, var))
-        seen = np.broadcast_to(count > 0, mean.shape)
-        self.mean = np.where(seen, mean, 0.0).astype(np.float32)
-        self.std = np.where(seen, std, 1.0).astype(np.float32)
+        if self.count <= 0:  # nothing seen yet: the identity map
+            self.mean = np.zeros(self.shape, np.float32)
+            self.std = np.ones(self.shape, np.float32)
+        else:
+            mean = self.sum / self.count
+            var = self.sumsq / self.count - mean * mean
+            self.mean = mean.astype(np.float32)
+            self.std = np.sqrt(np.maximum(self.eps**2, var)).astype(np.float32)
         self._torch.clear()
 
     def _stats(self, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:

@@ -1,20 +1,23 @@
 """Episode replay with sample-time relabelling: task substitution (p_LP) and HER 'future' goals.
 
-Episodes are stored whole in preallocated numpy arrays (first in, first out). A minibatch is
+Episodes are stored whole in preallocated numpy arrays (first in, first out when the capacity is
+below the run's length; the presets keep the whole run, `Config.buffer_episodes`). A minibatch is
 built at sample time, with numpy indexing only (loops run over modules, never over transitions):
 
-1. each transition gets a *substitute module* drawn from the given module probabilities (p_LP
-   for `curious`, uniform for `m-uvfa`, the trained expert's module for `mg-te`);
+1. each transition gets a *replay module* drawn from the given module probabilities (p_LP for
+   `curious`, uniform for `m-uvfa`, the trained expert's module for `mg-te`);
 2. its episode is drawn among the episodes where that module's outcome changed
    (`active_only`, as the released code's per-module buffers), or among all while there is none;
    its time step t is uniform in [0, T);
-3. with probability `her_p` the goal becomes the module's outcome at a step f drawn uniformly in
-   [t+1, T] of the same episode (HER 'future'; `achieved[f]` is the outcome after f actions, so
-   the goal is always reached strictly after the transition's state s_t); otherwise it is the
-   episode's own goal when the module is the one practised, or a fresh goal drawn uniformly in
-   the module's goal space when it is not (the goal the agent would have drawn for that module);
-4. the reward is recomputed for the substitute module and goal with the environment's vectorised
-   reward, one call per module present in the batch.
+3. with probability `her_p` the transition is relabelled: its module becomes the replay module
+   and its goal that module's outcome at a step f drawn uniformly in [t+1, T] of the same episode
+   (HER 'future'; `achieved[f]` is the outcome after f actions, so the goal is always reached
+   strictly after the transition's state s_t). The other transitions keep the module the episode
+   practised and the episode's own goal, so that ~(1 - her_p) of every minibatch are real
+   (module, goal) pairs, as in the authors' sampler (flowersteam/curious, her.py: only the HER
+   indices get a substituted task);
+4. the reward is recomputed for each transition's module and goal with the environment's
+   vectorised reward, one call per module present in the batch.
 
 The holistic `her` condition replays one goal over all modules: relabelled goals put every
 module's outcome at step f into its slot, and the reward is 0 only where every module's reward is.
@@ -30,9 +33,7 @@ import numpy as np
 from curious.envs import EnvSpec, GoalEnv
 
 GOAL_OWN = -1
-"""`Transitions.goal_step` of a transition that kept its episode's goal."""
-GOAL_FRESH = -2
-"""`Transitions.goal_step` of a transition given a freshly drawn goal."""
+"""`Transitions.goal_step` of a transition that kept its episode's module and goal."""
 
 
 @dataclass
@@ -46,10 +47,10 @@ class Transitions:
     goal_mask: np.ndarray  # (B, N) float: slots that carry a goal
     task: np.ndarray  # (B, N) float one-hot descriptor (zeros in the holistic condition)
     reward: np.ndarray  # (B,) float32 in {-1, 0}
-    module: np.ndarray  # (B,) substitute module, -1 in the holistic condition
+    module: np.ndarray  # (B,) module of the goal and task descriptor, -1 in the holistic condition
     episode: np.ndarray  # (B,) buffer slot of the source episode
     step: np.ndarray  # (B,) time step t of the transition
-    goal_step: np.ndarray  # (B,) step f of a hindsight goal, or GOAL_OWN / GOAL_FRESH
+    goal_step: np.ndarray  # (B,) step f of a hindsight goal, or GOAL_OWN
 
 
 class EpisodeReplay:
@@ -80,9 +81,18 @@ class EpisodeReplay:
         self._hindsight = spec.hindsight_columns()  # (N, G)
         self._pools: list[np.ndarray] | None = None  # per module: episodes its outcome moved in
 
+    @staticmethod
+    def bytes_for(spec: EnvSpec, capacity: int) -> int:
+        """Memory that a replay of `capacity` episodes of `spec` takes once filled."""
+        T, n = spec.episode_length, spec.n_modules
+        floats = (T + 1) * (spec.state_dim + spec.achieved_dim) + T * spec.action_dim
+        per_episode = 4 * (floats + n * spec.goal_dim) + 8 + n  # + module index, moved flags
+        return int(capacity) * per_episode
+
     @property
     def nbytes(self) -> int:
-        return sum(a.nbytes for a in (self.states, self.achieved, self.actions, self.goals))
+        arrays = (self.states, self.achieved, self.actions, self.modules, self.goals, self.moved)
+        return sum(a.nbytes for a in arrays)
 
     def store(
         self,
@@ -138,35 +148,26 @@ class EpisodeReplay:
             raise ValueError("module_probs are needed to substitute modules")
         spec = self.spec
         n_mod, T, B = spec.n_modules, spec.episode_length, batch_size
-        module = rng.choice(n_mod, size=B, p=np.asarray(module_probs, dtype=np.float64))
+        replay_module = rng.choice(n_mod, size=B, p=np.asarray(module_probs, dtype=np.float64))
         episode = np.empty(B, np.int64)
-        groups = [np.flatnonzero(module == k) for k in range(n_mod)]
-        for k, sel in enumerate(groups):
+        for k in range(n_mod):
+            sel = np.flatnonzero(replay_module == k)
             if sel.size:
                 episode[sel] = self._episodes_for(k, sel.size, rng)
         step = rng.integers(T, size=B)
         her = rng.random(B) < her_p
         future = step + 1 + (rng.random(B) * (T - step)).astype(np.int64)
 
-        goal = np.empty((B, spec.goal_dim), np.float32)
-        goal_step = np.full(B, GOAL_OWN, np.int64)
+        module = np.where(her, replay_module, self.modules[episode])
+        goal = self.goals[episode, module]  # the episode's own goal where it kept its module
         cols = self._hindsight[module[her]]  # (nh, G)
         goal[her] = self.achieved[episode[her, None], future[her, None], cols]
-        goal_step[her] = future[her]
-        own = ~her & (self.modules[episode] == module)
-        goal[own] = self.goals[episode[own], module[own]]
-        fresh = ~her & ~own
-        goal_step[fresh] = GOAL_FRESH
+        goal_step = np.where(her, future, GOAL_OWN)
         next_achieved = self.achieved[episode, step + 1]
         reward = np.empty(B, np.float32)
-        for k, sel in enumerate(groups):
-            if not sel.size:
-                continue
-            new = sel[fresh[sel]]
-            if new.size:
-                raw = rng.uniform(-1.0, 1.0, size=(new.size, spec.goal_dim))
-                goal[new] = env.goal_slot(k, raw)
-            reward[sel] = env.reward(k, next_achieved[sel], goal[sel])
+        for k in np.unique(module):
+            sel = np.flatnonzero(module == k)
+            reward[sel] = env.reward(int(k), next_achieved[sel], goal[sel])
 
         goals = np.zeros((B, n_mod, spec.goal_dim), np.float32)
         goals[np.arange(B), module] = goal
@@ -232,11 +233,14 @@ class EpisodeReplay:
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
+        """Load a `state_dict`, into a replay of the same or a larger capacity (a run resumed
+        with more episodes); episodes are laid out oldest first, so eviction order is kept."""
         n = int(state["size"])
         if n > self.capacity:
             raise ValueError(f"checkpoint replay holds {n} episodes, capacity is {self.capacity}")
+        oldest = int(state["ptr"]) % n if n else 0  # a full ring's oldest episode sits at ptr
         for key in ("states", "achieved", "actions", "modules", "goals", "moved"):
-            array = np.asarray(state[key])
+            array = np.roll(np.asarray(state[key]), -oldest, axis=0)
             target = getattr(self, key)
             if array.shape[1:] != target.shape[1:]:
                 raise ValueError(
@@ -244,5 +248,5 @@ class EpisodeReplay:
                 )
             target[:n] = array
         self.size = n
-        self.ptr = int(state["ptr"])
+        self.ptr = n % self.capacity
         self._pools = None

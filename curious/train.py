@@ -36,6 +36,7 @@ around every round of parallel episodes:
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -49,7 +50,8 @@ from curious import checkpoint
 from curious.agent import Agent
 from curious.conditions import make_condition
 from curious.config import Config, ConfigError
-from curious.envs import GoalEnv
+from curious.envs import EnvSpec, GoalEnv
+from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
 from curious.metrics import MetricsLog
 from curious.replay import EpisodeReplay
@@ -100,6 +102,32 @@ class CycleResult:
     replay_counts: np.ndarray  # (N,) substitute modules drawn in the cycle's minibatches
 
 
+def available_memory() -> int:
+    """Bytes of memory this machine can still give (MemAvailable where Linux reports it)."""
+    try:
+        with open("/proc/meminfo") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def _check_replay_fits(config: Config, spec: EnvSpec) -> None:
+    """A `ConfigError` before training when the replay would not fit in memory once filled
+    (numpy allocates it lazily, so without this a run would fail hours in)."""
+    need = EpisodeReplay.bytes_for(spec, config.replay_capacity)
+    have = available_memory()
+    if need > 0.9 * have:
+        raise ConfigError(
+            f"the replay keeps {config.replay_capacity:,} episodes, {need / 2**30:.2f} GiB once "
+            f"filled, but this machine has {have / 2**30:.2f} GiB available: lower "
+            "buffer_episodes (--set buffer_episodes=N keeps the newest N episodes) or "
+            "total_episodes"
+        )
+
+
 class Trainer:
     """One run's state and its training cycle."""
 
@@ -119,10 +147,11 @@ class Trainer:
             raise ConfigError("device 'cuda' was asked for but torch sees no CUDA device")
         n = self.spec.n_modules
         self.condition = make_condition(config.condition, n, config.lp_eps)
-        self.agent = Agent(self.spec, config, self.condition.n_experts)
+        self.agent = Agent(self.spec, config, GoalBox.of(self.envs[0]), self.condition.n_experts)
+        _check_replay_fits(config, self.spec)
         self.replay = EpisodeReplay(
             self.spec,
-            config.buffer_episodes,
+            config.replay_capacity,
             holistic=self.condition.holistic,
             active_only=config.replay_active_only,
             moved_threshold=config.moved_threshold,
@@ -223,7 +252,7 @@ class Trainer:
             success = data.final_success[np.arange(n), modules]
 
         self.replay.store(data.states, data.achieved, data.actions, modules, goals)
-        self.agent.encoder.update_stats(data.states, data.achieved, goals, mask)
+        self.agent.encoder.update_stats(data.states)
 
         competence = np.empty((n, n_mod), np.float32)
         lp = np.empty((n, n_mod), np.float32)

@@ -29,7 +29,9 @@ import numpy as np
 from suite import layout
 
 _EPS2 = np.float32(layout.SUCCESS_DISTANCE) ** 2
-_AWAY = np.float32(layout.SUCCESS_DISTANCE)
+_AWAY = np.float32(1.2 * layout.SUCCESS_DISTANCE)
+"""`stack`'s guard: the gripper at least 0.06 m from the stack target (the authors' 1.2 x 0.05,
+gym_flowers multi_task_fetch_arm_v5.py, its stacking reward)."""
 _ONE = np.float32(1.0)
 
 SlotFn = Callable[[np.ndarray], np.ndarray]
@@ -260,13 +262,15 @@ def within_distance(achieved: np.ndarray, goal_slot: np.ndarray) -> np.ndarray:
 
 
 def _gripper_away(achieved: np.ndarray) -> np.ndarray:
-    """`stack`'s guard: the gripper (outcome component 4) at least 0.05 m from cube 1."""
+    """`stack`'s guard: the gripper (outcome component 4) at least 0.06 m from the goal."""
     return achieved[..., 3] >= _AWAY
 
 
-def _gripper_distance(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
-    """|gripper - cube 1|, shape (..., 1)."""
-    d = gripper - cubes[..., 0, :]
+def _gripper_to_stack_target(gripper: np.ndarray, cubes: np.ndarray) -> np.ndarray:
+    """|gripper - stack target|, shape (..., 1); the target is one cube height above cube 2,
+    where `stack`'s goal lies whatever g (the authors measured the guard from the goal)."""
+    d = gripper - cubes[..., 1, :]
+    d[..., 2] -= 2 * layout.CUBE_HALF_SIZE
     d *= d
     s = d[..., 0:1] + d[..., 1:2]
     s += d[..., 2:3]
@@ -303,31 +307,36 @@ def push_cube(cube: int, *, achievable: bool) -> TaskModule:
 
 
 def cube1_above_cube2() -> TaskModule:
-    """T3: cube 1 to a 3-D target above cube 2, 0.05..0.45 m above the table.
+    """T3: cube 1 to a 3-D target above cube 2, 0.05..0.45 m above a resting cube's centre.
 
-    Outcome `(x1 - x2, y1 - y2, z1)` in cube 2's frame, goal slot `(0, 0, 0.45 + 0.2 (g_z + 1))`.
+    Outcome `(x1 - x2, y1 - y2, z1)` in cube 2's frame, goal slot
+    `(0, 0, 0.426 + 0.05 + 0.2 (g_z + 1))`: the authors' heights (gym_flowers
+    multi_task_fetch_arm_v3.py, `height_offset + (g_z + 1.25) * 0.2`), the lowest one cube 1
+    resting on cube 2.
     """
     return distance_module(
         "cube1_above_cube2",
         achievable=True,
         terms=(((1, 0, 1.0), (2, 0, -1.0)), ((1, 1, 1.0), (2, 1, -1.0)), ((1, 2, 1.0),)),
-        slot_fn=affine_slot((0.0, 0.0, 0.2), (0.0, 0.0, _TOP + 0.05 + 0.2)),
+        slot_fn=affine_slot((0.0, 0.0, 0.2), (0.0, 0.0, _Z + 0.05 + 0.2)),
     )
 
 
 def stack() -> TaskModule:
     """T4: cube 1 on cube 2 with the gripper away.
 
-    Outcome `(x1 - x2, y1 - y2, z1 - z2, |gripper - cube1|)`; goal slot `(0, 0, 0.05)` whatever
-    g; success: the first three within 0.05 of the slot and the gripper >= 0.05 from cube 1.
+    Outcome `(x1 - x2, y1 - y2, z1 - z2, |gripper - target|)`, the target one cube height above
+    cube 2; goal slot `(0, 0, 0.05)` whatever g; success: the first three within 0.05 of the slot
+    and the gripper >= 0.06 from the target (the authors' guard, gym_flowers
+    multi_task_fetch_arm_v5.py: `dgrip < 1.2 * distance_threshold` fails).
     """
     return distance_module(
         "stack",
         achievable=True,
         terms=tuple(((1, axis, 1.0), (2, axis, -1.0)) for axis in range(3)),
-        extra_outcome_fn=_gripper_distance,
+        extra_outcome_fn=_gripper_to_stack_target,
         extra_dim=1,
-        extra_cubes=(0,),
+        extra_cubes=(1,),
         guard_fn=_gripper_away,
         slot_fn=affine_slot((0.0, 0.0, 0.0), (0.0, 0.0, 2 * layout.CUBE_HALF_SIZE)),
     )

@@ -23,6 +23,19 @@ def test_paper_preset_is_the_authors_protocol():
     assert c.total_episodes == 300_000
 
 
+@pytest.mark.parametrize("preset", list(PRESETS))
+def test_every_preset_keeps_the_whole_run_in_replay(preset):
+    """The authors' per-task buffers (flowersteam/curious, baselines/her/experiment/config.py:
+    buffer_size 1e6 transitions) evicted nothing in a 300k-episode run."""
+    config = resolve(preset)
+    assert config.replay_capacity >= config.total_episodes
+    longer = resolve(preset, overrides={"total_episodes": 3 * config.total_episodes})
+    assert longer.replay_capacity == longer.total_episodes
+    assert resolve(preset, overrides={"buffer_episodes": 10}).replay_capacity == 10
+    with pytest.raises(ConfigError, match="buffer_episodes"):
+        resolve(preset, overrides={"buffer_episodes": -1})
+
+
 def test_overrides_are_typed():
     values = parse_overrides(["hidden=64", "her_p=0.5", "progress=false", "algorithm=td3"])
     assert values == {"hidden": 64, "her_p": 0.5, "progress": False, "algorithm": "td3"}

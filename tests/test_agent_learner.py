@@ -9,7 +9,7 @@ import torch
 from toy_env import ToyGoalEnv
 
 from curious.config import resolve
-from curious.inputs import InputEncoder
+from curious.inputs import GoalBox, InputEncoder
 from curious.learner import Learner
 from curious.networks import Actor, Critic
 from curious.normalizer import RunningNormalizer
@@ -56,31 +56,11 @@ def test_normaliser_matches_numpy_and_clips():
     np.testing.assert_allclose(torch_out.numpy(), out, rtol=1e-5)
 
 
-def test_grouped_normaliser_keeps_statistics_per_module():
-    rng = np.random.default_rng(1)
-    values = np.concatenate([rng.normal(-5, 1, (500, 3)), rng.normal(5, 3, (500, 3))])
-    groups = np.repeat([0, 2], 500)
-    norm = RunningNormalizer((3,), groups=3)
-    norm.update(values, groups)
-    np.testing.assert_allclose(norm.mean[0], values[:500].mean(0), rtol=1e-5)
-    np.testing.assert_allclose(norm.mean[2], values[500:].mean(0), rtol=1e-5)
-    np.testing.assert_allclose(norm.std[2], values[500:].std(0), rtol=1e-4)
-    # a module never seen is left as is
-    np.testing.assert_array_equal(norm.mean[1], 0) and np.testing.assert_array_equal(norm.std[1], 1)
-    with pytest.raises(ValueError, match="group"):
-        norm.update(values)
-
-
 def test_inactive_goal_slots_get_no_gradient():
     spec = ToyGoalEnv.spec
-    encoder = InputEncoder(spec)
+    encoder = InputEncoder(spec, GoalBox.of(ToyGoalEnv()))
     rng = np.random.default_rng(0)
-    encoder.update_stats(
-        rng.normal(size=(4, 11, 7)),
-        rng.normal(size=(4, 11, 9)),
-        rng.normal(size=(4, 3, 3)),
-        np.ones((4, 3), bool),
-    )
+    encoder.update_stats(rng.normal(size=(4, 11, 7)))
     n = 32
     goals = torch.tensor(rng.normal(size=(n, 3, 3)), dtype=torch.float32)
     task = torch.zeros(n, 3)
@@ -222,14 +202,9 @@ def test_explicit_update_gradients_equal_autograd(algorithm):
 
 def test_encode_pair_equals_two_encodes():
     spec = ToyGoalEnv.spec
-    encoder = InputEncoder(spec)
+    encoder = InputEncoder(spec, GoalBox.of(ToyGoalEnv()))
     rng = np.random.default_rng(3)
-    encoder.update_stats(
-        rng.normal(size=(4, 11, 7)),
-        rng.normal(size=(4, 11, 9)),
-        rng.normal(size=(4, 3, 3)),
-        np.ones((4, 3), bool),
-    )
+    encoder.update_stats(rng.normal(size=(4, 11, 7)))
     s, s2 = torch.randn(16, 7), torch.randn(16, 7)
     goals, mask = torch.randn(16, 3, 3), torch.ones(16, 3)
     task = torch.zeros(16, 3)
@@ -296,3 +271,19 @@ def test_direct_adam_step_gives_the_same_bits_as_optimizer_step():
     state, ref_state = ours.state[params[0]], reference.state[params[1]]
     assert torch.equal(state["exp_avg_sq"], ref_state["exp_avg_sq"])
     assert float(state["step"]) == float(ref_state["step"]) == 4.0
+
+
+def test_networks_start_xavier_uniform_with_zero_biases():
+    """The authors' dense layers: xavier_initializer() weights, zero biases
+    (flowersteam/curious, baselines/her/util.py, nn and nn_modular_her)."""
+    learner = Learner(120, 4, resolve("paper"))
+    layers = [m for m in learner.critics[0].net if isinstance(m, torch.nn.Linear)]
+    layers += [m for m in learner.actor.net if isinstance(m, torch.nn.Linear)]
+    for layer in layers:
+        fan_out, fan_in = layer.weight.shape
+        bound = (6.0 / (fan_in + fan_out)) ** 0.5
+        w = layer.weight.detach()
+        assert w.abs().max() <= bound
+        if w.numel() > 1000:  # uniform on [-bound, bound]: std bound / sqrt(3)
+            assert w.std().item() == pytest.approx(bound / 3**0.5, rel=0.05)
+        assert torch.all(layer.bias == 0)

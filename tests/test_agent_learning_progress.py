@@ -83,3 +83,14 @@ def test_state_round_trip():
 def test_negative_lp_rejected():
     with pytest.raises(ValueError, match="negative"):
         lp_probabilities(np.array([0.1, -0.2]))
+
+
+def test_lp_needs_three_results_as_the_authors_queue():
+    """flowersteam/curious, baselines/her/queues.py: CompetenceQueue.update computes CP only
+    when it holds more than 2 results."""
+    tracker = CompetenceTracker(n_modules=1, window=300)
+    tracker.add(0, False)
+    tracker.add(0, True)
+    assert tracker.learning_progress()[0] == 0  # two results: no progress yet
+    tracker.add(0, False)  # k = 1: |0 - 1|
+    assert tracker.learning_progress()[0] == pytest.approx(1.0)

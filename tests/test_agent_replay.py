@@ -5,7 +5,7 @@ import pytest
 from scipy import stats
 from toy_env import ToyGoalEnv
 
-from curious.replay import GOAL_FRESH, GOAL_OWN, EpisodeReplay
+from curious.replay import GOAL_OWN, EpisodeReplay
 
 SPEC = ToyGoalEnv.spec
 T = SPEC.episode_length
@@ -75,7 +75,7 @@ def test_her_probability_is_respected():
 def test_substituted_modules_follow_the_given_probabilities(probs):
     replay, _ = filled_replay()
     probs = np.array(probs)
-    batch = replay.sample(30000, np.random.default_rng(3), ToyGoalEnv(), probs)
+    batch = replay.sample(30000, np.random.default_rng(3), ToyGoalEnv(), probs, her_p=1.0)
     counts = np.bincount(batch.module, minlength=3)
     used = probs > 0
     assert np.all(counts[~used] == 0)
@@ -109,16 +109,23 @@ def test_own_goals_reproduce_the_rewards_seen_in_the_episode():
     np.testing.assert_array_equal(batch.reward, seen)
 
 
-def test_other_modules_without_hindsight_get_fresh_goals_from_their_goal_space():
-    modules = np.zeros(30, np.int64)
-    states, achieved, actions, modules, goals, _ = rollouts(30, modules, seed=7)
-    replay = EpisodeReplay(SPEC, capacity=50)
-    replay.store(states, achieved, actions, modules, goals)
-    batch = replay.sample(2000, np.random.default_rng(8), ToyGoalEnv(), [0, 1, 0], her_p=0.0)
-    assert np.all(batch.goal_step == GOAL_FRESH)
-    dial_goals = batch.goals[:, 1]
-    assert np.all(np.abs(dial_goals[:, 0]) <= 0.9) and np.all(dial_goals[:, 1:] == 0)
-    assert dial_goals[:, 0].std() > 0.4  # spread over the goal space, not one goal
+@pytest.mark.parametrize("probs", [[1 / 3, 1 / 3, 1 / 3], [0, 1, 0], [0.1, 0.1, 0.8]])
+def test_transitions_not_relabelled_keep_their_episodes_module_and_goal(probs):
+    """The authors' sampler (flowersteam/curious, baselines/her/her.py) substitutes a task and a
+    future goal only at the HER indices (her_p = 0.8); the other ~20 % of every minibatch keep
+    the episode's practised task and its own goal, whatever the replay probabilities."""
+    replay, _ = filled_replay()
+    batch = replay.sample(20000, np.random.default_rng(8), ToyGoalEnv(), probs, her_p=0.8)
+    own = batch.goal_step == GOAL_OWN
+    assert abs(own.mean() - 0.2) < 0.015
+    practised = replay.modules[batch.episode[own]]
+    np.testing.assert_array_equal(batch.module[own], practised)
+    np.testing.assert_array_equal(
+        batch.goals[own, practised], replay.goals[batch.episode[own], practised]
+    )
+    np.testing.assert_array_equal(batch.task[own].argmax(1), practised)
+    # a real pair is one the episode was run with: its goal is the one the module was given
+    assert np.all(np.abs(batch.goals[own, practised]).sum(1) > 0)
 
 
 def test_modules_replay_only_episodes_where_their_outcome_moved():
@@ -163,10 +170,25 @@ def test_storage_is_first_in_first_out_and_round_trips():
     np.testing.assert_array_equal(replay.states[15:25], data[0][15:25])
     copy = EpisodeReplay(SPEC, capacity=25)
     copy.load_state_dict(replay.state_dict())
-    a = replay.sample(500, np.random.default_rng(1), ToyGoalEnv(), np.full(3, 1 / 3))
-    b = copy.sample(500, np.random.default_rng(1), ToyGoalEnv(), np.full(3, 1 / 3))
-    np.testing.assert_array_equal(a.goals, b.goals)
-    np.testing.assert_array_equal(a.reward, b.reward)
+    np.testing.assert_array_equal(copy.states, data[0][15:40])  # loaded oldest first
+    more = rollouts(5, np.arange(5) % 3, seed=13)
+    replay.store(*more[:5])
+    copy.store(*more[:5])
+    for key in ("states", "achieved", "actions", "modules", "goals", "moved"):  # same evictions
+        mine, theirs = getattr(replay, key), getattr(copy, key)
+        order_mine = np.roll(mine, -replay.ptr, axis=0)
+        np.testing.assert_array_equal(order_mine, np.roll(theirs, -copy.ptr, axis=0))
+
+
+def test_a_resumed_run_with_more_episodes_keeps_its_replay_and_grows_it():
+    replay = EpisodeReplay(SPEC, capacity=20)
+    data = rollouts(26, np.arange(26) % 3, seed=14)
+    replay.store(*(a[:20] for a in data[:5]))
+    bigger = EpisodeReplay(SPEC, capacity=40)
+    bigger.load_state_dict(replay.state_dict())
+    bigger.store(*(a[20:] for a in data[:5]))
+    assert bigger.size == 26
+    np.testing.assert_array_equal(bigger.states[:26], data[0])
 
 
 def test_sampling_errors_are_clear():
