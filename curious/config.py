@@ -1,9 +1,10 @@
 """The run configuration: one dataclass, four presets, and `key=value` overrides.
 
-Defaults are the authors' settings (paper §6.2; OpenAI Baselines HER-DDPG hyper-parameters, with
-100 updates per cycle). A preset changes the scale of a run, never the algorithm; overrides from
-the command line (`--set key=value`) change single fields and are checked against the field's
-type, so a typo is an error instead of a silently ignored setting.
+Defaults are the authors' settings (paper §6.2 and their release, flowersteam/curious: the files
+named in the field docs are under its baselines/her/), each field saying the authors' value. A
+preset changes the scale of a run, never the algorithm; overrides from the command line
+(`--set key=value`) change single fields and are checked against the field's type, so a typo is
+an error instead of a silently ignored setting.
 """
 
 from __future__ import annotations
@@ -48,48 +49,66 @@ class Config:
     variant: str = "default"
     """Suite variant (`suite.ALL_VARIANTS`) trained on."""
     total_episodes: int = 300_000
-    """The run stops after exactly this many episodes (evaluation episodes included)."""
+    """The run stops after exactly this many training episodes (self-evaluations included, test
+    rollouts not). Authors: 316 epochs x 950 = ~300k."""
 
     # --- rollouts ----------------------------------------------------------------------------
     n_workers: int = 19
-    """Environment copies stepped together in one process (one batched policy call per step);
-    the authors ran 19 MPI workers."""
+    """Environment copies stepped together in one process (one batched policy call per step).
+    Authors: 19 MPI workers (the paper's runs)."""
     episodes_per_worker: int = 2
-    """Rounds of `n_workers` parallel episodes per cycle."""
+    """Rounds of `n_workers` parallel episodes per cycle. Authors: rollout_batch_size 2."""
     n_cycles: int = 25
-    """Cycles per epoch (25 x 2 x 19 = 950 episodes per epoch with the authors' sizes)."""
+    """Cycles per epoch (25 x 2 x 19 = 950 episodes per epoch with the authors' sizes). Authors:
+    25."""
     eval_every: int = 10
     """Every `eval_every`-th episode (by global index) is a self-evaluation without noise on a
-    module drawn uniformly; its final success feeds that module's competence."""
+    module drawn uniformly; its final success feeds that module's competence. Authors: a rollout
+    is a self-evaluation with probability 0.1 (rollout.py); every 10th is the same rate, counted
+    exactly."""
+    test_rollouts_per_worker: int = 10
+    """Noise-free test rollouts per environment copy after every epoch (authors: 5 test
+    rollouts x 2 parallel episodes = 10 per worker, 190 per epoch with 19 workers), each on a
+    module drawn uniformly with a goal uniform in its space, on copies of their own. They are not
+    training episodes: not stored, not counted in `total_episodes`, no effect on competence, LP
+    or any random draw of training. Their success (`tests.parquet`) is what Fig. 2a plots, as
+    the paper's. 0 runs none."""
     noise_eps: float = 0.2
-    """Std of the Gaussian action noise, as a fraction of the maximal action (1)."""
+    """Std of the Gaussian action noise, as a fraction of the maximal action (1). Authors: 0.2
+    (experiment/config.py)."""
     random_eps: float = 0.3
-    """Probability that an exploring step takes a uniform random action instead."""
+    """Probability that an exploring step takes a uniform random action instead. Authors: 0.3
+    (experiment/config.py)."""
 
     # --- learner -----------------------------------------------------------------------------
     algorithm: str = "ddpg"
     """`ddpg` (the authors') or `td3` (twin critics, target smoothing, delayed actor)."""
     hidden: int = 256
-    """Units per hidden layer of actor and critic."""
+    """Units per hidden layer of actor and critic. Authors: 256."""
     layers: int = 3
-    """Hidden layers of actor and critic."""
+    """Hidden layers of actor and critic. Authors: 3."""
     actor_lr: float = 1e-3
+    """Adam learning rate of the actor. Authors: pi_lr 1e-3."""
     critic_lr: float = 1e-3
+    """Adam learning rate of the critic. Authors: Q_lr 1e-3."""
     gamma: float = 0.98
-    """Discount; targets are clipped to [-1/(1-gamma), 0] (rewards are -1 or 0)."""
+    """Discount; targets are clipped to [-1/(1-gamma), 0] (rewards are -1 or 0). Authors:
+    1 - 1/T = 0.98 with clip_return."""
     polyak: float = 0.95
-    """target <- polyak * target + (1 - polyak) * online, once per cycle."""
+    """target <- polyak * target + (1 - polyak) * online, once per cycle. Authors: 0.95."""
     action_l2: float = 1.0
-    """Weight of the mean squared (pre-noise) action in the actor loss."""
+    """Weight of the mean squared (pre-noise) action in the actor loss. Authors: 1.0."""
     batch_per_worker: int = 256
     """Transitions per worker per update; the minibatch is `batch_per_worker * n_workers`, which
-    equals the authors' mean of per-worker gradients."""
+    equals the authors' mean of per-worker gradients. Authors: 256 per worker."""
     n_updates: int = 100
-    """Gradient steps per cycle."""
+    """Gradient steps per cycle. Authors: n_batches 100."""
     norm_clip: float = 5.0
-    """Normalised states and goals are clipped to [-norm_clip, norm_clip]."""
+    """Normalised states are clipped to [-norm_clip, norm_clip], and scaled goals (`GoalBox`) to
+    as many half-widths of their goal space. Authors: 5 (Baselines; unused by their default,
+    which trained without normalisation)."""
     norm_eps: float = 0.01
-    """Lower bound of the normaliser's std."""
+    """Lower bound of the state normaliser's std. Authors: 0.01."""
     td3_target_noise: float = 0.2
     td3_noise_clip: float = 0.5
     td3_policy_delay: int = 2
@@ -102,26 +121,34 @@ class Config:
     oldest episodes first (first in, first out): early experience, such as the first pushes,
     is then no longer replayed. The memory it takes is checked before training starts."""
     her_p: float = 0.8
-    """Probability that a replayed goal is an outcome reached later in the same episode."""
+    """Probability that a replayed transition is relabelled: the replayed module and one of its
+    outcomes reached later in the same episode; the others keep their episode's module and goal.
+    Authors: replay_k 4, i.e. 0.8 (her.py)."""
     replay_active_only: bool = True
-    """Replay a module only on episodes where its outcome changed (as the released code's
-    per-module buffers did); falls back to every episode while there is none."""
+    """Replay a module only on episodes where its outcome changed; falls back to every episode
+    while there is none. Authors: one buffer per module holding the episodes where its outcome
+    changed (ddpg.py, store_episode)."""
     moved_threshold: float = 1e-3
     """An outcome 'changed' when a goal coordinate moved more than this between the first and
-    the final step."""
+    the final step. Authors: 1e-3 (rollout.py, the `change` flags)."""
 
     # --- learning progress -------------------------------------------------------------------
     lp_window: int = 300
     """Competence is the mean of a module's last `lp_window` evaluation results; LP compares it
-    with the `lp_window` results before."""
+    with the `lp_window` results before. Authors: queue_length 300 (experiment/config.py)."""
     lp_eps: float = 0.4
-    """p_LP = lp_eps / N + (1 - lp_eps) * LP / sum(LP)."""
+    """p_LP = lp_eps / N + (1 - lp_eps) * LP / sum(LP). Authors: 0.4 (rollout.py)."""
 
     # --- perturbation --------------------------------------------------------------------------
     sensor_failure_episode: int = -1
-    """From this episode on (global, 0-based) every episode runs with the sensory failure of the
-    `sensor_failure` variant (one cube's observed x reads 5 cm too far; paper §6.3); -1 never.
+    """From this episode on (global, 0-based) every episode, training and test, runs with the
+    sensory failure of the `sensor_failure` variant (cube 3's x reads 5 cm too far, in the state
+    and in the outcome of `push_cube3`; the authors switched it on at epoch 250 of 316); -1 never.
     The switch follows each episode's index, so a resumed run switches at the same episode."""
+    sensor_failure_competence: float = -1.0
+    """Instead of a fixed episode: the failure starts with the first round of episodes after the
+    perturbed module's competence first reaches this value (so that there is something to
+    forget at any budget); -1 never. The episode it started at is in `metrics.parquet`."""
 
     # --- running -----------------------------------------------------------------------------
     device: str = "cpu"
@@ -141,6 +168,11 @@ class Config:
     @property
     def batch_size(self) -> int:
         return self.batch_per_worker * self.n_workers
+
+    @property
+    def sensor_failure(self) -> bool:
+        """Whether the run switches the sensory failure on at some point."""
+        return self.sensor_failure_episode >= 0 or self.sensor_failure_competence != -1.0
 
     @property
     def replay_capacity(self) -> int:
@@ -172,6 +204,15 @@ class Config:
             )
         if self.n_updates < 0 or self.torch_threads < 0:
             raise ConfigError("n_updates and torch_threads must be >= 0")
+        if self.test_rollouts_per_worker < 0:
+            raise ConfigError(
+                f"test_rollouts_per_worker must be >= 0, got {self.test_rollouts_per_worker}"
+            )
+        c = self.sensor_failure_competence
+        if c != -1.0 and not 0.0 < c <= 1.0:
+            raise ConfigError(f"sensor_failure_competence must be in (0, 1] or -1, got {c}")
+        if c != -1.0 and self.sensor_failure_episode >= 0:
+            raise ConfigError("set sensor_failure_episode or sensor_failure_competence, not both")
         if self.sensor_failure_episode < -1:
             raise ConfigError(
                 f"sensor_failure_episode must be an episode (>= 0) or -1 for never, "
@@ -217,6 +258,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         lp_window=4,
         checkpoint_every_cycles=3,
         eval_every=5,
+        test_rollouts_per_worker=1,
     ),
     # A few minutes on a 2-core laptop: enough for reach. The authors' networks and ratios,
     # fewer workers, a short competence window so that competence is measured at this scale.

@@ -11,7 +11,8 @@ The agent never touches dm_control objects: it trains on anything that implement
   leading axes: the replay recomputes rewards for whole minibatches with it.
 
 An environment with a perturbation also offers `set_sensor_failure(on)`, which the trainer
-calls before every episode of a run with `Config.sensor_failure_episode >= 0`.
+calls before every episode of a run with a sensory failure, and `sensor_failure_module`, the name
+of the module it perturbs (whose competence can start it, `Config.sensor_failure_competence`).
 
 A hindsight goal for a module is the first `goal_dim` coordinates of its outcome (the module's
 slice of `achieved`); see `EnvSpec.hindsight_columns`.
@@ -189,9 +190,14 @@ class SuiteEnv:
         if not self._task.has_sensor_failure:
             raise ConfigError(
                 "this suite variant has no sensory failure: use the 'sensor_failure' variant "
-                "with sensor_failure_episode"
+                "with sensor_failure_episode or sensor_failure_competence"
             )
         self._task.set_sensor_failure(on)
+
+    @property
+    def sensor_failure_module(self) -> str | None:
+        """Name of the module whose outcome the variant's sensory failure perturbs."""
+        return self._task.sensor_failure_module
 
     def get_rng_state(self) -> Any:
         return self._env.random_state.get_state()
@@ -200,7 +206,9 @@ class SuiteEnv:
         self._env.random_state.set_state(state)
 
 
-def make_suite_envs(variant: str, seed: int, n: int) -> list[SuiteEnv]:
-    """`n` independent copies of a suite variant, seeded from one run seed."""
-    seeds = np.random.SeedSequence([seed, 0xE27]).generate_state(n)
+def make_suite_envs(variant: str, seed: int, n: int, stream: int = 0) -> list[SuiteEnv]:
+    """`n` independent copies of a suite variant, seeded from one run seed; `stream` 1 gives
+    the test rollouts' copies, independent of the training ones (stream 0)."""
+    key = [seed, 0xE27] if stream == 0 else [seed, 0xE27, stream]
+    seeds = np.random.SeedSequence(key).generate_state(n)
     return [SuiteEnv(variant, seed=int(s)) for s in seeds]

@@ -1,4 +1,5 @@
-"""`metrics.parquet`: one row per episode, columns as in docs/architecture.md.
+"""The run's tables: `metrics.parquet` (one row per training episode) and `tests.parquet` (one row
+per test rollout), columns as in docs/architecture.md.
 
 Rows accumulate in memory and the file is rewritten atomically at every flush (write a temporary
 file beside it, then rename over it), so a run killed at any moment, SIGKILL included, leaves the
@@ -28,6 +29,7 @@ def metrics_schema(module_names: Sequence[str]) -> pa.Schema:
         ("g2", pa.float32()),
         ("success", pa.bool_()),
         ("eval", pa.bool_()),
+        ("sensor_failure", pa.bool_()),
     ]
     for prefix in ("competence", "lp", "p_lp"):
         columns += [(f"{prefix}/{name}", pa.float32()) for name in module_names]
@@ -35,12 +37,33 @@ def metrics_schema(module_names: Sequence[str]) -> pa.Schema:
     return pa.schema(columns)
 
 
-class MetricsLog:
-    """The episode rows of one run, flushed atomically to a parquet file."""
+def tests_schema() -> pa.Schema:
+    """The columns of `tests.parquet`: the noise-free test rollouts run after every epoch.
 
-    def __init__(self, path: str | os.PathLike, module_names: Sequence[str]) -> None:
+    `episode` is the number of training episodes done when the test ran (test rollouts are not
+    training episodes and are not counted in it); `worker` is the test copy that ran it.
+    """
+    return pa.schema(
+        [
+            ("epoch", pa.int64()),
+            ("episode", pa.int64()),
+            ("worker", pa.int32()),
+            ("module", pa.string()),
+            ("g0", pa.float32()),
+            ("g1", pa.float32()),
+            ("g2", pa.float32()),
+            ("success", pa.bool_()),
+            ("wall_time", pa.float64()),
+        ]
+    )
+
+
+class TableLog:
+    """Rows of one table of a run, flushed atomically to a parquet file."""
+
+    def __init__(self, path: str | os.PathLike, schema: pa.Schema) -> None:
         self.path = Path(path)
-        self.schema = metrics_schema(module_names)
+        self.schema = schema
         self._tables: list[pa.Table] = []
         if self.path.exists():
             table = pq.read_table(self.path)
@@ -69,11 +92,11 @@ class MetricsLog:
         self._tables = [table]
         return table
 
-    def truncate(self, n_episodes: int) -> None:
-        """Keep only rows of episodes 0 .. n_episodes - 1."""
+    def truncate(self, n_episodes: int, inclusive: bool = False) -> None:
+        """Keep only rows whose `episode` is below `n_episodes` (or equal, with `inclusive`)."""
         table = self.table()
-        mask = pa.compute.less(table["episode"], pa.scalar(n_episodes, pa.int64()))
-        self._tables = [table.filter(mask)]
+        keep = pa.compute.less_equal if inclusive else pa.compute.less
+        self._tables = [table.filter(keep(table["episode"], pa.scalar(n_episodes, pa.int64())))]
 
     def flush(self) -> None:
         """Rewrite the file atomically with every row so far."""
@@ -83,3 +106,24 @@ class MetricsLog:
         with open(tmp, "rb") as handle:
             os.fsync(handle.fileno())
         os.replace(tmp, self.path)
+
+
+class MetricsLog(TableLog):
+    """`metrics.parquet`: one row per training episode."""
+
+    def __init__(self, path: str | os.PathLike, module_names: Sequence[str]) -> None:
+        super().__init__(path, metrics_schema(module_names))
+
+
+class TestsLog(TableLog):
+    """`tests.parquet`: one row per test rollout."""
+
+    __test__ = False  # not a pytest class
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        super().__init__(path, tests_schema())
+
+    def truncate(self, n_episodes: int, inclusive: bool = True) -> None:
+        """Keep the tests run at or before `n_episodes` training episodes (a checkpoint at
+        n episodes was written after the test of its last cycle)."""
+        super().truncate(n_episodes, inclusive)

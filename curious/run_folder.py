@@ -95,6 +95,10 @@ class RunFolder:
         return self.path / "metrics.parquet"
 
     @property
+    def tests_path(self) -> Path:
+        return self.path / "tests.parquet"
+
+    @property
     def recording_path(self) -> Path:
         return self.path / "recording.rrd"
 

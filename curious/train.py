@@ -8,21 +8,28 @@ call of `Trainer.cycle()`:
    is a self-evaluation when e % eval_every == eval_every - 1: no noise, a module drawn
    uniformly, and its final success goes to that module's competence queue. Other episodes
    practise a module drawn by the condition (p_LP for `curious`) with a goal uniform in
-   [-1, 1]^3, with exploration noise. With `sensor_failure_episode >= 0`, each environment copy
-   runs its episode with the sensory failure switched on when the episode's index has reached it;
-2. stores the episodes in the replay and the normaliser statistics;
+   [-1, 1]^3, with exploration noise. Once the sensory failure has started (at
+   `sensor_failure_episode`, or when the perturbed module's competence reaches
+   `sensor_failure_competence`), every episode runs with it;
+2. stores the episodes in the replay and the state statistics;
 3. runs `n_updates` gradient steps on relabelled minibatches of `batch_per_worker * n_workers`
-   transitions, then one Polyak update of the target networks.
+   transitions, then one Polyak update of the target networks;
+4. after the last cycle of an epoch, runs `test_rollouts_per_worker` rounds of noise-free test
+   rollouts on test copies of the environment (modules drawn uniformly, their own random
+   stream): the success that Fig. 2a plots, as the authors' evaluator. They change nothing of
+   training.
 
-`train()` runs a `Trainer` in a run folder: `metrics.parquet` rows, checkpoints every
+`train()` runs a `Trainer` in a run folder: `metrics.parquet` and `tests.parquet` rows,
+checkpoints every
 `checkpoint_every_cycles` cycles, `--resume`, a progress bar and an optional recorder.
 
-Recording hooks (all optional; `curious.recording.RunRecorder` provides the first three). After
+Recording hooks (all optional; `curious.recording.RunRecorder` provides the first four). After
 every cycle `train()` calls, with B the cycle's episodes and N the modules:
 
     recorder.log_episodes(episode=(B,), module=(B,) slot indices, success=(B,), eval=(B,),
                           competence=(B, N), lp=(B, N), p_lp=(B, N), wall_time=(B,))
-    recorder.log_replay(episode, counts)     # (N,) substitute-module counts of the cycle's replay
+    recorder.log_replay(episode, counts)     # (N,) modules of the cycle's replayed transitions
+    recorder.log_tests(episode, module=(K,), success=(K,), wall_time)   # an epoch's K tests
     recorder.log_learner(episode, losses={"critic", "actor"}, q={"target_mean"})
     recorder.close()                         # once, when training stops
 
@@ -53,7 +60,7 @@ from curious.config import Config, ConfigError
 from curious.envs import EnvSpec, GoalEnv
 from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
-from curious.metrics import MetricsLog
+from curious.metrics import MetricsLog, TableLog, TestsLog
 from curious.replay import EpisodeReplay
 from curious.rollouts import EpisodeData, run_episodes
 from curious.run_folder import RunFolder, config_differences
@@ -87,6 +94,7 @@ class RolloutInfo:
     evaluation: np.ndarray  # (n,) bool
     success: np.ndarray  # (n,) bool, final success of the module
     data: EpisodeData  # states, achieved outcomes, actions
+    sensor_failure: np.ndarray  # (n,) bool, episodes run with the sensory failure
 
 
 @dataclass
@@ -99,7 +107,8 @@ class CycleResult:
     lp: np.ndarray  # (B, N)
     p_lp: np.ndarray  # (B, N)
     losses: dict[str, float]  # means over the cycle's updates, and seconds/* timings
-    replay_counts: np.ndarray  # (N,) substitute modules drawn in the cycle's minibatches
+    replay_counts: np.ndarray  # (N,) modules of the cycle's replayed transitions
+    tests: dict[str, np.ndarray] | None = None  # tests.parquet rows, after an epoch's last cycle
 
 
 def available_memory() -> int:
@@ -131,15 +140,26 @@ def _check_replay_fits(config: Config, spec: EnvSpec) -> None:
 class Trainer:
     """One run's state and its training cycle."""
 
-    def __init__(self, config: Config, envs: Sequence[GoalEnv]) -> None:
+    def __init__(
+        self,
+        config: Config,
+        envs: Sequence[GoalEnv],
+        test_envs: Sequence[GoalEnv] | None = None,
+    ) -> None:
+        """`envs`: the `n_workers` training copies; `test_envs`: as many copies for the test
+        rollouts (default: the training copies, whose random streams the tests then advance;
+        `train()` always gives copies of their own)."""
         config.validate()
-        if len(envs) != config.n_workers:
-            raise ValueError(f"{len(envs)} environments given, config asks for {config.n_workers}")
         self.config = config
         self.envs = list(envs)
+        self.test_envs = list(test_envs) if test_envs is not None else self.envs
         self.spec = envs[0].spec
-        for env in self.envs[1:]:
-            if env.spec != self.spec:
+        for copies in (self.envs, self.test_envs):
+            if len(copies) != config.n_workers:
+                raise ValueError(
+                    f"{len(copies)} environments given, config asks for {config.n_workers}"
+                )
+            if any(env.spec != self.spec for env in copies):
                 raise ValueError("all environment copies must share one EnvSpec")
         if config.torch_threads:
             torch.set_num_threads(config.torch_threads)
@@ -157,23 +177,77 @@ class Trainer:
             moved_threshold=config.moved_threshold,
         )
         self.tracker = CompetenceTracker(n, config.lp_window)
-        rollout_seq, replay_seq = np.random.SeedSequence([config.seed, 0xC0]).spawn(2)
+        rollout_seq, replay_seq, test_seq = np.random.SeedSequence([config.seed, 0xC0]).spawn(3)
         self.rng = np.random.default_rng(rollout_seq)
         self.replay_rng = np.random.default_rng(replay_seq)
+        self.test_rng = np.random.default_rng(test_seq)
         self.episodes = 0
         self.cycles = 0
         self.elapsed = 0.0  # seconds of training before this process (resumed runs)
         self._started = time.perf_counter()
         self._names = np.array(self.spec.module_names, dtype=object)
         self.observer: RoundObserver | None = None
-        if config.sensor_failure_episode >= 0:
-            for env in self.envs:
-                if not callable(getattr(env, "set_sensor_failure", None)):
-                    raise ConfigError(
-                        f"sensor_failure_episode is set but {type(env).__name__} has no "
-                        "set_sensor_failure()"
-                    )
-                env.set_sensor_failure(False)  # raises on a variant without the failure
+        self.failure_start: int | None = None
+        """First episode run with the sensory failure (None: not started)."""
+        self.failure_module = -1
+        if config.sensor_failure:
+            self.failure_module = self._check_sensor_failure()
+            if config.sensor_failure_episode >= 0:
+                self.failure_start = config.sensor_failure_episode
+
+    def _check_sensor_failure(self) -> int:
+        """Switch the failure off in every copy (a `ConfigError` where it cannot be); return the
+        index of the module it perturbs (-1 when the env does not say)."""
+        for env in {id(e): e for e in self.envs + self.test_envs}.values():
+            if not callable(getattr(env, "set_sensor_failure", None)):
+                raise ConfigError(
+                    f"the sensory failure is set but {type(env).__name__} has no "
+                    "set_sensor_failure()"
+                )
+            env.set_sensor_failure(False)  # raises on a variant without the failure
+        name = getattr(self.envs[0], "sensor_failure_module", None)
+        if name is None:
+            if self.config.sensor_failure_competence != -1.0:
+                raise ConfigError(
+                    "sensor_failure_competence needs an env that names the module its "
+                    "failure perturbs (sensor_failure_module)"
+                )
+            return -1
+        return self.spec.module_index(name)
+
+    def failure_on(self, episodes: np.ndarray) -> np.ndarray:
+        """(n,) bool: which of these episodes run with the sensory failure."""
+        if self.failure_start is None:
+            return np.zeros(len(episodes), bool)
+        return np.asarray(episodes) >= self.failure_start
+
+    def _policy(
+        self,
+        goals: np.ndarray,
+        mask: np.ndarray,
+        task: np.ndarray,
+        experts: np.ndarray,
+        explore: np.ndarray,
+        rng: np.random.Generator,
+    ) -> Callable[[np.ndarray, int], np.ndarray]:
+        """`act(states, t)` for a round of episodes with these goals, experts and noise."""
+
+        def act(states: np.ndarray, t: int) -> np.ndarray:
+            return self.agent.act(states, goals, mask, task, experts, explore, rng)
+
+        return act
+
+    def _start_failure_if_due(self) -> None:
+        """Start the failure now if the perturbed module's competence reached the threshold."""
+        threshold = self.config.sensor_failure_competence
+        if self.failure_start is None and threshold != -1.0:
+            if self.tracker.competence()[self.failure_module] >= threshold:
+                self.failure_start = self.episodes
+
+    def _apply_failure(self, envs: Sequence[GoalEnv], failing: np.ndarray) -> None:
+        if self.config.sensor_failure:
+            for env, on in zip(envs, failing, strict=True):
+                env.set_sensor_failure(bool(on))
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -187,17 +261,20 @@ class Trainer:
     def wall_time(self) -> float:
         return self.elapsed + time.perf_counter() - self._started
 
-    def _goals(self, modules: np.ndarray, raw: np.ndarray) -> tuple[np.ndarray, ...]:
+    def _goals(
+        self, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
+    ) -> tuple[np.ndarray, ...]:
         """Goal slots (n, N, G), slot mask (n, N) and task descriptor (n, N) of n episodes.
 
-        The holistic condition draws a goal for every module (the scored module keeps `raw`).
+        The holistic condition draws a goal for every module from `rng` (the scored module
+        keeps `raw`).
         """
         spec, env = self.spec, self.envs[0]
         n, n_mod, g = len(modules), spec.n_modules, spec.goal_dim
         goals = np.zeros((n, n_mod, g), np.float32)
         rows = np.arange(n)
         if self.condition.holistic:
-            raw_all = self.rng.uniform(-1.0, 1.0, (n, n_mod, g))
+            raw_all = rng.uniform(-1.0, 1.0, (n, n_mod, g))
             raw_all[rows, modules] = raw
             for k in range(n_mod):
                 goals[:, k] = env.goal_slot(k, raw_all[:, k])
@@ -226,30 +303,20 @@ class Trainer:
             self.rng.choice(n_mod, size=n, p=practice),
         )
         raw = self.rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-        goals, mask, task = self._goals(modules, raw)
+        goals, mask, task = self._goals(modules, raw, self.rng)
         experts = self.condition.acting_experts(modules, self.epoch)
         explore = ~evaluation
         envs = self.envs[:n]
+        act = self._policy(goals, mask, task, experts, explore, self.rng)
 
-        def act(states: np.ndarray, t: int) -> np.ndarray:
-            return self.agent.act(states, goals, mask, task, experts, explore, self.rng)
-
-        if cfg.sensor_failure_episode >= 0:
-            for env, e in zip(envs, episodes, strict=True):
-                env.set_sensor_failure(bool(e >= cfg.sensor_failure_episode))
+        self._start_failure_if_due()
+        failing = self.failure_on(episodes)
+        self._apply_failure(envs, failing)
         observer = self.observer
         if observer is not None:
             observer.begin_round(episodes, modules, goals, evaluation, envs)
         data = run_episodes(envs, modules, raw, act, observer.after_step if observer else None)
-        if self.condition.holistic:
-            # The scored module's part of the holistic goal, judged by that module's reward.
-            final = data.achieved[:, -1]
-            success = np.zeros(n, bool)
-            for k in np.unique(modules):
-                sel = np.flatnonzero(modules == k)
-                success[sel] = self.envs[0].reward(int(k), final[sel], goals[sel, k]) == 0
-        else:
-            success = data.final_success[np.arange(n), modules]
+        success = self._success(data, modules, goals)
 
         self.replay.store(data.states, data.achieved, data.actions, modules, goals)
         self.agent.encoder.update_stats(data.states)
@@ -266,10 +333,62 @@ class Trainer:
             p_lp[i] = self.condition.practice_probs(self.tracker, self.epoch)
             wall[i] = self.wall_time()
         self.episodes += n
-        info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data)
+        info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
         if observer is not None:
             observer.end_round(info)
         return info, competence, lp, p_lp, wall
+
+    def _success(self, data: EpisodeData, modules: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(n,) final success of each episode's module. In the holistic condition, the scored
+        module's part of the holistic goal, judged by that module's reward."""
+        n = len(modules)
+        if not self.condition.holistic:
+            return data.final_success[np.arange(n), modules]
+        final = data.achieved[:, -1]
+        success = np.zeros(n, bool)
+        for k in np.unique(modules):
+            sel = np.flatnonzero(modules == k)
+            success[sel] = self.envs[0].reward(int(k), final[sel], goals[sel, k]) == 0
+        return success
+
+    def test_rollouts(self) -> dict[str, np.ndarray]:
+        """`test_rollouts_per_worker` rounds of noise-free episodes on the test copies, modules
+        drawn uniformly and goals uniform, from the test stream; tests.parquet rows.
+
+        Nothing of training changes: no storage, no statistics, no competence, and the training
+        copies and random streams are not touched (the authors' separate evaluator).
+        """
+        cfg, spec = self.config, self.spec
+        envs, n = self.test_envs, len(self.test_envs)
+        failing = self.failure_on(np.full(n, self.episodes))
+        self._apply_failure(envs, failing)
+        explore = np.zeros(n, bool)
+        parts: dict[str, list[np.ndarray]] = {k: [] for k in ("worker", "module", "raw", "ok")}
+        for _ in range(cfg.test_rollouts_per_worker):
+            modules = self.test_rng.integers(spec.n_modules, size=n)
+            raw = self.test_rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
+            goals, mask, task = self._goals(modules, raw, self.test_rng)
+            experts = self.condition.acting_experts(modules, self.epoch)
+
+            act = self._policy(goals, mask, task, experts, explore, self.test_rng)
+            data = run_episodes(envs, modules, raw, act)
+            parts["worker"].append(np.arange(n, dtype=np.int32))
+            parts["module"].append(modules)
+            parts["raw"].append(raw.astype(np.float32))
+            parts["ok"].append(self._success(data, modules, goals))
+        raw = np.concatenate(parts["raw"])
+        rows = len(raw)
+        return {
+            "epoch": np.full(rows, (self.cycles - 1) // cfg.n_cycles, np.int64),  # just run
+            "episode": np.full(rows, self.episodes, np.int64),
+            "worker": np.concatenate(parts["worker"]),
+            "module": self._names[np.concatenate(parts["module"])],
+            "g0": raw[:, 0],
+            "g1": raw[:, 1],
+            "g2": raw[:, 2],
+            "success": np.concatenate(parts["ok"]),
+            "wall_time": np.full(rows, self.wall_time()),
+        }
 
     def _rows(
         self,
@@ -289,6 +408,7 @@ class Trainer:
             "g2": info.raw_goals[:, 2].astype(np.float32),
             "success": info.success,
             "eval": info.evaluation,
+            "sensor_failure": info.sensor_failure,
         }
         for prefix, values in (("competence", competence), ("lp", lp), ("p_lp", p_lp)):
             for k, name in enumerate(self.spec.module_names):
@@ -337,8 +457,13 @@ class Trainer:
             losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
             losses["reward_mean"] = float(np.mean(rewards))
             timings["update"] += time.perf_counter() - tic
-        losses.update({f"seconds/{k}": v for k, v in timings.items()})
         self.cycles += 1
+        tests = None
+        if cfg.test_rollouts_per_worker and (self.cycles % cfg.n_cycles == 0 or self.done):
+            tic = time.perf_counter()
+            tests = self.test_rollouts()
+            timings["test"] = time.perf_counter() - tic
+        losses.update({f"seconds/{k}": v for k, v in timings.items()})
 
         row_parts = [self._rows(*part) for part in parts]
         rows = {k: np.concatenate([r[k] for r in row_parts]) for k in row_parts[0]} if parts else {}
@@ -359,6 +484,7 @@ class Trainer:
             p_lp=stack(3, n_mod),
             losses=losses,
             replay_counts=replay_counts,
+            tests=tests,
         )
 
     # ------------------------------------------------------------------------------------------
@@ -373,7 +499,10 @@ class Trainer:
             "tracker": self.tracker.state_dict(),
             "rng": self.rng.bit_generator.state,
             "replay_rng": self.replay_rng.bit_generator.state,
+            "test_rng": self.test_rng.bit_generator.state,
+            "failure_start": self.failure_start,
             "env_rng": [env.get_rng_state() for env in self.envs],
+            "test_env_rng": [env.get_rng_state() for env in self.test_envs],
             "torch_rng": torch.get_rng_state(),
         }
         return state, self.replay.state_dict()
@@ -391,8 +520,13 @@ class Trainer:
         self.replay.load_state_dict(replay)
         self.rng.bit_generator.state = state["rng"]
         self.replay_rng.bit_generator.state = state["replay_rng"]
+        self.test_rng.bit_generator.state = state["test_rng"]
+        self.failure_start = state["failure_start"]
         for env, env_state in zip(self.envs, state["env_rng"], strict=True):
             env.set_rng_state(env_state)
+        if self.test_envs is not self.envs:
+            for env, env_state in zip(self.test_envs, state["test_env_rng"], strict=True):
+                env.set_rng_state(env_state)
         torch.set_rng_state(state["torch_rng"])
         self.episodes = int(state["episodes"])
         self.cycles = int(state["cycles"])
@@ -434,6 +568,11 @@ def _log_cycle(recorder: Any, trainer: Trainer, result: CycleResult) -> None:
         wall_time=rows["wall_time"],
     )
     losses = result.losses
+    if hasattr(recorder, "log_tests") and result.tests is not None:
+        tests = result.tests
+        recorder.log_tests(
+            int(tests["episode"][0]), tests["module"], tests["success"], tests["wall_time"][0]
+        )
     if hasattr(recorder, "log_replay") and result.replay_counts.sum() > 0:
         recorder.log_replay(trainer.episodes, result.replay_counts)
     if hasattr(recorder, "log_learner") and "critic_loss" in losses:
@@ -455,8 +594,10 @@ def train(
     """Train `config` in the run folder `out` (created, or continued with `resume=True`).
 
     `make_envs(config)` builds the `n_workers` environment copies (default: the suite variant
-    `config.variant`). `make_recorder(trainer, folder)`, called once the folder is ready (and a
-    resumed trainer is at its checkpoint's episode), returns the recorder the loop logs to.
+    `config.variant`); it is called a second time for the test rollouts' copies (the default
+    seeds those from a stream of their own). `make_recorder(trainer, folder)`, called once the
+    folder is ready (and a resumed trainer is at its checkpoint's episode), returns the recorder
+    the loop logs to.
     `stop_after_cycles` ends this call early (after a checkpoint), which is how tests interrupt
     a run. Errors about the folder or the checkpoint are raised before anything in the folder
     is written.
@@ -470,21 +611,33 @@ def train(
         def make_envs(cfg: Config) -> Sequence[GoalEnv]:
             return make_suite_envs(cfg.variant, cfg.seed, cfg.n_workers)
 
-    trainer = Trainer(config, make_envs(config))
+        def make_test_envs(cfg: Config) -> Sequence[GoalEnv]:
+            return make_suite_envs(cfg.variant, cfg.seed, cfg.n_workers, stream=1)
+    else:
+        make_test_envs = make_envs
+
+    test_envs = make_test_envs(config) if config.test_rollouts_per_worker else None
+    trainer = Trainer(config, make_envs(config), test_envs)
     latest = checkpoint.list_checkpoints(folder.checkpoints) if resume else []
     if latest:
         trainer.load_checkpoint(latest[-1])  # raises on another config, before any write
-    metrics = MetricsLog(folder.metrics_path, trainer.spec.module_names) if resume else None
+    tables: list[TableLog] = []
+    if resume:  # read before anything is written: a bad table is an error with nothing changed
+        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
+        tables.append(TestsLog(folder.tests_path))
 
     folder.write_config(config, trainer.spec)
     checkpoint.remove_partial(folder.checkpoints)
-    if metrics is None:
-        metrics = MetricsLog(folder.metrics_path, trainer.spec.module_names)
-    if metrics.n_rows:
-        rows_before = metrics.n_rows
-        metrics.truncate(trainer.episodes)  # rows logged after the checkpoint are redone
-        if metrics.n_rows != rows_before:
-            metrics.flush()
+    if not tables:
+        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
+        tables.append(TestsLog(folder.tests_path))
+    metrics, tests = tables
+    for table in tables:
+        if table.n_rows:
+            rows_before = table.n_rows
+            table.truncate(trainer.episodes)  # rows logged after the checkpoint are redone
+            if table.n_rows != rows_before:
+                table.flush()
 
     recorder = make_recorder(trainer, folder) if make_recorder is not None else None
     bar = tqdm(
@@ -501,6 +654,8 @@ def train(
             result = trainer.cycle()
             cycles_here += 1
             metrics.append(result.rows)
+            if result.tests is not None:
+                tests.append(result.tests)
             if recorder is not None and len(result.module_index):
                 _log_cycle(recorder, trainer, result)
             bar.update(len(result.rows.get("episode", ())))
@@ -508,6 +663,8 @@ def train(
             stop_now = stop_after_cycles is not None and cycles_here >= stop_after_cycles
             if trainer.done or stop_now or trainer.cycles % config.checkpoint_every_cycles == 0:
                 metrics.flush()
+                if config.test_rollouts_per_worker:
+                    tests.flush()
                 trainer.save_checkpoint(folder.checkpoints)
             if stop_now:
                 break

@@ -6,8 +6,8 @@ from dm_control import composer, mjcf
 
 from suite import layout
 
-# Cube 1 (manipulated) red, cube 2 (base) blue, distractors grey.
-CUBE_COLOURS = ((0.85, 0.2, 0.2, 1.0), (0.2, 0.35, 0.85, 1.0))
+# Reachable cubes: cube 1 (manipulated) red, cube 2 (base) blue, cube 3 green; distractors grey.
+CUBE_COLOURS = ((0.85, 0.2, 0.2, 1.0), (0.2, 0.35, 0.85, 1.0), (0.2, 0.65, 0.3, 1.0))
 DISTRACTOR_COLOUR = (0.45, 0.45, 0.45, 1.0)
 
 
@@ -36,6 +36,6 @@ class Cube(composer.Entity):
         return self._geom
 
 
-def cube_colour(index: int) -> tuple[float, float, float, float]:
-    """The colour of cube `index` (0-based): red, blue, then grey distractors."""
-    return CUBE_COLOURS[index] if index < len(CUBE_COLOURS) else DISTRACTOR_COLOUR
+def cube_colour(index: int, reachable: bool = True) -> tuple[float, float, float, float]:
+    """The colour of cube `index` (0-based): red, blue, green while reachable; distractors grey."""
+    return CUBE_COLOURS[index] if reachable and index < len(CUBE_COLOURS) else DISTRACTOR_COLOUR

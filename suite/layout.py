@@ -40,9 +40,14 @@ GRIP0 = np.array([1.342, 0.749, 0.535])
 # xy and from each other.
 OBJECT_RANGE = 0.15
 OBJECT_MIN_SEPARATION = 0.1
+# Where reachable cubes 1, 2, 3 rest in the compiled model (offsets from GRIP0_xy): apart, clear
+# of the arm, inside the start region. A scene has at most one reachable cube per spot.
+REACHABLE_PARKING = np.array([[-0.1, -0.1], [0.1, 0.1], [0.1, -0.1]])
+MAX_REACHABLE = len(REACHABLE_PARKING)
 
-# Distractors: start points (x, y), in the order cubes 3, 4, 5, ... take them. The first three are
-# the paper's; the others serve the variants with 4 and 7 distractors.
+# Distractors: start points (x, y), in the order the distractors (the cubes after the reachable
+# ones: cubes 3, 4, 5, ... in the paper's env) take them. The first three are the paper's; the
+# others serve the variants with 4 and 7 distractors.
 DISTRACTOR_STARTS = np.array(
     [
         [2.00, 0.65],
@@ -76,5 +81,6 @@ MAX_DISTRACTORS = len(DISTRACTOR_STARTS)
 # Success threshold of every module (distance to the goal slot).
 SUCCESS_DISTANCE = 0.05
 
-# Sensory failure: the observed x of one reachable cube reads this much too far.
+# Sensory failure: the perceived x of the failing cube reads this much too far, in the state and
+# in every outcome (gym_flowers multi_task_fetch_arm_v3.py, `object2_pos[0] += 0.05`).
 SENSOR_SHIFT_X = 0.05

@@ -348,3 +348,15 @@ def standard_modules(n_distractors: int) -> tuple[TaskModule, ...]:
     achievable = (reach(), push_cube(1, achievable=True), cube1_above_cube2(), stack())
     distractors = tuple(push_cube(3 + i, achievable=False) for i in range(n_distractors))
     return achievable + distractors
+
+
+def perturbation_modules() -> tuple[TaskModule, ...]:
+    """The modules of the authors' perturbation study (gym_flowers multi_task_fetch_arm_v3.py,
+    `MultiTaskFetchArm4-v3`): reach, push_cube1, cube1_above_cube2 and push_cube3, all
+    achievable (cube 3 is a third reachable cube there)."""
+    return (
+        reach(),
+        push_cube(1, achievable=True),
+        cube1_above_cube2(),
+        push_cube(3, achievable=True),
+    )

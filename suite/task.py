@@ -10,6 +10,10 @@ Per control step the task does its work in two places: `before_step` turns the a
 mocap target and finger command and moves the distractors, and the observation is computed in
 one vectorised pass (state features, every module's outcome and success) the first time any
 observable or the reward asks for it after the physics moved.
+
+A task may have a sensory failure (`failing_cube`): switched on, the failing cube's perceived x
+reads `layout.SENSOR_SHIFT_X` too far, and the whole observation (state, outcomes, success) and
+the reward are computed from the perceived positions, as in the authors' perturbation study.
 """
 
 from __future__ import annotations
@@ -35,6 +39,7 @@ from suite.fetch import FetchArm
 from suite.modules import TaskModule
 
 N_REACHABLE = 2
+"""Reachable cubes of the paper's env (cube 1 manipulated, cube 2 the base): the default."""
 OBSERVATION_KEYS = ("state", "achieved", "goal", "task", "success")
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _SETTLE_STEPS = 10  # control steps to settle the arm at construction, as the Fetch envs do
@@ -57,9 +62,10 @@ class MultiTaskFetch(composer.Task):
 
     Args:
         modules: the task modules, in slot order (names must be unique).
-        n_cubes: number of cubes: cubes 1 and 2 are reachable, the others are distractors.
-        sensor_failure_cube: 1-based number of the reachable cube whose observed x can be shifted
-            (`set_sensor_failure`); None for a task without a sensory failure.
+        n_cubes: number of cubes: the first `n_reachable` are reachable, the others distractors.
+        n_reachable: number of reachable cubes (free bodies placed near the gripper).
+        failing_cube: 1-based number of the cube whose sensor can fail (`set_sensor_failure`);
+            None for a task without a sensory failure.
     """
 
     restores_full_state = True
@@ -71,28 +77,37 @@ class MultiTaskFetch(composer.Task):
         modules: Sequence[TaskModule],
         *,
         n_cubes: int = 5,
-        sensor_failure_cube: int | None = None,
+        n_reachable: int = N_REACHABLE,
+        failing_cube: int | None = None,
     ) -> None:
         self._modules = tuple(modules)
         self._check_modules(n_cubes)
-        if not N_REACHABLE <= n_cubes <= N_REACHABLE + layout.MAX_DISTRACTORS:
+        if not 1 <= n_reachable <= layout.MAX_REACHABLE:
             raise ValueError(
-                f"n_cubes must be between {N_REACHABLE} and "
-                f"{N_REACHABLE + layout.MAX_DISTRACTORS}, got {n_cubes}"
+                f"n_reachable must be between 1 and {layout.MAX_REACHABLE}, got {n_reachable}"
             )
-        if sensor_failure_cube is not None and sensor_failure_cube not in (1, 2):
+        if not n_reachable <= n_cubes <= n_reachable + layout.MAX_DISTRACTORS:
             raise ValueError(
-                f"the sensory failure shifts a reachable cube (1 or 2), got {sensor_failure_cube}"
+                f"n_cubes must be between {n_reachable} and "
+                f"{n_reachable + layout.MAX_DISTRACTORS} with {n_reachable} reachable cubes, "
+                f"got {n_cubes}"
             )
+        if failing_cube is not None and not 1 <= failing_cube <= n_cubes:
+            raise ValueError(f"failing_cube must be a cube from 1 to {n_cubes}, got {failing_cube}")
         self._n_cubes = n_cubes
-        self._n_distractors = n_cubes - N_REACHABLE
-        self._sensor_cube = None if sensor_failure_cube is None else sensor_failure_cube - 1
+        self._n_reachable = n_reachable
+        self._n_distractors = n_cubes - n_reachable
+        self._failing_cube = failing_cube
+        self._failure_bias = _failure_bias(n_cubes, failing_cube)
         self._sensor_on = False
+        self._reader: StateReader | None = None
 
         self._arena = TableArena()
         self._robot = FetchArm()
         self._arena.attach(self._robot)
-        self._cubes = tuple(Cube(f"cube{i + 1}", cube_colour(i)) for i in range(n_cubes))
+        self._cubes = tuple(
+            Cube(f"cube{i + 1}", cube_colour(i, reachable=i < n_reachable)) for i in range(n_cubes)
+        )
         # Reachable cubes are free bodies. Distractors are kinematic (mocap) bodies: the env
         # moves them by its random walk, so simulating their dynamics would only compute motion
         # that the next step overwrites; as mocap bodies they still collide with everything that
@@ -103,8 +118,8 @@ class MultiTaskFetch(composer.Task):
             # A resting spot in the compiled model (qpos0), so that composer's reset, which
             # computes the physics at qpos0 before the episode's state is set, finds no pile of
             # overlapping cubes to resolve.
-            frame.pos = (*_parking_spot(i), layout.TABLE_TOP_Z + layout.CUBE_HALF_SIZE)
-            if i < N_REACHABLE:
+            frame.pos = (*_parking_spot(i, n_reachable), layout.TABLE_TOP_Z + layout.CUBE_HALF_SIZE)
+            if i < n_reachable:
                 self._cube_joints.append(
                     frame.add(
                         "joint", type="free", name=f"{cube.mjcf_model.model}_free", damping=0.01
@@ -127,14 +142,9 @@ class MultiTaskFetch(composer.Task):
 
         # Sizes, slots and buffers that do not depend on the compiled physics.
         n_mod = len(self._modules)
-        self._state_layout = StateLayout(n_cubes)
+        self._state_layout = StateLayout(n_cubes, n_reachable)
         self._evaluator = ModuleEvaluator(self._modules, n_cubes)
         self._outcome_slices = self._evaluator.slices
-        self._shift_idx = (
-            np.array(self._state_layout.cube_x_indices(self._sensor_cube))
-            if self._sensor_cube is not None
-            else None
-        )
         self._state = np.zeros(self._state_layout.size, np.float32)
         self._achieved = self._evaluator.achieved
         self._goal_obs = np.zeros(3 * n_mod, np.float32)
@@ -294,16 +304,19 @@ class MultiTaskFetch(composer.Task):
         self._next_goal = g
 
     def set_sensor_failure(self, on: bool) -> None:
-        """Switch the sensory failure: the observed x of one reachable cube reads 0.05 m too far.
+        """Switch the sensory failure: the failing cube's perceived x reads 0.05 m too far.
 
-        Takes effect from the next observation. Outcomes, success and reward stay true.
+        Takes effect from the next observation, in the state features and in the outcomes of
+        the modules that read the cube (`sensor_failure_modules`), hence in their success and
+        reward. The physics is untouched.
         """
-        if self._sensor_cube is None:
+        if self._failing_cube is None:
             raise ValueError(
                 "this task has no sensory failure; load the 'sensor_failure' variant "
-                "(or build MultiTaskFetch with sensor_failure_cube=1 or 2)"
+                "(or build MultiTaskFetch with failing_cube=...)"
             )
         self._sensor_on = bool(on)
+        self._apply_sensor_failure()
         self._tick += 1
 
     def module_index(self, module: int | str) -> int:
@@ -337,6 +350,11 @@ class MultiTaskFetch(composer.Task):
         return self._n_cubes
 
     @property
+    def n_reachable(self) -> int:
+        """Number of reachable cubes: cubes 1..n_reachable; the others are distractors."""
+        return self._n_reachable
+
+    @property
     def state_layout(self) -> StateLayout:
         return self._state_layout
 
@@ -362,18 +380,43 @@ class MultiTaskFetch(composer.Task):
 
     def goal_positions(self) -> np.ndarray:
         """Where every module's goal is in the world now, (n_modules, 3) float64 (for display):
-        goal slots expressed in cube 2's frame follow cube 2."""
+        goal slots expressed in cube 2's frame follow cube 2 (as perceived)."""
         self._compute()
         return self._evaluator.goal_positions(self._reader.positions)
 
     @property
     def has_sensor_failure(self) -> bool:
-        return self._sensor_cube is not None
+        return self._failing_cube is not None
 
     @property
     def sensor_failure(self) -> bool:
         """Whether the sensory failure is switched on."""
         return self._sensor_on
+
+    @property
+    def failing_cube(self) -> int | None:
+        """1-based number of the cube whose sensor can fail; None without a sensory failure."""
+        return self._failing_cube
+
+    @property
+    def sensor_failure_modules(self) -> tuple[str, ...]:
+        """Names of the modules whose outcome reads the failing cube: those the failure
+        perturbs (empty without a sensory failure)."""
+        if self._failing_cube is None:
+            return ()
+        return tuple(m.name for m in self._modules if self._failing_cube - 1 in m.cubes)
+
+    @property
+    def sensor_failure_module(self) -> str | None:
+        """The module the sensory failure perturbs, for a trainer to watch (`push_cube3` on the
+        `sensor_failure` variant); None without a failure. Raises where it perturbs several."""
+        names = self.sensor_failure_modules
+        if len(names) > 1:
+            raise ValueError(
+                f"the sensory failure perturbs several modules ({', '.join(names)}); "
+                "use sensor_failure_modules"
+            )
+        return names[0] if names else None
 
     @property
     def arena(self) -> TableArena:
@@ -403,12 +446,13 @@ class MultiTaskFetch(composer.Task):
         vadr = np.array([physics.bind(j).dofadr for j in self._cube_joints]).ravel()
         if not (np.all(np.diff(qadr) == 7) and np.all(np.diff(vadr) == 6)):
             raise RuntimeError("the cubes' free joints are expected to be contiguous in qpos")
-        self._reach_qpos = d.qpos[qadr[0] : qadr[0] + 7 * N_REACHABLE].reshape(N_REACHABLE, 7)
-        self._reach_qvel = d.qvel[vadr[0] : vadr[0] + 6 * N_REACHABLE].reshape(N_REACHABLE, 6)
+        n_reach = self._n_reachable
+        self._reach_qpos = d.qpos[qadr[0] : qadr[0] + 7 * n_reach].reshape(n_reach, 7)
+        self._reach_qvel = d.qvel[vadr[0] : vadr[0] + 6 * n_reach].reshape(n_reach, 6)
         cube_bodies = np.array(
             [m.geom_bodyid[physics.bind(c.geom).element_id] for c in self._cubes], dtype=np.intp
         )
-        mocap_ids = m.body_mocapid[cube_bodies[N_REACHABLE:]]
+        mocap_ids = m.body_mocapid[cube_bodies[n_reach:]]
         if self._n_distractors and not (np.all(mocap_ids >= 0) and np.all(np.diff(mocap_ids) == 1)):
             raise RuntimeError("the distractors' mocap bodies are expected to be consecutive")
         first = int(mocap_ids[0]) if self._n_distractors else 0
@@ -433,14 +477,20 @@ class MultiTaskFetch(composer.Task):
             m,
             d,
             grip_site=grip_site,
-            reach_bodies=cube_bodies[:N_REACHABLE],
+            reach_bodies=cube_bodies[:n_reach],
             reach_qpos=self._reach_qpos,
             distractor_pos=self._distractor_pos,
             finger_qpos=self._finger_qpos,
             finger_qvel=self._finger_qvel,
         )
         self._grip_site = grip_site
+        self._apply_sensor_failure()
         self._computed = (-1, -1.0)
+
+    def _apply_sensor_failure(self) -> None:
+        """Hand the reader the failing cube's bias while the failure is on (none otherwise)."""
+        if self._reader is not None:
+            self._reader.position_bias = self._failure_bias if self._sensor_on else None
 
     def _settle(self) -> None:
         """Bring the arm to its start pose once; every reset restores this snapshot."""
@@ -465,11 +515,12 @@ class MultiTaskFetch(composer.Task):
         mujoco.mj_getState(m, d, self._snapshot, _STATE_SPEC)
 
     def _reachable_start(self, random_state: np.random.RandomState) -> np.ndarray:
-        """xy of cubes 1 and 2: grip0_xy + U(-0.15, 0.15)^2, >= 0.1 from the gripper and apart."""
+        """xy of the reachable cubes, one after the other: grip0_xy + U(-0.15, 0.15)^2, redrawn
+        until >= 0.1 from the gripper and from the cubes already placed (as the authors do)."""
         cx, cy = (float(v) for v in self._grip0[:2])
         sep = layout.OBJECT_MIN_SEPARATION
         placed: list[tuple[float, float]] = []
-        while len(placed) < N_REACHABLE:
+        while len(placed) < self._n_reachable:
             dx, dy = random_state.uniform(-layout.OBJECT_RANGE, layout.OBJECT_RANGE, size=2)
             x, y = cx + float(dx), cy + float(dy)
             if math.hypot(x - cx, y - cy) < sep:
@@ -498,9 +549,7 @@ class MultiTaskFetch(composer.Task):
         if self._computed == key:
             return
         reader = self._reader
-        state = reader.read(self._state)
-        if self._sensor_on:
-            state[self._shift_idx] += np.float32(layout.SENSOR_SHIFT_X)
+        reader.read(self._state)
         self._evaluator.evaluate(reader.positions, reader.gripper, reader.cubes)
         self._reward = -1.0 + float(self._success[self._active])
         self._computed = key
@@ -524,14 +573,24 @@ class MultiTaskFetch(composer.Task):
         return self._success
 
 
-def _parking_spot(cube: int) -> tuple[float, float]:
-    """xy where cube `cube` (0-based) sits in the compiled model: reachable cubes either side
-    of the gripper's start, distractors on their start points."""
-    if cube < N_REACHABLE:
-        offset = -0.1 if cube == 0 else 0.1
-        return float(layout.GRIP0[0] + offset), float(layout.GRIP0[1] + offset)
-    x, y = layout.DISTRACTOR_STARTS[cube - N_REACHABLE]
+def _parking_spot(cube: int, n_reachable: int) -> tuple[float, float]:
+    """xy where cube `cube` (0-based) sits in the compiled model: reachable cubes around the
+    gripper's start, distractors on their start points."""
+    if cube < n_reachable:
+        x, y = layout.GRIP0[:2] + layout.REACHABLE_PARKING[cube]
+    else:
+        x, y = layout.DISTRACTOR_STARTS[cube - n_reachable]
     return float(x), float(y)
+
+
+def _failure_bias(n_cubes: int, failing_cube: int | None) -> np.ndarray:
+    """What the failing sensor adds to [gripper, cube 1, ..., cube n] (flat): the shift on the
+    failing cube's x (zero without a failing cube)."""
+    bias = np.zeros(3 + 3 * n_cubes)
+    if failing_cube is not None:
+        bias[3 * failing_cube] = layout.SENSOR_SHIFT_X
+    bias.setflags(write=False)
+    return bias
 
 
 def _as_slice(indices: list[int], what: str) -> slice:

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 from suite import layout
 from suite.environment import SuiteEnvironment
-from suite.modules import standard_modules
+from suite.modules import perturbation_modules, standard_modules
 from suite.task import N_REACHABLE, MultiTaskFetch
 
 VariantFn = Callable[..., SuiteEnvironment]
@@ -55,23 +55,13 @@ def load(name: str, seed: int | None = None, **kwargs) -> SuiteEnvironment:
     return _REGISTRY[name](seed=seed, **kwargs)
 
 
-def build(
-    n_distractors: int,
-    *,
-    seed: int | None = None,
-    sensor_failure_cube: int | None = None,
-    **env_kwargs,
-) -> SuiteEnvironment:
+def build(n_distractors: int, *, seed: int | None = None, **env_kwargs) -> SuiteEnvironment:
     """The paper's modules with `n_distractors` distractor cubes, as an environment."""
     if not 0 <= n_distractors <= layout.MAX_DISTRACTORS:
         raise ValueError(
             f"n_distractors must be between 0 and {layout.MAX_DISTRACTORS}, got {n_distractors}"
         )
-    task = MultiTaskFetch(
-        standard_modules(n_distractors),
-        n_cubes=N_REACHABLE + n_distractors,
-        sensor_failure_cube=sensor_failure_cube,
-    )
+    task = MultiTaskFetch(standard_modules(n_distractors), n_cubes=N_REACHABLE + n_distractors)
     return SuiteEnvironment(task, random_state=seed, **env_kwargs)
 
 
@@ -100,9 +90,9 @@ def distractors_7(seed: int | None = None, **env_kwargs) -> SuiteEnvironment:
 
 
 @register
-def sensor_failure(
-    seed: int | None = None, sensor_failure_cube: int = 2, **env_kwargs
-) -> SuiteEnvironment:
-    """The default env whose observed x of one reachable cube (cube 2 unless told) can be
-    shifted by +0.05 m with `env.task.set_sensor_failure(True)`, at a moment the caller chooses."""
-    return build(3, seed=seed, sensor_failure_cube=sensor_failure_cube, **env_kwargs)
+def sensor_failure(seed: int | None = None, **env_kwargs) -> SuiteEnvironment:
+    """The authors' perturbation study: 4 achievable modules on 3 reachable cubes, no
+    distractors. `env.task.set_sensor_failure(True)`, at a moment the caller chooses, makes cube
+    3's perceived x read +0.05 m, in the state and in push_cube3's outcome."""
+    task = MultiTaskFetch(perturbation_modules(), n_cubes=3, n_reachable=3, failing_cube=3)
+    return SuiteEnvironment(task, random_state=seed, **env_kwargs)

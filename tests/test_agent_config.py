@@ -14,6 +14,10 @@ def test_every_preset_and_condition_resolves(preset, condition):
 
 
 def test_paper_preset_is_the_authors_protocol():
+    """flowersteam/curious, baselines/her/experiment/config.py (MULTI_TASK_PARAMS) and
+    train.py: 19 workers x 2 episodes x 25 cycles, 100 batches of 256 per worker, 3 x 256
+    networks, lr 1e-3, polyak 0.95, action_l2 1, noise 0.2 / random 0.3, replay_k 4, queue 300,
+    eps_task 0.4, 10 test episodes per worker per epoch, 316 epochs."""
     c = resolve("paper")
     assert (c.n_workers, c.episodes_per_worker, c.n_cycles, c.n_updates) == (19, 2, 25, 100)
     assert (c.hidden, c.layers, c.actor_lr, c.critic_lr) == (256, 3, 1e-3, 1e-3)
@@ -21,6 +25,8 @@ def test_paper_preset_is_the_authors_protocol():
     assert (c.her_p, c.lp_window, c.lp_eps, c.eval_every, c.norm_clip) == (0.8, 300, 0.4, 10, 5)
     assert c.batch_size == 256 * 19 and c.episodes_per_cycle == 38
     assert c.total_episodes == 300_000
+    assert (c.test_rollouts_per_worker, c.moved_threshold, c.replay_active_only) == (10, 1e-3, True)
+    assert (c.norm_eps, c.algorithm) == (0.01, "ddpg")
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))

@@ -19,7 +19,7 @@ from toy_env import make_toy_envs
 
 from curious.checkpoint import CheckpointError, list_checkpoints
 from curious.cli import main
-from curious.config import resolve
+from curious.config import ConfigError, resolve
 from curious.run_folder import RunFolderError
 from curious.train import train
 
@@ -64,6 +64,7 @@ def test_run_folder_holds_config_metrics_and_checkpoint(tmp_path, condition):
     table = pq.read_table(folder / "metrics.parquet")
     names = ["reach", "dial", "beacon"]
     expected = ["episode", "worker", "module", "g0", "g1", "g2", "success", "eval"]
+    expected += ["sensor_failure"]
     expected += [f"{p}/{n}" for p in ("competence", "lp", "p_lp") for n in names] + ["wall_time"]
     assert table.schema.names == expected
     types = {f.name: str(f.type) for f in table.schema}
@@ -105,8 +106,40 @@ def test_resume_gives_the_same_run_as_no_interruption(tmp_path):
     df_b = pq.read_table(tmp_path / "split" / "metrics.parquet").to_pandas()
     cols = [c for c in df_a.columns if c != "wall_time"]
     assert df_a[cols].equals(df_b[cols])
+    tests_a = pq.read_table(tmp_path / "whole" / "tests.parquet").to_pandas()
+    tests_b = pq.read_table(tmp_path / "split" / "tests.parquet").to_pandas()
+    cols = [c for c in tests_a.columns if c != "wall_time"]
+    assert len(tests_a) and tests_a[cols].equals(tests_b[cols])
     resumed = json.loads((tmp_path / "split" / "config.json").read_text())["resumed"]
     assert len(resumed) == 1
+
+
+def test_test_rollouts_follow_every_epoch_and_change_nothing_of_training(tmp_path):
+    """The authors' evaluator: after every epoch, noise-free test rollouts on uniformly drawn
+    modules (flowersteam/curious, baselines/her/experiment/train.py and config.py:
+    n_test_rollouts 5 x rollout_batch_size 2 = 10 per worker)."""
+    assert resolve("paper").test_rollouts_per_worker == 10
+    tested = run(tmp_path / "tested", test_rollouts_per_worker=3)
+    untested = run(tmp_path / "untested", test_rollouts_per_worker=0)
+    tests = pq.read_table(tmp_path / "tested" / "tests.parquet").to_pandas()
+    assert not (tmp_path / "untested" / "tests.parquet").exists()
+    # smoke: an epoch is 2 cycles of 4 episodes; 39 episodes end inside the 5th epoch
+    per_epoch = 3 * 2
+    assert list(tests["epoch"].unique()) == [0, 1, 2, 3, 4]
+    assert (tests.groupby("epoch").size() == per_epoch).all()
+    np.testing.assert_array_equal(tests["episode"].unique(), [8, 16, 24, 32, 39])
+    assert set(tests["module"]) == {"reach", "dial", "beacon"}  # drawn uniformly
+    assert tests["success"].dtype == bool
+    a = pq.read_table(tmp_path / "tested" / "metrics.parquet").to_pandas()
+    b = pq.read_table(tmp_path / "untested" / "metrics.parquet").to_pandas()
+    cols = [c for c in a.columns if c != "wall_time"]
+    assert a[cols].equals(b[cols])
+    for x, y in zip(
+        tested.agent.experts[0].actor.parameters(),
+        untested.agent.experts[0].actor.parameters(),
+        strict=True,
+    ):
+        assert torch.equal(x, y)
 
 
 def test_resume_may_extend_a_finished_run(tmp_path):
@@ -298,3 +331,46 @@ def test_a_setting_added_later_takes_its_default_in_older_configs():
     assert config_differences(older, {**config, "sensor_failure_episode": 5}) == [
         "sensor_failure_episode"
     ]
+
+
+def sensor_failure_trainer(**changes):
+    from curious.envs import make_suite_envs
+    from curious.train import Trainer
+
+    config = resolve("smoke", "curious", 0, {"variant": "sensor_failure", **changes})
+    envs = make_suite_envs(config.variant, 0, config.n_workers)
+    tests = make_suite_envs(config.variant, 0, config.n_workers, stream=1)
+    return Trainer(config, envs, tests)
+
+
+def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
+    trainer = sensor_failure_trainer(sensor_failure_competence=0.75)
+    module = trainer.spec.module_index("push_cube3")
+    assert trainer.failure_module == module
+    rows = trainer.cycle().rows
+    assert trainer.failure_start is None and not rows["sensor_failure"].any()
+    for _ in range(3):  # the module's competence reaches 0.75 during training
+        trainer.tracker.add(module, True)
+    started_at = trainer.episodes
+    result = trainer.cycle()
+    assert trainer.failure_start == started_at
+    assert result.rows["sensor_failure"].all()
+    assert all(env._task.sensor_failure for env in trainer.envs)
+    assert all(env._task.sensor_failure for env in trainer.test_envs)  # tests after an epoch
+    # the onset survives a checkpoint
+    path = trainer.save_checkpoint(tmp_path / "checkpoints")
+    again = sensor_failure_trainer(sensor_failure_competence=0.75)
+    again.load_checkpoint(path)
+    assert again.failure_start == started_at
+
+
+def test_sensory_failure_settings_are_checked(tmp_path):
+    with pytest.raises(ConfigError, match="not both"):
+        resolve("smoke", overrides={"sensor_failure_episode": 5, "sensor_failure_competence": 0.5})
+    with pytest.raises(ConfigError, match="sensor_failure_competence"):
+        resolve("smoke", overrides={"sensor_failure_competence": 1.5})
+    with pytest.raises(ConfigError, match="set_sensor_failure"):
+        run(tmp_path / "toy", sensor_failure_competence=0.5)  # the toy env has no failure
+    assert not (tmp_path / "toy").exists()
+    with pytest.raises(ConfigError, match="sensory failure"):
+        sensor_failure_trainer(variant="default", sensor_failure_competence=0.5)

@@ -48,6 +48,14 @@ def test_curious_train_records_every_kth_evaluation_in_3d(tmp_path: Path) -> Non
         outcome = "success" if metrics.loc[e, "success"] else "failure"
         assert label == [f"{module_label(metrics.loc[e, 'module'])}, episode {e}: {outcome}"]
 
+    # the test rollouts of every epoch (smoke: 8 episodes an epoch, 2 tests), as success rates
+    tests = pq.read_table(out / "tests.parquet").to_pandas()
+    for name, rows in tests.groupby("module", observed=True):
+        episodes, rates = read_component(path, f"test/{name}", "Scalars:scalars", "episode")
+        expected = rows.groupby("episode")["success"].mean()
+        assert episodes.tolist() == expected.index.tolist()
+        np.testing.assert_allclose([r[0] for r in rates], expected.to_numpy())
+
     # every step of both episodes, on a dense frame timeline (frame 0: the rest pose)
     frames, cube = read_component(
         path, "scene/bodies/cube1", "Transform3D:translation", "rollout_frame"

@@ -1,6 +1,6 @@
 """The environment: determinism, the caller's choice of module and goal, rewards that the
-vectorised module functions reproduce, the start state, the distractors, the sensory failure,
-and clear errors on bad input."""
+vectorised module functions reproduce, the start state, the distractors, and clear errors on bad
+input. (The sensory failure is tested with its variant, in test_suite_variants.py.)"""
 
 from __future__ import annotations
 
@@ -150,43 +150,6 @@ def test_distractors_random_walk_on_the_table_out_of_reach(variant):
     moves = np.concatenate(moves)
     assert np.mean(moves != 0) > 0.95  # they move every step
     assert np.std(moves) == pytest.approx(layout.DISTRACTOR_WALK_STD, rel=0.15)
-
-
-def test_sensor_shift_appears_exactly_when_switched_on():
-    env = suite.load("sensor_failure", seed=4)
-    task = env.task
-    sl = task.state_layout
-    idx = list(sl.cube_x_indices(1))  # cube 2's x: position and position relative to gripper
-    assert idx == [sl.cube_pos.start + 3, sl.cube_rel_pos.start + 3]
-    twin = suite.load("sensor_failure", seed=4)  # never switched on
-    actions = np.random.default_rng(2).uniform(-1, 1, size=(50, 4))
-    for env_ in (env, twin):
-        env_.task.set_next_episode(module="push_cube1")
-    states, twin_states = [env.reset().observation], [twin.reset().observation]
-    for t, a in enumerate(actions):
-        if t == 20:
-            task.set_sensor_failure(True)
-        if t == 35:
-            task.set_sensor_failure(False)
-        states.append(env.step(a).observation)
-        twin_states.append(twin.step(a).observation)
-    for t, (obs, ref) in enumerate(zip(states, twin_states, strict=True)):
-        shifted = 21 <= t <= 35
-        diff = obs["state"] - ref["state"]
-        expected = np.zeros_like(diff)
-        if shifted:
-            expected[idx] = layout.SENSOR_SHIFT_X
-        np.testing.assert_allclose(diff, expected, atol=1e-6, err_msg=f"step {t}")
-        for key in ("achieved", "success", "goal", "task"):
-            np.testing.assert_array_equal(obs[key], ref[key])
-    assert not task.sensor_failure
-
-
-def test_sensor_failure_is_refused_where_the_variant_has_none():
-    env = suite.load("default", seed=0)
-    assert not env.task.has_sensor_failure
-    with pytest.raises(ValueError, match="no sensory failure"):
-        env.task.set_sensor_failure(True)
 
 
 BAD_INPUTS = [

@@ -1,10 +1,10 @@
 """The layout a run's recording opens with in the Rerun viewer.
 
-Left: the 3D rollouts above the per-episode success (evaluation and training) and the module of
-each episode. Right: competence, absolute learning progress and p_LP per module, then the
-learner's losses, Q statistics and replay composition in tabs. The time panel starts on the
-`episode` timeline; switch it to `rollout_frame` and press play to watch the recorded rollouts
-one after another.
+Left: the 3D rollouts above the success of the test rollouts (per module, every epoch), the
+per-episode success (evaluation and training) and the module of each episode. Right: competence,
+absolute learning progress and p_LP per module, then the learner's losses, Q statistics and replay
+composition in tabs. The time panel starts on the `episode` timeline; switch it to
+`rollout_frame` and press play to watch the recorded rollouts one after another.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ def default_blueprint() -> rrb.Blueprint:
     left = rrb.Vertical(
         rrb.Spatial3DView(name="Rollouts", origin="/scene"),
         rrb.Tabs(
+            rrb.TimeSeriesView(name="Test success (per epoch)", origin="/test", axis_y=unit),
             rrb.TimeSeriesView(name="Success (evaluation)", origin="/success/eval", axis_y=unit),
             rrb.TimeSeriesView(name="Success (training)", origin="/success/train", axis_y=unit),
             rrb.TimeSeriesView(name="Module per episode", origin="/module"),

@@ -348,6 +348,11 @@ class RunRecorder:
                     static=True,
                 )
             log(
+                f"test/{name}",
+                rr.SeriesLines(colors=[color], names=[label], interpolation_mode="Linear"),
+                static=True,
+            )
+            log(
                 f"module/{name}",
                 rr.SeriesPoints(colors=[color], names=[label], marker_sizes=[2.0]),
                 static=True,
@@ -499,6 +504,31 @@ class RunRecorder:
                 self._send_scalars(f"{kind}/{name}", episodes[rows], wall[rows], values[rows, m])
                 self._logged_until[kind][m] = episodes[rows[-1]]
         self._last[kind] = values[-1].copy()
+
+    def log_tests(self, episode: int, module: Any, success: Any, wall_time: Any = None) -> None:
+        """Logs one epoch's test rollouts as each tested module's success rate, under
+        `test/<module>` at the training episode count `episode`.
+
+        Args:
+            episode: training episodes done when the tests ran.
+            module: (K,) module of each test rollout, slot indices or names.
+            success: (K,) bool, its final success.
+            wall_time: seconds since the run started (default: now).
+        """
+        self._check_open()
+        succ = _as_1d("success", success, None).astype(np.float64)
+        modules = self._modules(module, succ.shape[0])
+        counts = np.bincount(modules, minlength=len(self.module_names))
+        rates = np.bincount(modules, weights=succ, minlength=len(self.module_names))
+        wall = self._wall(wall_time, 1)
+        for m in np.flatnonzero(counts):
+            self._send_scalars(
+                f"test/{self.module_names[m]}",
+                np.array([episode], np.int64),
+                wall,
+                np.array([rates[m] / counts[m]]),
+            )
+        self._maybe_send()
 
     def log_replay(self, episode: Any, counts: Any, wall_time: Any = None) -> None:
         """Logs the replay composition: how often each module was substituted into replayed
