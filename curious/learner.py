@@ -26,39 +26,6 @@ from curious.mlp_workspace import MLPWorkspace, fold_parameters
 from curious.networks import Actor, Critic
 
 
-def _positions(module: nn.Module, flat: torch.Tensor) -> torch.Tensor:
-    """Where each element of `module.parameters()`, in that order and flattened, lies in `flat`
-    (the tensor `fold_parameters` returned for the module)."""
-    index = torch.arange(flat.numel(), device=flat.device)
-    base = flat.storage_offset()
-    return torch.cat(
-        [
-            index.as_strided(p.shape, p.stride(), p.storage_offset() - base).reshape(-1)
-            for p in module.parameters()
-        ]
-    )
-
-
-def _folded_adam_state(state: dict[str, Any], positions: torch.Tensor) -> dict[str, Any]:
-    """An Adam state of a checkpoint written before `fold_parameters`, as the state of the
-    folded tensor.
-
-    Such checkpoints held one state per weight and bias, or one flat state whose moments run
-    in `parameters()` order; either way the moments, concatenated, are in `parameters()` order,
-    and `positions` (from `_positions`) says where each element goes.
-    """
-    group = state["param_groups"][0]
-    per_param = [state["state"][i] for i in group["params"] if i in state["state"]]
-    folded: dict[str, Any] = {}
-    if per_param:
-        folded = {"step": per_param[0]["step"]}
-        for key in ("exp_avg", "exp_avg_sq"):
-            moments = torch.cat([s[key].reshape(-1) for s in per_param])
-            folded[key] = torch.empty_like(moments)
-            folded[key][positions.to(moments.device)] = moments
-    return {"state": {0: folded} if folded else {}, "param_groups": [{**group, "params": [0]}]}
-
-
 def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
     """Adam with the fastest implementation this torch offers for the device."""
     try:
@@ -252,7 +219,6 @@ class Learner:
             "critic_opt": self.critic_opt.state_dict(),
             "generator": self.generator.get_state(),
             "n_updates": self.n_updates,
-            "parameter_layout": "folded",
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -263,12 +229,8 @@ class Learner:
         self.critics.load_state_dict(state["critics"])
         self.actor_target.load_state_dict(state["actor_target"])
         self.critics_target.load_state_dict(state["critics_target"])
-        actor_opt, critic_opt = state["actor_opt"], state["critic_opt"]
-        if state.get("parameter_layout") != "folded":
-            actor_opt = _folded_adam_state(actor_opt, _positions(self.actor, self._online[0]))
-            critic_opt = _folded_adam_state(critic_opt, _positions(self.critics, self._online[1]))
-        self.actor_opt.load_state_dict(actor_opt)
-        self.critic_opt.load_state_dict(critic_opt)
+        self.actor_opt.load_state_dict(state["actor_opt"])
+        self.critic_opt.load_state_dict(state["critic_opt"])
         self.generator.set_state(
             state["generator"].cpu() if hasattr(state["generator"], "cpu") else state["generator"]
         )

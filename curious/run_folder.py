@@ -20,7 +20,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-from curious.config import RESUMABLE_FIELDS, Config
+from curious.config import RESUMABLE_FIELDS, Config, setting_names
 from curious.envs import EnvSpec
 
 
@@ -63,15 +63,11 @@ def git_commit() -> dict[str, Any]:
 
 
 def config_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
-    """Keys whose values differ between two config dicts, ignoring resumable fields.
-
-    A setting missing from one side (a run saved before the setting existed) counts as its
-    default value, so that adding a setting does not orphan the runs made before it.
-    """
-
-    defaults = Config().to_dict()
+    """Keys whose values differ between two config dicts, ignoring resumable fields; a setting
+    present on one side only differs (a run saved before the setting existed is another run)."""
     keys = (set(a) | set(b)) - RESUMABLE_FIELDS
-    return sorted(k for k in keys if a.get(k, defaults.get(k)) != b.get(k, defaults.get(k)))
+    missing = object()
+    return sorted(k for k in keys if a.get(k, missing) != b.get(k, missing))
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
@@ -128,6 +124,14 @@ class RunFolder:
             return folder
         if not folder.config_path.exists():
             raise RunFolderError(f"nothing to resume: {folder.config_path} does not exist")
+        raw = json.loads(folder.config_path.read_text())["config"]
+        lacking = sorted(set(setting_names()) - set(raw))
+        if lacking:
+            raise RunFolderError(
+                f"cannot resume {folder.path}: it was written by another version of curious "
+                f"(its config.json lacks {', '.join(lacking)}); start a new run, or resume "
+                "with the version that wrote it"
+            )
         stored = folder.read_config()
         diff = config_differences(stored.to_dict(), config.to_dict())
         if diff:

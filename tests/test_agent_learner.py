@@ -213,48 +213,6 @@ def test_encode_pair_equals_two_encodes():
     torch.testing.assert_close(x2, encoder.encode(s2, goals, mask, task))
 
 
-@pytest.mark.parametrize("saved_as", ["per_weight", "flat_in_parameter_order"])
-def test_checkpoints_written_before_the_folded_layout_resume_with_the_same_moments(saved_as):
-    """Runs checkpointed with an Adam state per weight and bias, or with one flat state in
-    `parameters()` order, resume with each parameter's own moments."""
-    config = resolve("smoke", "curious", 0, {})
-    learner = Learner(12, 4, config)
-    params = [p.detach().clone().requires_grad_() for p in learner.actor.parameters()]
-    old_style = torch.optim.Adam(params, lr=config.actor_lr)
-    for p in params:
-        p.grad = torch.randn_like(p)
-    old_style.step()
-    saved = old_style.state_dict()
-    if saved_as == "flat_in_parameter_order":
-        moments = saved["state"].values()
-        saved = {
-            "state": {
-                0: {
-                    "step": saved["state"][0]["step"],
-                    **{
-                        k: torch.cat([m[k].reshape(-1) for m in moments])
-                        for k in ("exp_avg", "exp_avg_sq")
-                    },
-                }
-            },
-            "param_groups": [{**saved["param_groups"][0], "params": [0]}],
-        }
-    state = learner.state_dict()
-    del state["parameter_layout"]
-    state["actor_opt"] = saved
-
-    fresh = Learner(12, 4, config)
-    fresh.load_state_dict(state)
-    (moments,) = fresh.actor_opt.state.values()
-    assert float(moments["step"]) == 1.0
-    for p, old in zip(fresh.actor.parameters(), params, strict=True):
-        # the moment of parameter p sits where p sits in the folded tensor
-        offset = p.storage_offset() - fresh._online[0].storage_offset()
-        for key in ("exp_avg", "exp_avg_sq"):
-            at_p = moments[key].as_strided(p.shape, p.stride(), offset)
-            assert torch.equal(at_p, old_style.state[old][key])
-
-
 def test_direct_adam_step_gives_the_same_bits_as_optimizer_step():
     from curious.learner import _adam, _adam_step
 

@@ -322,15 +322,16 @@ def test_observer_and_recorder_hooks_are_called_in_order(tmp_path):
     assert recorder.calls[1][2].sum() == 4 * 2 * 32  # n_updates x batch substitutions
 
 
-def test_a_setting_added_later_takes_its_default_in_older_configs():
-    from curious.run_folder import config_differences
-
-    config = resolve("smoke", "curious", 0, {}).to_dict()
-    older = {k: v for k, v in config.items() if k != "sensor_failure_episode"}
-    assert config_differences(older, config) == []
-    assert config_differences(older, {**config, "sensor_failure_episode": 5}) == [
-        "sensor_failure_episode"
-    ]
+def test_a_run_written_before_a_setting_existed_is_refused_clearly(tmp_path):
+    run(tmp_path / "r")
+    path = tmp_path / "r" / "config.json"
+    info = json.loads(path.read_text())
+    del info["config"]["test_rollouts_per_worker"]  # as a version without that setting wrote it
+    path.write_text(json.dumps(info))
+    before = snapshot(tmp_path / "r")
+    with pytest.raises(RunFolderError, match="lacks test_rollouts_per_worker"):
+        run(tmp_path / "r", resume=True, total_episodes=60)
+    assert snapshot(tmp_path / "r") == before
 
 
 def sensor_failure_trainer(**changes):
