@@ -98,6 +98,17 @@ class RolloutInfo:
 
 
 @dataclass
+class RoundResult:
+    """One round of parallel episodes and the measures after each of its episodes."""
+
+    info: RolloutInfo
+    competence: np.ndarray  # (n, N) after each episode
+    lp: np.ndarray  # (n, N)
+    p_lp: np.ndarray  # (n, N)
+    wall: np.ndarray  # (n,) seconds since the run started
+
+
+@dataclass
 class CycleResult:
     """What one cycle produced, for the run driver and recorders."""
 
@@ -286,12 +297,8 @@ class Trainer:
         task[rows, modules] = 1.0
         return goals, task.copy(), task
 
-    def _round(self, n: int) -> tuple[RolloutInfo, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """n parallel episodes: choose modules and goals, roll out, store, score.
-
-        Returns the round's RolloutInfo and, per episode, competence, LP, p_LP (n, N) after it
-        and its wall time.
-        """
+    def _round(self, n: int) -> RoundResult:
+        """n parallel episodes: choose modules and goals, roll out, store, score."""
         cfg, spec = self.config, self.spec
         n_mod = spec.n_modules
         episodes = self.episodes + np.arange(n)
@@ -336,7 +343,7 @@ class Trainer:
         info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
         if observer is not None:
             observer.end_round(info)
-        return info, competence, lp, p_lp, wall
+        return RoundResult(info, competence, lp, p_lp, wall)
 
     def _success(self, data: EpisodeData, modules: np.ndarray, goals: np.ndarray) -> np.ndarray:
         """(n,) final success of each episode's module. In the holistic condition, the scored
@@ -390,15 +397,9 @@ class Trainer:
             "wall_time": np.full(rows, self.wall_time()),
         }
 
-    def _rows(
-        self,
-        info: RolloutInfo,
-        competence: np.ndarray,
-        lp: np.ndarray,
-        p_lp: np.ndarray,
-        wall: np.ndarray,
-    ) -> dict[str, np.ndarray]:
+    def _rows(self, round_: RoundResult) -> dict[str, np.ndarray]:
         """metrics.parquet columns of a round."""
+        info = round_.info
         rows: dict[str, np.ndarray] = {
             "episode": info.episodes.astype(np.int64),
             "worker": np.arange(len(info.episodes), dtype=np.int32),
@@ -410,28 +411,28 @@ class Trainer:
             "eval": info.evaluation,
             "sensor_failure": info.sensor_failure,
         }
-        for prefix, values in (("competence", competence), ("lp", lp), ("p_lp", p_lp)):
+        for prefix in ("competence", "lp", "p_lp"):
+            values = getattr(round_, prefix)
             for k, name in enumerate(self.spec.module_names):
                 rows[f"{prefix}/{name}"] = values[:, k]
-        rows["wall_time"] = wall
+        rows["wall_time"] = round_.wall
         return rows
 
     def cycle(self) -> CycleResult:
         """One cycle: rollouts, then updates, then the target update (see the module docstring)."""
         cfg, n_mod = self.config, self.spec.n_modules
         timings = dict.fromkeys(("rollout_policy", "rollout_env", "store", "sample", "update"), 0.0)
-        parts: list[tuple[RolloutInfo, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        rounds: list[RoundResult] = []
         for _ in range(cfg.episodes_per_worker):
             n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
             if n <= 0:
                 break
             tic = time.perf_counter()
-            part = self._round(n)
-            data = part[0].data
+            rounds.append(self._round(n))
+            data = rounds[-1].info.data
             timings["rollout_policy"] += data.policy_seconds
             timings["rollout_env"] += data.env_seconds
             timings["store"] += time.perf_counter() - tic - data.policy_seconds - data.env_seconds
-            parts.append(part)
 
         losses: dict[str, float] = {}
         replay_counts = np.zeros(n_mod, np.int64)
@@ -465,23 +466,23 @@ class Trainer:
             timings["test"] = time.perf_counter() - tic
         losses.update({f"seconds/{k}": v for k, v in timings.items()})
 
-        row_parts = [self._rows(*part) for part in parts]
-        rows = {k: np.concatenate([r[k] for r in row_parts]) for k in row_parts[0]} if parts else {}
+        parts = [self._rows(r) for r in rounds]
+        rows = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
 
-        def stack(i: int, width: int) -> np.ndarray:
-            if not parts:
-                return np.zeros((0, width), np.float32)
-            return np.concatenate([part[i] for part in parts])
+        def stack(name: str) -> np.ndarray:
+            if not rounds:
+                return np.zeros((0, n_mod), np.float32)
+            return np.concatenate([getattr(r, name) for r in rounds])
 
         module_index = (
-            np.concatenate([p[0].modules for p in parts]) if parts else np.zeros(0, np.int64)
+            np.concatenate([r.info.modules for r in rounds]) if rounds else np.zeros(0, np.int64)
         )
         return CycleResult(
             rows=rows,
             module_index=module_index,
-            competence=stack(1, n_mod),
-            lp=stack(2, n_mod),
-            p_lp=stack(3, n_mod),
+            competence=stack("competence"),
+            lp=stack("lp"),
+            p_lp=stack("p_lp"),
             losses=losses,
             replay_counts=replay_counts,
             tests=tests,
