@@ -18,9 +18,10 @@ import numpy as np
 import torch
 
 PREFIX = "ep-"
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """2: goals enter the networks through a fixed map (no goal statistics), Xavier-initialised
-networks, the authors' stack guard and T3 heights; a format-1 run cannot go on with this agent."""
+networks, the authors' stack guard and T3 heights; 3: test rollouts' random streams and the
+sensory failure's onset. A run of another format cannot go on with this agent."""
 
 
 class CheckpointError(RuntimeError):
