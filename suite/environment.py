@@ -15,11 +15,20 @@ what `Physics.step` calls) with a cheaper check for MuJoCo warnings that raises 
 of a control step here. For tasks that restore a complete MuJoCo state at reset
 (`task.restores_full_state`), the reset skips composer's default physics reset, whose work
 the task would throw away.
+
+That speed rests on composer internals (hook containers, the reset attempt, the observation
+updater), so `make_environment` uses it only with the dm_control release it was checked against
+(`FAST_PATH_DM_CONTROL`; a test compares it with stock composer step for step on every variant)
+and gives a stock `composer.Environment` otherwise, or when asked (`stock=True`, or the
+environment variable `SUITE_STOCK_COMPOSER=1`).
 """
 
 from __future__ import annotations
 
 import collections
+import importlib.metadata
+import os
+import warnings
 
 import dm_env
 import mujoco
@@ -30,6 +39,39 @@ from dm_control.composer.observation import updater as updater_module
 from dm_control.rl import control
 
 _SUBSTEP_HOOKS = ("before_substep", "after_substep")
+
+FAST_PATH_DM_CONTROL = "1.0.50"
+"""The dm_control release `SuiteEnvironment` was checked against."""
+
+
+def fast_path_supported() -> bool:
+    """Whether the installed dm_control is the release the fast path was checked against."""
+    try:
+        return importlib.metadata.version("dm-control") == FAST_PATH_DM_CONTROL
+    except importlib.metadata.PackageNotFoundError:
+        return False
+
+
+def make_environment(
+    task: composer.Task, random_state=None, *, stock: bool = False, **kwargs
+) -> composer.Environment:
+    """The environment of a suite task: `SuiteEnvironment`, or a stock `composer.Environment`
+    with the same settings when `stock` (or `SUITE_STOCK_COMPOSER=1`) asks for it or the
+    installed dm_control is not the release the fast path was checked against (with a warning).
+    Both give the same episodes step for step."""
+    kwargs.setdefault("recompile_mjcf_every_episode", False)
+    kwargs.setdefault("strip_singleton_obs_buffer_dim", True)
+    stock = stock or os.environ.get("SUITE_STOCK_COMPOSER", "") not in ("", "0")
+    if not stock and not fast_path_supported():
+        warnings.warn(
+            f"dm_control is not {FAST_PATH_DM_CONTROL}, the release the suite's fast step was "
+            "checked against: using composer's own step (slower, same episodes)",
+            stacklevel=2,
+        )
+        stock = True
+    if stock:
+        return composer.Environment(task, random_state=random_state, **kwargs)
+    return SuiteEnvironment(task, random_state=random_state, **kwargs)
 
 
 class OncePerStepUpdater:

@@ -117,6 +117,44 @@ def test_composer_environment_and_single_call_stepping():
     assert env.physics.timestep() == pytest.approx(0.002)
 
 
+@pytest.mark.parametrize("variant", suite.ALL_VARIANTS)
+def test_fast_step_matches_stock_composer_step_for_step(variant):
+    """`SuiteEnvironment` runs a control step's substeps in one physics call; it must give what
+    composer's own step gives: observations, rewards and the MuJoCo state, over resets."""
+    from dm_control import composer
+
+    fast = suite.load(variant, seed=7)
+    stock = suite.load(variant, seed=7, stock=True)
+    assert type(fast) is suite.SuiteEnvironment and fast.single_call_stepping
+    assert type(stock) is composer.Environment
+    actions = np.random.default_rng(0).uniform(-1, 1, (2, 50, 4))
+    for episode in range(2):
+        for env in (fast, stock):
+            env.task.set_next_episode(module=episode % 2, goal=[0.3, -0.2, 0.5])
+        steps = [(fast.reset(), stock.reset())]
+        steps += [(fast.step(a), stock.step(a)) for a in actions[episode]]
+        for t, (a, b) in enumerate(steps):
+            assert a.step_type == b.step_type and a.reward == b.reward, (episode, t)
+            for key in a.observation:
+                np.testing.assert_array_equal(a.observation[key], b.observation[key], key)
+        for name in ("qpos", "qvel", "act", "mocap_pos", "mocap_quat"):
+            np.testing.assert_array_equal(
+                getattr(fast.physics.data, name), getattr(stock.physics.data, name), name
+            )
+
+
+def test_the_fast_step_is_used_only_with_the_dm_control_it_was_checked_against(monkeypatch):
+    import suite.environment as environment
+
+    monkeypatch.setattr(environment, "FAST_PATH_DM_CONTROL", "0.0.1")
+    with pytest.warns(UserWarning, match="composer's own step"):
+        env = suite.load("default", seed=0)
+    assert type(env) is not suite.SuiteEnvironment
+    monkeypatch.undo()
+    monkeypatch.setenv("SUITE_STOCK_COMPOSER", "1")
+    assert type(suite.load("default", seed=0)) is not suite.SuiteEnvironment
+
+
 # -- the sensory failure: the authors' perturbation study ---------------------------------------
 # Facts from gym_flowers multi_task_fetch_arm_v3.py (`MultiTaskFetchArm4-v3`, tasks [0, 1, 2, 3]):
 # tasks reach, push cube0, cube0 above cube1, push cube2 (our cubes 1, 2, 3), three objects placed
