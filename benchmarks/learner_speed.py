@@ -4,8 +4,10 @@ All three at the authors' sizes (minibatch 256, actor and critic 3 x 256 ReLU) a
 input (49 state + 21 goal + 7 task = 77 numbers, 4 actions), on the same threads:
 
 * ours: `curious.learner.Learner.update` on a fixed minibatch (one critic and one actor step,
-  Adam, no sampling); `ours_with_replay` adds relabelled sampling from a filled replay and input
-  normalisation (the training loop's full update step);
+  Adam, no sampling) with the default backend (autograd, the readable reference); `workspace` and
+  `compiled` the same update with the other backends (`Config.learner_backend`);
+  `ours_with_replay` adds relabelled sampling from a filled replay and input normalisation to the
+  default (the training loop's full update step);
 * bound: the update's matrix products (forward, weight-gradient and input-gradient products of
   the four networks it touches) timed alone on this machine, back to back with `torch.mm` on
   the same shapes: the update's FLOPs over the fp32 matmul rate measured at those shapes. A
@@ -177,6 +179,10 @@ def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
     config = _config(args)
     dev = torch.device(args.device)
     learner = Learner(STATE + GOAL + TASKS, ACTIONS, config)
+    backends = {
+        name: Learner(STATE + GOAL + TASKS, ACTIONS, _config(args, learner_backend=name))
+        for name in ("workspace", "compiled")
+    }
     g = torch.Generator().manual_seed(0)
     x = torch.randn(args.batch, STATE + GOAL + TASKS, generator=g).to(dev)
     a = (torch.rand(args.batch, ACTIONS, generator=g) * 2 - 1).to(dev)
@@ -208,6 +214,8 @@ def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
         replay.sample(args.batch, rng, env, probs, 0.8)
     sample_ms = (time.perf_counter() - tic) / 50 * 1e3
     steps = {"ours": lambda: learner.update(x, a, r, x2), "ours_with_replay": full_step}
+    for name, other in backends.items():
+        steps[name] = lambda other=other: other.update(x, a, r, x2)
     return steps, sample_ms
 
 
@@ -336,6 +344,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             rates["ours_with_replay"] / rates["peer"] if "peer" in rates else None
         ),
         "ours_over_peer": rates["ours"] / rates["peer"] if "peer" in rates else None,
+        "workspace": rates["workspace"],
+        "compiled": rates["compiled"],
+        "workspace_over_compiled": rates["workspace"] / rates["compiled"],
+        "workspace_over_ours": rates["workspace"] / rates["ours"],
         "bound_peak": rates["big"] * big_flops / flops,
         "replay_sample_ms": sample_ms,
         "flops_per_update": float(flops),

@@ -15,6 +15,7 @@ from typing import Any
 
 CONDITIONS: tuple[str, ...] = ("curious", "m-uvfa", "mg-te", "her")
 ALGORITHMS: tuple[str, ...] = ("ddpg", "td3")
+LEARNER_BACKENDS: tuple[str, ...] = ("autograd", "compiled", "workspace")
 DEVICES: tuple[str, ...] = ("cpu", "cuda")
 
 # Fields that may differ between a run folder's stored config and the config of a `--resume`:
@@ -83,6 +84,10 @@ class Config:
     # --- learner -----------------------------------------------------------------------------
     algorithm: str = "ddpg"
     """`ddpg` (the authors') or `td3` (twin critics, target smoothing, delayed actor)."""
+    learner_backend: str = "autograd"
+    """How the update runs, the same arithmetic each: `autograd` (the reference, readable),
+    `compiled` (its losses through `torch.compile`; for CUDA) or `workspace` (both passes
+    written out into preallocated buffers; the fastest on a CPU, docs/benchmarks.md)."""
     hidden: int = 256
     """Units per hidden layer of actor and critic. Authors: 256."""
     layers: int = 3
@@ -188,6 +193,11 @@ class Config:
         if self.algorithm not in ALGORITHMS:
             raise ConfigError(
                 f"unknown algorithm {self.algorithm!r}; choose one of {', '.join(ALGORITHMS)}"
+            )
+        if self.learner_backend not in LEARNER_BACKENDS:
+            raise ConfigError(
+                f"unknown learner_backend {self.learner_backend!r}; choose one of "
+                f"{', '.join(LEARNER_BACKENDS)}"
             )
         if self.device not in DEVICES:
             raise ConfigError(f"unknown device {self.device!r}; choose one of {DEVICES}")

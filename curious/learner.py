@@ -9,6 +9,11 @@ TD3 (Fujimoto et al. 2018) changes three things: two critics and the minimum of 
 clipped Gaussian smoothing noise on the target action, and an actor step every
 `td3_policy_delay` critic steps. The target schedule stays the cycle's.
 
+`Learner.update` is written with autograd and is the reference. `Config.learner_backend` picks
+how it runs: `autograd` (the default), `compiled` (the same losses through `torch.compile`) or
+`workspace` (both passes written out into preallocated buffers, `curious.mlp_workspace`; the
+fastest on a CPU, tested against the reference). docs/benchmarks.md has the speed of each.
+
 Inputs arrive normalised (`curious.inputs.InputEncoder`); the learner only does arithmetic on
 tensors of its device.
 """
@@ -20,10 +25,31 @@ from typing import Any
 
 import torch
 from torch import nn
+from torch.func import functional_call
 
 from curious.config import Config
-from curious.mlp_workspace import MLPWorkspace, fold_parameters
+from curious.mlp_workspace import WorkspaceUpdate, fold_parameters
 from curious.networks import Actor, Critic
+
+
+def flatten_parameters(module: nn.Module, grads: bool) -> torch.Tensor:
+    """Moves all of `module`'s parameters into one flat tensor and returns it; each parameter
+    stays the module's, as a contiguous view of it. With `grads`, the tensor is a Parameter whose
+    one flat `.grad` holds the parameters' gradients as views. One tensor per network lets Adam
+    and the Polyak update run once per network."""
+    params = list(module.parameters())
+    flat = torch.cat([p.detach().reshape(-1) for p in params])
+    if grads:
+        flat = nn.Parameter(flat)
+        flat.grad = torch.zeros_like(flat)
+    offset = 0
+    for p in params:
+        n = p.numel()
+        p.data = flat.data[offset : offset + n].view_as(p)
+        if grads:
+            p.grad = flat.grad[offset : offset + n].view_as(p)
+        offset += n
+    return flat
 
 
 def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
@@ -32,57 +58,6 @@ def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
         return torch.optim.Adam(params, lr=lr, fused=True)
     except (RuntimeError, TypeError):  # fused not available for this device / build
         return torch.optim.Adam(params, lr=lr, foreach=True)
-
-
-def _adam_step(optimizer: torch.optim.Adam) -> None:
-    """`optimizer.step()` for one fused Adam over one tensor, minus the per-call bookkeeping.
-
-    `Optimizer.step` regroups the tensors by device and dtype and runs its hooks on every call,
-    about 60 us at the authors' sizes, twice per update (docs/benchmarks.md). With one
-    parameter and its state in place, the fused kernel is called directly, on the optimizer's
-    own state, with the same arguments `step` would pass (for torch 2.13, the pinned version;
-    a test checks that both give the same bits). The first step, which creates the state,
-    and an unfused optimizer take the ordinary path.
-    """
-    (group,) = optimizer.param_groups
-    (param,) = group["params"]
-    state = optimizer.state.get(param)
-    if not group["fused"] or not state or group["amsgrad"] or group["maximize"]:
-        optimizer.step()
-        return
-    state["step"].add_(1)
-    beta1, beta2 = group["betas"]
-    torch._fused_adam_(
-        [param],
-        [param.grad],
-        [state["exp_avg"]],
-        [state["exp_avg_sq"]],
-        [],
-        [state["step"]],
-        amsgrad=False,
-        lr=group["lr"],
-        beta1=beta1,
-        beta2=beta2,
-        weight_decay=group["weight_decay"],
-        eps=group["eps"],
-        maximize=False,
-        grad_scale=None,
-        found_inf=None,
-    )
-
-
-class _Workspace:
-    """Buffers of one batch size: a workspace per network (each holds its own input buffer)."""
-
-    def __init__(self, learner: Learner, batch: int) -> None:
-        self.actor = MLPWorkspace(learner.actor.net, batch)
-        self.critics = [MLPWorkspace(c.net, batch) for c in learner.critics]
-        self.actor_target = MLPWorkspace(learner.actor_target.net, batch, with_grads=False)
-        self.critics_target = [
-            MLPWorkspace(c.net, batch, with_grads=False) for c in learner.critics_target
-        ]
-        # d(-mean q)/dq, the actor loss's gradient at the critic's output
-        self.minus_mean = torch.full((batch, 1), -1.0 / batch, device=learner.device)
 
 
 class Learner:
@@ -104,14 +79,11 @@ class Learner:
         torch.set_rng_state(cpu_rng_state)
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self.critics_target = copy.deepcopy(self.critics).requires_grad_(False)
-        self._online = [
-            fold_parameters(self.actor, grads=True),
-            fold_parameters(self.critics, grads=True),
-        ]
-        self._targets = [
-            fold_parameters(self.actor_target, grads=False),
-            fold_parameters(self.critics_target, grads=False),
-        ]
+        # one flat tensor per network; the workspace needs each layer as a [W | b] block
+        flatten = fold_parameters if config.learner_backend == "workspace" else flatten_parameters
+        self._online = [flatten(net, grads=True) for net in (self.actor, self.critics)]
+        nets = (self.actor_target, self.critics_target)
+        self._targets = [flatten(net, grads=False) for net in nets]
         self.actor_opt = _adam([self._online[0]], config.actor_lr)
         self.critic_opt = _adam([self._online[1]], config.critic_lr)
         self.generator = torch.Generator(device=self.device)
@@ -119,8 +91,12 @@ class Learner:
         self.clip_return = 1.0 / (1.0 - config.gamma)
         self.n_updates = 0
         self.input_dim = input_dim
-        self._workspaces: dict[int, _Workspace] = {}
         self._last_actor_loss = torch.zeros((), device=self.device)
+        self._workspace = WorkspaceUpdate(self) if config.learner_backend == "workspace" else None
+        passes = (self.td_target, self.critic_loss, self.actor_loss)
+        if config.learner_backend == "compiled":
+            passes = tuple(torch.compile(f) for f in passes)
+        self._td_target, self._critic_loss, self._actor_loss = passes
 
     # -------------------------------------------------------------------------------------------
     @torch.no_grad()
@@ -128,77 +104,68 @@ class Learner:
         """Deterministic actions pi(x), shape (B, action_dim)."""
         return self.actor(x)
 
-    def _workspace(self, batch: int) -> _Workspace:
-        if batch not in self._workspaces:
-            self._workspaces[batch] = _Workspace(self, batch)
-        return self._workspaces[batch]
-
     @torch.no_grad()
     def td_target(self, reward: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
         """r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0]; TD3 smooths the target
         action and takes the smaller of its two target critics."""
         cfg = self.config
-        ws = self._workspace(x_next.shape[0])
-        next_action = ws.actor_target.forward(x_next).tanh_()
+        next_action = self.actor_target(x_next)
         if self.td3:
             noise = torch.randn(next_action.shape, generator=self.generator, device=self.device)
-            noise.mul_(cfg.td3_target_noise).clamp_(-cfg.td3_noise_clip, cfg.td3_noise_clip)
-            next_action.add_(noise).clamp_(-1.0, 1.0)
-        inputs = ws.critics_target[0].input
-        inputs[:, : self.input_dim].copy_(x_next)
-        inputs[:, self.input_dim :].copy_(next_action)
-        q_next = ws.critics_target[0].forward(inputs)[:, 0]
+            noise = (noise * cfg.td3_target_noise).clamp(-cfg.td3_noise_clip, cfg.td3_noise_clip)
+            next_action = (next_action + noise).clamp(-1.0, 1.0)
+        q_next = self.critics_target[0](x_next, next_action)
         if self.td3:
-            q_next = torch.minimum(q_next, ws.critics_target[1].forward(inputs)[:, 0])
-        return (reward + cfg.gamma * q_next).clamp_(-self.clip_return, 0.0)
+            q_next = torch.minimum(q_next, self.critics_target[1](x_next, next_action))
+        return (reward + cfg.gamma * q_next).clamp(-self.clip_return, 0.0)
 
-    @torch.no_grad()
+    def critic_loss(
+        self, x: torch.Tensor, action: torch.Tensor, target: torch.Tensor
+    ) -> torch.Tensor:
+        """Sum over the critics of mean (Q(x, a) - y)^2."""
+        return sum((critic(x, action) - target).square().mean() for critic in self.critics)
+
+    def actor_loss(self, x: torch.Tensor) -> torch.Tensor:
+        """-mean Q1(x, pi(x)) + action_l2 * mean(pi(x)^2), through the critic's weights held
+        fixed: its gradient reaches the actor only."""
+        pi = self.actor(x)
+        critic = self.critics[0]
+        fixed = {name: w.detach() for name, w in critic.named_parameters()}
+        q_pi = functional_call(critic, fixed, (x, pi))
+        return -q_pi.mean() + self.config.action_l2 * pi.square().mean()
+
     def update(
         self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
     ) -> dict[str, torch.Tensor]:
         """One gradient step on a minibatch; returns detached losses (no device sync).
 
-        Critic: minimise mean (Q(x, a) - y)^2 for each critic. Actor: minimise
-        -mean Q1(x, pi(x)) + action_l2 * mean(pi(x)^2); its gradient flows through the critic's
-        input, never into the critic's weights. DDPG takes both gradients from the current
-        networks, then steps both (as the authors' baselines code did); TD3 steps the critics
-        first and the actor, every `td3_policy_delay` steps, through the updated critic. Both
-        passes are written out (`MLPWorkspace`).
+        DDPG takes both gradients from the current networks, then steps both (as the authors'
+        baselines code did); TD3 steps the critics first and the actor, every
+        `td3_policy_delay` steps, through the updated critic.
         """
-        cfg = self.config
-        batch, d = x.shape[0], self.input_dim
-        ws = self._workspace(batch)
-        target = self.td_target(reward, x_next)
-
-        inputs = ws.critics[0].input
-        inputs[:, :d].copy_(x)
-        inputs[:, d:].copy_(action)
-        critic_loss = torch.zeros((), device=self.device)
-        for critic_ws in ws.critics:
-            diff = critic_ws.forward(inputs)[:, 0] - target
-            critic_loss += diff.square().mean()
-            critic_ws.backward(diff.mul_(2.0 / batch).unsqueeze(1))
-        if self.td3:
-            _adam_step(self.critic_opt)
-
+        if self._workspace is not None:
+            return self._workspace.update(x, action, reward, x_next)
         self.n_updates += 1
-        if not self.td3 or self.n_updates % cfg.td3_policy_delay == 0:
-            pi = ws.actor.forward(x).tanh_()
-            inputs[:, d:].copy_(pi)
-            q_pi = ws.critics[0].forward(inputs)
-            pi_sq = pi.square()
-            self._last_actor_loss = cfg.action_l2 * pi_sq.mean() - q_pi.mean()
-            grad_pi = ws.critics[0].backward(
-                ws.minus_mean, weight_grads=False, input_grad=True, input_columns=slice(d, None)
-            )
-            grad_pi.add_(pi, alpha=2.0 * cfg.action_l2 / pi.numel())
-            grad_pi.mul_(pi_sq.neg_().add_(1.0))  # through tanh: d tanh(z)/dz = 1 - tanh^2
-            ws.actor.backward(grad_pi)
-            _adam_step(self.actor_opt)
+        for flat in self._online:
+            flat.grad.zero_()
+        target = self._td_target(reward, x_next)
+        critic_loss = self._critic_loss(x, action, target)
+        actor_due = not self.td3 or self.n_updates % self.config.td3_policy_delay == 0
         if not self.td3:
-            _adam_step(self.critic_opt)
+            actor_loss = self._actor_loss(x)
+            (critic_loss + actor_loss).backward()  # each loss reaches its own network only
+            self.critic_opt.step()
+        else:
+            critic_loss.backward()
+            self.critic_opt.step()
+            if actor_due:
+                actor_loss = self._actor_loss(x)  # through the stepped critic
+                actor_loss.backward()
+        if actor_due:
+            self.actor_opt.step()
+            self._last_actor_loss = actor_loss.detach()
         return {
-            "critic_loss": critic_loss,
+            "critic_loss": critic_loss.detach(),
             "actor_loss": self._last_actor_loss,
             "q_target_mean": target.mean(),
         }
@@ -206,7 +173,8 @@ class Learner:
     @torch.no_grad()
     def update_targets(self) -> None:
         """target <- polyak * target + (1 - polyak) * online."""
-        torch._foreach_lerp_(self._targets, self._online, 1.0 - self.config.polyak)
+        for target, online in zip(self._targets, self._online, strict=True):
+            target.lerp_(online, 1.0 - self.config.polyak)
 
     # -------------------------------------------------------------------------------------------
     def state_dict(self) -> dict[str, Any]:

@@ -1,12 +1,15 @@
-"""Explicit forward and backward passes of a ReLU MLP into preallocated buffers.
+"""The learner's update with explicit forward and backward passes into preallocated buffers.
+
+`Config.learner_backend = "workspace"`: the fastest update on a CPU, and an option beside the
+autograd reference (`curious.learner.Learner.update`), which a test compares it with.
 
 The DDPG update is a dozen small matrix products per network; on a CPU, autograd's bookkeeping
-and the fresh tensors it allocates for every activation and gradient cost about as much as the
-products themselves. The learner therefore writes the two passes out: every product goes into a
-buffer allocated once per batch size, ReLU runs in place, its backward is one fused
-`threshold_backward` into a buffer, and weight gradients land directly in each parameter's
-`.grad`, where the optimiser reads them. The arithmetic is that of autograd (the tests compare
-the gradients); the networks stay ordinary `nn.Module`s.
+and the fresh tensors it allocates for every activation and gradient cost a good part of what
+the products themselves cost. `WorkspaceUpdate` therefore writes the two passes out: every
+product goes into a buffer allocated once per batch size, ReLU runs in place, its backward is
+one fused `threshold_backward` into a buffer, and weight gradients land directly in each
+parameter's `.grad`, where the optimiser reads them. The arithmetic is that of autograd (the
+tests compare the updates); the networks stay ordinary `nn.Module`s.
 
 Biases ride inside the products. `fold_parameters` stores each Linear layer as one
 (out, in + 1) block [W | b], so that the weight and the bias are views of it, and every
@@ -19,8 +22,13 @@ An MLP here is what `curious.networks.mlp` builds: Linear, ReLU, ..., Linear.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import torch
 from torch import nn
+
+if TYPE_CHECKING:
+    from curious.learner import Learner
 
 _relu_backward = torch.ops.aten.threshold_backward.grad_input
 
@@ -160,3 +168,139 @@ class MLPWorkspace:
                 _relu_backward(grad_in, below[:, :-1], 0.0, grad_input=grad_in)
             g = grad_in
         return g
+
+
+DIRECT_ADAM_TORCH = "2.13.0"
+"""The torch release whose private fused-Adam kernel `_adam_step` calls directly."""
+
+
+def _adam_step(optimizer: torch.optim.Adam) -> None:
+    """`optimizer.step()` for one fused Adam over one tensor, minus the per-call bookkeeping.
+
+    `Optimizer.step` regroups the tensors by device and dtype and runs its hooks on every call,
+    about 60 us at the authors' sizes, twice per update (docs/benchmarks.md). With one
+    parameter and its state in place, the fused kernel is called directly, on the optimizer's
+    own state, with the same arguments `step` would pass. The kernel is private: it is called
+    only on the torch release it was checked against (`DIRECT_ADAM_TORCH`; a test checks that
+    both give the same bits there). Other releases, the first step (which creates the state)
+    and an unfused optimizer take the ordinary path.
+    """
+    (group,) = optimizer.param_groups
+    (param,) = group["params"]
+    state = optimizer.state.get(param)
+    direct = torch.__version__.split("+")[0] == DIRECT_ADAM_TORCH
+    if not direct or not group["fused"] or not state or group["amsgrad"] or group["maximize"]:
+        optimizer.step()
+        return
+    state["step"].add_(1)
+    beta1, beta2 = group["betas"]
+    torch._fused_adam_(
+        [param],
+        [param.grad],
+        [state["exp_avg"]],
+        [state["exp_avg_sq"]],
+        [],
+        [state["step"]],
+        amsgrad=False,
+        lr=group["lr"],
+        beta1=beta1,
+        beta2=beta2,
+        weight_decay=group["weight_decay"],
+        eps=group["eps"],
+        maximize=False,
+        grad_scale=None,
+        found_inf=None,
+    )
+
+
+class _Buffers:
+    """Buffers of one batch size: a workspace per network (each holds its own input buffer)."""
+
+    def __init__(self, learner: Learner, batch: int) -> None:
+        self.actor = MLPWorkspace(learner.actor.net, batch)
+        self.critics = [MLPWorkspace(c.net, batch) for c in learner.critics]
+        self.actor_target = MLPWorkspace(learner.actor_target.net, batch, with_grads=False)
+        self.critics_target = [
+            MLPWorkspace(c.net, batch, with_grads=False) for c in learner.critics_target
+        ]
+        # d(-mean q)/dq, the actor loss's gradient at the critic's output
+        self.minus_mean = torch.full((batch, 1), -1.0 / batch, device=learner.device)
+
+
+class WorkspaceUpdate:
+    """`Learner.update` and `Learner.td_target` on the learner's own networks and optimisers,
+    through `MLPWorkspace` buffers (one set per batch size)."""
+
+    def __init__(self, learner: Learner) -> None:
+        self.learner = learner
+        self._by_batch: dict[int, _Buffers] = {}
+
+    def _buffers(self, batch: int) -> _Buffers:
+        if batch not in self._by_batch:
+            self._by_batch[batch] = _Buffers(self.learner, batch)
+        return self._by_batch[batch]
+
+    @torch.no_grad()
+    def td_target(self, reward: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+        """r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0]; TD3 smooths the target
+        action and takes the smaller of its two target critics."""
+        lrn = self.learner
+        cfg = lrn.config
+        ws = self._buffers(x_next.shape[0])
+        next_action = ws.actor_target.forward(x_next).tanh_()
+        if lrn.td3:
+            noise = torch.randn(next_action.shape, generator=lrn.generator, device=lrn.device)
+            noise.mul_(cfg.td3_target_noise).clamp_(-cfg.td3_noise_clip, cfg.td3_noise_clip)
+            next_action.add_(noise).clamp_(-1.0, 1.0)
+        inputs = ws.critics_target[0].input
+        inputs[:, : lrn.input_dim].copy_(x_next)
+        inputs[:, lrn.input_dim :].copy_(next_action)
+        q_next = ws.critics_target[0].forward(inputs)[:, 0]
+        if lrn.td3:
+            q_next = torch.minimum(q_next, ws.critics_target[1].forward(inputs)[:, 0])
+        return (reward + cfg.gamma * q_next).clamp_(-lrn.clip_return, 0.0)
+
+    @torch.no_grad()
+    def update(
+        self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
+    ) -> dict[str, torch.Tensor]:
+        """`Learner.update`, with both passes written out (`MLPWorkspace`): the same losses,
+        gradients and order of steps."""
+        lrn = self.learner
+        cfg = lrn.config
+        batch, d = x.shape[0], lrn.input_dim
+        ws = self._buffers(batch)
+        target = self.td_target(reward, x_next)
+
+        inputs = ws.critics[0].input
+        inputs[:, :d].copy_(x)
+        inputs[:, d:].copy_(action)
+        critic_loss = torch.zeros((), device=lrn.device)
+        for critic_ws in ws.critics:
+            diff = critic_ws.forward(inputs)[:, 0] - target
+            critic_loss += diff.square().mean()
+            critic_ws.backward(diff.mul_(2.0 / batch).unsqueeze(1))
+        if lrn.td3:
+            _adam_step(lrn.critic_opt)
+
+        lrn.n_updates += 1
+        if not lrn.td3 or lrn.n_updates % cfg.td3_policy_delay == 0:
+            pi = ws.actor.forward(x).tanh_()
+            inputs[:, d:].copy_(pi)
+            q_pi = ws.critics[0].forward(inputs)
+            pi_sq = pi.square()
+            lrn._last_actor_loss = cfg.action_l2 * pi_sq.mean() - q_pi.mean()
+            grad_pi = ws.critics[0].backward(
+                ws.minus_mean, weight_grads=False, input_grad=True, input_columns=slice(d, None)
+            )
+            grad_pi.add_(pi, alpha=2.0 * cfg.action_l2 / pi.numel())
+            grad_pi.mul_(pi_sq.neg_().add_(1.0))  # through tanh: d tanh(z)/dz = 1 - tanh^2
+            ws.actor.backward(grad_pi)
+            _adam_step(lrn.actor_opt)
+        if not lrn.td3:
+            _adam_step(lrn.critic_opt)
+        return {
+            "critic_loss": critic_loss,
+            "actor_loss": lrn._last_actor_loss,
+            "q_target_mean": target.mean(),
+        }

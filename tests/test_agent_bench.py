@@ -14,7 +14,10 @@ from curious.learner import Learner
 @pytest.mark.parametrize("algorithm_sizes", [(256, 77, 4, 256, 3), (32, 10, 2, 16, 2)])
 def test_bound_counts_exactly_the_products_of_one_update(algorithm_sizes):
     batch, inputs, actions, hidden, layers = algorithm_sizes
-    config = resolve("paper", overrides=dict(hidden=hidden, layers=layers))
+    # the bound is the products of the written-out update (the workspace backend)
+    config = resolve(
+        "paper", overrides=dict(hidden=hidden, layers=layers, learner_backend="workspace")
+    )
     learner = Learner(inputs, actions, config)
     x, x2 = torch.randn(batch, inputs), torch.randn(batch, inputs)
     a, r = torch.rand(batch, actions) * 2 - 1, -torch.ones(batch)
@@ -40,3 +43,4 @@ def test_measure_reports_ours_bound_peer_unit():
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     assert result["ours"] > 0 and result["bound"] > 0 and result["peer"] is None
     assert result["unit"] == "updates/s" and result["ours_with_replay"] > 0
+    assert result["workspace"] > 0 and result["compiled"] > 0

@@ -167,7 +167,10 @@ def test_cuda_update_matches_cpu_closely():
 
 
 @pytest.mark.parametrize("algorithm", ["ddpg", "td3"])
-def test_explicit_update_gradients_equal_autograd(algorithm):
+def test_update_gradients_are_those_of_the_losses(algorithm):
+    """The reference update: critic gradients of sum mean (Q - y)^2, actor gradients of
+    -mean Q1(x, pi(x)) + mean pi^2 through the critic held fixed (DDPG: the critic before its
+    step, both from the same networks as the authors' code; TD3: the stepped critic)."""
     learner = Learner(10, 4, small_config(algorithm=algorithm, td3_policy_delay=1), seed=5)
     x, a, r, x2 = batch(seed=2)
     for _ in range(3):  # move away from the initial weights and targets first
@@ -176,7 +179,6 @@ def test_explicit_update_gradients_equal_autograd(algorithm):
     ref = copy.deepcopy(learner)
     learner.update(x, a, r, x2)
 
-    # critic gradients, by autograd on the same loss
     with torch.no_grad():
         next_action = ref.actor_target(x2)
         if algorithm == "td3":
@@ -188,9 +190,6 @@ def test_explicit_update_gradients_equal_autograd(algorithm):
     grads = torch.autograd.grad(loss, list(ref.critics.parameters()))
     for g, p in zip(grads, learner.critics.parameters(), strict=True):
         torch.testing.assert_close(p.grad, g, rtol=1e-4, atol=1e-6)
-
-    # actor gradients: DDPG through the critic before its step (both gradients from the same
-    # networks, as the authors' code), TD3 through the stepped critic
     if algorithm == "td3":
         ref.critics.load_state_dict(learner.critics.state_dict())
     pi = ref.actor(x)
@@ -198,6 +197,26 @@ def test_explicit_update_gradients_equal_autograd(algorithm):
     grads = torch.autograd.grad(loss, list(ref.actor.parameters()))
     for g, p in zip(grads, learner.actor.parameters(), strict=True):
         torch.testing.assert_close(p.grad, g, rtol=1e-4, atol=1e-6)
+
+
+@pytest.mark.parametrize("backend", ["workspace", "compiled"])
+@pytest.mark.parametrize("algorithm", ["ddpg", "td3"])
+def test_every_backend_gives_the_reference_update(backend, algorithm):
+    config = small_config(algorithm=algorithm, td3_policy_delay=2)
+    reference = Learner(10, 4, config, seed=5)
+    other = Learner(10, 4, dataclasses.replace(config, learner_backend=backend), seed=5)
+    for step in range(5):
+        x, a, r, x2 = batch(seed=step)
+        want, got = reference.update(x, a, r, x2), other.update(x, a, r, x2)
+        for key in want:
+            torch.testing.assert_close(got[key], want[key], rtol=1e-4, atol=1e-5)
+        if step % 2:
+            reference.update_targets()
+            other.update_targets()
+    for net in ("actor", "critics", "actor_target", "critics_target"):
+        mine, theirs = getattr(reference, net).parameters(), getattr(other, net).parameters()
+        for p, q in zip(mine, theirs, strict=True):
+            torch.testing.assert_close(q, p, rtol=1e-4, atol=1e-5)
 
 
 def test_encode_pair_equals_two_encodes():
@@ -214,7 +233,8 @@ def test_encode_pair_equals_two_encodes():
 
 
 def test_direct_adam_step_gives_the_same_bits_as_optimizer_step():
-    from curious.learner import _adam, _adam_step
+    from curious.learner import _adam
+    from curious.mlp_workspace import _adam_step
 
     torch.manual_seed(0)
     params = [torch.nn.Parameter(torch.randn(1000)) for _ in range(2)]
