@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.metadata
 import os
 import sys
+from collections.abc import Callable
 
 COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.train",
@@ -19,6 +21,61 @@ COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.bench",
     "curious.commands.reproduce",
 )
+
+
+def _suite_variants() -> str:
+    import suite
+
+    return ", ".join(suite.ALL_VARIANTS)
+
+
+def _suite_modules() -> str:
+    import suite
+
+    names: dict[str, None] = {}
+    for variant in suite.ALL_VARIANTS:
+        names.update(dict.fromkeys(suite.load(variant).task.module_names))
+    return ", ".join(names)
+
+
+def _rollout_every() -> str:
+    from curious.recording import RecorderSettings
+
+    return str(RecorderSettings().rollout_every)
+
+
+HELP_FIELDS: dict[str, Callable[[], str]] = {
+    "variants": _suite_variants,
+    "modules": _suite_modules,
+    "rollout_every": _rollout_every,
+}
+"""Values that help texts name as `{field}`: filled in only when a help text is printed, so
+that `curious` starts without importing MuJoCo or Rerun."""
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Shows defaults, and fills `{variants}`, `{modules}` and `{rollout_every}` in help texts
+    (the suite's registered names, the recorder's default) when the help is printed."""
+
+    def _fill(self, text: str) -> str:
+        for field, value in HELP_FIELDS.items():
+            if "{" + field + "}" in text:
+                text = text.replace("{" + field + "}", value())
+        return text
+
+    def add_text(self, text: str | None) -> None:
+        super().add_text(self._fill(text) if text else text)
+
+    def _expand_help(self, action: argparse.Action) -> str:
+        return self._fill(super()._expand_help(action))
+
+
+def version() -> str:
+    """The installed curious version."""
+    try:
+        return importlib.metadata.version("curious")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown (not installed)"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
             "figures of the paper."
         ),
     )
+    parser.add_argument("--version", action="version", version=f"curious {version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMAND_MODULES:
         try:

@@ -242,6 +242,23 @@ def test_sigkill_leaves_readable_metrics_and_a_resumable_run(tmp_path):
     np.testing.assert_array_equal(df["episode"], np.arange(saved + 8))
 
 
+def test_cli_tells_its_version_and_helps_with_real_names_and_defaults(capsys):
+    import suite
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.startswith("curious 0.")
+    for command in (["train", "--help"], ["render", "--help"]):
+        with pytest.raises(SystemExit):
+            main(command)
+        text = capsys.readouterr().out
+        assert "variants: " + ", ".join(suite.ALL_VARIANTS) in text
+        assert "{variants}" not in text and "{modules}" not in text  # placeholders filled
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    assert "(default 50)" in " ".join(capsys.readouterr().out.split())  # --rollout-every
+
+
 def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
     out = str(tmp_path / "r")
     cases = [

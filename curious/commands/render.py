@@ -5,12 +5,16 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from curious.cli import HelpFormatter
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious render`."""
     parser = sub.add_parser(
         "render",
         help="render frames of an episode to PNG (headless)",
+        formatter_class=HelpFormatter,
+        epilog="variants: {variants}\nmodules: {modules}",
         description=(
             "Render frames of one episode of a suite variant to PNG files. Needs a headless "
             "GL backend: run with MUJOCO_GL=egl (Mesa EGL: apt-get install libegl1 "
@@ -18,7 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument("--variant", default="default", help="suite variant (default: default)")
-    parser.add_argument("--module", default="push_cube1", help="module to practise")
+    parser.add_argument(
+        "--module", default="push_cube1", help="module to practise (default push_cube1)"
+    )
     parser.add_argument(
         "--goal",
         type=float,
@@ -26,19 +32,27 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar=("G0", "G1", "G2"),
         help="goal g in [-1, 1]^3 (default: drawn uniformly)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the episode")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the episode (default 0)")
     parser.add_argument(
         "--policy",
         choices=("random", "still"),
         default="random",
-        help="actions: uniform random, or still (the arm holds its pose)",
+        help="actions: uniform random, or still (the arm holds its pose) (default random)",
     )
-    parser.add_argument("--steps", type=int, default=50, help="control steps (at most 50)")
-    parser.add_argument("--every", type=int, default=10, help="keep one frame every N steps")
-    parser.add_argument("--camera", default="front", choices=("front", "top"))
-    parser.add_argument("--width", type=int, default=640)
-    parser.add_argument("--height", type=int, default=480)
-    parser.add_argument("--out", type=Path, default=Path("frames"), help="output folder")
+    parser.add_argument(
+        "--steps", type=int, default=50, help="control steps, at most 50 (default 50)"
+    )
+    parser.add_argument(
+        "--every", type=int, default=10, help="keep one frame every N steps (default 10)"
+    )
+    parser.add_argument(
+        "--camera", default="front", choices=("front", "top"), help="(default front)"
+    )
+    parser.add_argument("--width", type=int, default=640, help="pixels (default 640)")
+    parser.add_argument("--height", type=int, default=480, help="pixels (default 480)")
+    parser.add_argument(
+        "--out", type=Path, default=Path("frames"), help="output folder (default frames)"
+    )
     parser.set_defaults(func=run)
 
 

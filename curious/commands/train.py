@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from curious.cli import HelpFormatter
 from curious.config import CONDITIONS, PRESETS, ConfigError, parse_overrides, resolve
 
 
@@ -24,13 +25,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "train",
         help="train one condition x seed into a run folder",
         description=__doc__.split("\n\n")[0],
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=HelpFormatter,
         epilog=(
             "presets: "
             + ", ".join(PRESETS)
             + "\nconditions: "
             + ", ".join(CONDITIONS)
-            + "\nsettings: see curious/config.py (Config)"
+            + "\nvariants: {variants}"
+            + "\nsettings: every field of curious.config.Config (each documented there, with "
+            "the authors' value),\n  e.g. --set learner_backend=workspace (the fastest update "
+            "on a CPU)"
         ),
     )
     parser.add_argument(
@@ -55,7 +59,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--device", choices=("cpu", "cuda"), default=None, help="where networks train (default cpu)"
     )
-    parser.add_argument("--variant", default=None, help="suite variant (default: default)")
+    parser.add_argument(
+        "--variant", default=None, help="suite variant: {variants} (default: default)"
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument(
         "--no-record", action="store_true", help="do not write the Rerun recording (recording.rrd)"
@@ -70,8 +76,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=None,
         metavar="K",
-        help="record every K-th evaluation episode in 3D; 0 records none "
-        "(default: curious.recording.RecorderSettings.rollout_every)",
+        help="record every K-th evaluation episode in 3D; 0 records none (default {rollout_every})",
     )
     parser.set_defaults(func=run)
 
