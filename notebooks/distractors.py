@@ -68,10 +68,13 @@ pd.concat(
 
 # %% [markdown]
 # ## Learning curves per setting (Fig. 2a for each number of distractors)
+#
+# Test success over achievable modules, from the runs' test rollouts.
 
 # %%
-for variant in sorted(df["variant"].astype(str).unique()):
-    display(analysis.fig2a(df, variant=variant, compare=None))
+tests = analysis.load_tests(layout.experiment_runs("distractors"))
+for variant in sorted(tests["variant"].astype(str).unique()):
+    display(analysis.fig2a(tests, variant=variant, compare=None))
 
 # %% [markdown]
 # ## Attention paid to the distractors

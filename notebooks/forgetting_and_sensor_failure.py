@@ -16,8 +16,14 @@
 #
 # The paper's claims: a drop of competence on a mastered module raises its absolute learning
 # progress, which draws the agent back to it (forgetting, Fig. 2b around 250k episodes); and
-# after a sensory failure (from a set episode on, the observed x of one cube reads 5 cm too far)
-# CURIOUS recovers faster than uniform module selection (M-UVFA).
+# after a sensory failure CURIOUS recovers faster than uniform module selection (M-UVFA).
+#
+# The failure (the `sensor_failure` variant, the authors' perturbation study): cube 3's observed
+# x reads 5 cm too far, in the state and in push_cube3's outcome, so the perceived success of
+# push_cube3 drops and the agent must relearn it. It starts at a set episode, or when
+# push_cube3's competence first reaches a threshold; where it started is read from the runs'
+# metrics (the first episode with `sensor_failure` on). A recovery is measured only in runs
+# where the failure started and push_cube3 was learned before it; the others say why not.
 #
 # Part 1 reads the `sensor_failure` experiment; part 2 looks for spontaneous forgetting in the
 # CURIOUS runs of the `main` experiment. `out` is the output folder of `curious reproduce`.
@@ -34,13 +40,14 @@ from pipelines.resources import OutputLayout
 # %% tags=["parameters"]
 out = "runs/quick"
 fraction = 0.9  # recovery: back at this fraction of the competence before the perturbation
-module = None  # the module to follow; None: the one whose competence fell most
+module = None  # the module to follow; None: the one the variant's failure perturbs
 
 # %%
 layout = OutputLayout.open(out)
 df = analysis.load_runs(layout.experiment_runs("sensor_failure"))
-runs = analysis.runs_table(df)
-runs[["condition", "seed", "variant", "perturbation_episode", "n_episodes"]]
+runs = analysis.runs_table(df).set_index("run")
+runs = runs.join(analysis.failure_onsets(df)[["onset", "source"]])
+runs[["condition", "seed", "variant", "perturbation_episode", "failure_competence", "onset"]]
 
 # %% [markdown]
 # ## Competence and LP around the perturbation
@@ -52,11 +59,13 @@ display(fig)
 # %% [markdown]
 # ## Time to recover, per run and per condition
 #
-# `recovery_episodes`: episodes from the perturbation until the competence, after its lowest
-# point, is back at `fraction` of its level before (NaN: not regained, or nothing to lose).
+# `status`: `measured` where the failure started and the module was learned before it,
+# `not_learned` (nothing to forget) or `never_started`; `note` says it in words.
+# `recovery_episodes` (measured runs only): episodes from the failure until the competence,
+# after its lowest point, is back at `fraction` of its level before (NaN: not regained).
 
 # %%
-per_run.drop(columns=["run"])
+per_run[["condition", "seed", "status", "perturbation_episode", "recovery_episodes", "note"]]
 
 # %%
 analysis.recovery_summary(per_run)
@@ -64,26 +73,30 @@ analysis.recovery_summary(per_run)
 # %% [markdown]
 # ## Module selection after the perturbation
 #
-# Mean p_LP of the followed module over the episodes before and after the perturbation: with
-# LP-based selection it rises when the module's competence drops.
+# Mean p_LP of the followed module over the episodes before and after each run's failure, in
+# the runs where it started: with LP-based selection it rises when the module's competence
+# drops.
 
 # %%
 followed = str(per_run["module"].iat[0])
-p = int(per_run["perturbation_episode"].iat[0])
-window = max(1, p // 2)
 rows = []
-for (condition, seed), run in df.groupby(["condition", "seed"], observed=True):
+for r in per_run.dropna(subset=["perturbation_episode"]).itertuples():
+    run = df[df["run"] == r.run]
+    p = int(r.perturbation_episode)
+    window = max(1, p // 2)
     e = run["episode"].to_numpy()
     values = run[f"p_lp/{followed}"].to_numpy()
     rows.append(
         {
-            "condition": condition,
-            "seed": seed,
+            "condition": r.condition,
+            "seed": r.seed,
+            "failure from": p,
             "p_lp before": float(values[(e >= p - window) & (e < p)].mean()),
             "p_lp after": float(values[(e >= p) & (e < p + window)].mean()),
         }
     )
-pd.DataFrame(rows).round(3)
+columns = ["condition", "seed", "failure from", "p_lp before", "p_lp after"]
+pd.DataFrame(rows, columns=columns).round(3)
 
 # %% [markdown]
 # ## Spontaneous forgetting in the main runs

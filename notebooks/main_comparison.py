@@ -14,9 +14,11 @@
 # %% [markdown]
 # # Main comparison: CURIOUS, MG-TE and HER (paper Fig. 2a)
 #
-# Average success over the achievable modules (competence, i.e. self-evaluation success rate,
-# averaged over reach, push, pick-and-place and stack) for each condition, mean ± std over
-# seeds, and a one-tailed Welch's t-test per episode bin (alpha = 0.01) of CURIOUS > MG-TE.
+# Average success over the achievable modules for each condition, measured as the paper did on
+# the test rollouts: after every epoch, noise-free episodes on modules drawn uniformly
+# (`tests.parquet`), their success pooled over those on reach, push, pick-and-place and stack.
+# Mean ± std over seeds per epoch, and a one-tailed Welch's t-test per epoch (alpha = 0.01) of
+# CURIOUS > MG-TE.
 #
 # The paper's claim: CURIOUS rises faster than MG-TE (about 150k against 300k episodes), and
 # HER, one goal over the holistic goal space, stays flat. With the `quick` preset's small
@@ -34,44 +36,48 @@ from pipelines.resources import OutputLayout
 
 # %% tags=["parameters"]
 out = "runs/quick"
-bin_size = None  # episodes per bin; None chooses about 50 bins
+bin_size = None  # episodes per point; None: one point per epoch
 better, worse = "curious", "mg-te"
 
 # %%
 layout = OutputLayout.open(out)
 df = analysis.load_runs(layout.experiment_runs("main"))
+tests = analysis.load_tests(layout.experiment_runs("main"))
 analysis.runs_table(df)[["condition", "seed", "variant", "preset", "n_episodes"]]
 
 # %% [markdown]
 # ## Fig. 2a
 
 # %%
-fig = analysis.fig2a(df, compare=(better, worse), bin_size=bin_size)
+fig = analysis.fig2a(tests, compare=(better, worse), bin_size=bin_size)
 display(fig)
 
 # %% [markdown]
-# ## Mean ± std over seeds, per bin
+# ## Mean ± std over seeds, per epoch
 #
-# A run's value in a bin is its success at the bin's end (competence is already a moving
-# average); `n` is the number of seeds.
+# A run's value at an epoch is the success rate of that epoch's test rollouts on achievable
+# modules (`n_tests` of them per run); `n` is the number of seeds.
 
 # %%
-binned = analysis.bin_runs(df, bin_size=bin_size)
-summary = analysis.across_seeds(binned)
+points = analysis.epoch_success(tests, bin_size=bin_size)
+summary = analysis.across_seeds(points)
 table = summary.pivot(index="episodes", columns="condition", values="mean")
 table.iloc[:: max(1, len(table) // 10)].round(3)
 
+# %%
+points.groupby("condition", observed=True)["n_tests"].describe()[["mean", "min", "max"]]
+
 # %% [markdown]
-# ## Welch's t-test per bin
+# ## Welch's t-test per epoch
 #
-# One-tailed (alternative: the first condition's mean is greater), unequal variances. A bin
+# One-tailed (alternative: the first condition's mean is greater), unequal variances. A point
 # with fewer than two seeds on a side, or no variance at all, has no p-value.
 
 # %%
-welch = analysis.welch_per_bin(binned, better, worse)
+welch = analysis.welch_per_bin(points, better, worse)
 print(
     f"{better} > {worse} at p < {analysis.ALPHA}: {int(welch['significant'].sum())} of "
-    f"{len(welch)} bins; first significant bin: "
+    f"{len(welch)} points; first significant point: "
     + (
         f"{int(welch.loc[welch['significant'], 'episodes'].iloc[0]):,} episodes"
         if welch["significant"].any()
@@ -81,10 +87,22 @@ print(
 welch.iloc[:: max(1, len(welch) // 10)]
 
 # %% [markdown]
-# ## Final success per run
+# ## The competence, for comparison
+#
+# The agent's own success measure (its self-evaluations), which drives learning progress and
+# Fig. 2b/2c: averaged over achievable modules, per episode bin.
 
 # %%
-final = analysis.final_competence(df)
+competence = analysis.across_seeds(analysis.bin_runs(df))
+competence.pivot(index="episodes", columns="condition", values="mean").iloc[::10].round(3)
+
+# %% [markdown]
+# ## Final test success per run
+#
+# At the last epoch every run reached.
+
+# %%
+final = analysis.final_success(points)
 pd.concat(
     [
         final.groupby("condition", observed=True)["value"].agg(["mean", "std", "size"]),

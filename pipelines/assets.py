@@ -7,8 +7,10 @@ For every experiment E (`curious.experiments`), in group E:
   policy) and trains them side by side on the pool; a partition whose folder already holds the
   finished run is not retrained, an interrupted one resumes from its checkpoint.
 * `E/metrics`: the combined metrics table of the experiment's runs
-  (`curious.analysis.load_runs`), written to `metrics/E.parquet`.
-* one asset per figure, drawn by `curious.analysis` from that table:
+  (`curious.analysis.load_runs`), written to `metrics/E.parquet`, and their test rollouts
+  (`curious.analysis.load_tests`) to `metrics/E.tests.parquet` where every run has them.
+* one asset per figure, drawn by `curious.analysis` from those tables (Fig. 2a from the test
+  rollouts, as the paper's; the others from the metrics):
   `main/fig2a`, `main/fig2b`, `main/fig2c`, `main/table1`, `distractors/distractors`,
   `sensor_failure/forgetting`.
 
@@ -17,6 +19,7 @@ And `report` (group `report`): `report.md` from the figures and statistics that 
 
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 
 import dagster as dg
 import pandas as pd
@@ -101,6 +104,30 @@ def load_metrics(repro: Reproduction, experiment: str) -> pd.DataFrame:
     return pd.read_parquet(path)
 
 
+def run_folders(repro: Reproduction, experiment: Experiment) -> list[Path]:
+    """The run folders of an experiment, in its partition order."""
+    root = repro.layout.runs_root
+    return [root.joinpath(*s.relative_path.parts) for s in experiment.runs()]
+
+
+def load_tests(repro: Reproduction, experiment: Experiment) -> pd.DataFrame:
+    """The combined test rollouts the `metrics` asset wrote; where it wrote none (a run without
+    test rollouts), reading the run folders raises the `AnalysisError` that names that run."""
+    from curious import analysis
+
+    path = repro.layout.tests(experiment.name)
+    if path.is_file():
+        return pd.read_parquet(path)
+    return analysis.load_tests(run_folders(repro, experiment))
+
+
+def _write_table(table: pd.DataFrame, path: Path) -> None:
+    """Write a parquet table atomically (a temporary file renamed over it)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    table.to_parquet(tmp, index=False)
+    tmp.replace(path)
+
+
 def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
     name = experiment.name
 
@@ -111,7 +138,8 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
         required_resource_keys={RESOURCE},
         description=(
             f"Every episode of every {name} run in one table (curious.analysis.load_runs), "
-            f"written to metrics/{name}.parquet."
+            f"written to metrics/{name}.parquet; their test rollouts "
+            f"(curious.analysis.load_tests) to metrics/{name}.tests.parquet."
         ),
         kinds={"pandas", "parquet"},
     )
@@ -129,13 +157,19 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
                 f"{len(unfinished)} run(s) of {name} are not finished ({', '.join(unfinished)}): "
                 f"materialise {name}/runs first"
             )
-        folders = [layout.runs_root.joinpath(*s.relative_path.parts) for s in specs]
+        folders = run_folders(repro, experiment)
         table = analysis.load_runs(folders)
         layout.metrics_dir.mkdir(parents=True, exist_ok=True)
         path = layout.metrics(name)
-        tmp = path.with_name(f".{path.name}.tmp")
-        table.to_parquet(tmp, index=False)
-        tmp.replace(path)
+        _write_table(table, path)
+        try:
+            tests = analysis.load_tests(folders)
+        except analysis.AnalysisError as exc:  # runs trained without test rollouts
+            layout.tests(name).unlink(missing_ok=True)
+            test_rollouts = f"none: {exc}"
+        else:
+            _write_table(tests, layout.tests(name))
+            test_rollouts = f"{len(tests)} in metrics/{name}.tests.parquet"
         runs = analysis.runs_table(table)
         return dg.MaterializeResult(
             metadata={
@@ -143,21 +177,25 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
                 "runs": len(runs),
                 "rows": len(table),
                 "episodes_per_run": int(runs["n_episodes"].max()),
+                "test_rollouts": dg.MetadataValue.text(test_rollouts),
             }
         )
 
     return metrics
 
 
-def _draw(name: str, experiment: Experiment) -> Callable[[pd.DataFrame, str, str], dict]:
+def _draw(
+    name: str, experiment: Experiment
+) -> Callable[[Reproduction, pd.DataFrame, str, str], dict]:
     """The analysis call of one figure, with the preset's caption note; returns the figure's
     metadata: its caption, and extras such as a statistics CSV."""
     from curious import analysis
 
-    def draw(table: pd.DataFrame, out_dir: str, note: str) -> dict:
+    def draw(repro: Reproduction, table: pd.DataFrame, out_dir: str, note: str) -> dict:
         extra = {}
         if name == "fig2a":
-            fig = analysis.fig2a(table, compare=experiment.compare, note=note, out_dir=out_dir)
+            tests = load_tests(repro, experiment)
+            fig = analysis.fig2a(tests, compare=experiment.compare, note=note, out_dir=out_dir)
         elif name in ("fig2b", "fig2c", "table1"):
             fig = getattr(analysis, name)(table, condition="curious", note=note, out_dir=out_dir)
         elif name == "distractors":
@@ -191,7 +229,7 @@ def _figure_asset(experiment: Experiment, name: str) -> dg.AssetsDefinition:
         table = load_metrics(repro, experiment.name)
         out_dir = repro.layout.figures
         out_dir.mkdir(parents=True, exist_ok=True)
-        extra = draw(table, str(out_dir), repro.preset.caption_note)
+        extra = draw(repro, table, str(out_dir), repro.preset.caption_note)
         repro.say(f"  figure: {out_dir / name}.png")
         return dg.MaterializeResult(
             metadata={

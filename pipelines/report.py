@@ -1,7 +1,11 @@
 """`report.md`: what a reproduction trained, its figures, and the statistics behind them.
 
-The report is a function of the preset, the combined metrics tables and the figures on disk
-(nothing in it depends on when it was written), so rebuilding it from the same runs gives the
+The main comparison's numbers (final success, Welch tests) come from the test rollouts, as Fig.
+2a's; the distractors' from the competence; the sensory failure's from `analysis.recovery`, which
+reports a recovery only where the failure started and the perturbed module was learned before it.
+
+The report is a function of the preset, the combined metrics and test tables and the figures on
+disk (nothing in it depends on when it was written), so rebuilding it from the same runs gives the
 same bytes. An experiment appears once its metrics table exists; figures are linked relatively,
 so the output folder can be moved or shared as a whole.
 """
@@ -17,12 +21,12 @@ import numpy as np
 import pandas as pd
 
 from curious import analysis
-from curious.analysis.palette import condition_label, module_label
+from curious.analysis.palette import condition_label
 from curious.experiments import Experiment
 from pipelines.resources import Reproduction
 
 FIGURE_TEXT: dict[str, str] = {
-    "fig2a": "Average success over the achievable modules per condition (paper Fig. 2a).",
+    "fig2a": "Average test success over the achievable modules per condition (paper Fig. 2a).",
     "fig2b": "Competence of every module over one CURIOUS run (paper Fig. 2b).",
     "fig2c": "Absolute learning progress of every module over the same run (paper Fig. 2c).",
     "table1": "Competence and learning progress of every CURIOUS seed (paper Table 1).",
@@ -65,7 +69,6 @@ def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
     rows = []
     for e in experiments:
         config = e.runs()[0].config(repro.overrides)
-        perturb = f"{e.sensor_failure_episode:,}" if e.sensor_failure_episode is not None else "–"
         rows.append(
             (
                 e.name,
@@ -73,7 +76,7 @@ def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
                 ", ".join(e.variants),
                 ", ".join(map(str, e.seeds)),
                 f"{e.total_episodes:,}",
-                perturb,
+                e.sensor_failure_text,
                 f"`{e.train_preset}`: {config.n_workers} workers x {config.episodes_per_worker} "
                 f"episodes, {config.n_updates} updates of {config.batch_size} per cycle",
                 len(e.runs()),
@@ -85,52 +88,59 @@ def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
         "variants",
         "seeds",
         "episodes per run",
-        "sensory failure at",
+        "sensory failure starts",
         "training preset",
         "runs",
     )
     return _table(header, rows)
 
 
-def _runs_table(table: pd.DataFrame) -> list[str]:
+def _runs_table(table: pd.DataFrame, points: pd.DataFrame | None) -> list[str]:
+    """One row per run; its final competence and, with test rollouts, its final test success."""
     runs = analysis.runs_table(table)
     final = analysis.final_competence(table).set_index("run")["value"]
+    tested = (
+        analysis.final_success(points).set_index("run")["value"] if points is not None else None
+    )
     wall = table.groupby("run", observed=True)["wall_time"].max()
     rows = []
     for _, r in runs.sort_values(["variant", "condition", "seed"]).iterrows():
         folder = Path(str(r["run"]))
-        rows.append(
-            (
-                "/".join(folder.parts[-3:]),
-                r["condition"],
-                r["variant"],
-                r["seed"],
-                f"{int(r['n_episodes']):,}",
-                f"{wall[r['run']] / 60:.1f}",
-                _fmt(final[r["run"]]),
-            )
-        )
-    header = (
+        row = [
+            "/".join(folder.parts[-3:]),
+            r["condition"],
+            r["variant"],
+            r["seed"],
+            f"{int(r['n_episodes']):,}",
+            f"{wall[r['run']] / 60:.1f}",
+            _fmt(final[r["run"]]),
+        ]
+        if tested is not None:
+            row.append(_fmt(tested.get(r["run"], math.nan)))
+        rows.append(row)
+    header = [
         "run folder",
         "condition",
         "variant",
         "seed",
         "episodes",
         "wall time (min)",
-        "final success",
-    )
+        "final competence",
+    ]
+    if tested is not None:
+        header.append("final test success")
     return _table(header, rows)
 
 
-def _final_by_condition(e: Experiment, table: pd.DataFrame) -> list[str]:
-    final = analysis.final_competence(table)
+def _final_by_condition(e: Experiment, points: pd.DataFrame) -> list[str]:
+    final = analysis.final_success(points)
     episodes = int(final["episodes"].iat[0])
     parts = [
         f"{condition_label(c)} {_mean_std(final.loc[final['condition'] == c, 'value'])}"
         for c in e.conditions
     ]
     return [
-        f"Success over achievable modules after {episodes:,} episodes (mean ± std over "
+        f"Test success over achievable modules after {episodes:,} episodes (mean ± std over "
         f"seeds): {'; '.join(parts)}.",
         "",
     ]
@@ -153,21 +163,26 @@ def _welch_summary(test: pd.DataFrame, better: str, worse: str, what: str) -> li
     return [text + ".", ""]
 
 
+def _episodes(value: float) -> str:
+    return "–" if not math.isfinite(value) else f"{value:,.0f}"
+
+
 def _p(value: float) -> str:
     return "–" if not math.isfinite(value) else f"{value:.3g}"
 
 
-def _welch_bins(binned: pd.DataFrame, better: str, worse: str, bin_size: int) -> list[str]:
-    test = analysis.welch_per_bin(binned, better, worse)
+def _welch_points(points: pd.DataFrame, better: str, worse: str) -> list[str]:
+    test = analysis.welch_per_bin(points, better, worse)
     if test.empty:
-        return ["No episode bin is shared by both conditions.", ""]
-    lines = _welch_summary(test, better, worse, f"{bin_size:,}-episode bin")
+        return ["No test point is shared by both conditions.", ""]
+    lines = _welch_summary(test, better, worse, "epoch's test success")
     shown = test
     if len(test) > MAX_WELCH_ROWS:
         picks = np.unique(np.linspace(0, len(test) - 1, MAX_WELCH_ROWS).round().astype(int))
         shown = test.iloc[sorted(set(picks) | set(np.flatnonzero(test["significant"])))]
         lines += [
-            f"Bins shown: {len(shown)} of {len(test)} (evenly spaced, and every significant one).",
+            f"Points shown: {len(shown)} of {len(test)} (evenly spaced, and every significant "
+            "one).",
             "",
         ]
     rows = [
@@ -185,20 +200,31 @@ def _welch_bins(binned: pd.DataFrame, better: str, worse: str, bin_size: int) ->
     return lines + _table(header, rows)
 
 
-def _main(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
+NO_TESTS = (
+    "These runs have no test rollouts (`tests.parquet`: trained before test rollouts were "
+    "logged, or with `test_rollouts_per_worker=0`), so Fig. 2a and its statistics, which the "
+    "paper measured on test rollouts, are not reported; retrain the runs."
+)
+
+
+def _main(
+    repro: Reproduction, e: Experiment, table: pd.DataFrame, points: pd.DataFrame | None
+) -> list[str]:
     lines = [*_figure(repro, "fig2a")]
-    lines += _final_by_condition(e, table)
-    if e.compare is not None:
-        n = int(table.groupby("run", observed=True)["episode"].max().max()) + 1
-        bin_size = analysis.nice_bin_size(n)
-        binned = analysis.bin_runs(table, bin_size=bin_size)
-        lines += _welch_bins(binned, *e.compare, bin_size)
+    if points is None:
+        lines += [NO_TESTS, ""]
+    else:
+        lines += _final_by_condition(e, points)
+        if e.compare is not None:
+            lines += _welch_points(points, *e.compare)
     for name in ("fig2b", "fig2c", "table1"):
         lines += _figure(repro, name)
     return lines
 
 
-def _distractors(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
+def _distractors(
+    repro: Reproduction, e: Experiment, table: pd.DataFrame, points: pd.DataFrame | None
+) -> list[str]:
     lines = [*_figure(repro, "distractors")]
     final = analysis.final_competence(table)
     episodes = int(final["episodes"].iat[0])
@@ -218,7 +244,8 @@ def _distractors(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> lis
     if test is not None:
         header += ("Welch t", "p")
     lines += [
-        f"Success over achievable modules after {episodes:,} episodes, mean ± std over seeds:",
+        f"Competence (self-evaluation success rate) over achievable modules after {episodes:,} "
+        "episodes, mean ± std over seeds:",
         "",
         *_table(header, rows),
     ]
@@ -227,47 +254,81 @@ def _distractors(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> lis
     return lines
 
 
-def _sensor_failure(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
+def _onsets_text(per_run: pd.DataFrame) -> str:
+    """Where the failures started, over the runs."""
+    onsets = per_run["perturbation_episode"].dropna().astype(int)
+    n = len(per_run)
+    if onsets.empty:
+        return f"It never started in any of the {n} runs."
+    low, high = onsets.min(), onsets.max()
+    where = f"episode {low:,}" if low == high else f"episodes {low:,}–{high:,}"
+    if len(onsets) == n:
+        return f"It started at {where} in every run."
+    return f"It started at {where} in {len(onsets)} of {n} runs, and never in the others."
+
+
+def _recovery_rows(summary: pd.DataFrame) -> list[tuple[str, ...]]:
+    """Per condition, over its measured runs: the recovery numbers."""
+    return [
+        (
+            condition_label(r.condition),
+            f"{int(r.n_measured)}/{int(r.n_runs)}",
+            f"{int(r.n_dropped)}",
+            f"{int(r.n_recovered)}",
+            _fmt(r.pre_competence),
+            _fmt(r.threshold),
+            _episodes(r.mean_recovery_episodes),
+            _episodes(r.std_recovery_episodes),
+        )
+        for r in summary.itertuples()
+        if r.n_measured
+    ]
+
+
+def _sensor_failure(
+    repro: Reproduction, e: Experiment, table: pd.DataFrame, points: pd.DataFrame | None
+) -> list[str]:
     lines = [*_figure(repro, "forgetting")]
     csv = repro.layout.figures / "forgetting.csv"
     if not csv.is_file():
         return lines
     per_run = pd.read_csv(csv)
     module = str(per_run["module"].iat[0])
-    p = int(per_run["perturbation_episode"].iat[0])
-    summary = analysis.recovery_summary(per_run)
+    lines += [
+        f"Module followed: `{module}`, the one the variant's sensory failure perturbs. The "
+        f"failure starts {e.sensor_failure_text}. {_onsets_text(per_run)} A recovery is "
+        f"measured only in runs where the failure started and `{module}` was learned before it "
+        "(its competence just before the failure at least "
+        f"{' or '.join(sorted({_fmt(v) for v in per_run['learned_threshold']}))}); the others "
+        "say why there is nothing to measure.",
+        "",
+    ]
     rows = [
         (
             condition_label(r.condition),
-            f"{int(r.n_recovered)}/{int(r.n_runs)}",
-            _fmt(r.pre_competence),
-            _fmt(r.threshold),
-            "–"
-            if not math.isfinite(r.mean_recovery_episodes)
-            else f"{r.mean_recovery_episodes:,.0f}",
-            "–"
-            if not math.isfinite(r.std_recovery_episodes)
-            else f"{r.std_recovery_episodes:,.0f}",
+            r.seed,
+            "never" if pd.isna(r.perturbation_episode) else f"{int(r.perturbation_episode):,}",
+            _fmt(r.onset_competence),
+            r.note,
         )
-        for r in summary.itertuples()
+        for r in per_run.sort_values(["condition", "seed"]).itertuples()
     ]
-    lines += [
-        f"Sensory failure switched on at episode {p:,}; module followed: "
-        f"{module_label(module)} (the achievable module whose competence fell most).",
-        "",
-    ]
-    lines += _table(
-        (
-            "condition",
-            "recovered",
-            "competence before",
-            "threshold (90 %)",
-            "mean recovery (episodes)",
-            "std",
-        ),
-        rows,
+    header = ("condition", "seed", "failure from episode", "competence then", "outcome")
+    lines += _table(header, rows)
+    measured = _recovery_rows(analysis.recovery_summary(per_run))
+    if not measured:
+        return [*lines, "No recovery can be measured in these runs.", ""]
+    header = (
+        "condition",
+        "measured runs",
+        "dropped",
+        "recovered",
+        "competence before",
+        "threshold (90 %)",
+        "mean recovery (episodes)",
+        "std",
     )
-    return lines
+    return lines + _table(header, measured)
 
 
 SECTIONS = {"main": _main, "distractors": _distractors, "sensor_failure": _sensor_failure}
@@ -295,6 +356,11 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         for name in preset.experiments
         if layout.metrics(name).is_file()
     }
+    points = {
+        name: analysis.epoch_success(pd.read_parquet(layout.tests(name)))
+        for name in tables
+        if layout.tests(name).is_file()
+    }
     included = [preset.experiments[name] for name in tables]
     lines = [
         f"# CURIOUS reproduction — preset `{preset.name}`",
@@ -313,15 +379,18 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         lines += ["## Budgets", ""]
         lines += _budgets(repro, included)
         lines += [
-            "Success is the competence (self-evaluation success rate) averaged over the "
-            "achievable modules; x axes count episodes (evaluation episodes included).",
+            "Fig. 2a and the main comparison's numbers are the success of the test rollouts "
+            "(noise-free, after every epoch, modules drawn uniformly), pooled over those on the "
+            "achievable modules, as in the paper; the other figures and numbers read the "
+            "competence (the moving success rate of the agent's self-evaluations). x axes count "
+            "training episodes (self-evaluations included, test rollouts not).",
             "",
         ]
     for e in included:
         table = tables[e.name]
         lines += [f"## {e.title}", ""]
-        lines += SECTIONS[e.name](repro, e, table)
-        lines += ["### Runs", "", *_runs_table(table)]
+        lines += SECTIONS[e.name](repro, e, table, points.get(e.name))
+        lines += ["### Runs", "", *_runs_table(table, points.get(e.name))]
     missing = [name for name in preset.experiments if name not in tables]
     if missing and included:
         lines += [

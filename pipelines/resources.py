@@ -10,6 +10,8 @@ Output folder layout (`OutputLayout`):
     OUT/reproduce.json          which preset made this folder (checked on every later call)
     OUT/runs/<experiment>/<condition>/seed-<s>/    run folders (or --runs-dir on shared storage)
     OUT/metrics/<experiment>.parquet               the combined metrics table of an experiment
+    OUT/metrics/<experiment>.tests.parquet         its combined test rollouts (Fig. 2a), where
+                                                   every run has them
     OUT/figures/<name>.png|.svg                    the figures
     OUT/figures/<name>.csv                         the numbers behind a figure's statistics
     OUT/report.md                                  figures, seeds, budgets and statistics
@@ -93,6 +95,10 @@ class OutputLayout:
 
     def metrics(self, experiment: str) -> Path:
         return self.metrics_dir / f"{experiment}.parquet"
+
+    def tests(self, experiment: str) -> Path:
+        """The combined test rollouts of an experiment's runs (`curious.analysis.load_tests`)."""
+        return self.metrics_dir / f"{experiment}.tests.parquet"
 
     def experiment_runs(self, experiment: str) -> Path:
         return self.runs_root / experiment

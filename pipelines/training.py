@@ -19,8 +19,9 @@ While a process trains a run it holds a lock beside the folder (`.seed-<s>.lock`
 `flock` that dies with the process), so two reproductions never train the same folder at once.
 
 The sensory failure of the `sensor_failure` experiment is a training setting
-(`Config.sensor_failure_episode`, set by `RunSpec.config`): the trainer switches it for each
-episode, and config.json records it, where the analysis reads it.
+(`Config.sensor_failure_episode` or `Config.sensor_failure_competence`, set by `RunSpec.config`):
+the trainer switches it for each episode and logs it in metrics.parquet (`sensor_failure`), where
+the analysis reads when it started; config.json records the setting.
 
 Nothing here imports Dagster: worker processes and Ray tasks only need `curious`.
 """

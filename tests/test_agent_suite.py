@@ -113,3 +113,17 @@ def test_sensor_failure_on_a_variant_without_one_is_refused(tmp_path, capsys):
     assert not (tmp_path / "run").exists()
     assert main([*args, "--set", "sensor_failure_episode=-2"]) == 2
     assert "sensor_failure_episode" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_quick_preset_learns_reach_on_the_suite(tmp_path):
+    """A learning check on the real suite (about 3 minutes on 2 cores): one `quick` run of
+    curious (seed 0, 1,200 episodes) learns reach, in its test rollouts and its competence."""
+    out = tmp_path / "quick"
+    args = ["train", "--preset", "quick", "--out", str(out), "--no-progress", "--no-record"]
+    assert main(args) == 0
+    metrics = pq.read_table(out / "metrics.parquet").to_pandas()
+    assert metrics["competence/reach"].iloc[-1] >= 0.7
+    tests = pq.read_table(out / "tests.parquet").to_pandas()
+    last = tests[tests["epoch"] >= tests["epoch"].max() - 2]
+    assert last.loc[last["module"] == "reach", "success"].mean() >= 0.7

@@ -32,6 +32,7 @@ def studies(tmp_path_factory):
     write_distractor_study(root / "distractors", counts=(0, 4, 7), seeds=(0, 1), n_episodes=300)
     return {
         "main": analysis.load_runs(root / "main"),
+        "tests": analysis.load_tests(root / "main"),
         "failure": analysis.load_runs(root / "failure"),
         "distractors": analysis.load_runs(root / "distractors"),
     }
@@ -41,7 +42,7 @@ def _build(name, studies, out_dir=None, note=None):
     """Builds figure ``name``; returns the Figure."""
     kw = {"out_dir": out_dir, "note": note}
     if name == "fig2a":
-        return analysis.fig2a(studies["main"], **kw)
+        return analysis.fig2a(studies["tests"], **kw)
     if name == "fig2b":
         return analysis.fig2b(studies["main"], **kw)
     if name == "fig2c":
@@ -83,7 +84,12 @@ def test_every_figure_writes_png_and_svg_and_rebuilds_byte_identical(name, studi
     assert "seed" in caption and "episodes" in caption
     assert "preset synthetic" in caption
     labels = {ax.get_xlabel() for ax in first.axes if ax.get_xlabel()}
-    assert labels == ({"distracting modules"} if name == "distractors" else {"episodes"})
+    if name == "distractors":
+        assert labels == {"distracting modules"}
+    elif name == "forgetting":
+        assert labels == {"episodes since the sensory failure"}
+    else:
+        assert labels == {"episodes"}
 
 
 @pytest.mark.parametrize("name", FIGURES)
@@ -94,32 +100,46 @@ def test_every_caption_ends_with_the_note_it_is_given(name, studies):
     assert noted.startswith(plain) and noted.endswith("Small budget (quick preset).")
 
 
-def test_fig2a_dots_are_the_significant_bins(studies):
-    binned = analysis.bin_runs(studies["main"], bin_size=20)
-    test = analysis.welch_per_bin(binned, "curious", "mg-te")
+def test_fig2a_dots_are_the_significant_points_of_the_test_rollouts(studies):
+    points = analysis.epoch_success(studies["tests"])
+    test = analysis.welch_per_bin(points, "curious", "mg-te")
     assert 0 < test["significant"].sum() < len(test)  # the made-up data leave both kinds
-    fig = analysis.fig2a(studies["main"], bin_size=20)
+    fig = analysis.fig2a(studies["tests"])
     (dots,) = [line for line in fig.axes[0].lines if line.get_label().startswith("p < 0.01")]
     np.testing.assert_array_equal(dots.get_xdata(), test.loc[test["significant"], "episodes"])
-    assert "3 seeds (0–2)" in _caption(fig) and "600 episodes per run" in _caption(fig)
+    # one point per epoch (every 20 episodes), at the training episodes done when it ran
+    assert sorted(points["episodes"].unique()) == list(range(20, 601, 20))
+    curve = next(line for line in fig.axes[0].lines if line.get_label() == "CURIOUS")
+    mean = analysis.across_seeds(points).query("condition == 'curious'")
+    np.testing.assert_allclose(curve.get_ydata(), mean["mean"])
+    caption = _caption(fig)
+    assert "3 seeds (0–2)" in caption and "600 episodes per run" in caption
+    assert "test success" in caption and "one point per epoch" in caption
+
+
+def test_fig2a_from_the_competence_table_or_without_test_rollouts_is_refused(studies, tmp_path):
+    with pytest.raises(analysis.AnalysisError, match=r"from curious\.analysis\.load_tests"):
+        analysis.fig2a(studies["main"])
+    write_study(tmp_path, conditions=("curious",), seeds=(0,), n_episodes=40, tests_per_epoch=0)
+    with pytest.raises(analysis.AnalysisError, match="has no test rollouts"):
+        analysis.load_tests(tmp_path)
 
 
 def test_fig2a_draws_no_dots_between_equal_conditions(studies):
-    df = studies["main"]
+    df = studies["tests"]
     # The mg-te runs against a relabelled copy of themselves: identical numbers, no dot.
     mg_te = df[df["condition"] == "mg-te"]
     twin = mg_te.assign(condition="curious", run=mg_te["run"].astype(str) + "-twin")
     equal = pd.concat([mg_te.astype({"condition": str, "run": str}), twin], ignore_index=True)
-    assert not analysis.welch_per_bin(analysis.bin_runs(equal, bin_size=20), "curious", "mg-te")[
-        "significant"
-    ].any()
-    fig = analysis.fig2a(equal, bin_size=20)
+    points = analysis.epoch_success(equal)
+    assert not analysis.welch_per_bin(points, "curious", "mg-te")["significant"].any()
+    fig = analysis.fig2a(equal)
     (dots,) = [line for line in fig.axes[0].lines if line.get_label().startswith("p < 0.01")]
     assert len(dots.get_xdata()) == 0
 
 
 def test_fig2a_without_a_compared_condition_says_so(studies):
-    only = studies["main"][studies["main"]["condition"] != "mg-te"]
+    only = studies["tests"][studies["tests"]["condition"] != "mg-te"]
     with pytest.raises(analysis.AnalysisError, match="pass compare=None"):
         analysis.fig2a(only)
     fig = analysis.fig2a(only, compare=None)
@@ -142,10 +162,13 @@ def test_table1_has_a_row_per_seed(studies):
     assert [ax.get_ylabel() for ax in fig.axes[::2]] == [f"seed {s}\ncompetence" for s in range(3)]
 
 
-def test_forgetting_returns_and_states_recovery_times(studies):
+def test_forgetting_follows_the_perturbed_module_and_states_recovery_times(studies):
     fig, per_run = analysis.forgetting(studies["failure"], fraction=0.9)
-    assert fig.axes[0].get_ylabel() == "competence of T2 push cube 1"  # the module that fell
-    assert per_run["recovered"].all()
+    assert fig.axes[0].get_ylabel() == "competence of push cube 3"  # the variant's module
+    assert set(per_run["module"]) == {"push_cube3"}
+    assert (per_run["status"] == "measured").all() and per_run["recovered"].all()
+    assert (per_run["perturbation_episode"] == 300).all()
+    assert set(per_run["onset_source"]) == {"metrics"}  # read from the sensor_failure column
     summary = analysis.recovery_summary(per_run).set_index("condition")
     # The made-up m-uvfa runs recover with a longer time constant than the curious ones.
     assert (
@@ -157,7 +180,10 @@ def test_forgetting_returns_and_states_recovery_times(studies):
     assert any(
         f"regained after {mean:,.0f}" in label and "(3/3 seeds)" in label for label in labels
     )
-    assert "perturbation at episode 300" in _caption(fig)
+    assert "episode 300 in every run" in _caption(fig)
+    # x counts episodes since the failure: the curves cross 0 where the failure started
+    line = fig.axes[0].lines[0]
+    assert line.get_xdata().min() < 0 < line.get_xdata().max()
 
 
 def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies):

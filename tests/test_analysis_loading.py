@@ -16,7 +16,14 @@ from test_analysis_synthetic import (
     write_study,
 )
 
-from curious.analysis import AnalysisError, find_run_folders, load_run, load_runs, runs_table
+from curious.analysis import (
+    AnalysisError,
+    find_run_folders,
+    load_run,
+    load_runs,
+    load_tests,
+    runs_table,
+)
 
 
 def _flat_run(folder, condition="curious", seed=0, n=30, modules=DEFAULT_MODULES, **kw):
@@ -184,3 +191,34 @@ def test_runs_of_one_variant_with_different_modules_are_refused(tmp_path):
 def test_tables_not_from_load_runs_are_refused():
     with pytest.raises(AnalysisError, match=r"pass a table from curious\.analysis\.load_runs"):
         runs_table(pd.DataFrame({"episode": [0, 1]}))
+
+
+def test_test_rollouts_load_with_the_same_identity_columns(tmp_path):
+    write_study(tmp_path, conditions=("curious", "her"), seeds=(0, 1), n_episodes=60)
+    tests = load_tests(tmp_path)
+    runs = load_runs(tmp_path)
+    assert list(tests.columns[:10]) == list(runs.columns[:10])  # identity columns first
+    assert set(tests["run"]) == set(runs["run"]) and len(tests) == 4 * 3 * 60
+    for column in ("epoch", "episode", "worker", "module", "success", "wall_time"):
+        assert column in tests.columns
+    for _, rows in tests.groupby("run", observed=True):
+        assert (np.diff(rows["episode"].to_numpy()) >= 0).all()
+        assert rows["episode"].unique().tolist() == [20, 40, 60]
+
+
+def test_test_rollouts_that_disagree_with_config_or_are_missing_are_named(tmp_path):
+    folder = write_study(tmp_path, conditions=("curious",), seeds=(0,), n_episodes=40)[0]
+    tests = pd.read_parquet(folder / "tests.parquet")
+    tests.assign(module="fly").to_parquet(folder / "tests.parquet")
+    with pytest.raises(AnalysisError, match=r"test rollouts of module\(s\) fly"):
+        load_tests(folder)
+    tests.iloc[:0].to_parquet(folder / "tests.parquet")
+    with pytest.raises(AnalysisError, match="no test rollouts yet"):
+        load_tests(folder)
+    tests.drop(columns=["epoch"]).to_parquet(folder / "tests.parquet")
+    with pytest.raises(AnalysisError, match=r"lacks column\(s\) epoch"):
+        load_tests(folder)
+    (folder / "tests.parquet").unlink()
+    with pytest.raises(AnalysisError, match=r"has no test rollouts \(no tests\.parquet\)"):
+        load_tests(folder)
+    assert len(load_runs(folder)) == 40  # the episodes still load

@@ -44,15 +44,29 @@ def test_trainer_run_folders_load(smoke_runs):
     assert values.notna().all() and values.between(0, 1).all()
 
 
+def test_trainer_test_rollouts_load_one_point_per_epoch(smoke_runs):
+    tests = analysis.load_tests(smoke_runs)
+    assert set(tests["run"]) == set(analysis.load_runs(smoke_runs)["run"])
+    points = analysis.epoch_success(tests)
+    # smoke: 2 workers x 2 episodes x 2 cycles = 8 episodes an epoch, 24 episodes, 1 test a worker
+    assert sorted(points["episodes"].unique()) == [8, 16, 24]
+    assert (tests.groupby(["run", "epoch"], observed=True).size() == 2).all()
+    valid = points["value"].dropna()
+    assert valid.between(0, 1).all()
+
+
 def test_every_figure_builds_from_smoke_runs(smoke_runs, tmp_path):
     df = analysis.load_runs(smoke_runs)
     n = int(df["episode"].max()) + 1
-    analysis.fig2a(df, out_dir=tmp_path)
+    analysis.fig2a(analysis.load_tests(smoke_runs), out_dir=tmp_path)
     analysis.fig2b(df, out_dir=tmp_path)
     analysis.fig2c(df, out_dir=tmp_path)
     analysis.table1(df, out_dir=tmp_path)
-    _, per_run = analysis.forgetting(df, perturbation_episode=n // 2, out_dir=tmp_path)
+    _, per_run = analysis.forgetting(
+        df, module="push_cube1", perturbation_episode=n // 2, out_dir=tmp_path
+    )
     assert len(per_run) == len(CONDITIONS) * len(SEEDS)
+    assert set(per_run["onset_source"]) == {"given"}
     analysis.distractors(df, out_dir=tmp_path)
     names = ("fig2a", "fig2b", "fig2c", "table1", "forgetting", "distractors")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(

@@ -3,19 +3,33 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import stats
-from test_analysis_synthetic import DEFAULT_ACHIEVABLE, DEFAULT_MODULES, write_run
+from test_analysis_synthetic import (
+    DEFAULT_ACHIEVABLE,
+    DEFAULT_MODULES,
+    FAILURE_MODULES,
+    failure_curves,
+    write_run,
+)
 
+from curious import analysis
 from curious.analysis import (
+    LEARNED_COMPETENCE,
+    PERTURBED_MODULES,
     AnalysisError,
     achievable_competence,
     across_seeds,
     bin_runs,
+    epoch_success,
+    failure_onsets,
     final_competence,
+    final_success,
     load_runs,
-    most_perturbed_module,
+    load_tests,
     nice_bin_size,
+    perturbed_module,
     recovery,
     recovery_summary,
     welch_per_bin,
@@ -232,18 +246,230 @@ def test_recovery_counts_episodes_from_the_perturbation_to_regained_competence(t
     assert summary.loc["curious", "mean_recovery_episodes"] == pytest.approx(3.5)
 
 
-def test_the_most_perturbed_module_is_the_one_that_fell(tmp_path):
-    _perturbed(tmp_path, "curious", 0, [0.75] * 4 + [0.25] * 4)
-    assert most_perturbed_module(load_runs(tmp_path)) == "push_cube1"
-
-
-def test_recovery_needs_a_perturbation_episode(tmp_path):
+def test_recovery_needs_a_sensory_failure_or_a_given_episode(tmp_path):
     _run(tmp_path, "curious", 0, np.full(8, 0.5))
     df = load_runs(tmp_path)
-    with pytest.raises(AnalysisError, match="no sensor_failure_episode"):
+    with pytest.raises(AnalysisError, match="has no sensory failure"):
         recovery(df, "reach")
-    with pytest.raises(AnalysisError, match="no episode before the perturbation"):
-        recovery(df, "reach", perturbation_episode=0)
+    with pytest.raises(AnalysisError, match="pass module="):
+        recovery(df, perturbation_episode=3)  # the default variant perturbs nothing
+    at_start = recovery(df, "reach", perturbation_episode=0)
+    assert at_start["status"].iat[0] == "not_learned"
+    assert "started with the run's first episode" in at_start["note"].iat[0]
     with pytest.raises(KeyError, match="no module 'fly'"):
         recovery(df, "fly", perturbation_episode=3)
+    # competence 0.5 at the onset is learned (LEARNED_COMPETENCE) and never falls: 0 episodes
+    assert LEARNED_COMPETENCE == 0.5
     assert recovery(df, "reach", perturbation_episode=3)["recovery_episodes"].iat[0] == 0
+
+
+# ------------------------------------------------------------------------- the sensory failure
+
+
+def _failure_run(root, condition, seed, curves, **kw):
+    """A run of the sensor_failure variant (its modules all achievable), failure columns in kw."""
+    return write_run(
+        root / f"{condition}{seed}",
+        condition=condition,
+        seed=seed,
+        competence=curves,
+        achievable=(True,) * len(FAILURE_MODULES),
+        variant="sensor_failure",
+        **kw,
+    )
+
+
+def test_the_perturbed_module_is_the_variants_as_the_suite_names_it(tmp_path, monkeypatch):
+    monkeypatch.setenv("MUJOCO_GL", "disable")  # no rendering here, and no display to find
+    from curious.envs import SuiteEnv
+
+    assert SuiteEnv("sensor_failure", seed=0).sensor_failure_module == "push_cube3"
+    assert PERTURBED_MODULES == {"sensor_failure": "push_cube3"}
+    _failure_run(tmp_path, "curious", 0, failure_curves(0, 60, None, 10.0))
+    assert perturbed_module(load_runs(tmp_path)) == "push_cube3"
+
+
+def test_two_chance_level_curves_make_no_recovery_claim(tmp_path):
+    # push_cube3 at chance (0.1) before and after a failure switched on at episode 300: nothing
+    # was learned, so nothing can be forgotten or recovered. (Before, this printed "90 %
+    # regained after N episodes" for both conditions.)
+    for condition in ("curious", "m-uvfa"):
+        for seed in (0, 1):
+            curves = failure_curves(seed, 600, 300, 50.0, learned=False)
+            _failure_run(
+                tmp_path,
+                condition,
+                seed,
+                curves,
+                sensor_failure_episode=300,
+                failure_onset=300,
+                log_failure=True,
+            )
+    df = load_runs(tmp_path)
+    per_run = recovery(df)
+    assert (per_run["status"] == "not_learned").all()
+    assert per_run["recovery_episodes"].isna().all() and not per_run["recovered"].any()
+    assert per_run["note"].str.contains("nothing to forget").all()
+    assert per_run["note"].str.contains(r"competence 0\.10 < 0\.50 at episode 300").all()
+    summary = recovery_summary(per_run).set_index("condition")
+    assert (summary["n_started"] == 2).all() and (summary["n_measured"] == 0).all()
+    assert summary["mean_recovery_episodes"].isna().all()
+    fig, _ = analysis.forgetting(df)
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == [
+        "CURIOUS: not learned before the failure, nothing to forget (2 of 2 seeds)",
+        "M-UVFA: not learned before the failure, nothing to forget (2 of 2 seeds)",
+    ]
+    assert not any("regained" in label for label in labels)
+
+
+def test_a_failure_that_never_started_is_said_so_not_measured(tmp_path):
+    # Started by competence: push_cube3 never reaches 0.5, so no episode ran with the failure.
+    curves = failure_curves(0, 400, None, 10.0, learned=False)
+    _failure_run(tmp_path, "curious", 0, curves, sensor_failure_competence=0.5, log_failure=True)
+    df = load_runs(tmp_path)
+    onsets = failure_onsets(df)
+    assert onsets["source"].tolist() == ["metrics"] and onsets["onset"].isna().all()
+    per_run = recovery(df)
+    assert per_run["status"].tolist() == ["never_started"]
+    assert per_run["note"].iat[0] == (
+        "the failure never started: push_cube3 never reached competence 0.50 within 400 "
+        "episodes (highest 0.10)"
+    )
+    assert per_run["recovery_episodes"].isna().all()
+    fig, _ = analysis.forgetting(df)
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels == ["CURIOUS: the failure never started (1 of 1 seeds)"]
+    caption = fig.get_supxlabel().replace("\n", " ")
+    assert "The failure never started in any run, so no recovery can be measured" in caption
+    assert "reached at most 0.10" in caption
+
+
+def test_the_onset_is_the_first_failing_episode_of_the_metrics(tmp_path):
+    # Started by competence at episode 230 (the config has no episode), a fixed episode logged
+    # in the column, and an older run without the column whose config gives the episode.
+    learned = failure_curves(0, 500, 230, 40.0)
+    _failure_run(
+        tmp_path,
+        "curious",
+        0,
+        learned,
+        sensor_failure_competence=0.5,
+        failure_onset=230,
+        log_failure=True,
+    )
+    _failure_run(
+        tmp_path,
+        "curious",
+        1,
+        learned,
+        sensor_failure_episode=230,
+        failure_onset=230,
+        log_failure=True,
+    )
+    _failure_run(tmp_path, "curious", 2, learned, sensor_failure_episode=230)
+    _failure_run(tmp_path, "curious", 3, learned, sensor_failure_episode=700)  # beyond the end
+    df = load_runs(tmp_path)
+    onsets = failure_onsets(df).reset_index(drop=True)
+    assert onsets["onset"].tolist() == [230, 230, 230, pd.NA]
+    assert onsets["source"].tolist() == ["metrics", "metrics", "config", "config"]
+    per_run = recovery(df).set_index("seed")
+    assert (per_run.loc[[0, 1, 2], "status"] == "measured").all()
+    assert per_run.loc[0, "learned_threshold"] == 0.5  # the run's own threshold
+    assert per_run.loc[0, "recovery_episodes"] == per_run.loc[2, "recovery_episodes"] > 0
+    assert per_run.loc[3, "status"] == "never_started"
+    assert per_run.loc[3, "note"].endswith("the run ended after 500 episodes, before episode 700")
+
+
+def test_learned_means_the_runs_own_threshold_else_one_half(tmp_path):
+    # push_cube3 at 0.4 then 0.7 before the failure at episode 10, 0.2 after.
+    curves = {m: np.full(20, 0.25) for m in FAILURE_MODULES}
+    curves["push_cube3"] = np.array([0.4] * 9 + [0.7] + [0.2] * 10)
+    own_threshold = {"sensor_failure_competence": 0.7, "failure_onset": 10, "log_failure": True}
+    _failure_run(tmp_path / "own", "curious", 0, curves, **own_threshold)
+    _failure_run(tmp_path / "half", "curious", 1, curves, sensor_failure_episode=10)
+    own = recovery(load_runs(tmp_path / "own"))
+    # 0.7 is stored as float32 (0.69999999): still "reached 0.7", as the trainer saw it
+    assert own["status"].iat[0] == "measured" and own["learned_threshold"].iat[0] == 0.7
+    assert own["dropped"].iat[0] and not own["recovered"].iat[0]
+    assert "not regained within the 10 episodes after the failure" in own["note"].iat[0]
+    half = load_runs(tmp_path / "half")
+    assert recovery(half)["status"].iat[0] == "measured"  # 0.7 >= 0.5
+    strict = recovery(half, learned=0.8)
+    assert strict["status"].iat[0] == "not_learned"
+    assert strict["onset_competence"].iat[0] == pytest.approx(0.7)
+
+
+def test_the_failure_competence_is_read_from_the_nested_config(tmp_path):
+    curves = failure_curves(0, 40, None, 10.0)
+    _failure_run(tmp_path, "curious", 0, curves, sensor_failure_competence=0.5)
+    _failure_run(tmp_path, "curious", 1, curves, sensor_failure_episode=20)
+    runs = analysis.runs_table(load_runs(tmp_path)).set_index("seed")
+    assert runs.loc[0, "failure_competence"] == 0.5 and pd.isna(runs.loc[0, "perturbation_episode"])
+    assert pd.isna(runs.loc[1, "failure_competence"]) and runs.loc[1, "perturbation_episode"] == 20
+
+
+# ------------------------------------------------------------------------- test rollouts
+
+
+def _tests_table(root, rows):
+    """A run with hand-made test rollouts: rows of (epoch, episode, module, success)."""
+    folder = _run(root, "curious", 0, np.full(100, 0.5))
+    frame = pd.DataFrame(rows, columns=["epoch", "episode", "module", "success"])
+    frame = frame.assign(worker=np.arange(len(frame), dtype=np.int32), g0=0.0, g1=0.0, g2=0.0)
+    frame = frame.astype({"epoch": np.int64, "episode": np.int64, "success": bool})
+    frame["wall_time"] = frame["episode"] * 0.1
+    for g in ("g0", "g1", "g2"):
+        frame[g] = frame[g].astype(np.float32)
+    frame.to_parquet(folder / "tests.parquet", index=False)
+    return load_tests(root)
+
+
+def test_test_success_pools_the_epochs_rollouts_on_achievable_modules(tmp_path):
+    rows = [
+        (0, 20, "reach", True),
+        (0, 20, "reach", True),
+        (0, 20, "push_cube1", False),
+        (0, 20, "push_cube3", True),  # a distractor: left out
+        (1, 40, "stack", True),
+        (1, 40, "push_cube4", True),
+        (2, 60, "push_cube5", False),  # only distractors tested: no value
+        (3, 80, "cube1_above_cube2", False),
+        (3, 80, "reach", True),
+    ]
+    tests = _tests_table(tmp_path, rows)
+    points = epoch_success(tests)
+    assert points["episodes"].tolist() == [20, 40, 60, 80]
+    assert points["n_tests"].tolist() == [3, 1, 0, 2]
+    np.testing.assert_allclose(points["value"], [2 / 3, 1.0, np.nan, 0.5])
+    # pooled over rollouts, not a mean of per-module rates (which would give (1 + 0) / 2)
+    assert points["value"].iat[0] != 0.5
+    binned = epoch_success(tests, bin_size=40)
+    assert binned["episodes"].tolist() == [40, 80]
+    np.testing.assert_allclose(binned["value"], [3 / 4, 1 / 2])
+    assert binned["epoch"].tolist() == [1, 3]
+    # across seeds and the Welch tests take the points as they take competence bins
+    assert across_seeds(points)["n"].tolist() == [1, 1, 1]  # the NaN point is left out
+    final = final_success(points)
+    assert final["episodes"].tolist() == [80] and final["value"].tolist() == [0.5]
+
+
+def test_final_test_success_is_read_at_the_common_budget(tmp_path):
+    for seed, last in ((0, 3), (1, 5)):
+        folder = _run(tmp_path, "curious", seed, np.full(100, 0.5))
+        epochs = np.repeat(np.arange(last), 2)
+        pd.DataFrame(
+            {
+                "epoch": epochs.astype(np.int64),
+                "episode": ((epochs + 1) * 10).astype(np.int64),
+                "worker": np.tile([0, 1], last).astype(np.int32),
+                "module": ["reach", "stack"] * last,
+                "g0": np.zeros(2 * last, np.float32),
+                "g1": np.zeros(2 * last, np.float32),
+                "g2": np.zeros(2 * last, np.float32),
+                "success": np.tile([True, False], last) | (epochs >= 2),
+                "wall_time": np.zeros(2 * last),
+            }
+        ).to_parquet(folder / "tests.parquet", index=False)
+    final = final_success(epoch_success(load_tests(tmp_path))).set_index("seed")
+    assert (final["episodes"] == 30).all() and (final["value"] == 1.0).all()

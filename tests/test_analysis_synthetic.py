@@ -3,8 +3,8 @@
 The writers here produce MADE-UP data: competence curves drawn from logistic functions and
 noise, not from any training run. They exist so that the analysis library can be built and
 tested before real runs exist. Every config they write says so (``"synthetic": true`` and a
-``note``). The folder layout, the ``config.json`` keys and the ``metrics.parquet`` columns and
-types follow docs/architecture.md ("A run folder") exactly.
+``note``). The folder layout, the ``config.json`` keys and the ``metrics.parquet`` and
+``tests.parquet`` columns and types follow docs/architecture.md ("A run folder") exactly.
 
 Other analysis tests import the writers from this module.
 """
@@ -19,6 +19,8 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
+from curious import metrics as run_tables
+
 DEFAULT_MODULES: tuple[str, ...] = (
     "reach",
     "push_cube1",
@@ -29,6 +31,8 @@ DEFAULT_MODULES: tuple[str, ...] = (
     "push_cube5",
 )
 DEFAULT_ACHIEVABLE: tuple[bool, ...] = (True, True, True, True, False, False, False)
+#: The `sensor_failure` variant's modules (all achievable); its failure perturbs push_cube3.
+FAILURE_MODULES: tuple[str, ...] = ("reach", "push_cube1", "cube1_above_cube2", "push_cube3")
 SYNTHETIC_NOTE = "made-up test data written by tests/test_analysis_synthetic.py, not a training run"
 LP_EPSILON = 0.4
 
@@ -63,16 +67,23 @@ def write_run(
     variant: str = "default",
     preset: str = "synthetic",
     sensor_failure_episode: int | None = None,
+    sensor_failure_competence: float | None = None,
+    failure_onset: int | None = None,
+    log_failure: bool = False,
     lp_window: int = 50,
     n_workers: int = 2,
     episodes: np.ndarray | None = None,
+    tests_per_epoch: int = 0,
+    epoch_episodes: int = 20,
 ) -> Path:
     """Writes one synthetic run folder from per-module competence arrays (one value per episode).
 
     LP is |c(t) - c(t - lp_window)|, p_LP follows the paper's formula, the practised module of each
     episode is drawn from p_LP, one episode in ten is an evaluation, and success is drawn with the
     competence of the practised module. ``episodes`` overrides the episode index column (to write
-    gaps or repeats on purpose).
+    gaps or repeats on purpose). ``log_failure`` writes the ``sensor_failure`` column, True from
+    ``failure_onset`` on (never when None); without it the column is absent, as in runs logged
+    before it existed. ``tests_per_epoch`` > 0 also writes ``tests.parquet`` (`write_tests`).
     """
     names = list(competence)
     if len(achievable) != len(names):
@@ -96,6 +107,9 @@ def write_run(
         "success": rng.random(n) < comp[np.arange(n), choice],
         "eval": (np.arange(n) % 10) == 9,
     }
+    if log_failure:
+        onset = n if failure_onset is None else failure_onset
+        metrics["sensor_failure"] = index >= onset
     for j, m in enumerate(names):
         metrics[f"competence/{m}"] = comp[:, j].astype(np.float32)
     for j, m in enumerate(names):
@@ -120,9 +134,46 @@ def write_run(
             "n_workers": n_workers,
             "lp_window": lp_window,
             "sensor_failure_episode": sensor_failure_episode,
+            "sensor_failure_competence": sensor_failure_competence,
         },
     }
     (folder / "config.json").write_text(json.dumps(config, indent=2), encoding="utf-8")
+    if tests_per_epoch:
+        write_tests(folder, names, comp, tests_per_epoch, epoch_episodes, seed)
+    return folder
+
+
+def write_tests(
+    folder: Path,
+    names: Sequence[str],
+    competence: np.ndarray,
+    per_epoch: int,
+    epoch_episodes: int,
+    seed: int,
+) -> Path:
+    """Made-up ``tests.parquet``: after every ``epoch_episodes`` episodes, ``per_epoch`` test
+    rollouts on modules drawn uniformly, each a success with the module's competence then."""
+    n = competence.shape[0]
+    ends = np.arange(epoch_episodes, n + 1, epoch_episodes)
+    rng = np.random.default_rng(20_000 + seed)
+    epoch = np.repeat(np.arange(len(ends)), per_epoch)
+    episode = np.repeat(ends, per_epoch)
+    module = rng.integers(len(names), size=len(epoch))
+    goals = rng.uniform(-1.0, 1.0, size=(len(epoch), 3)).astype(np.float32)
+    tests = pd.DataFrame(
+        {
+            "epoch": epoch.astype(np.int64),
+            "episode": episode.astype(np.int64),
+            "worker": np.tile(np.arange(per_epoch), len(ends)).astype(np.int32),
+            "module": pd.array([names[i] for i in module], dtype="string"),
+            "g0": goals[:, 0],
+            "g1": goals[:, 1],
+            "g2": goals[:, 2],
+            "success": rng.random(len(epoch)) < competence[episode - 1, module],
+            "wall_time": episode * 0.05,
+        }
+    )
+    tests.to_parquet(folder / "tests.parquet", index=False)
     return folder
 
 
@@ -157,8 +208,10 @@ def write_study(
     seeds: Sequence[int] = (0, 1, 2),
     n_episodes: int = 1200,
     preset: str = "synthetic",
+    tests_per_epoch: int = 60,
 ) -> list[Path]:
-    """The main comparison, made up: ``root/<condition>/seed<k>`` for every condition and seed."""
+    """The main comparison, made up: ``root/<condition>/seed<k>`` for every condition and seed,
+    with test rollouts (``tests_per_epoch`` every 20 episodes; 0 writes none)."""
     folders = []
     for c in conditions:
         for s in seeds:
@@ -171,9 +224,31 @@ def write_study(
                     competence=curves,
                     achievable=DEFAULT_ACHIEVABLE,
                     preset=preset,
+                    tests_per_epoch=tests_per_epoch,
                 )
             )
     return folders
+
+
+def failure_curves(
+    seed: int, n_episodes: int, onset: int | None, tau: float, learned: bool = True
+) -> dict[str, np.ndarray]:
+    """Made-up competence of the sensor_failure variant's modules: push_cube3 rises early (or,
+    not ``learned``, stays at chance) and, from ``onset``, falls by 0.6 and comes back with time
+    constant ``tau``."""
+    achievable = (True,) * len(FAILURE_MODULES)
+    curves = study_curves("curious", seed, n_episodes, FAILURE_MODULES, achievable)
+    if not learned:
+        curves["push_cube3"] = np.full(n_episodes, 0.1)
+    elif onset is not None:
+        t = np.arange(n_episodes, dtype=np.float64)
+        after = np.clip(t - onset, 0.0, None)
+        fall = np.where(t >= onset, np.minimum(after / 40.0, 1.0), 0.0)
+        dip = 0.6 * fall * np.exp(-np.clip(after - 40.0, 0.0, None) / tau)
+        curves["push_cube3"] = np.clip(curves["push_cube1"] - dip, 0.0, 1.0)
+    else:
+        curves["push_cube3"] = curves["push_cube1"]
+    return curves
 
 
 def write_perturbation_study(
@@ -183,27 +258,25 @@ def write_perturbation_study(
     seeds: Sequence[int] = (0, 1, 2),
     recovery_tau: Mapping[str, float] | None = None,
 ) -> list[Path]:
-    """Made-up sensory-failure runs: push_cube1 is mastered, falls at ``perturbation``, and
-    comes back with a time constant per condition (curious faster than m-uvfa by default)."""
+    """Made-up sensory-failure runs of the sensor_failure variant: push_cube3 is mastered, falls
+    at ``perturbation`` (logged in the ``sensor_failure`` column) and comes back with a time
+    constant per condition (curious faster than m-uvfa by default)."""
     taus = recovery_tau or {"curious": 80.0, "m-uvfa": 220.0}
     folders = []
-    t = np.arange(n_episodes, dtype=np.float64)
     for c, tau in taus.items():
         for s in seeds:
-            curves = study_curves("curious", s, n_episodes, DEFAULT_MODULES, DEFAULT_ACHIEVABLE)
-            after = np.clip(t - perturbation, 0.0, None)
-            fall = np.where(t >= perturbation, np.minimum(after / 40.0, 1.0), 0.0)
-            dip = 0.6 * fall * np.exp(-np.clip(after - 40.0, 0.0, None) / (tau * (1 + 0.1 * s)))
-            curves["push_cube1"] = np.clip(curves["push_cube1"] - dip, 0.0, 1.0)
+            curves = failure_curves(s, n_episodes, perturbation, tau * (1 + 0.1 * s))
             folders.append(
                 write_run(
                     root / c / f"seed{s}",
                     condition=c,
                     seed=s,
                     competence=curves,
-                    achievable=DEFAULT_ACHIEVABLE,
+                    achievable=(True,) * len(FAILURE_MODULES),
                     variant="sensor_failure",
                     sensor_failure_episode=perturbation,
+                    failure_onset=perturbation,
+                    log_failure=True,
                 )
             )
     return folders
@@ -261,11 +334,16 @@ CONTRACT_TYPES = {
 
 def test_synthetic_run_folder_follows_the_contract(tmp_path):
     folder = write_study(tmp_path, conditions=("curious",), seeds=(0,), n_episodes=300)[0]
-    assert sorted(p.name for p in folder.iterdir()) == ["config.json", "metrics.parquet"]
+    names = ["config.json", "metrics.parquet", "tests.parquet"]
+    assert sorted(p.name for p in folder.iterdir()) == names
     schema = pq.read_schema(folder / "metrics.parquet")
     types = {name: str(schema.field(name).type) for name in schema.names}
     for column, kind in CONTRACT_TYPES.items():
         assert types[column].removeprefix("large_") == kind, column
+    # tests.parquet: the trainer's schema, column for column
+    written = pq.read_schema(folder / "tests.parquet")
+    for field in run_tables.tests_schema():
+        assert str(written.field(field.name).type).removeprefix("large_") == str(field.type)
     for prefix in ("competence/", "lp/", "p_lp/"):
         for module in DEFAULT_MODULES:
             assert types[prefix + module] == "float", prefix + module

@@ -65,7 +65,13 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     for experiment in SMOKE.experiments.values():
         assert experiment.title in report
     assert "Welch's t-test" in report and "24 episodes" in report
-    assert "Sensory failure switched on at episode 12" in report
+    # the main comparison's numbers come from the test rollouts, as Fig. 2a's
+    assert "Test success over achievable modules after 24 episodes" in report
+    assert "per epoch's test success" in report and "final test success" in report
+    # the smoke failure starts at episode 12 on an unlearned module: no recovery is claimed
+    assert "The failure starts at episode 12. It started at episode 12 in every run." in report
+    assert "nothing to forget" in report and "No recovery can be measured" in report
+    assert "regained" not in report
     # the command ends by saying where the products are
     assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
     assert json.loads((out / "reproduce.json").read_text())["preset"] == "smoke"
@@ -90,10 +96,15 @@ def test_every_partition_is_one_finished_run_folder(smoke):
         assert "scene/goal" in entities and "scene/gripper_path" in entities  # a 3-D rollout
         expected = 12 if spec.experiment == "sensor_failure" else -1
         assert config["config"]["sensor_failure_episode"] == expected
-    # the combined metrics tables hold every run's every episode
+        failing = pq.read_table(folder / "metrics.parquet")["sensor_failure"].to_pylist()
+        assert failing == [e >= expected >= 0 for e in range(24)]
+        assert pq.read_table(folder / "tests.parquet").num_rows == 3 * 2  # 3 epochs x 2 workers
+    # the combined metrics tables hold every run's every episode, and its every test rollout
     for name, experiment in SMOKE.experiments.items():
         table = pq.read_table(smoke.out / "metrics" / f"{name}.parquet")
         assert table.num_rows == 24 * len(experiment.runs())
+        tests = pq.read_table(smoke.out / "metrics" / f"{name}.tests.parquet")
+        assert tests.num_rows == 3 * 2 * len(experiment.runs())
 
 
 def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
@@ -147,6 +158,85 @@ def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smok
     assert result.trained == [] and len(result.skipped) == 14
     assert hashes(smoke.out / "runs") == runs_before  # not one byte of a run changed
     assert hashes(smoke.out / "figures") == figures_before  # figures rebuild byte-identical
+
+
+def test_runs_without_test_rollouts_get_no_fig2a_and_the_report_says_why(smoke, tmp_path):
+    import shutil
+
+    from curious.analysis import AnalysisError
+    from pipelines.assets import load_tests
+    from pipelines.report import NO_TESTS, write_report
+    from pipelines.resources import OutputLayout, Reproduction
+
+    out = tmp_path / "out"
+    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns("*.lock", ".dagster"))
+    for path in (out / "runs" / "main").rglob("tests.parquet"):  # as runs trained before them
+        path.unlink()
+    (out / "metrics" / "main.tests.parquet").unlink()
+    repro = Reproduction(SMOKE, OutputLayout.at(out), make_pool=LocalPool)
+    main = SMOKE.experiments["main"]
+    with pytest.raises(AnalysisError, match=r"main/curious/seed-0 has no test rollouts"):
+        load_tests(repro, main)  # what the fig2a asset reads: no fallback to the competence
+    report, _ = write_report(repro)
+    text = report.read_text()
+    assert NO_TESTS in text and "Test success over achievable modules" not in text
+    assert "final competence" in text
+
+
+def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
+    from test_analysis_synthetic import FAILURE_MODULES, failure_curves, write_run
+
+    from curious import analysis
+    from pipelines.report import _sensor_failure
+    from pipelines.resources import OutputLayout, Reproduction
+
+    # The quick preset's case: push_cube3 never reaches the 0.5 that would start the failure.
+    quick = get_preset("quick")
+    for condition in ("curious", "m-uvfa"):
+        write_run(
+            tmp_path / "runs" / condition,
+            condition=condition,
+            seed=0,
+            competence=failure_curves(0, 1000, None, 10.0, learned=False),
+            achievable=(True,) * len(FAILURE_MODULES),
+            variant="sensor_failure",
+            sensor_failure_competence=0.5,
+            log_failure=True,
+        )
+    table = analysis.load_runs(tmp_path / "runs")
+    repro = Reproduction(quick, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
+    figures = repro.layout.figures
+    _, per_run = analysis.forgetting(table, out_dir=figures)
+    per_run.drop(columns=["run"]).to_csv(figures / "forgetting.csv", index=False)
+    text = "\n".join(_sensor_failure(repro, quick.experiments["sensor_failure"], table, None))
+    assert "The failure starts when the perturbed module's competence reaches 0.5." in text
+    assert "It never started in any of the 2 runs." in text
+    assert "push_cube3 never reached competence 0.50 within 1,000 episodes" in text
+    assert "No recovery can be measured in these runs." in text
+    assert "regained" not in text and "mean recovery" not in text
+
+
+def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
+    from test_analysis_synthetic import write_perturbation_study
+
+    from curious import analysis
+    from pipelines.report import _sensor_failure
+    from pipelines.resources import OutputLayout, Reproduction
+
+    write_perturbation_study(tmp_path / "runs", perturbation=300, n_episodes=900, seeds=(0, 1))
+    table = analysis.load_runs(tmp_path / "runs")
+    paper = get_preset("paper")
+    repro = Reproduction(paper, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
+    _, per_run = analysis.forgetting(table, out_dir=repro.layout.figures)
+    per_run.drop(columns=["run"]).to_csv(repro.layout.figures / "forgetting.csv", index=False)
+    lines = _sensor_failure(repro, paper.experiments["sensor_failure"], table, None)
+    assert "The failure starts at episode 237,500. It started at episode 300 in every run." in (
+        "\n".join(lines)
+    )
+    summary = analysis.recovery_summary(per_run).set_index("condition")
+    mean = summary.loc["curious", "mean_recovery_episodes"]
+    row = next(line for line in lines if line.startswith("| CURIOUS | 2/2 |"))
+    assert f"| {mean:,.0f} |" in row
 
 
 # ------------------------------------------------------------------------------ interruption

@@ -37,6 +37,9 @@ def test_every_run_of_every_preset_resolves_to_a_valid_config(name):
         if run.sensor_failure_episode is not None:
             assert 0 < run.sensor_failure_episode < run.total_episodes
             assert run.variant == "sensor_failure"
+        if run.sensor_failure_competence is not None:
+            assert config.sensor_failure_competence == run.sensor_failure_competence
+            assert run.variant == "sensor_failure" and config.sensor_failure_episode == -1
 
 
 def test_presets_compare_what_the_paper_compares():
@@ -45,9 +48,29 @@ def test_presets_compare_what_the_paper_compares():
         assert main.conditions == ("curious", "mg-te", "her") and main.variants == ("default",)
         assert distractors.conditions == ("curious", "m-uvfa")
         assert distractors.variants == ("distractors_0", "distractors_4", "distractors_7")
-        assert sensor.conditions == ("curious", "m-uvfa") and sensor.sensor_failure_episode
+        assert sensor.conditions == ("curious", "m-uvfa") and sensor.variants == ("sensor_failure",)
+        assert sensor.sensor_failure_episode or sensor.sensor_failure_competence
     assert get_preset("paper").experiments["main"].seeds == (0, 1, 2, 3, 4)
     assert get_preset("paper").experiments["main"].total_episodes == 300_000
+
+
+def test_the_sensory_failure_starts_on_a_learned_module_or_at_the_authors_epoch():
+    # quick and laptop: when push_cube3's competence reaches 0.5, whatever the budget
+    for name in ("quick", "laptop"):
+        sensor = get_preset(name).experiments["sensor_failure"]
+        assert sensor.sensor_failure_competence == 0.5 and sensor.sensor_failure_episode is None
+        config = sensor.runs()[0].config()
+        assert (config.sensor_failure_competence, config.sensor_failure_episode) == (0.5, -1)
+    # paper: the authors' epoch 250 of 316 at 950 episodes an epoch
+    paper = get_preset("paper").experiments["sensor_failure"]
+    assert paper.sensor_failure_episode == 237_500 and paper.sensor_failure_competence is None
+    assert paper.runs()[0].config().sensor_failure_competence == -1.0
+    # smoke: a fixed episode, so that the pipeline's tests see a failure start
+    assert get_preset("smoke").experiments["sensor_failure"].sensor_failure_episode == 12
+    assert (
+        "competence reaches 0.5"
+        in get_preset("quick").experiments["sensor_failure"].sensor_failure_text
+    )
 
 
 def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several():
@@ -81,5 +104,17 @@ def test_unknown_names_and_bad_definitions_are_clear_errors():
         Experiment(conditions=("curious", "random"), total_episodes=10, **base)
     with pytest.raises(ExperimentError, match="must lie inside the run"):
         Experiment(conditions=("curious",), total_episodes=10, sensor_failure_episode=10, **base)
+    with pytest.raises(ExperimentError, match="not both"):
+        Experiment(
+            conditions=("curious",),
+            total_episodes=10,
+            sensor_failure_episode=5,
+            sensor_failure_competence=0.5,
+            **base,
+        )
+    with pytest.raises(ExperimentError, match=r"is not in \(0, 1\]"):
+        Experiment(
+            conditions=("curious",), total_episodes=10, sensor_failure_competence=1.5, **base
+        )
     with pytest.raises(ExperimentError, match="compares"):
         Experiment(conditions=("curious",), total_episodes=10, compare=("curious", "her"), **base)

@@ -1,21 +1,27 @@
 """Analysis of run folders: loading, statistics and the paper's figures.
 
-Pipelines and notebooks call this package; it reads run folders only (``config.json`` and
-``metrics.parquet``, docs/architecture.md) and never the Rerun recording.
+Pipelines and notebooks call this package; it reads run folders only (``config.json``,
+``metrics.parquet`` and ``tests.parquet``, docs/architecture.md) and never the Rerun recording.
 
 ```python
 from curious import analysis
 
-runs = analysis.load_runs("runs/")                 # one row per (run, episode)
-binned = analysis.bin_runs(runs, bin_size=1000)     # success over achievable modules per bin
-analysis.across_seeds(binned)                       # mean, std, n per condition and bin
-analysis.welch_per_bin(binned, "curious", "mg-te")  # one-tailed Welch test per bin
-analysis.fig2a(runs, out_dir="figures/")            # figures/fig2a.png and figures/fig2a.svg
+tests = analysis.load_tests("runs/")                # one row per (run, test rollout)
+points = analysis.epoch_success(tests)              # test success over achievable modules
+analysis.across_seeds(points)                       # mean, std, n per condition and epoch
+analysis.welch_per_bin(points, "curious", "mg-te")  # one-tailed Welch test per epoch
+analysis.fig2a(tests, out_dir="figures/")           # figures/fig2a.png and figures/fig2a.svg
+
+runs = analysis.load_runs("runs/")                  # one row per (run, training episode)
+analysis.fig2b(runs)                                # competence per module, one run
+analysis.recovery(runs)                             # after the sensory failure, where measurable
 ```
 
-"Success" (Fig. 2a, the distractors figure) is the competence averaged over the run's
-achievable modules, read at the end of each episode bin; `curious.analysis.statistics` defines
-it precisely. Module and condition colours live in `curious.analysis.palette`, shared with the
+Fig. 2a's "success" is, as in the paper, the success of the noise-free test rollouts run after
+every epoch, pooled over those on the run's achievable modules; Fig. 2b/2c, Table 1, the
+distractors figure and the recovery read the competence (the moving success rate of the agent's
+self-evaluations, which drives learning progress). `curious.analysis.statistics` defines both
+precisely. Module and condition colours live in `curious.analysis.palette`, shared with the
 Rerun recordings.
 """
 
@@ -36,6 +42,7 @@ _EXPORTS: dict[str, str] = {
             "find_run_folders",
             "load_run",
             "load_runs",
+            "load_tests",
             "read_run_info",
             "run_modules",
             "runs_table",
@@ -45,13 +52,18 @@ _EXPORTS: dict[str, str] = {
     **dict.fromkeys(
         (
             "ALPHA",
+            "LEARNED_COMPETENCE",
+            "PERTURBED_MODULES",
             "achievable_competence",
             "across_seeds",
             "bin_runs",
             "check_comparable",
+            "epoch_success",
+            "failure_onsets",
             "final_competence",
-            "most_perturbed_module",
+            "final_success",
             "nice_bin_size",
+            "perturbed_module",
             "recovery",
             "recovery_summary",
             "welch_per_bin",
@@ -63,6 +75,8 @@ _EXPORTS: dict[str, str] = {
 
 __all__ = [
     "ALPHA",
+    "LEARNED_COMPETENCE",
+    "PERTURBED_MODULES",
     "AnalysisError",
     "RunInfo",
     "achievable_competence",
@@ -70,16 +84,20 @@ __all__ = [
     "bin_runs",
     "check_comparable",
     "distractors",
+    "epoch_success",
+    "failure_onsets",
     "fig2a",
     "fig2b",
     "fig2c",
     "final_competence",
+    "final_success",
     "find_run_folders",
     "forgetting",
     "load_run",
     "load_runs",
-    "most_perturbed_module",
+    "load_tests",
     "nice_bin_size",
+    "perturbed_module",
     "read_run_info",
     "recovery",
     "recovery_summary",
@@ -98,19 +116,25 @@ if TYPE_CHECKING:
         find_run_folders,
         load_run,
         load_runs,
+        load_tests,
         read_run_info,
         run_modules,
         runs_table,
     )
     from curious.analysis.statistics import (
         ALPHA,
+        LEARNED_COMPETENCE,
+        PERTURBED_MODULES,
         achievable_competence,
         across_seeds,
         bin_runs,
         check_comparable,
+        epoch_success,
+        failure_onsets,
         final_competence,
-        most_perturbed_module,
+        final_success,
         nice_bin_size,
+        perturbed_module,
         recovery,
         recovery_summary,
         welch_per_bin,

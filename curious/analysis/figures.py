@@ -1,16 +1,19 @@
-"""The paper's figures from a table of runs (`curious.analysis.load_runs`).
+"""The paper's figures from tables of runs (`curious.analysis.load_runs`, `load_tests`).
 
-Every function takes the loaded table, returns a `matplotlib.figure.Figure` and, given
-``out_dir``, also writes ``<out_dir>/<name>.png`` and ``.svg`` (see `style.save_figure`):
+Every function takes a loaded table (`fig2a` the test rollouts of `curious.analysis.load_tests`,
+the others the episodes of `curious.analysis.load_runs`), returns a `matplotlib.figure.Figure`
+and, given ``out_dir``, also writes ``<out_dir>/<name>.png`` and ``.svg`` (see `style.save_figure`):
 
 ============  ===========================================================================
-`fig2a`       average success over achievable modules per condition, mean ± std over seeds,
-              dots where a one-tailed Welch test finds the first compared condition better
+`fig2a`       average test success over achievable modules per condition, mean ± std over
+              seeds, dots where a one-tailed Welch test finds the first compared condition
+              better; drawn from the test rollouts (`curious.analysis.load_tests`)
 `fig2b`       competence of every module, one run
 `fig2c`       absolute learning progress of every module, the same run
 `table1`      competence and LP of every seed of a condition, one row per seed
-`forgetting`  competence and LP of one module around a perturbation, and the episodes each
-              condition takes to regain a fraction of its earlier competence
+`forgetting`  competence and LP of the perturbed module around the sensory failure, and the
+              episodes each condition takes to regain a fraction of its earlier competence,
+              where that can be measured
 `distractors` final success over achievable modules against the number of distracting modules
 ============  ===========================================================================
 
@@ -31,17 +34,23 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from curious.analysis import palette
-from curious.analysis.loading import AnalysisError, _require_identity, run_modules
+from curious.analysis.loading import (
+    AnalysisError,
+    _require_identity,
+    _require_tests,
+    run_modules,
+)
 from curious.analysis.statistics import (
     ALPHA,
+    _run_arrays,
     across_seeds,
     bin_runs,
     check_comparable,
+    epoch_success,
     final_competence,
-    most_perturbed_module,
     nice_bin_size,
+    perturbed_module,
     recovery,
-    recovery_summary,
     welch_per_bin,
 )
 from curious.analysis.style import (
@@ -220,8 +229,30 @@ def _lp_top(df: pd.DataFrame) -> float:
 # ----------------------------------------------------------------------------- Fig. 2a
 
 
+def _test_runs_of(tests: pd.DataFrame) -> pd.DataFrame:
+    """One row per run of a tests table; ``n_episodes``: training episodes at its last test."""
+    grouped = tests.groupby("run", observed=True)
+    out = grouped[["condition", "seed", "variant", "preset"]].first()
+    out["n_episodes"] = grouped["episode"].max()
+    return out
+
+
+def _draw_mean_std(ax: Axes, s: pd.DataFrame, color: str, width: float, label: str | None) -> None:
+    """One condition's mean curve and, with several seeds, its ± std band."""
+    ax.plot(s["episodes"], s["mean"], color=color, linewidth=width, label=label)
+    if (s["n"] > 1).any():
+        ax.fill_between(
+            s["episodes"],
+            s["mean"] - s["std"],
+            s["mean"] + s["std"],
+            color=color,
+            alpha=0.2,
+            linewidth=0,
+        )
+
+
 def fig2a(
-    df: pd.DataFrame,
+    tests: pd.DataFrame,
     conditions: Sequence[str] | None = None,
     compare: tuple[str, str] | None = ("curious", "mg-te"),
     variant: str | None = None,
@@ -231,15 +262,17 @@ def fig2a(
     out_dir: str | PathLike[str] | None = None,
     name: str = "fig2a",
 ) -> Figure:
-    """Average success over achievable modules per condition (paper Fig. 2a).
+    """Average test success over achievable modules per condition (paper Fig. 2a).
 
-    Mean ± std across seeds of `statistics.achievable_competence`, read at the end of each
-    ``bin_size``-episode bin (default: `nice_bin_size` of the longest run); a condition's curve
-    stops at the last bin all its seeds reached. ``compare = (better, worse)`` adds a dot above
-    every bin where a one-tailed Welch's t-test finds ``better`` greater at level ``alpha``;
-    ``None`` draws no test.
+    ``tests`` is a `load_tests` table: the runs' test rollouts, as the paper measured Fig. 2a.
+    Mean ± std across seeds of `statistics.epoch_success`: one point per epoch, at the training
+    episodes done when its tests ran (``bin_size`` pools the epochs of each ``bin_size``-episode
+    bin instead); a condition's curve stops at the last point all its seeds reached.
+    ``compare = (better, worse)`` adds a dot above every point where a one-tailed Welch's t-test
+    finds ``better`` greater at level ``alpha``; ``None`` draws no test.
     """
-    conditions = _ordered_conditions(df, conditions)
+    _require_tests(tests)
+    conditions = _ordered_conditions(tests, conditions)
     if compare is not None:
         for c in compare:
             if c not in conditions:
@@ -247,13 +280,11 @@ def fig2a(
                     f"fig2a compares '{compare[0]}' with '{compare[1]}' but there are no runs of "
                     f"'{c}' among {', '.join(conditions)}: pass compare=None or other conditions"
                 )
-    rows = _restrict(df, conditions, variant)
+    rows = _restrict(tests, conditions, variant)
     check_comparable(rows)
-    runs = _runs_of(rows)
-    if bin_size is None:
-        bin_size = nice_bin_size(int(runs["n_episodes"].max()))
-    binned = bin_runs(rows, bin_size=bin_size)
-    summary = across_seeds(binned)
+    runs = _test_runs_of(rows)
+    points = epoch_success(rows, bin_size)
+    summary = across_seeds(points)
     n_achievable = len(str(rows["achievable_modules"].iat[0]).split(","))
     n_modules = len(str(rows["modules"].iat[0]).split(","))
 
@@ -263,27 +294,12 @@ def fig2a(
         for i, c in enumerate(conditions):
             s = summary[summary["condition"] == c]
             s = s[s["n"] == s["n"].max()]
-            color = palette.condition_color(c)
-            ax.plot(
-                s["episodes"],
-                s["mean"],
-                color=color,
-                linewidth=_line_width(i, len(conditions)),
-                label=palette.condition_label(c),
-            )
-            if (s["n"] > 1).any():
-                ax.fill_between(
-                    s["episodes"],
-                    s["mean"] - s["std"],
-                    s["mean"] + s["std"],
-                    color=color,
-                    alpha=0.2,
-                    linewidth=0,
-                )
+            width = _line_width(i, len(conditions))
+            _draw_mean_std(ax, s, palette.condition_color(c), width, palette.condition_label(c))
         test_text = ""
         if compare is not None:
             better, worse = compare
-            test = welch_per_bin(binned, better, worse, alpha)
+            test = welch_per_bin(points, better, worse, alpha)
             hits = test[test["significant"]]
             (dots,) = ax.plot(
                 hits["episodes"],
@@ -294,29 +310,36 @@ def fig2a(
                 color=palette.condition_color(better),
                 label=(
                     f"p < {alpha:g}: {palette.condition_label(better)} > "
-                    f"{palette.condition_label(worse)}" + ("" if len(hits) else " (no bin)")
+                    f"{palette.condition_label(worse)}" + ("" if len(hits) else " (no point)")
                 ),
                 clip_on=False,
             )
             dots.set_in_layout(False)  # inside the y limits; an empty line would pull in (0, 0)
             test_text = (
-                f" Dots: one-tailed Welch's t-test per bin, {palette.condition_label(better)} > "
+                f" Dots: one-tailed Welch's t-test per point, {palette.condition_label(better)} > "
                 f"{palette.condition_label(worse)}, p < {alpha:g} "
-                f"({len(hits)} of {len(test)} bins)."
+                f"({len(hits)} of {len(test)} points)."
             )
         ax.set_ylim(-0.03, 1.1)
         ax.set_yticks(np.linspace(0, 1, 6))
-        ax.set_ylabel(f"success over achievable modules ({n_achievable}/{n_modules})")
+        ax.set_ylabel(f"test success over achievable modules ({n_achievable}/{n_modules})")
         episodes_axis(ax)
         ax.set_xlim(0, None)
         _legend_right(ax)
         fig.suptitle("Fig. 2a — average success over achievable modules")
+        where = (
+            "one point per epoch, at the training episodes done when its tests ran"
+            if bin_size is None
+            else f"the epochs of each {bin_size:,}-episode bin pooled into one point"
+        )
         _caption(
             fig,
             f"{_conditions_text(runs, conditions)}. Budget {budget_text(runs['n_episodes'])} "
-            f"({_setting_text(runs)}). Mean ± std across seeds of the competence (self-evaluation "
-            f"success rate) averaged over the {n_achievable} achievable modules, read at the end "
-            f"of each {bin_size:,}-episode bin.{test_text}",
+            f"({_setting_text(runs)}). Mean ± std across seeds of the test success: after every "
+            "epoch, noise-free test rollouts on modules drawn uniformly, their success rate "
+            f"pooled over those on the {n_achievable} achievable modules "
+            f"({points['n_tests'].mean():,.0f} per run and point on average); {where}."
+            f"{test_text}",
             note,
         )
     return _finish(fig, out_dir, name)
@@ -471,124 +494,229 @@ def forgetting(
     variant: str | None = None,
     before: int | None = None,
     pre_window: int | None = None,
+    learned: float | None = None,
     note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "forgetting",
 ) -> tuple[Figure, pd.DataFrame]:
-    """Competence and LP of one module around a perturbation, per condition; and recovery times.
+    """Competence and LP of the perturbed module around the sensory failure, and recovery times.
 
-    ``perturbation_episode`` defaults to each run's ``sensor_failure_episode`` (from its config);
-    all runs drawn must share it. ``module`` defaults to the achievable module whose competence
-    fell most after it (`statistics.most_perturbed_module`). The x axis shows ``before`` episodes
-    (default: half the episodes after the perturbation) before the perturbation and everything
-    after it. Returns the figure and `statistics.recovery`'s table (one row per run; the
-    ``recovery_episodes`` column is the time to regain ``fraction`` of the earlier competence).
-    The legend states each condition's mean ± std of that time over the seeds that recovered.
+    ``module`` defaults to the module the runs' variant perturbs (`statistics.perturbed_module`);
+    each run's onset is where its failure started (`statistics.failure_onsets`), or
+    ``perturbation_episode`` for every run. The runs whose failure started are aligned on their
+    onset: the x axis counts episodes since the failure, from ``before`` episodes before it
+    (default: half of what every such run has after it) to the end that all of them reach.
+    Where the failure started in no run, the figure shows the module's competence over the
+    whole runs, with the competence the failure waited for, and says so. Returns the figure and
+    `statistics.recovery`'s table (one row per run, with its ``status`` and ``note``); the legend
+    states, per condition, the mean ± std recovery time over the seeds where it could be
+    measured, or why it could not be.
     """
     conditions = _ordered_conditions(df, conditions)
     rows = _restrict(df, conditions, variant)
     check_comparable(rows)
     runs = _runs_of(rows)
-    if perturbation_episode is None:
-        marks = rows.groupby("run", observed=True)["perturbation_episode"].first()
-        if marks.isna().any():
-            raise AnalysisError(
-                f"run {marks[marks.isna()].index[0]} has no sensor_failure_episode in its "
-                "config.json: pass perturbation_episode"
-            )
-        if marks.nunique() > 1:
-            raise AnalysisError(
-                "these runs were perturbed at different episodes "
-                f"({', '.join(map(str, sorted(marks.unique())))}): select runs that share one"
-            )
-        perturbation_episode = int(marks.iloc[0])
-    p = int(perturbation_episode)
-    if module is None:
-        module = most_perturbed_module(rows, p)
-    window = pre_window if pre_window is not None else max(1, p // 10)
-    per_run = recovery(rows, module, p, fraction, window)
-    summary = recovery_summary(per_run).set_index("condition")
-
-    n_episodes = int(runs["n_episodes"].min())
-    if before is None:
-        before = max(1, (n_episodes - p) // 2)
-    start = max(0, p - before)
-    bin_size = _curve_bin(n_episodes - start)
-    shown = rows[rows["episode"] >= start]
-    comp = across_seeds(bin_runs(shown, f"competence/{module}", bin_size))
-    lp = across_seeds(bin_runs(shown, f"lp/{module}", bin_size))
-    lp_top = float(np.nanmax(shown[f"lp/{module}"].to_numpy(dtype=np.float64)))
-
+    module = module if module is not None else perturbed_module(rows)
+    per_run = recovery(rows, module, perturbation_episode, fraction, pre_window, learned)
+    onsets = per_run.dropna(subset=["perturbation_episode"]).set_index("run")
+    onsets = onsets["perturbation_episode"].astype(np.int64)
+    shown = palette.module_name(module)
     with figure_style():
         fig = new_figure(7.6, 5.6)
         top, bottom = fig.subplots(2, 1, sharex=True)
-        for i, c in enumerate(conditions):
-            color = palette.condition_color(c)
-            label = _recovery_label(c, summary.loc[c], fraction)
-            width = _line_width(i, len(conditions))
-            for ax, table in ((top, comp), (bottom, lp)):
-                s = table[(table["condition"] == c) & (table["episodes"] > start)]
-                s = s[s["n"] == s["n"].max()]
-                ax.plot(
-                    s["episodes"],
-                    s["mean"],
-                    color=color,
-                    linewidth=width,
-                    label=label if ax is top else None,
-                )
-                if (s["n"] > 1).any():
-                    ax.fill_between(
-                        s["episodes"],
-                        s["mean"] - s["std"],
-                        s["mean"] + s["std"],
-                        color=color,
-                        alpha=0.2,
-                        linewidth=0,
-                    )
-            threshold = float(summary.loc[c, "threshold"])
-            top.axhline(threshold, color=color, linestyle=":", linewidth=1.0)
-        for ax in (top, bottom):
-            ax.axvline(p, color="black", linestyle="--", linewidth=1.0)
-            ax.set_xlim(start, n_episodes)
-        top.annotate(
-            f"perturbation\n(episode {p:,})",
-            xy=(p, 1.0),
-            xytext=(4, 0),
-            textcoords="offset points",
-            fontsize=7.5,
-            va="top",
-        )
-        _competence_axis(top, f"competence of {palette.module_label(module)}")
-        _lp_axis(bottom, lp_top)
-        bottom.set_ylabel(f"absolute LP of {palette.module_label(module)}")
-        episodes_axis(top, label=False)
-        episodes_axis(bottom)
-        top.legend(loc="lower left", bbox_to_anchor=(0.0, 1.02), borderaxespad=0.0)
-        fig.suptitle(f"Forgetting and recovery — {palette.module_label(module)}")
+        if onsets.empty:
+            text = _draw_unstarted(top, bottom, rows, module, conditions, per_run)
+        else:
+            text = _draw_aligned(top, bottom, rows, module, conditions, per_run, onsets, before)
+        _competence_axis(top, f"competence of {shown}")
+        bottom.set_ylabel(f"absolute LP of {shown}")
+        handles = [
+            top.plot([], [], color=palette.condition_color(c), linewidth=2.4)[0] for c in conditions
+        ]
+        labels = [
+            _recovery_label(c, per_run[per_run["condition"] == c], fraction) for c in conditions
+        ]
+        top.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.02), borderaxespad=0)
+        fig.suptitle(f"Forgetting and recovery — {shown}")
+        learned_text = _values_text(per_run["learned_threshold"])
         _caption(
             fig,
             f"{_conditions_text(runs, conditions)}. Budget {budget_text(runs['n_episodes'])} "
-            f"({_setting_text(runs)}). Mean ± std across seeds, sampled every "
-            f"{_episodes_text(bin_size)}. Dashed line: perturbation at episode {p:,}. "
-            f"Dotted lines: {fraction:.0%} of each condition's competence over the "
-            f"{_episodes_text(window)} before it (mean over seeds). Recovery time: episodes from "
-            f"the perturbation until a run's competence, after its lowest point, is back at "
-            f"{fraction:.0%} of its own earlier level.",
+            f"({_setting_text(runs)}). Competence and LP of {shown}, the module the sensory "
+            f"failure perturbs. {text} A recovery is measured only where the failure started and "
+            f"{shown} was learned before it (competence just before it at least {learned_text}): "
+            f"the episodes from the failure until the competence, after its lowest point, is back "
+            f"at {fraction:.0%} of its level before.",
             note,
         )
     return _finish(fig, out_dir, name), per_run
 
 
-def _recovery_label(condition: str, row: pd.Series, fraction: float) -> str:
+def _values_text(values: pd.Series) -> str:
+    """``"0.50"``, or ``"0.50–0.70"`` where the runs differ."""
+    unique = sorted(set(values.dropna().astype(float).round(4)))
+    if len(unique) == 1:
+        return f"{unique[0]:.2f}"
+    return f"{unique[0]:.2f}–{unique[-1]:.2f}"
+
+
+def _aligned(
+    rows: pd.DataFrame, column: str, onsets: pd.Series, offsets: np.ndarray
+) -> pd.DataFrame:
+    """``column`` of every run in ``onsets`` at episode ``onset + offset`` (the last row at or
+    before it), as rows `across_seeds` takes (``episodes`` holds the offset)."""
+    parts = []
+    for run, first, episodes, values in _run_arrays(rows, rows[column].to_numpy(np.float64)):
+        if run not in onsets.index:
+            continue
+        wanted = int(onsets[run]) + offsets
+        at = np.searchsorted(episodes, wanted, side="right") - 1
+        ok = (at >= 0) & (wanted <= episodes[-1])
+        part = {"run": run, "episodes": offsets[ok], "value": values[at[ok]]}
+        parts.append(pd.DataFrame({"condition": rows["condition"].iat[first], **part}))
+    return pd.concat(parts, ignore_index=True)
+
+
+def _onset_text(per_run: pd.DataFrame, onsets: pd.Series) -> str:
+    """Where the failures started, e.g. "episode 12 in every run" or "episodes 430–610 (3 of 4
+    runs; the others never started)"."""
+    low, high = int(onsets.min()), int(onsets.max())
+    where = f"episode {low:,}" if low == high else f"episodes {low:,}–{high:,}"
+    if len(onsets) == len(per_run):
+        return f"{where} in every run"
+    return f"{where} ({len(onsets)} of {len(per_run)} runs; in the others it never started)"
+
+
+def _draw_aligned(
+    top: Axes,
+    bottom: Axes,
+    rows: pd.DataFrame,
+    module: str,
+    conditions: Sequence[str],
+    per_run: pd.DataFrame,
+    onsets: pd.Series,
+    before: int | None,
+) -> str:
+    """The runs whose failure started, aligned on it; returns the caption's middle."""
+    last = rows.groupby("run", observed=True)["episode"].max()
+    after = int((last[onsets.index] + 1 - onsets).min())
+    if before is None:
+        before = max(1, after // 2)
+    before = min(before, int(onsets.min()))
+    step = _curve_bin(before + after)
+    offsets = np.arange(-(before // step), (after - 1) // step + 1) * step
+    comp = across_seeds(_aligned(rows, f"competence/{module}", onsets, offsets))
+    lp = across_seeds(_aligned(rows, f"lp/{module}", onsets, offsets))
+    for i, c in enumerate(conditions):
+        color, width = palette.condition_color(c), _line_width(i, len(conditions))
+        for ax, table in ((top, comp), (bottom, lp)):
+            s = table[table["condition"] == c]
+            _draw_mean_std(ax, s[s["n"] == s["n"].max()], color, width, None)
+        mine = per_run[(per_run["condition"] == c) & (per_run["status"] == "measured")]
+        if not mine.empty:
+            top.axhline(mine["threshold"].mean(), color=color, linestyle=":", linewidth=1.0)
+    _lp_axis(bottom, float(np.nanmax(lp["mean"] + lp["std"].fillna(0.0))) if len(lp) else 0.0)
+    for ax in (top, bottom):
+        ax.axvline(0, color="black", linestyle="--", linewidth=1.0)
+        ax.set_xlim(offsets[0], offsets[-1])
+    episodes_axis(top, label=False)
+    episodes_axis(bottom)
+    bottom.set_xlabel("episodes since the sensory failure")
+    top.annotate(
+        "sensory failure",
+        xy=(0, 1.0),
+        xytext=(4, 0),
+        textcoords="offset points",
+        fontsize=7.5,
+        va="top",
+    )
+    dotted = (
+        " Dotted lines: each condition's recovery threshold (mean over its measured seeds)."
+        if (per_run["status"] == "measured").any()
+        else ""
+    )
+    return (
+        f"Each run is aligned on the first episode run with the failure "
+        f"({_onset_text(per_run, onsets)}); mean ± std across the seeds where it started, "
+        f"sampled every {_episodes_text(step)}.{dotted}"
+    )
+
+
+def _draw_unstarted(
+    top: Axes,
+    bottom: Axes,
+    rows: pd.DataFrame,
+    module: str,
+    conditions: Sequence[str],
+    per_run: pd.DataFrame,
+) -> str:
+    """The whole runs, where the failure started in none; returns the caption's middle."""
+    n_episodes = int(rows.groupby("run", observed=True)["episode"].max().min()) + 1
+    step = _curve_bin(n_episodes)
+    comp = across_seeds(bin_runs(rows, f"competence/{module}", step))
+    lp = across_seeds(bin_runs(rows, f"lp/{module}", step))
+    for i, c in enumerate(conditions):
+        color, width = palette.condition_color(c), _line_width(i, len(conditions))
+        for ax, table in ((top, comp), (bottom, lp)):
+            s = table[table["condition"] == c]
+            _draw_mean_std(ax, s[s["n"] == s["n"].max()], color, width, None)
+    waited = rows.groupby("run", observed=True)["failure_competence"].first().dropna()
+    for level in sorted(set(waited.astype(float))):
+        top.axhline(level, color="black", linestyle=":", linewidth=1.0)
+    _lp_axis(bottom, _lp_top(rows[[f"lp/{module}"]]))
+    for ax in (top, bottom):
+        ax.set_xlim(0, n_episodes)
+    episodes_axis(top, label=False)
+    episodes_axis(bottom)
+    top.text(
+        0.01,
+        0.97,
+        "the sensory failure never started",
+        transform=top.transAxes,
+        fontsize=8,
+        va="top",
+    )
+    highest = float(np.nanmax(rows[f"competence/{module}"].to_numpy(np.float64)))
+    why = (
+        f"the failure was to start when this competence reached {_values_text(waited)} (dotted), "
+        f"and it reached at most {highest:.2f}"
+        if not waited.empty
+        else "every run ended before its planned onset"
+    )
+    return (
+        f"Mean ± std across seeds over the whole runs, sampled every {_episodes_text(step)}. "
+        f"The failure never started in any run, so no recovery can be measured: {why}."
+    )
+
+
+def _recovery_label(condition: str, runs: pd.DataFrame, fraction: float) -> str:
+    """A condition's legend entry: its recovery over the measured seeds, or why none is."""
     name = palette.condition_label(condition)
-    n, k = int(row["n_runs"]), int(row["n_recovered"])
-    if k == 0 and row["pre_competence"] <= 0:
-        return f"{name}: no competence to lose before the perturbation ({n} seeds)"
-    if k == 0:
-        return f"{name}: {fraction:.0%} not regained by the end (0/{n} seeds)"
-    mean = row["mean_recovery_episodes"]
-    spread = f" ± {row['std_recovery_episodes']:,.0f}" if k > 1 else ""
-    return f"{name}: {fraction:.0%} regained after {mean:,.0f}{spread} episodes ({k}/{n} seeds)"
+    n = len(runs)
+    measured = runs[runs["status"] == "measured"]
+    m = len(measured)
+    if m == 0:
+        never = int((runs["status"] == "never_started").sum())
+        if never == n:
+            return f"{name}: the failure never started ({n} of {n} seeds)"
+        if never == 0:
+            return f"{name}: not learned before the failure, nothing to forget ({n} of {n} seeds)"
+        return (
+            f"{name}: nothing to measure (never started in {never}, not learned before it in "
+            f"{n - never} of {n} seeds)"
+        )
+    rest = "" if m == n else f"; {n - m} of {n} seeds not measurable"
+    if not measured["dropped"].any():
+        return f"{name}: never fell below {fraction:.0%} of its level before ({m} seeds{rest})"
+    back = measured[measured["recovered"]]
+    if back.empty:
+        return f"{name}: {fraction:.0%} not regained by the end (0/{m} seeds{rest})"
+    mean = back["recovery_episodes"].mean()
+    spread = f" ± {back['recovery_episodes'].std(ddof=1):,.0f}" if len(back) > 1 else ""
+    return (
+        f"{name}: {fraction:.0%} regained after {mean:,.0f}{spread} episodes "
+        f"({len(back)}/{m} seeds{rest})"
+    )
 
 
 # ----------------------------------------------------------------------------- distractors

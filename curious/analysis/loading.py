@@ -1,8 +1,12 @@
-"""Run folders into one long table.
+"""Run folders into long tables.
 
-A run folder (docs/architecture.md, "A run folder") holds ``config.json`` and ``metrics.parquet``
-(one row per episode). `load_runs` reads any set of them into one `pandas.DataFrame` with one row
-per (run, episode): the run's identity columns first, then every column of ``metrics.parquet``.
+A run folder (docs/architecture.md, "A run folder") holds ``config.json``, ``metrics.parquet``
+(one row per training episode) and, in runs trained with test rollouts, ``tests.parquet`` (one row
+per noise-free test rollout, run after every epoch). `load_runs` reads any set of run folders into
+one `pandas.DataFrame` with one row per (run, episode): the run's identity columns first, then
+every column of ``metrics.parquet``. `load_tests` reads the same folders' ``tests.parquet`` into
+one row per (run, test rollout), with the same identity columns; a run without test rollouts (one
+trained before they were logged, or with ``test_rollouts_per_worker=0``) is an `AnalysisError`.
 
 Keys read from ``config.json`` (top level):
 
@@ -17,13 +21,20 @@ Keys read from ``config.json`` (top level):
                            on (-1 or null: never); looked up at the top level, then anywhere
                            inside nested objects (the resolved config, where `curious train`
                            writes it)
+``sensor_failure_          optional float or null: the perturbed module's competence at which
+competence``               the failure was to start (-1 or null: not used); looked up like
+                           ``sensor_failure_episode``
 =========================  ===================================================================
 
 Identity columns of the table (the same on every row of a run):
 ``run`` (the run folder's resolved path), ``condition``, ``seed``, ``variant``, ``preset``,
 ``modules`` (module names in slot order, comma-joined), ``achievable_modules`` (the achievable
-ones, comma-joined), ``n_distractors`` (how many modules are not achievable) and
-``perturbation_episode`` (nullable int). String columns (these and ``module``) are categorical.
+ones, comma-joined), ``n_distractors`` (how many modules are not achievable),
+``perturbation_episode`` (nullable int: the config's ``sensor_failure_episode``) and
+``failure_competence`` (nullable float: the config's ``sensor_failure_competence``). Where the
+failure actually started is in the ``sensor_failure`` column of ``metrics.parquet`` (runs trained
+before that column existed lack it); `curious.analysis.statistics.failure_onsets` reads it.
+String columns (these and ``module``) are categorical.
 Runs with different module sets load into one table
 (their per-module columns are NaN where a run has no such module); the statistics and figures
 check that the runs they compare agree where it matters.
@@ -51,6 +62,7 @@ __all__ = [
     "find_run_folders",
     "load_run",
     "load_runs",
+    "load_tests",
     "read_run_info",
     "run_modules",
     "runs_table",
@@ -58,6 +70,7 @@ __all__ = [
 
 CONFIG_FILE = "config.json"
 METRICS_FILE = "metrics.parquet"
+TESTS_FILE = "tests.parquet"
 
 #: Columns of ``metrics.parquet`` that every run has, whatever its modules.
 BASE_COLUMNS: tuple[str, ...] = (
@@ -69,6 +82,18 @@ BASE_COLUMNS: tuple[str, ...] = (
     "g2",
     "success",
     "eval",
+    "wall_time",
+)
+#: Columns of ``tests.parquet`` (`curious.metrics.tests_schema`).
+TEST_COLUMNS: tuple[str, ...] = (
+    "epoch",
+    "episode",
+    "worker",
+    "module",
+    "g0",
+    "g1",
+    "g2",
+    "success",
     "wall_time",
 )
 #: One column per module with each of these prefixes.
@@ -84,9 +109,11 @@ IDENTITY_COLUMNS: tuple[str, ...] = (
     "achievable_modules",
     "n_distractors",
     "perturbation_episode",
+    "failure_competence",
 )
 
 PERTURBATION_KEY = "sensor_failure_episode"
+FAILURE_COMPETENCE_KEY = "sensor_failure_competence"
 
 PathsOrRoot = str | PathLike[str] | Iterable[str | PathLike[str]]
 
@@ -109,6 +136,8 @@ class RunInfo:
     module_names: tuple[str, ...]
     achievable: tuple[bool, ...]
     perturbation_episode: int | None
+    failure_competence: float | None = None
+    """The perturbed module's competence at which the failure was to start (None: not used)."""
 
     @property
     def achievable_modules(self) -> tuple[str, ...]:
@@ -267,7 +296,21 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
         module_names=tuple(names),
         achievable=tuple(achievable),
         perturbation_episode=perturbation,
+        failure_competence=_failure_competence(config, config_path),
     )
+
+
+def _failure_competence(config: Mapping[str, Any], config_path: Path) -> float | None:
+    """The config's ``sensor_failure_competence`` (None where absent, null or -1)."""
+    _, value = _find_key(config, FAILURE_COMPETENCE_KEY)
+    if value is None or value == -1:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 1:
+        raise AnalysisError(
+            f"{config_path}: '{FAILURE_COMPETENCE_KEY}' must be a number in (0, 1], -1 or null, "
+            f"got {value!r}"
+        )
+    return float(value)
 
 
 def _read_metrics(info: RunInfo) -> pd.DataFrame:
@@ -316,11 +359,8 @@ def _read_metrics(info: RunInfo) -> pd.DataFrame:
     return metrics.sort_values("episode", kind="stable").reset_index(drop=True)
 
 
-def load_run(path: str | PathLike[str]) -> pd.DataFrame:
-    """One run folder as a table: identity columns, then the columns of ``metrics.parquet``."""
-    info = read_run_info(path)
-    metrics = _read_metrics(info)
-    n = len(metrics)
+def _identity(info: RunInfo, n: int) -> pd.DataFrame:
+    """The identity columns of one run, repeated on ``n`` rows."""
     identity = {
         "run": str(info.path),
         "condition": info.condition,
@@ -335,7 +375,15 @@ def load_run(path: str | PathLike[str]) -> pd.DataFrame:
     front["seed"] = front["seed"].astype(np.int64)
     front["n_distractors"] = front["n_distractors"].astype(np.int64)
     front["perturbation_episode"] = pd.array([info.perturbation_episode] * n, dtype=pd.Int64Dtype())
-    return pd.concat([front, metrics], axis=1)
+    front["failure_competence"] = pd.array([info.failure_competence] * n, dtype=pd.Float64Dtype())
+    return front
+
+
+def load_run(path: str | PathLike[str]) -> pd.DataFrame:
+    """One run folder as a table: identity columns, then the columns of ``metrics.parquet``."""
+    info = read_run_info(path)
+    metrics = _read_metrics(info)
+    return pd.concat([_identity(info, len(metrics)), metrics], axis=1)
 
 
 _CATEGORICAL = ("run", "condition", "variant", "preset", "modules", "achievable_modules", "module")
@@ -350,7 +398,11 @@ def load_runs(paths_or_root: PathsOrRoot) -> pd.DataFrame:
     runs of the same variant list different modules (one of them was not run on that variant).
     """
     folders = find_run_folders(paths_or_root)
-    tables = [load_run(folder) for folder in folders]
+    return _combined([load_run(folder) for folder in folders])
+
+
+def _combined(tables: list[pd.DataFrame]) -> pd.DataFrame:
+    """One table from per-run tables; runs of one variant must list the same modules."""
     by_variant: dict[str, tuple[str, str]] = {}
     for table in tables:
         variant = table["variant"].iat[0]
@@ -366,6 +418,52 @@ def load_runs(paths_or_root: PathsOrRoot) -> pd.DataFrame:
     for column in _CATEGORICAL:
         table[column] = table[column].astype("category")
     return table
+
+
+def _read_tests(info: RunInfo) -> pd.DataFrame:
+    """One run's ``tests.parquet``, checked; an `AnalysisError` where the run has none."""
+    path = info.path / TESTS_FILE
+    if not path.is_file():
+        raise AnalysisError(
+            f"{info.path} has no test rollouts (no {TESTS_FILE}): the run was trained before "
+            "test rollouts were logged, or with test_rollouts_per_worker=0. Fig. 2a and its "
+            "Welch tests are measured on test rollouts, as the paper's: retrain the run"
+        )
+    try:
+        tests = pd.read_parquet(path)
+    except Exception as exc:  # pyarrow raises several types for unreadable files
+        raise AnalysisError(f"{path} is not a readable parquet file: {exc}") from exc
+    missing = [c for c in TEST_COLUMNS if c not in tests.columns]
+    if missing:
+        raise AnalysisError(f"{path} lacks column(s) {', '.join(missing)}")
+    if tests.empty:
+        raise AnalysisError(
+            f"{info.path} has no test rollouts yet ({TESTS_FILE} is empty: no epoch has ended)"
+        )
+    strangers = sorted(set(tests["module"].astype(str)) - set(info.module_names))
+    if strangers:
+        raise AnalysisError(
+            f"{path} has test rollouts of module(s) {', '.join(strangers)} that {CONFIG_FILE} "
+            f"does not list ({', '.join(info.module_names)})"
+        )
+    return tests.sort_values(["episode", "worker"], kind="stable").reset_index(drop=True)
+
+
+def load_tests(paths_or_root: PathsOrRoot) -> pd.DataFrame:
+    """The test rollouts of any set of run folders (or a root holding them), one row per rollout.
+
+    Identity columns as in `load_runs`, then the columns of ``tests.parquet``: ``epoch``,
+    ``episode`` (training episodes done when the test ran), ``worker``, ``module``, ``g0..g2``,
+    ``success`` and ``wall_time``. Rows are ordered by run folder path, then episode and worker.
+    Raises `AnalysisError` naming the folder for a run without test rollouts: there is no
+    fallback to the competence of ``metrics.parquet``, which measures something else.
+    """
+    tables = []
+    for folder in find_run_folders(paths_or_root):
+        info = read_run_info(folder)
+        tests = _read_tests(info)
+        tables.append(pd.concat([_identity(info, len(tests)), tests], axis=1))
+    return _combined(tables)
 
 
 def runs_table(df: pd.DataFrame) -> pd.DataFrame:
@@ -394,4 +492,17 @@ def _require_identity(df: pd.DataFrame) -> None:
     if missing:
         raise AnalysisError(
             f"this table lacks {', '.join(missing)}: pass a table from curious.analysis.load_runs"
+        )
+
+
+def _require_tests(df: pd.DataFrame) -> None:
+    """An `AnalysisError` unless ``df`` is a table of test rollouts (`load_tests`)."""
+    missing = [
+        c for c in (*IDENTITY_COLUMNS, "epoch", "episode", "module", "success") if c not in df
+    ]
+    if missing:
+        raise AnalysisError(
+            f"this table lacks {', '.join(missing)}: Fig. 2a and its statistics read the test "
+            "rollouts; pass a table from curious.analysis.load_tests (tests.parquet), not "
+            "load_runs (metrics.parquet)"
         )

@@ -30,6 +30,7 @@ __all__ = [
     "condition_rgb",
     "module_color",
     "module_label",
+    "module_name",
     "module_rgb",
     "module_sort_key",
 ]
@@ -104,6 +105,12 @@ def _module_style(name: str) -> Style:
 def module_label(name: str) -> str:
     """The label a module is shown under, e.g. ``"T2 push cube 1"`` for ``push_cube1``."""
     return _module_style(name).label
+
+
+def module_name(name: str) -> str:
+    """The label without the paper's task number, e.g. ``"push cube 3"``: for variants whose
+    slots are not the paper's T1-T7 (in `sensor_failure`, push_cube3 is an achievable module)."""
+    return re.sub(r"^T\d+ ", "", module_label(name))
 
 
 def module_color(name: str) -> str:
