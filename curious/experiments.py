@@ -24,7 +24,7 @@ episode budget of every experiment:
 
 =========  ===============================================================================
 `smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
-`quick`    the README's job: the whole `curious reproduce` in 15-20 minutes on 2 cores
+`quick`    the README's job: the whole `curious reproduce` in minutes on 2 cores (README)
 `laptop`   about a day on 2 cores (hours on a workstation or a Ray cluster)
 `paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
 =========  ===============================================================================
@@ -335,16 +335,14 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
         ),
         _preset(
             "quick",
-            "the README's job: every figure from small budgets in about 15 minutes on 2 cores",
+            "the README's job: every figure from small budgets, in minutes on 2 cores",
             "Training preset `quick` (2 workers x 2 episodes and 20 updates of 256 per cycle). "
             "16 runs of 1,000 episodes: main 3 conditions x 2 seeds, distractors 2 conditions x "
             "3 settings x 1 seed, sensory failure 2 conditions x 2 seeds (the failure starts when "
             "push_cube3's competence reaches 0.5; in 1,000 episodes it may never start, and the "
-            "report then says so). Measured on a 2-core machine shared with other jobs, one "
-            "torch thread per run, 2 runs at a time: 80-140 s per run (78 s with the cores to "
-            "themselves), the whole reproduction 16 min (1,258 CPU-seconds). At this budget the "
-            "agent learns reach and starts on push; the later modules, their phases and the "
-            "effects of distractors and of the sensory failure need the `laptop` or `paper` "
+            "report then says so). One torch thread per run, 2 runs at a time. At this budget "
+            "the agent learns reach and starts on push; the later modules, their phases and "
+            "the effects of distractors and of the sensory failure need the `laptop` or `paper` "
             "preset.",
             "Small budget (reproduce preset quick): 1,000 episodes per run, 1/300 of the "
             "paper's; at this budget only the first modules are learned.",
@@ -354,11 +352,13 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
         ),
         _preset(
             "laptop",
-            "about a day on 2 cores (hours on more, or with --ray-address)",
+            "a day and a half on 2 cores (hours on more, or with --ray-address)",
             "Training preset `laptop` (4 workers x 2 episodes and 40 updates of 512 per cycle): "
-            "98 ms per episode on one core (measured), so 1.74 M episodes in 25 runs take about "
-            "24 h on 2 cores, 6 h on 8. The runs are independent: `--workers` runs them side by "
-            "side, `--ray-address` across a cluster; an interrupted reproduction resumes.",
+            "about 0.12 s per training episode on one core (a laptop run on a 2-core machine, "
+            "2026-11-23), and a fifth more for the test rollouts, so 1.74 M episodes in 25 runs "
+            "take about 35 h on 2 cores, 9 h on 8. The runs are independent: `--workers` runs "
+            "them side by side, `--ray-address` across a cluster; an interrupted reproduction "
+            "resumes.",
             "Reduced budget (reproduce preset laptop): a third of the paper's episodes per run "
             "and fewer seeds.",
             _main("laptop", (0, 1, 2), 100_000),

@@ -95,6 +95,21 @@ def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
     return _table(header, rows)
 
 
+def _compute(tables: dict[str, pd.DataFrame]) -> list[str]:
+    """How long the runs trained, read off their own clocks (`wall_time`, seconds of training
+    since each run started, resumes included)."""
+    walls = pd.concat([t.groupby("run", observed=True)["wall_time"].max() for t in tables.values()])
+    if walls.empty:
+        return []
+    return [
+        f"Training time, from the runs' own clocks: {len(walls)} runs, "
+        f"{walls.sum() / 60:,.1f} run-minutes in all, {walls.min() / 60:.1f} to "
+        f"{walls.max() / 60:.1f} min per run (runs that share a machine's cores slow each "
+        "other; the test rollouts after the last training episode are not counted).",
+        "",
+    ]
+
+
 def _runs_table(table: pd.DataFrame, points: pd.DataFrame | None) -> list[str]:
     """One row per run; its final competence and, with test rollouts, its final test success."""
     runs = analysis.runs_table(table)
@@ -378,6 +393,7 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
             lines += [f"Software: {versions}.", ""]
         lines += ["## Budgets", ""]
         lines += _budgets(repro, included)
+        lines += _compute(tables)
         lines += [
             "Fig. 2a and the main comparison's numbers are the success of the test rollouts "
             "(noise-free, after every epoch, modules drawn uniformly), pooled over those on the "

@@ -72,6 +72,12 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "The failure starts at episode 12. It started at episode 12 in every run." in report
     assert "nothing to forget" in report and "No recovery can be measured" in report
     assert "regained" not in report
+    # the training time is read off the runs' own clocks, not a fixed sentence
+    walls = [
+        pq.read_table(p, columns=["wall_time"])["wall_time"].to_numpy().max()
+        for p in sorted((out / "runs").rglob("metrics.parquet"))
+    ]
+    assert f"{len(walls)} runs, {sum(walls) / 60:,.1f} run-minutes in all" in report
     # the command ends by saying where the products are
     assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
     assert json.loads((out / "reproduce.json").read_text())["preset"] == "smoke"
