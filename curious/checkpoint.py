@@ -3,14 +3,20 @@
 A checkpoint is a folder `checkpoints/ep-<episodes>/` holding `state.pt` (networks, optimisers,
 normalisers, competence queues, RNG states, counters, the config) and `replay.npz` (the replay
 buffer's filled part, uncompressed). It is written under a temporary name and renamed when
-complete, so a crash leaves either the previous checkpoint or the new one, never half of one;
-older checkpoints are removed after the rename.
+complete, so a crash leaves either the previous checkpoint or the new one, never half of one.
+The two newest are kept (older ones are removed after the rename), so that a checkpoint damaged
+later (a disk error, a truncated copy) is not the end of a run: `load_latest` falls back to the
+one before, saying so.
 """
 
 from __future__ import annotations
 
 import os
+import pickle
+import re
 import shutil
+import warnings
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +24,9 @@ import numpy as np
 import torch
 
 PREFIX = "ep-"
+_NAME = re.compile(r"ep-(\d{12})")
+KEEP = 2
+"""Checkpoints kept in a run folder: the newest and the one before."""
 FORMAT_VERSION = 3
 """2: goals enter the networks through a fixed map (no goal statistics), Xavier-initialised
 networks, the authors' stack guard and T3 heights; 3: test rollouts' random streams and the
@@ -40,9 +49,24 @@ def _fsync_dir(path: Path) -> None:
 
 
 def save(
-    directory: Path, episodes: int, state: dict[str, Any], replay: dict[str, Any], keep: int = 1
+    directory: Path, episodes: int, state: dict[str, Any], replay: dict[str, Any], keep: int = KEEP
 ) -> Path:
-    """Write a checkpoint for `episodes` episodes into `directory`; return its path."""
+    """Write a checkpoint for `episodes` episodes into `directory`; return its path. A failed
+    write (a full disk, a read-only folder) is a `CheckpointError` naming the cause, and leaves
+    the earlier checkpoints as they were."""
+    try:
+        return _save(directory, episodes, state, replay, keep)
+    except (OSError, RuntimeError) as exc:
+        shutil.rmtree(directory / f".tmp-{PREFIX}{episodes:012d}", ignore_errors=True)
+        cause = "the disk is full" if getattr(exc, "errno", None) == 28 else str(exc).strip()
+        if "enforce fail" in cause or "inline_container" in cause:
+            cause = f"torch could not write state.pt ({cause.splitlines()[0]}); is the disk full?"
+        raise CheckpointError(f"cannot write a checkpoint in {directory}: {cause}") from exc
+
+
+def _save(
+    directory: Path, episodes: int, state: dict[str, Any], replay: dict[str, Any], keep: int
+) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     final = directory / f"{PREFIX}{episodes:012d}"
     tmp = directory / f".tmp-{PREFIX}{episodes:012d}"
@@ -68,7 +92,7 @@ def list_checkpoints(directory: Path) -> list[Path]:
     """Complete checkpoints, oldest first."""
     if not directory.exists():
         return []
-    found = [p for p in directory.iterdir() if p.is_dir() and p.name.startswith(PREFIX)]
+    found = [p for p in directory.iterdir() if p.is_dir() and _NAME.fullmatch(p.name)]
     return sorted(found, key=lambda p: int(p.name[len(PREFIX) :]))
 
 
@@ -88,7 +112,15 @@ def load(
         state = torch.load(path / "state.pt", map_location=map_location, weights_only=False)
         with np.load(path / "replay.npz") as data:
             replay = {k: data[k] for k in data.files}
-    except (OSError, RuntimeError, ValueError, EOFError) as exc:
+    except (
+        OSError,
+        RuntimeError,
+        ValueError,
+        EOFError,
+        KeyError,
+        pickle.UnpicklingError,
+        zipfile.BadZipFile,
+    ) as exc:
         raise CheckpointError(f"cannot read checkpoint {path}: {exc}") from exc
     if state.get("format") != FORMAT_VERSION:
         raise CheckpointError(
@@ -97,3 +129,25 @@ def load(
             "cannot go on here; start a new run (or use the curious version that wrote it)"
         )
     return state, replay
+
+
+def load_latest(
+    directory: Path, map_location: str | torch.device = "cpu"
+) -> tuple[Path, dict[str, Any], dict[str, np.ndarray]] | None:
+    """(path, state, replay) of the newest readable checkpoint in `directory`, None when there is
+    none. An unreadable newest one is passed over for the one before, with a warning naming
+    it; an error when none can be read."""
+    found = list_checkpoints(directory)
+    errors = []
+    for path in reversed(found):
+        try:
+            state, replay = load(path, map_location)
+        except CheckpointError as exc:
+            errors.append(str(exc))
+            continue
+        if errors:
+            warnings.warn(f"{errors[0]}; resuming from the one before, {path.name}", stacklevel=2)
+        return path, state, replay
+    if errors:
+        raise CheckpointError("; ".join(errors))
+    return None

@@ -10,6 +10,7 @@ an error instead of a silently ignored setting.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -228,6 +229,22 @@ class Config:
                 f"sensor_failure_episode must be an episode (>= 0) or -1 for never, "
                 f"got {self.sensor_failure_episode}"
             )
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, float) and not math.isfinite(value):
+                raise ConfigError(f"{f.name} must be a finite number, got {value}")
+        for name in ("actor_lr", "critic_lr", "norm_eps", "norm_clip"):
+            if getattr(self, name) <= 0:
+                raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in (
+            "noise_eps",
+            "action_l2",
+            "moved_threshold",
+            "td3_target_noise",
+            "td3_noise_clip",
+        ):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)}")
         for name in ("her_p", "lp_eps", "random_eps", "polyak"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")

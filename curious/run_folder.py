@@ -1,21 +1,27 @@
 """A run folder: where one training run (one condition, one seed) keeps everything.
 
     config.json       the resolved config and what it ran on (see `RunFolder.describe`)
-    metrics.parquet   one row per episode (`curious.metrics`)
+    metrics.parquet   one row per training episode (`curious.metrics`)
+    tests.parquet     one row per test rollout (`curious.metrics`)
     recording.rrd     the Rerun recording (written by `curious.recording`)
     checkpoints/      resumable checkpoints (`curious.checkpoint`)
 
 `prepare` checks a folder before anything is written: a non-empty folder is only accepted with
 `resume=True`, and then only for the same config (fields in `RESUMABLE_FIELDS` may change).
+`folder_lock` keeps a second process out of a folder while one trains in it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime
+import fcntl
 import json
 import os
 import platform
+import socket
 import subprocess
+from collections.abc import Iterator
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -26,6 +32,50 @@ from curious.envs import EnvSpec
 
 class RunFolderError(RuntimeError):
     """A run folder that cannot be used as asked (nothing has been written)."""
+
+
+class RunFolderBusy(RunFolderError):
+    """Another process is training in the run folder right now."""
+
+
+def lock_path(folder: str | os.PathLike) -> Path:
+    """The lock file beside a run folder (inside it, it would make a new folder non-empty)."""
+    path = Path(folder).absolute()
+    return path.with_name(f".{path.name}.lock")
+
+
+@contextlib.contextmanager
+def folder_lock(folder: str | os.PathLike, claim: bool = True) -> Iterator[None]:
+    """Hold the run folder's lock; `RunFolderBusy` if another process holds it.
+
+    An advisory `flock` on a file beside the folder: the system drops it when its process dies,
+    however it dies, so a killed run never leaves a stale lock, and two processes never train
+    one folder. With `claim`, the file names the holder (host and pid) for the error others get.
+    """
+    path = lock_path(folder)
+    existing = next(p for p in path.parents if p.exists())
+    if not existing.is_dir():
+        raise RunFolderError(f"cannot make {Path(folder)}: {existing} is a file, not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.seek(0)
+            holder = handle.read().strip() or "another process"
+            raise RunFolderBusy(
+                f"{Path(folder)} is being trained by {holder}; wait for it, or stop it, before "
+                "training this run again"
+            ) from None
+        if claim:
+            handle.seek(0)
+            handle.truncate()
+            handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
+            handle.flush()
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 def library_versions() -> dict[str, str | None]:

@@ -63,7 +63,7 @@ from curious.learning_progress import CompetenceTracker
 from curious.metrics import MetricsLog, TableLog, TestsLog
 from curious.replay import EpisodeReplay
 from curious.rollouts import EpisodeData, run_episodes
-from curious.run_folder import RunFolder, config_differences
+from curious.run_folder import RunFolder, RunFolderError, config_differences, folder_lock
 
 
 class RoundObserver(Protocol):
@@ -601,8 +601,21 @@ def train(
     the loop logs to.
     `stop_after_cycles` ends this call early (after a checkpoint), which is how tests interrupt
     a run. Errors about the folder or the checkpoint are raised before anything in the folder
-    is written.
+    is written; while it trains, the folder is locked against a second process
+    (`RunFolderBusy`).
     """
+    with folder_lock(out):
+        return _train(config, out, resume, make_envs, make_recorder, stop_after_cycles)
+
+
+def _train(
+    config: Config,
+    out: str | Path,
+    resume: bool,
+    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
+    make_recorder: Callable[[Trainer, RunFolder], Any] | None,
+    stop_after_cycles: int | None,
+) -> Trainer:
     from tqdm.auto import tqdm
 
     folder = RunFolder.prepare(out, config, resume)
@@ -619,13 +632,19 @@ def train(
 
     test_envs = make_test_envs(config) if config.test_rollouts_per_worker else None
     trainer = Trainer(config, make_envs(config), test_envs)
-    latest = checkpoint.list_checkpoints(folder.checkpoints) if resume else []
-    if latest:
-        trainer.load_checkpoint(latest[-1])  # raises on another config, before any write
+    latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None
+    if latest is not None:
+        trainer.load_state_dict(*latest[1:])  # raises on another config, before any write
     tables: list[TableLog] = []
     if resume:  # read before anything is written: a bad table is an error with nothing changed
         tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
         tables.append(TestsLog(folder.tests_path))
+        if tables[0].n_rows < trainer.episodes:
+            raise RunFolderError(
+                f"{folder.metrics_path} holds {tables[0].n_rows:,} rows but the checkpoint is at "
+                f"episode {trainer.episodes:,}: the run's rows are missing, so going on would "
+                "leave a gap; restore metrics.parquet, or start a new run"
+            )
 
     folder.write_config(config, trainer.spec)
     checkpoint.remove_partial(folder.checkpoints)

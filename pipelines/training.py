@@ -29,10 +29,8 @@ Nothing here imports Dagster: worker processes and Ray tasks only need `curious`
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
 import os
-import socket
 import sys
 import time
 from collections.abc import Iterator
@@ -154,42 +152,27 @@ def _make_recorder(spec: RunSpec, record: bool, resume: bool):
 
 
 def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
-    """The lock file beside a run folder (inside it, it would make a new run's folder non-empty)."""
-    folder = run_folder(spec, runs_root)
-    return folder.with_name(f".{folder.name}.lock")
+    """The lock file beside a run folder (`curious.run_folder.lock_path`)."""
+    from curious.run_folder import lock_path as folder_lock_path
+
+    return folder_lock_path(run_folder(spec, runs_root))
 
 
 @contextlib.contextmanager
 def training_lock(
     spec: RunSpec, runs_root: str | os.PathLike, claim: bool = True
 ) -> Iterator[None]:
-    """Hold the run's lock while training it; raise `RunFolderBusy` if another process does.
+    """Hold the run's lock (`curious.run_folder.folder_lock`, the one `train` takes while it
+    trains); raise `RunFolderBusy` if another process holds it."""
+    from curious.run_folder import RunFolderBusy as Busy
+    from curious.run_folder import folder_lock
 
-    An advisory `flock`: the system drops it when its process dies, however it dies, so a killed
-    run never leaves a stale lock behind, and two reproductions can never train one folder.
-    With `claim`, the file names the holder (host and pid) for the error others get.
-    """
-    path = lock_path(spec, runs_root)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a+") as handle:
+    with contextlib.ExitStack() as stack:
         try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.seek(0)
-            holder = handle.read().strip() or "another process"
-            raise RunFolderBusy(
-                f"{run_folder(spec, runs_root)} is being trained by {holder}; wait for it, or "
-                "stop it, before training this run again"
-            ) from None
-        if claim:
-            handle.seek(0)
-            handle.truncate()
-            handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
-            handle.flush()
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+            stack.enter_context(folder_lock(run_folder(spec, runs_root), claim=claim))
+        except Busy as exc:
+            raise RunFolderBusy(str(exc)) from None
+        yield
 
 
 def check_not_busy(spec: RunSpec, runs_root: str | os.PathLike) -> None:
@@ -207,9 +190,13 @@ def run_partition(
     stop_after_cycles: int | None = None,
 ) -> PartitionResult:
     """Bring one partition's run folder to its budget (see the module docstring)."""
+    from curious.run_folder import RunFolderBusy as Busy
+
     os.environ.setdefault("MUJOCO_GL", "disable")
-    with training_lock(spec, runs_root):
+    try:  # `train` holds the folder's lock while it trains
         return _run_partition(spec, runs_root, overrides, record, stop_after_cycles)
+    except Busy as exc:
+        raise RunFolderBusy(str(exc)) from None
 
 
 def _run_partition(

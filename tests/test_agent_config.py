@@ -67,3 +67,23 @@ def test_overrides_are_typed():
 def test_bad_settings_name_the_problem(call, message):
     with pytest.raises(ConfigError, match=message):
         call()
+
+
+@pytest.mark.parametrize(
+    "setting",
+    [
+        "noise_eps=nan",
+        "action_l2=-1",
+        "norm_eps=0",
+        "norm_clip=inf",
+        "critic_lr=-0.001",
+        "actor_lr=nan",
+        "moved_threshold=-1e-3",
+        "td3_noise_clip=-0.5",
+        "gamma=nan",
+    ],
+)
+def test_settings_out_of_range_are_refused_naming_the_setting(setting):
+    key = setting.split("=")[0]
+    with pytest.raises(ConfigError, match=key):
+        resolve("smoke", overrides=parse_overrides([setting]))

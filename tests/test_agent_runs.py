@@ -81,7 +81,7 @@ def test_run_folder_holds_config_metrics_and_checkpoint(tmp_path, condition):
     p = df[[f"p_lp/{n}" for n in names]].to_numpy()
     np.testing.assert_allclose(p.sum(1), 1, rtol=1e-5)
     assert np.all(np.diff(df["wall_time"]) >= 0)
-    assert len(list_checkpoints(folder / "checkpoints")) == 1
+    assert len(list_checkpoints(folder / "checkpoints")) == 2  # the newest and the one before
 
 
 def test_resume_gives_the_same_run_as_no_interruption(tmp_path):
@@ -392,3 +392,74 @@ def test_sensory_failure_settings_are_checked(tmp_path):
     assert not (tmp_path / "toy").exists()
     with pytest.raises(ConfigError, match="sensory failure"):
         sensor_failure_trainer(variant="default", sensor_failure_competence=0.5)
+
+
+def test_a_second_process_cannot_train_in_a_folder_being_trained(tmp_path):
+    from curious.run_folder import RunFolderBusy
+
+    out = tmp_path / "run"
+    holder = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\n"
+            "from curious.run_folder import folder_lock\n"
+            f"with folder_lock({str(out)!r}):\n"
+            "    print('held', flush=True)\n"
+            "    time.sleep(60)\n",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(RunFolderBusy, match=r"is being trained by .* pid"):
+            run(out)
+        assert not out.exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    run(out)  # the lock died with its process
+
+
+def test_a_run_folder_under_a_file_is_a_one_line_error(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    out = str(tmp_path / "file" / "run")
+    assert main(["train", "--preset", "smoke", "--out", out, "--no-record"]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+
+
+def test_resume_refuses_a_run_whose_metrics_are_gone(tmp_path):
+    run(tmp_path / "r")
+    (tmp_path / "r" / "metrics.parquet").unlink()
+    with pytest.raises(RunFolderError, match="rows are missing"):
+        run(tmp_path / "r", resume=True, total_episodes=60)
+
+
+def test_a_damaged_newest_checkpoint_falls_back_to_the_one_before(tmp_path):
+    run_stop(tmp_path / "r", stop=4, total_episodes=60, checkpoint_every_cycles=2)
+    found = list_checkpoints(tmp_path / "r" / "checkpoints")
+    assert len(found) == 2  # the newest and the one before are kept
+    (found[-1] / "replay.npz").write_bytes(b"PK\x03\x04 truncated")
+    (tmp_path / "r" / "checkpoints" / "ep-000000000016.bak").mkdir()  # a stray folder
+    with pytest.warns(UserWarning, match="resuming from the one before"):
+        trainer = run_stop(
+            tmp_path / "r", stop=None, resume=True, total_episodes=60, checkpoint_every_cycles=2
+        )
+    assert trainer.episodes == 60
+    episodes = pq.read_table(tmp_path / "r" / "metrics.parquet")["episode"].to_numpy()
+    np.testing.assert_array_equal(episodes, np.arange(60))
+
+
+def test_a_checkpoint_that_cannot_be_written_is_a_clear_error(tmp_path, monkeypatch):
+    import errno
+
+    from curious import checkpoint
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(checkpoint.np, "savez", full)
+    with pytest.raises(CheckpointError, match="the disk is full"):
+        run(tmp_path / "r")
+    assert not [p for p in (tmp_path / "r" / "checkpoints").iterdir() if p.name.startswith(".")]

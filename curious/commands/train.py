@@ -120,6 +120,10 @@ def run(args: argparse.Namespace) -> int:
     except (ConfigError, RunFolderError, CheckpointError) as exc:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a folder that cannot be written: read-only, under a file, full disk
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"curious train: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 2
     competence = trainer.tracker.competence()
     summary = ", ".join(
         f"{name} {c:.2f}" for name, c in zip(trainer.spec.module_names, competence, strict=True)
