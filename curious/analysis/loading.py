@@ -52,6 +52,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from curious.metrics import tests_schema
+
 __all__ = [
     "CONFIG_FILE",
     "IDENTITY_COLUMNS",
@@ -84,18 +86,8 @@ BASE_COLUMNS: tuple[str, ...] = (
     "eval",
     "wall_time",
 )
-#: Columns of ``tests.parquet`` (`curious.metrics.tests_schema`).
-TEST_COLUMNS: tuple[str, ...] = (
-    "epoch",
-    "episode",
-    "worker",
-    "module",
-    "g0",
-    "g1",
-    "g2",
-    "success",
-    "wall_time",
-)
+#: Columns of ``tests.parquet``.
+TEST_COLUMNS: tuple[str, ...] = tuple(tests_schema().names)
 #: One column per module with each of these prefixes.
 PER_MODULE_PREFIXES: tuple[str, ...] = ("competence/", "lp/", "p_lp/")
 
