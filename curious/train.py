@@ -23,8 +23,8 @@ call of `Trainer.cycle()`:
 checkpoints every
 `checkpoint_every_cycles` cycles, `--resume`, a progress bar and an optional recorder.
 
-Recording hooks (all optional; `curious.recording.RunRecorder` provides the first four). After
-every cycle `train()` calls, with B the cycle's episodes and N the modules:
+A recorder (`Recorder`, e.g. `curious.recording.RunRecorder`) is optional; after every cycle
+`train()` calls it, with B the cycle's episodes and N the modules:
 
     recorder.log_episodes(episode=(B,), module=(B,) slot indices, success=(B,), eval=(B,),
                           competence=(B, N), lp=(B, N), p_lp=(B, N), wall_time=(B,))
@@ -64,6 +64,33 @@ from curious.metrics import MetricsLog, TableLog, TestsLog
 from curious.replay import EpisodeReplay
 from curious.rollouts import EpisodeData, run_episodes
 from curious.run_folder import RunFolder, RunFolderError, config_differences, folder_lock
+
+
+class Recorder(Protocol):
+    """What `train()` logs to after every cycle (see the module docstring);
+    `curious.recording.RunRecorder` is one."""
+
+    def log_episodes(
+        self,
+        episode: np.ndarray,
+        module: np.ndarray,
+        success: np.ndarray,
+        eval: np.ndarray,
+        competence: np.ndarray,
+        lp: np.ndarray,
+        p_lp: np.ndarray,
+        wall_time: np.ndarray,
+    ) -> None: ...
+
+    def log_tests(
+        self, episode: int, module: np.ndarray, success: np.ndarray, wall_time: float
+    ) -> None: ...
+
+    def log_replay(self, episode: int, counts: np.ndarray) -> None: ...
+
+    def log_learner(self, episode: int, losses: dict[str, float], q: dict[str, float]) -> None: ...
+
+    def close(self) -> None: ...
 
 
 class RoundObserver(Protocol):
@@ -555,7 +582,7 @@ def _progress_text(trainer: Trainer) -> dict[str, str]:
     return {"success": f"{success:.2f}", "p_LP": p_text}
 
 
-def _log_cycle(recorder: Any, trainer: Trainer, result: CycleResult) -> None:
+def _log_cycle(recorder: Recorder, trainer: Trainer, result: CycleResult) -> None:
     """Hand one cycle to a recorder (see the module docstring for the calls)."""
     rows = result.rows
     recorder.log_episodes(
@@ -569,14 +596,14 @@ def _log_cycle(recorder: Any, trainer: Trainer, result: CycleResult) -> None:
         wall_time=rows["wall_time"],
     )
     losses = result.losses
-    if hasattr(recorder, "log_tests") and result.tests is not None:
+    if result.tests is not None:
         tests = result.tests
         recorder.log_tests(
             int(tests["episode"][0]), tests["module"], tests["success"], tests["wall_time"][0]
         )
-    if hasattr(recorder, "log_replay") and result.replay_counts.sum() > 0:
+    if result.replay_counts.sum() > 0:
         recorder.log_replay(trainer.episodes, result.replay_counts)
-    if hasattr(recorder, "log_learner") and "critic_loss" in losses:
+    if "critic_loss" in losses:
         recorder.log_learner(
             trainer.episodes,
             losses={"critic": losses["critic_loss"], "actor": losses["actor_loss"]},
@@ -589,7 +616,7 @@ def train(
     out: str | Path,
     resume: bool = False,
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
-    make_recorder: Callable[[Trainer, RunFolder], Any] | None = None,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
     stop_after_cycles: int | None = None,
 ) -> Trainer:
     """Train `config` in the run folder `out` (created, or continued with `resume=True`).
@@ -613,7 +640,7 @@ def _train(
     out: str | Path,
     resume: bool,
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
-    make_recorder: Callable[[Trainer, RunFolder], Any] | None,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     stop_after_cycles: int | None,
 ) -> Trainer:
     from tqdm.auto import tqdm
@@ -690,6 +717,6 @@ def _train(
                 break
     finally:
         bar.close()
-        if recorder is not None and hasattr(recorder, "close"):
+        if recorder is not None:
             recorder.close()
     return trainer

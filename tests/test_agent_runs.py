@@ -315,6 +315,9 @@ class ListRecorder:
     def log_learner(self, episode, losses, q):
         self.calls.append(("learner", episode, losses, q))
 
+    def log_tests(self, episode, module, success, wall_time):
+        self.calls.append(("tests", episode, module, success))
+
     def close(self):
         self.calls.append(("close",))
 
@@ -333,7 +336,9 @@ def test_observer_and_recorder_hooks_are_called_in_order(tmp_path):
     assert all(steps == list(range(11)) for steps in observer.steps)
     np.testing.assert_array_equal(np.concatenate(observer.ended), np.arange(10))
     kinds = [c[0] for c in recorder.calls]
-    assert kinds == ["episodes", "replay", "learner"] * 3 + ["close"]  # 3 cycles
+    # 3 cycles; the second ends the first epoch and the third the run: each brings its tests
+    cycle, tested = ["episodes", "replay", "learner"], ["episodes", "tests", "replay", "learner"]
+    assert kinds == cycle + tested * 2 + ["close"]
     episodes = recorder.calls[0][1]
     assert episodes["competence"].shape == (4, 3) and list(episodes["episode"]) == [0, 1, 2, 3]
     assert recorder.calls[1][2].sum() == 4 * 2 * 32  # n_updates x batch substitutions
