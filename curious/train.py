@@ -31,6 +31,7 @@ A recorder (`Recorder`, e.g. `curious.recording.RunRecorder`) is optional; after
     recorder.log_replay(episode, counts)     # (N,) modules of the cycle's replayed transitions
     recorder.log_tests(episode, module=(K,), success=(K,), wall_time)   # an epoch's K tests
     recorder.log_learner(episode, losses={"critic", "actor"}, q={"target_mean"})
+    recorder.checkpoint()                    # before every checkpoint: make it durable
     recorder.close()                         # once, when training stops
 
 and a `Trainer.observer` (e.g. one that captures MuJoCo body poses for 3-D rollouts) is called
@@ -89,6 +90,9 @@ class Recorder(Protocol):
     def log_replay(self, episode: int, counts: np.ndarray) -> None: ...
 
     def log_learner(self, episode: int, losses: dict[str, float], q: dict[str, float]) -> None: ...
+
+    def checkpoint(self) -> None:
+        """Make what was logged so far durable (called before every training checkpoint)."""
 
     def close(self) -> None: ...
 
@@ -712,6 +716,8 @@ def _train(
                 metrics.flush()
                 if config.test_rollouts_per_worker:
                     tests.flush()
+                if recorder is not None:
+                    recorder.checkpoint()
                 trainer.save_checkpoint(folder.checkpoints)
             if stop_now:
                 break

@@ -318,6 +318,9 @@ class ListRecorder:
     def log_tests(self, episode, module, success, wall_time):
         self.calls.append(("tests", episode, module, success))
 
+    def checkpoint(self):
+        self.calls.append(("checkpoint",))
+
     def close(self):
         self.calls.append(("close",))
 
@@ -338,7 +341,7 @@ def test_observer_and_recorder_hooks_are_called_in_order(tmp_path):
     kinds = [c[0] for c in recorder.calls]
     # 3 cycles; the second ends the first epoch and the third the run: each brings its tests
     cycle, tested = ["episodes", "replay", "learner"], ["episodes", "tests", "replay", "learner"]
-    assert kinds == cycle + tested * 2 + ["close"]
+    assert kinds == cycle + tested * 2 + ["checkpoint", "close"]  # one checkpoint, at the end
     episodes = recorder.calls[0][1]
     assert episodes["competence"].shape == (4, 3) and list(episodes["episode"]) == [0, 1, 2, 3]
     assert recorder.calls[1][2].sum() == 4 * 2 * 32  # n_updates x batch substitutions
@@ -468,3 +471,93 @@ def test_a_checkpoint_that_cannot_be_written_is_a_clear_error(tmp_path, monkeypa
     with pytest.raises(CheckpointError, match="the disk is full"):
         run(tmp_path / "r")
     assert not [p for p in (tmp_path / "r" / "checkpoints").iterdir() if p.name.startswith(".")]
+
+
+RECORDED_KILL_SCRIPT = textwrap.dedent(
+    """
+    import sys
+    sys.path.insert(0, {tests!r})
+    from toy_env import make_toy_envs
+    from curious.config import resolve
+    from curious.recording import RecorderSettings
+    from curious.recording.rollouts import recorder_factory
+    from curious.train import train
+    config = resolve("smoke", "curious", 0, dict(
+        total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
+        buffer_episodes=64))
+    make = recorder_factory(False, RecorderSettings(rollout_every=0))
+    train(config, {out!r}, make_envs=lambda c: make_toy_envs(c.seed, c.n_workers),
+          make_recorder=make)
+    """
+)
+
+
+def recorded_episodes(path: Path) -> np.ndarray:
+    """Every episode the recording holds a module point for (one per episode)."""
+    from curious.recording.reader import read_scalars
+
+    found = [read_scalars(path, f"module/{name}")[0] for name in ("reach", "dial", "beacon")]
+    return np.sort(np.concatenate([np.asarray(e) for e in found]))
+
+
+def test_sigkill_leaves_a_whole_recording_that_a_resume_continues_without_a_gap(tmp_path):
+    from curious.recording import RecorderSettings
+    from curious.recording.rollouts import recorder_factory
+
+    out = tmp_path / "killed"
+    script = RECORDED_KILL_SCRIPT.format(tests=str(TESTS), out=str(out))
+    proc = subprocess.Popen([sys.executable, "-c", script], env={**os.environ})
+    try:
+        deadline = time.time() + 90
+        while time.time() < deadline:
+            ckpts = list_checkpoints(out / "checkpoints")
+            if ckpts and int(ckpts[-1].name[3:]) >= 40:
+                break
+            assert proc.poll() is None, "training process ended early"
+            time.sleep(0.05)
+        else:
+            pytest.fail("no checkpoint after 90 s")
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    saved = int(list_checkpoints(out / "checkpoints")[-1].name[3:])
+    held = recorded_episodes(out / "recording.rrd")  # a whole file after the kill
+    assert held.max() >= saved - 1 - 4  # at most one checkpoint interval behind
+    np.testing.assert_array_equal(held, np.arange(len(held)))
+    config = resolve(
+        "smoke",
+        "curious",
+        0,
+        {**SMALL, "total_episodes": saved + 8, "checkpoint_every_cycles": 1, "buffer_episodes": 64},
+    )
+    make = recorder_factory(True, RecorderSettings(rollout_every=0))
+    train(config, out, resume=True, make_envs=toy_envs, make_recorder=make)
+    np.testing.assert_array_equal(recorded_episodes(out / "recording.rrd"), np.arange(saved + 8))
+    assert not (out / ".recording.rrd.part").exists()
+
+
+def test_a_damaged_recording_does_not_stop_a_resume(tmp_path):
+    from curious.recording import RecorderSettings
+    from curious.recording.rollouts import recorder_factory
+
+    settings = RecorderSettings(rollout_every=0)
+    config = resolve("smoke", "curious", 0, {**SMALL, "total_episodes": 16})
+    train(
+        config, tmp_path / "r", make_envs=toy_envs, make_recorder=recorder_factory(False, settings)
+    )
+    (tmp_path / "r" / "recording.rrd").write_bytes(b"RRF2 cut")
+    longer = resolve("smoke", "curious", 0, {**SMALL, "total_episodes": 24})
+    with pytest.warns(RuntimeWarning, match="could not be read"):
+        train(
+            longer,
+            tmp_path / "r",
+            resume=True,
+            make_envs=toy_envs,
+            make_recorder=recorder_factory(True, settings),
+        )
+    assert (tmp_path / "r" / "recording.rrd.unreadable").exists()
+    np.testing.assert_array_equal(
+        recorded_episodes(tmp_path / "r" / "recording.rrd"), np.arange(16, 24)
+    )

@@ -23,6 +23,14 @@ Entity paths (fixed, so that recordings of different runs line up):
 *and again every `stats_keyframe_every` (500) episodes while it holds, so that a live view draws
 a held value up to the present.
 
+Durability: the recorder writes to a working file beside the recording
+(`.recording.rrd.part`); `checkpoint()`, which `train()` calls before every checkpoint, flushes
+it and copies it over `recording.rrd` atomically, and `close()` writes the final, compacted
+`recording.rrd`. So `recording.rrd` always holds a whole recording, up to the last checkpoint
+of a run killed at any moment, and a resumed run starts from it, cut at the checkpoint's
+episode (a recording that cannot be read is set aside with a warning, never a reason a run
+cannot resume).
+
 Module colours and labels come from `curious.analysis.palette`, shared with the figures.
 A rollout's frames go on a third timeline, `rollout_frame` (dense: the recorded rollouts follow
 one another without gaps, so playing that timeline shows them in order), and also on `episode`
@@ -32,6 +40,7 @@ at the rollout's episode, where the 3D view then shows how each recorded episode
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 import time
 import uuid
@@ -67,6 +76,8 @@ __all__ = [
 
 APPLICATION_ID = "curious"
 RECORDING_FILENAME = "recording.rrd"
+WORKING_FILENAME = ".recording.rrd.part"
+"""The file a running recorder writes; `recording.rrd` is its copy at the last checkpoint."""
 DEFAULT_VIEWER_PORT = 9876
 
 _STATS = ("competence", "lp", "p_lp")
@@ -162,20 +173,33 @@ class _PreviousRecording:
     next_frame: int
 
 
-def compact_recording(path: str | os.PathLike[str]) -> None:
-    """Rewrites a recording with its chunks merged (same ids, data and blueprint; smaller).
+def _replace_with_copy(source: Path, target: Path) -> None:
+    """`target` becomes a copy of `source`, atomically (a temporary file, fsync, rename)."""
+    tmp = target.with_name(f".{target.name}.tmp")
+    shutil.copyfile(source, tmp)
+    with open(tmp, "rb") as handle:
+        os.fsync(handle.fileno())
+    os.replace(tmp, target)
+
+
+def compact_recording(
+    path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None
+) -> None:
+    """Rewrites a recording with its chunks merged (same ids, data and blueprint; smaller), in
+    place or into `out`.
 
     Each `send_columns` call is one chunk in the file, with ~1.2 kB of overhead; merging them
     (Rerun's `OptimizationProfile.LIVE`, chunks of up to 4096 rows) shrinks a run's recording
     several times over and makes it faster to open. Written to a temporary file, then renamed.
     """
     path = Path(path)
+    target = Path(out) if out is not None else path
     reader = RrdReader(path)
     stores = reader.recordings()
     if not stores:
         raise ValueError(f"{path} holds no recording")
     store = reader.stream().collect(optimize=OptimizationProfile.LIVE)
-    tmp = path.with_name(path.name + ".tmp")
+    tmp = target.with_name(f".{target.name}.tmp")
     stream = rr.RecordingStream(
         stores[0].application_id, recording_id=stores[0].recording_id, send_properties=False
     )
@@ -183,7 +207,7 @@ def compact_recording(path: str | os.PathLike[str]) -> None:
     stream.send_chunks(store)
     stream.flush()
     stream.disconnect()
-    os.replace(tmp, path)
+    os.replace(tmp, target)
 
 
 def _same_layout(a: SceneLayout, b: SceneLayout) -> bool:
@@ -251,18 +275,29 @@ class RunRecorder:
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.path = self.run_dir / RECORDING_FILENAME
+        self.working = self.run_dir / WORKING_FILENAME
         self._module_index = {name: i for i, name in enumerate(self.module_names)}
         self._rgb = np.array([module_rgb(n) for n in self.module_names], dtype=np.uint8)
         self._labels = [module_label(n) for n in self.module_names]
 
         previous: _PreviousRecording | None = None
         if resume and self.path.exists():
-            previous, old_id = self._load_previous(resume_after_episode)
-            recording_id = recording_id or old_id
+            try:
+                previous, old_id = self._load_previous(resume_after_episode)
+                recording_id = recording_id or old_id
+            except Exception as exc:  # whatever a damaged file raises, the run goes on
+                aside = self.path.with_name(f"{self.path.name}.unreadable")
+                os.replace(self.path, aside)
+                warnings.warn(
+                    f"{self.path} could not be read ({exc}); it is kept as {aside.name} and the "
+                    "recording starts again from this episode",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
         self.recording_id = str(recording_id or uuid.uuid4())
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
 
-        sinks: list[Any] = [rr.FileSink(str(self.path))]
+        sinks: list[Any] = [rr.FileSink(str(self.working))]
         if spawn:
             if _has_display():
                 self.stream.spawn(port=viewer_port, connect=False)
@@ -708,6 +743,12 @@ class RunRecorder:
         self._send_buffer()
         self.stream.flush()
 
+    def checkpoint(self) -> None:
+        """Makes `recording.rrd` hold everything logged so far (before a training checkpoint):
+        flushes the working file and copies it over the recording atomically."""
+        self.flush()
+        _replace_with_copy(self.working, self.path)
+
     def close(self) -> None:
         """Extends each module's series to the last episode, writes everything, closes the file,
         then (with `compact_on_close`) rewrites it with its chunks merged."""
@@ -725,7 +766,10 @@ class RunRecorder:
         self.stream.disconnect()
         self._closed = True
         if self.settings.compact_on_close:
-            compact_recording(self.path)
+            compact_recording(self.working, self.path)
+            self.working.unlink()
+        else:
+            os.replace(self.working, self.path)
 
     def __enter__(self) -> RunRecorder:
         return self
