@@ -26,10 +26,10 @@ a held value up to the present.
 Durability: the recorder writes to a working file beside the recording
 (`.recording.rrd.part`); `checkpoint()`, which `train()` calls before every checkpoint, flushes
 it and copies it over `recording.rrd` atomically, and `close()` writes the final, compacted
-`recording.rrd`. So `recording.rrd` always holds a whole recording, up to the last checkpoint
-of a run killed at any moment, and a resumed run starts from it, cut at the checkpoint's
-episode (a recording that cannot be read is set aside with a warning, never a reason a run
-cannot resume).
+`recording.rrd` (the file helpers are in `curious.recording.rrd_files`). So `recording.rrd`
+always holds a whole recording, up to the last checkpoint of a run killed at any moment, and a
+resumed run starts from it, cut at the checkpoint's episode (a recording that cannot be read is
+set aside with a warning, never a reason a run cannot resume).
 
 Module colours and labels come from `curious.analysis.palette`, shared with the figures.
 A rollout's frames go on a third timeline, `rollout_frame` (dense: the recorded rollouts follow
@@ -40,7 +40,6 @@ at the rollout's episode, where the 3D view then shows how each recorded episode
 from __future__ import annotations
 
 import os
-import shutil
 import sys
 import time
 import uuid
@@ -51,19 +50,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.compute as pc
 import rerun as rr
-from rerun.chunk import Chunk, OptimizationProfile, RrdReader
 
 from curious.analysis.palette import module_label, module_rgb
 from curious.recording.blueprint import default_blueprint
+from curious.recording.rrd_files import (
+    PreviousRecording,
+    compact_recording,
+    load_previous,
+    replace_with_copy,
+)
 from curious.recording.scene import (
-    SCENE_ROOT,
     RolloutCapture,
     SceneLayout,
     log_scene_geometry,
-    wxyz_to_xyzw,
+    send_rollout,
 )
 
 __all__ = [
@@ -165,51 +166,6 @@ class _ScalarBuffer:
         return out
 
 
-@dataclass
-class _PreviousRecording:
-    """The chunks of a recording being resumed, and the next free rollout frame."""
-
-    chunks: list[Chunk]
-    next_frame: int
-
-
-def _replace_with_copy(source: Path, target: Path) -> None:
-    """`target` becomes a copy of `source`, atomically (a temporary file, fsync, rename)."""
-    tmp = target.with_name(f".{target.name}.tmp")
-    shutil.copyfile(source, tmp)
-    with open(tmp, "rb") as handle:
-        os.fsync(handle.fileno())
-    os.replace(tmp, target)
-
-
-def compact_recording(
-    path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None
-) -> None:
-    """Rewrites a recording with its chunks merged (same ids, data and blueprint; smaller), in
-    place or into `out`.
-
-    Each `send_columns` call is one chunk in the file, with ~1.2 kB of overhead; merging them
-    (Rerun's `OptimizationProfile.LIVE`, chunks of up to 4096 rows) shrinks a run's recording
-    several times over and makes it faster to open. Written to a temporary file, then renamed.
-    """
-    path = Path(path)
-    target = Path(out) if out is not None else path
-    reader = RrdReader(path)
-    stores = reader.recordings()
-    if not stores:
-        raise ValueError(f"{path} holds no recording")
-    store = reader.stream().collect(optimize=OptimizationProfile.LIVE)
-    tmp = target.with_name(f".{target.name}.tmp")
-    stream = rr.RecordingStream(
-        stores[0].application_id, recording_id=stores[0].recording_id, send_properties=False
-    )
-    stream.set_sinks(rr.FileSink(str(tmp)), default_blueprint=default_blueprint())
-    stream.send_chunks(store)
-    stream.flush()
-    stream.disconnect()
-    os.replace(tmp, target)
-
-
 def _same_layout(a: SceneLayout, b: SceneLayout) -> bool:
     """True when two layouts draw the same geoms under the same paths."""
     return a.geom_paths == b.geom_paths and np.array_equal(a.drawn_geoms, b.drawn_geoms)
@@ -280,10 +236,10 @@ class RunRecorder:
         self._rgb = np.array([module_rgb(n) for n in self.module_names], dtype=np.uint8)
         self._labels = [module_label(n) for n in self.module_names]
 
-        previous: _PreviousRecording | None = None
+        previous: PreviousRecording | None = None
         if resume and self.path.exists():
             try:
-                previous, old_id = self._load_previous(resume_after_episode)
+                previous, old_id = load_previous(self.path, resume_after_episode)
                 recording_id = recording_id or old_id
             except Exception as exc:  # whatever a damaged file raises, the run goes on
                 aside = self.path.with_name(f"{self.path.name}.unreadable")
@@ -336,32 +292,6 @@ class RunRecorder:
         self._log_styles()
 
     # ------------------------------------------------------------------ set-up
-
-    def _load_previous(self, after_episode: int | None) -> tuple[_PreviousRecording, str]:
-        """Reads the existing recording into memory, optionally cut after an episode."""
-        reader = RrdReader(self.path)
-        stores = reader.recordings()
-        if not stores:
-            raise ValueError(f"{self.path} holds no recording to resume")
-        kept: list[Chunk] = []
-        next_frame = 1
-        for chunk in reader.stream().to_chunks():
-            batch = chunk.to_record_batch()
-            if after_episode is not None and "episode" in batch.schema.names:
-                keep = pc.less_equal(batch.column("episode"), pa.scalar(after_episode, pa.int64()))
-                if not pc.all(keep).as_py():
-                    batch = batch.filter(keep)
-                    if batch.num_rows == 0:
-                        continue
-                    kept.extend(Chunk.from_record_batch(batch))
-                else:
-                    kept.append(chunk)
-            else:
-                kept.append(chunk)
-            if "rollout_frame" in batch.schema.names:
-                last = pc.max(batch.column("rollout_frame")).as_py()
-                next_frame = max(next_frame, int(last) + 1)
-        return _PreviousRecording(kept, next_frame), stores[0].recording_id
 
     def _log_styles(self) -> None:
         """Static names, colours and styles of every per-module series."""
@@ -677,63 +607,20 @@ class RunRecorder:
         f = keep.size
         frames = self._next_frame + np.arange(f, dtype=np.int64)
         self._next_frame += f
-        index = [
-            rr.TimeColumn("rollout_frame", sequence=frames),
-            rr.TimeColumn("episode", sequence=np.full(f, int(episode), dtype=np.int64)),
-        ]
-        first = [
-            rr.TimeColumn("rollout_frame", sequence=frames[:1]),
-            rr.TimeColumn("episode", sequence=[int(episode)]),
-        ]
-        layout = capture.layout
-        quats = wxyz_to_xyzw(capture.xquat[keep])
-        for j, body in enumerate(layout.moving_bodies):
-            self.stream.send_columns(
-                layout.body_paths[body],
-                indexes=index,
-                columns=rr.Transform3D.columns(
-                    translation=capture.xpos[keep, j], quaternion=quats[:, j]
-                ),
-            )
-
-        goal_rows = goal_rows[keep]
         outcome = "success" if success else "failure"
-        label = f"{self._labels[m]}, episode {int(episode)}: {outcome}"
-        color = self._rgb[m]
-        self.stream.send_columns(
-            f"{SCENE_ROOT}/goal", indexes=index, columns=rr.Points3D.columns(positions=goal_rows)
+        send_rollout(
+            self.stream,
+            capture,
+            keep,
+            frames,
+            int(episode),
+            goal_rows[keep],
+            path[keep] if path is not None else None,
+            label=f"{self._labels[m]}, episode {int(episode)}: {outcome}",
+            color=self._rgb[m],
+            goal_radius=self.settings.goal_radius,
+            path_radius=self.settings.path_radius,
         )
-        self.stream.send_columns(
-            f"{SCENE_ROOT}/goal",
-            indexes=first,
-            columns=rr.Points3D.columns(
-                colors=[color], radii=[0.012], labels=[label], show_labels=[True]
-            ),
-        )
-        r = self.settings.goal_radius
-        self.stream.send_columns(
-            f"{SCENE_ROOT}/goal_region",
-            indexes=index,
-            columns=rr.Ellipsoids3D.columns(centers=goal_rows, half_sizes=np.full((f, 3), r)),
-        )
-        self.stream.send_columns(
-            f"{SCENE_ROOT}/goal_region",
-            indexes=first,
-            columns=rr.Ellipsoids3D.columns(colors=[color], line_radii=[0.001]),
-        )
-
-        if path is not None:
-            pts = path[keep].astype(np.float32)
-            self.stream.send_columns(
-                f"{SCENE_ROOT}/gripper_path",
-                indexes=index,
-                columns=rr.LineStrips3D.columns(strips=[pts[: k + 1] for k in range(f)]),
-            )
-            self.stream.send_columns(
-                f"{SCENE_ROOT}/gripper_path",
-                indexes=first,
-                columns=rr.LineStrips3D.columns(colors=[color], radii=[self.settings.path_radius]),
-            )
 
     # ------------------------------------------------------------------ end
 
@@ -747,7 +634,7 @@ class RunRecorder:
         """Makes `recording.rrd` hold everything logged so far (before a training checkpoint):
         flushes the working file and copies it over the recording atomically."""
         self.flush()
-        _replace_with_copy(self.working, self.path)
+        replace_with_copy(self.working, self.path)
 
     def close(self) -> None:
         """Extends each module's series to the last episode, writes everything, closes the file,

@@ -333,3 +333,75 @@ class RolloutCapture:
         if self.gripper_id is not None:
             self.gripper[t] = data.xpos[self.gripper_id]
         self.n_steps = t + 1
+
+
+def send_rollout(
+    stream: rr.RecordingStream,
+    capture: RolloutCapture,
+    keep: np.ndarray,
+    frames: np.ndarray,
+    episode: int,
+    goal: np.ndarray,
+    gripper: np.ndarray | None,
+    *,
+    label: str,
+    color: np.ndarray,
+    goal_radius: float,
+    path_radius: float,
+) -> None:
+    """Sends one captured episode's rows `keep` as columns on the `rollout_frame` timeline
+    (`frames`, one per kept row) and at its `episode`: body poses, the goal (`goal`, one row per
+    kept step) with its region and label, and the gripper's path (`gripper`, or none)."""
+    f = keep.size
+    index = [
+        rr.TimeColumn("rollout_frame", sequence=frames),
+        rr.TimeColumn("episode", sequence=np.full(f, episode, dtype=np.int64)),
+    ]
+    first = [
+        rr.TimeColumn("rollout_frame", sequence=frames[:1]),
+        rr.TimeColumn("episode", sequence=[episode]),
+    ]
+    layout = capture.layout
+    quats = wxyz_to_xyzw(capture.xquat[keep])
+    for j, body in enumerate(layout.moving_bodies):
+        stream.send_columns(
+            layout.body_paths[body],
+            indexes=index,
+            columns=rr.Transform3D.columns(
+                translation=capture.xpos[keep, j], quaternion=quats[:, j]
+            ),
+        )
+
+    stream.send_columns(
+        f"{SCENE_ROOT}/goal", indexes=index, columns=rr.Points3D.columns(positions=goal)
+    )
+    stream.send_columns(
+        f"{SCENE_ROOT}/goal",
+        indexes=first,
+        columns=rr.Points3D.columns(
+            colors=[color], radii=[0.012], labels=[label], show_labels=[True]
+        ),
+    )
+    stream.send_columns(
+        f"{SCENE_ROOT}/goal_region",
+        indexes=index,
+        columns=rr.Ellipsoids3D.columns(centers=goal, half_sizes=np.full((f, 3), goal_radius)),
+    )
+    stream.send_columns(
+        f"{SCENE_ROOT}/goal_region",
+        indexes=first,
+        columns=rr.Ellipsoids3D.columns(colors=[color], line_radii=[0.001]),
+    )
+
+    if gripper is not None:
+        pts = gripper.astype(np.float32)
+        stream.send_columns(
+            f"{SCENE_ROOT}/gripper_path",
+            indexes=index,
+            columns=rr.LineStrips3D.columns(strips=[pts[: k + 1] for k in range(f)]),
+        )
+        stream.send_columns(
+            f"{SCENE_ROOT}/gripper_path",
+            indexes=first,
+            columns=rr.LineStrips3D.columns(colors=[color], radii=[path_radius]),
+        )
