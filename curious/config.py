@@ -153,8 +153,9 @@ class Config:
     The switch follows each episode's index, so a resumed run switches at the same episode."""
     sensor_failure_competence: float = -1.0
     """Instead of a fixed episode: the failure starts with the first round of episodes after the
-    perturbed module's competence first reaches this value (so that there is something to
-    forget at any budget); -1 never. The episode it started at is in `metrics.parquet`."""
+    perturbed module's competence, over a full window of `lp_window` evaluations, first reaches
+    this value (so that there is something to forget at any budget); -1 never. The episode it
+    started at is in `metrics.parquet`."""
 
     # --- running -----------------------------------------------------------------------------
     device: str = "cpu"

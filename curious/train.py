@@ -280,10 +280,14 @@ class Trainer:
         return act
 
     def _start_failure_if_due(self) -> None:
-        """Start the failure now if the perturbed module's competence reached the threshold."""
+        """Start the failure now if the perturbed module's competence reached the threshold,
+        measured over a full window of its evaluations (a few lucky results are not a learned
+        module)."""
         threshold = self.config.sensor_failure_competence
         if self.failure_start is None and threshold != -1.0:
-            if self.tracker.competence()[self.failure_module] >= threshold:
+            m = self.failure_module
+            full = self.tracker.counts[m] >= self.config.lp_window
+            if full and self.tracker.competence()[m] >= threshold:
                 self.failure_start = self.episodes
 
     def _apply_failure(self, envs: Sequence[GoalEnv], failing: np.ndarray) -> None:

@@ -20,6 +20,7 @@ from toy_env import make_toy_envs
 from curious.checkpoint import CheckpointError, list_checkpoints
 from curious.cli import main
 from curious.config import ConfigError, resolve
+from curious.learning_progress import CompetenceTracker
 from curious.run_folder import RunFolderError
 from curious.train import train
 
@@ -375,8 +376,12 @@ def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     assert trainer.failure_module == module
     rows = trainer.cycle().rows
     assert trainer.failure_start is None and not rows["sensor_failure"].any()
-    for _ in range(3):  # the module's competence reaches 0.75 during training
+    trainer.tracker = CompetenceTracker(trainer.spec.n_modules, trainer.config.lp_window)
+    for _ in range(trainer.config.lp_window - 1):  # competence 1.0 over less than a window
         trainer.tracker.add(module, True)
+    trainer._start_failure_if_due()
+    assert trainer.failure_start is None
+    trainer.tracker.add(module, True)  # a full window at competence >= 0.75
     started_at = trainer.episodes
     result = trainer.cycle()
     assert trainer.failure_start == started_at
