@@ -1,0 +1,41 @@
+"""The paper's figures from tables of runs (`curious.analysis.load_runs`, `load_tests`).
+
+Every function takes a loaded table (`fig2a` the test rollouts of `curious.analysis.load_tests`,
+the others the episodes of `curious.analysis.load_runs`), returns a `matplotlib.figure.Figure`
+and, given ``out_dir``, also writes ``<out_dir>/<name>.png`` and ``.svg`` (see `style.save_figure`):
+
+============  ===========================================================================
+`fig2a`       average test success over achievable modules per condition, mean ± std over
+              seeds, dots where a one-tailed Welch test finds the first compared condition
+              better; drawn from the test rollouts (`curious.analysis.load_tests`)
+`fig2b`       competence of every module, one run
+`fig2c`       absolute learning progress of every module, the same run
+`table1`      competence and LP of every seed of a condition, one row per seed
+`forgetting`  competence and LP of the perturbed module around the sensory failure, and the
+              episodes each condition takes to regain a fraction of its earlier competence,
+              where that can be measured
+`distractors` final success over achievable modules against the number of distracting modules
+============  ===========================================================================
+
+Every x axis counts episodes (bar the distractors figure's), and every caption names the seeds,
+the budget in episodes, the preset and the variant of the runs drawn; ``note`` adds a sentence
+at its end (the reproduction says there when a budget is far below the paper's). Colours and
+labels of modules and conditions come from `curious.analysis.palette`.
+"""
+
+from __future__ import annotations
+
+from curious.analysis.figures.distracting import distractors
+from curious.analysis.figures.fig2 import fig2a, fig2b, fig2c, table1
+from curious.analysis.figures.parts import CONDITION_ORDER
+from curious.analysis.figures.sensor_failure import forgetting
+
+__all__ = [
+    "CONDITION_ORDER",
+    "distractors",
+    "fig2a",
+    "fig2b",
+    "fig2c",
+    "forgetting",
+    "table1",
+]

@@ -1,0 +1,123 @@
+"""The distractors figure (`distractors`): final success against the number of distracting
+modules."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from os import PathLike
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from curious.analysis import palette
+from curious.analysis.figures.parts import (
+    caption,
+    finish,
+    legend_right,
+    ordered_conditions,
+    restrict,
+    runs_of,
+    setting_text,
+)
+from curious.analysis.loading import (
+    AnalysisError,
+)
+from curious.analysis.statistics import (
+    final_competence,
+)
+from curious.analysis.style import (
+    budget_text,
+    figure_style,
+    new_figure,
+    seeds_text,
+)
+
+
+def distractors(
+    df: pd.DataFrame,
+    conditions: Sequence[str] | None = None,
+    at_episode: int | None = None,
+    note: str | None = None,
+    out_dir: str | PathLike[str] | None = None,
+    name: str = "distractors",
+) -> Figure:
+    """Final success over achievable modules against the number of distracting modules.
+
+    One line per condition, mean ± std across seeds, for every number of distractors among the
+    runs (their variants may differ; their achievable modules must not). "Final" is after episode
+    ``at_episode``, by default the last episode every run reached.
+    """
+    conditions = ordered_conditions(df, conditions)
+    rows = restrict(df, conditions, None)
+    per_run = rows.groupby("run", observed=True)[["achievable_modules"]].first()
+    sets = sorted(per_run["achievable_modules"].astype(str).unique())
+    if len(sets) > 1:
+        raise AnalysisError(
+            "the distractors figure needs runs with the same achievable modules, got "
+            + "; ".join(f"[{s}]" for s in sets)
+        )
+    final = final_competence(rows, at_episode)
+    clash = final.groupby(["condition", "n_distractors", "seed"], observed=True).size()
+    if (clash > 1).any():
+        condition, n_d, seed = clash[clash > 1].index[0]
+        raise AnalysisError(
+            f"condition '{condition}' with {n_d} distractors has several runs of seed {seed}"
+        )
+    stats_table = (
+        final.groupby(["condition", "n_distractors"], observed=True)["value"]
+        .agg(mean="mean", std=lambda v: v.std(ddof=1), n="size")
+        .reset_index()
+    )
+    counts = sorted(int(n) for n in final["n_distractors"].unique())
+    n_achievable = len(sets[0].split(","))
+    offsets = np.linspace(-0.12, 0.12, len(conditions)) if len(conditions) > 1 else [0.0]
+    with figure_style():
+        fig = new_figure(6.4, 4.2)
+        ax = fig.add_subplot()
+        for c, dx in zip(conditions, offsets, strict=True):
+            s = stats_table[stats_table["condition"] == c].sort_values("n_distractors")
+            ax.errorbar(
+                s["n_distractors"].to_numpy(dtype=np.float64) + dx,
+                s["mean"].to_numpy(dtype=np.float64),
+                yerr=s["std"].fillna(0.0).to_numpy(dtype=np.float64),
+                color=palette.condition_color(c),
+                marker="o",
+                markersize=5,
+                capsize=3,
+                label=palette.condition_label(c),
+            )
+        ax.set_xticks(counts)
+        ax.set_xlim(min(counts) - 0.6, max(counts) + 0.6)
+        ax.set_xlabel("distracting modules")
+        ax.set_ylim(-0.03, 1.03)
+        ax.set_ylabel(f"final success over achievable modules ({n_achievable})")
+        legend_right(ax)
+        fig.suptitle("Distracting modules — final success")
+        seeds = _distractor_seeds_text(final, conditions, counts)
+        episodes = int(final["episodes"].iat[0])
+        runs = runs_of(rows)
+        caption(
+            fig,
+            f"{seeds}. Success after {episodes:,} episodes (the budget every run reached; "
+            f"runs of {budget_text(runs['n_episodes'])}, {setting_text(runs)}). Mean ± std "
+            f"across seeds of the competence averaged over the {n_achievable} achievable modules.",
+            note,
+        )
+    return finish(fig, out_dir, name)
+
+
+def _distractor_seeds_text(
+    final: pd.DataFrame, conditions: Sequence[str], counts: list[int]
+) -> str:
+    """Seeds per condition, once when they are the same for every number of distractors."""
+    parts = []
+    for c in conditions:
+        mine = final[final["condition"] == c]
+        per_count = {n: seeds_text(mine.loc[mine["n_distractors"] == n, "seed"]) for n in counts}
+        if len(set(per_count.values())) == 1:
+            parts.append(f"{palette.condition_label(c)}: {per_count[counts[0]]} per setting")
+        else:
+            listed = ", ".join(f"{n} distractors: {t}" for n, t in per_count.items())
+            parts.append(f"{palette.condition_label(c)}: {listed}")
+    return "; ".join(parts)
