@@ -46,7 +46,7 @@ def test_folder_without_recording_is_an_error_naming_it(
 def test_without_display_prints_how_to_open_elsewhere(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], no_display: None, monkeypatch
 ) -> None:
-    monkeypatch.setattr(view.subprocess, "call", _no_viewer)
+    monkeypatch.setattr(view, "run_viewer", _no_viewer)
     a, b = _run_folder(tmp_path, "run_a"), _run_folder(tmp_path, "run_b")
     assert main(["view", str(a), str(b)]) == 0
     out = capsys.readouterr().out
@@ -61,7 +61,7 @@ def test_with_display_opens_every_recording_in_one_viewer(
 ) -> None:
     monkeypatch.setenv("DISPLAY", ":0")
     calls: list[list[str]] = []
-    monkeypatch.setattr(view.subprocess, "call", lambda cmd: calls.append(cmd) or 0)
+    monkeypatch.setattr(view, "run_viewer", lambda cmd: calls.append(cmd) or 0)
     a, b = _run_folder(tmp_path, "run_a"), _run_folder(tmp_path, "run_b")
     rrd = b / RECORDING_FILENAME
     assert main(["view", str(a), str(rrd)]) == 0
@@ -74,7 +74,7 @@ def test_web_serves_the_recordings(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, no_display: None
 ) -> None:
     calls: list[list[str]] = []
-    monkeypatch.setattr(view.subprocess, "call", lambda cmd: calls.append(cmd) or 0)
+    monkeypatch.setattr(view, "run_viewer", lambda cmd: calls.append(cmd) or 0)
     a = _run_folder(tmp_path, "run_a")
     assert main(["view", "--web", "--web-port", "9191", "--grpc-port", "9292", str(a)]) == 0
     (command,) = calls
@@ -87,7 +87,7 @@ def test_the_printed_browser_address_loads_the_served_recordings(
 ) -> None:
     """The page alone shows the viewer's welcome screen: the address must name the gRPC proxy
     in its `url` query, with the `+` escaped (a bare one reads as a space)."""
-    monkeypatch.setattr(view.subprocess, "call", lambda cmd: 0)
+    monkeypatch.setattr(view, "run_viewer", lambda cmd: 0)
     a = _run_folder(tmp_path, "run_a")
     for args, web, grpc in (
         (["--web", "--web-port", "9191", "--grpc-port", "9292"], 9191, 9292),
@@ -104,3 +104,28 @@ def test_the_printed_browser_address_loads_the_served_recordings(
 
 def _no_viewer(cmd: list[str]) -> int:
     raise AssertionError(f"no viewer may start without a display: {cmd}")
+
+
+def test_stopping_curious_view_stops_the_viewer_it_started(tmp_path: Path) -> None:
+    """`curious view --web` leaves no rerun server behind when it is stopped (SIGTERM here)."""
+    import os
+    import signal
+    import threading
+    import time
+
+    pidfile = tmp_path / "viewer.pid"
+
+    def stop_soon() -> None:
+        deadline = time.time() + 10
+        while not pidfile.exists() or not pidfile.read_text().strip():
+            if time.time() > deadline:
+                return
+            time.sleep(0.02)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=stop_soon, daemon=True).start()
+    with pytest.raises(SystemExit) as stopped:
+        view.run_viewer(["sh", "-c", f"echo $$ > {pidfile}; exec sleep 60"])
+    assert stopped.value.code == 128 + signal.SIGTERM
+    with pytest.raises(ProcessLookupError):
+        os.kill(int(pidfile.read_text()), 0)  # the viewer is gone, reaped

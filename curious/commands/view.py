@@ -12,6 +12,7 @@ import argparse
 import os
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -125,6 +126,31 @@ def elsewhere_instructions(
     )
 
 
+def run_viewer(command: list[str]) -> int:
+    """Run the viewer until it ends, or until this process is stopped (Ctrl-C, SIGTERM, SIGHUP):
+    then the viewer is stopped too, so that no server outlives `curious view`."""
+    proc = subprocess.Popen(command)
+
+    def stop(signum: int, frame: object) -> None:
+        raise SystemExit(128 + signum)
+
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        return proc.wait()
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+
+
 def run(args: argparse.Namespace) -> int:
     """Open (or serve) the recordings; exit status 2 when a run has no recording."""
     try:
@@ -149,8 +175,8 @@ def run(args: argparse.Namespace) -> int:
             "(<this-host>: localhost here, or this machine's name), or run "
             f"`rerun --connect rerun+http://<this-host>:{args.grpc_port}/proxy`. Ctrl-C stops."
         )
-        return subprocess.call(command)
+        return run_viewer(command)
     if not has_display():
         print(elsewhere_instructions(args.runs, paths, args.web_port, args.grpc_port))
         return 0
-    return subprocess.call([*viewer_command(), *files])
+    return run_viewer([*viewer_command(), *files])
