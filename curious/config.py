@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -22,7 +23,14 @@ DEVICES: tuple[str, ...] = ("cpu", "cuda")
 # Fields that may differ between a run folder's stored config and the config of a `--resume`:
 # they change how long or where a run goes on, not what it computes.
 RESUMABLE_FIELDS: frozenset[str] = frozenset(
-    {"total_episodes", "device", "torch_threads", "checkpoint_every_cycles", "progress"}
+    {
+        "total_episodes",
+        "device",
+        "torch_threads",
+        "env_processes",
+        "checkpoint_every_cycles",
+        "progress",
+    }
 )
 
 
@@ -58,6 +66,11 @@ class Config:
     n_workers: int = 19
     """Environment copies stepped together in one process (one batched policy call per step).
     Authors: 19 MPI workers (the paper's runs)."""
+    env_processes: int = 1
+    """Worker processes that step the `n_workers` environment copies at the same time (each a
+    share of them; 1 steps them in the training process, 0 takes one per core, at most
+    `n_workers`). Whatever the number, a run gives the same episodes. With more than 1,
+    `train()` builds the suite's copies in the workers."""
     episodes_per_worker: int = 2
     """Rounds of `n_workers` parallel episodes per cycle. Authors: rollout_batch_size 2."""
     n_cycles: int = 25
@@ -177,6 +190,12 @@ class Config:
         return self.batch_per_worker * self.n_workers
 
     @property
+    def processes(self) -> int:
+        """The environment worker processes this run uses (`env_processes` resolved)."""
+        wanted = self.env_processes or os.cpu_count() or 1
+        return max(1, min(wanted, self.n_workers))
+
+    @property
     def sensor_failure(self) -> bool:
         """Whether the run switches the sensory failure on at some point."""
         return self.sensor_failure_episode >= 0 or self.sensor_failure_competence != -1.0
@@ -213,6 +232,10 @@ class Config:
         if self.buffer_episodes < 0:
             raise ConfigError(
                 f"buffer_episodes must be >= 0 (0 keeps the whole run), got {self.buffer_episodes}"
+            )
+        if self.env_processes < 0:
+            raise ConfigError(
+                f"env_processes must be >= 0 (0: one per core), got {self.env_processes}"
             )
         if self.n_updates < 0 or self.torch_threads < 0:
             raise ConfigError("n_updates and torch_threads must be >= 0")

@@ -20,6 +20,8 @@ slice of `achieved`); see `EnvSpec.hindsight_columns`.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Protocol, runtime_checkable
 
@@ -206,9 +208,14 @@ class SuiteEnv:
         self._env.random_state.set_state(state)
 
 
-def make_suite_envs(variant: str, seed: int, n: int, stream: int = 0) -> list[SuiteEnv]:
-    """`n` independent copies of a suite variant, seeded from one run seed; `stream` 1 gives
-    the test rollouts' copies, independent of the training ones (stream 0)."""
+def suite_env_fns(variant: str, seed: int, n: int, stream: int = 0) -> list[Callable[[], SuiteEnv]]:
+    """Picklable constructors of `n` independent copies of a suite variant, seeded from one run
+    seed; `stream` 1 gives the test rollouts' copies, independent of the training ones (0)."""
     key = [seed, 0xE27] if stream == 0 else [seed, 0xE27, stream]
     seeds = np.random.SeedSequence(key).generate_state(n)
-    return [SuiteEnv(variant, seed=int(s)) for s in seeds]
+    return [functools.partial(SuiteEnv, variant, seed=int(s)) for s in seeds]
+
+
+def make_suite_envs(variant: str, seed: int, n: int, stream: int = 0) -> list[SuiteEnv]:
+    """The copies of `suite_env_fns`, built in this process."""
+    return [fn() for fn in suite_env_fns(variant, seed, n, stream)]

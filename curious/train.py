@@ -44,6 +44,7 @@ around every round of parallel episodes:
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -58,6 +59,7 @@ from curious import checkpoint
 from curious.agent import Agent
 from curious.conditions import make_condition
 from curious.config import Config, ConfigError
+from curious.env_batch import EnvBatch, LocalEnvs, ProcessEnvs
 from curious.envs import EnvSpec, GoalEnv
 from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
@@ -99,6 +101,10 @@ class Recorder(Protocol):
 
 class RoundObserver(Protocol):
     """Called around every round of parallel episodes (see the module docstring)."""
+
+    def watched(self, episodes: np.ndarray, evaluation: np.ndarray) -> Sequence[int]:
+        """The copies (positions in the round) whose simulators it will read this round."""
+        ...
 
     def begin_round(
         self,
@@ -153,6 +159,13 @@ class CycleResult:
     tests: dict[str, np.ndarray] | None = None  # tests.parquet rows, after an epoch's last cycle
 
 
+def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
+    """A list of copies becomes a `LocalEnvs`; an `EnvBatch` stays as it is."""
+    if isinstance(envs, LocalEnvs | ProcessEnvs):
+        return envs
+    return LocalEnvs(envs)
+
+
 def available_memory() -> int:
     """Bytes of memory this machine can still give (MemAvailable where Linux reports it)."""
     try:
@@ -185,23 +198,26 @@ class Trainer:
     def __init__(
         self,
         config: Config,
-        envs: Sequence[GoalEnv],
-        test_envs: Sequence[GoalEnv] | None = None,
+        envs: Sequence[GoalEnv] | EnvBatch,
+        test_envs: Sequence[GoalEnv] | EnvBatch | None = None,
     ) -> None:
-        """`envs`: the `n_workers` training copies; `test_envs`: as many copies for the test
-        rollouts (default: the training copies, whose random streams the tests then advance;
-        `train()` always gives copies of their own)."""
+        """`envs`: the `n_workers` training copies (a list, stepped in this process, or an
+        `EnvBatch`); `test_envs`: as many copies for the test rollouts (default: the training
+        copies, whose random streams the tests then advance; `train()` always gives copies of
+        their own)."""
         config.validate()
         self.config = config
-        self.envs = list(envs)
-        self.test_envs = list(test_envs) if test_envs is not None else self.envs
-        self.spec = envs[0].spec
+        self.envs = _as_batch(envs)
+        self.test_envs = _as_batch(test_envs) if test_envs is not None else self.envs
+        self.env = self.envs.reference
+        """A copy in this process for goal slots and rewards (what does not step)."""
+        self.spec = self.envs.spec
         for copies in (self.envs, self.test_envs):
             if len(copies) != config.n_workers:
                 raise ValueError(
                     f"{len(copies)} environments given, config asks for {config.n_workers}"
                 )
-            if any(env.spec != self.spec for env in copies):
+            if copies.spec != self.spec:
                 raise ValueError("all environment copies must share one EnvSpec")
         if config.torch_threads:
             torch.set_num_threads(config.torch_threads)
@@ -209,7 +225,7 @@ class Trainer:
             raise ConfigError("device 'cuda' was asked for but torch sees no CUDA device")
         n = self.spec.n_modules
         self.condition = make_condition(config.condition, n, config.lp_eps)
-        self.agent = Agent(self.spec, config, GoalBox.of(self.envs[0]), self.condition.n_experts)
+        self.agent = Agent(self.spec, config, GoalBox.of(self.env), self.condition.n_experts)
         _check_replay_fits(config, self.spec)
         self.replay = EpisodeReplay(
             self.spec,
@@ -240,14 +256,15 @@ class Trainer:
     def _check_sensor_failure(self) -> int:
         """Switch the failure off in every copy (a `ConfigError` where it cannot be); return the
         index of the module it perturbs (-1 when the env does not say)."""
-        for env in {id(e): e for e in self.envs + self.test_envs}.values():
-            if not callable(getattr(env, "set_sensor_failure", None)):
-                raise ConfigError(
-                    f"the sensory failure is set but {type(env).__name__} has no "
-                    "set_sensor_failure()"
-                )
-            env.set_sensor_failure(False)  # raises on a variant without the failure
-        name = getattr(self.envs[0], "sensor_failure_module", None)
+        env = self.env
+        if not callable(getattr(env, "set_sensor_failure", None)):
+            raise ConfigError(
+                f"the sensory failure is set but {type(env).__name__} has no set_sensor_failure()"
+            )
+        env.set_sensor_failure(False)  # raises on a variant without the failure
+        for copies in (self.envs, self.test_envs):
+            copies.set_sensor_failure(np.zeros(len(copies), bool))
+        name = getattr(env, "sensor_failure_module", None)
         if name is None:
             if self.config.sensor_failure_competence != -1.0:
                 raise ConfigError(
@@ -290,10 +307,9 @@ class Trainer:
             if full and self.tracker.competence()[m] >= threshold:
                 self.failure_start = self.episodes
 
-    def _apply_failure(self, envs: Sequence[GoalEnv], failing: np.ndarray) -> None:
+    def _apply_failure(self, envs: EnvBatch, failing: np.ndarray) -> None:
         if self.config.sensor_failure:
-            for env, on in zip(envs, failing, strict=True):
-                env.set_sensor_failure(bool(on))
+            envs.set_sensor_failure(failing)
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -315,7 +331,7 @@ class Trainer:
         The holistic condition draws a goal for every module from `rng` (the scored module
         keeps `raw`).
         """
-        spec, env = self.spec, self.envs[0]
+        spec, env = self.spec, self.env
         n, n_mod, g = len(modules), spec.n_modules, spec.goal_dim
         goals = np.zeros((n, n_mod, g), np.float32)
         rows = np.arange(n)
@@ -348,16 +364,17 @@ class Trainer:
         goals, mask, task = self._goals(modules, raw, self.rng)
         experts = self.condition.acting_experts(modules, self.epoch)
         explore = ~evaluation
-        envs = self.envs[:n]
         act = self._policy(goals, mask, task, experts, explore, self.rng)
 
         self._start_failure_if_due()
         failing = self.failure_on(episodes)
-        self._apply_failure(envs, failing)
+        self._apply_failure(self.envs, failing)
         observer = self.observer
         if observer is not None:
-            observer.begin_round(episodes, modules, goals, evaluation, envs)
-        data = run_episodes(envs, modules, raw, act, observer.after_step if observer else None)
+            views = self.envs.observed(observer.watched(episodes, evaluation))
+            observer.begin_round(episodes, modules, goals, evaluation, views[:n])
+        step_hook = observer.after_step if observer else None
+        data = run_episodes(self.envs, modules, raw, act, step_hook)
         success = self._success(data, modules, goals)
 
         self.replay.store(data.states, data.achieved, data.actions, modules, goals)
@@ -390,7 +407,7 @@ class Trainer:
         success = np.zeros(n, bool)
         for k in np.unique(modules):
             sel = np.flatnonzero(modules == k)
-            success[sel] = self.envs[0].reward(int(k), final[sel], goals[sel, k]) == 0
+            success[sel] = self.env.reward(int(k), final[sel], goals[sel, k]) == 0
         return success
 
     def test_rollouts(self) -> dict[str, np.ndarray]:
@@ -479,7 +496,7 @@ class Trainer:
             for _ in range(cfg.n_updates):
                 tic = time.perf_counter()
                 batch = self.replay.sample(
-                    cfg.batch_size, self.replay_rng, self.envs[0], probs, cfg.her_p
+                    cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
                 )
                 if not self.condition.holistic:
                     replay_counts += np.bincount(batch.module, minlength=n_mod)
@@ -537,8 +554,8 @@ class Trainer:
             "replay_rng": self.replay_rng.bit_generator.state,
             "test_rng": self.test_rng.bit_generator.state,
             "failure_start": self.failure_start,
-            "env_rng": [env.get_rng_state() for env in self.envs],
-            "test_env_rng": [env.get_rng_state() for env in self.test_envs],
+            "env_rng": self.envs.get_rng_states(),
+            "test_env_rng": self.test_envs.get_rng_states(),
             "torch_rng": torch.get_rng_state(),
         }
         return state, self.replay.state_dict()
@@ -558,16 +575,19 @@ class Trainer:
         self.replay_rng.bit_generator.state = state["replay_rng"]
         self.test_rng.bit_generator.state = state["test_rng"]
         self.failure_start = state["failure_start"]
-        for env, env_state in zip(self.envs, state["env_rng"], strict=True):
-            env.set_rng_state(env_state)
+        self.envs.set_rng_states(state["env_rng"])
         if self.test_envs is not self.envs:
-            for env, env_state in zip(self.test_envs, state["test_env_rng"], strict=True):
-                env.set_rng_state(env_state)
+            self.test_envs.set_rng_states(state["test_env_rng"])
         torch.set_rng_state(state["torch_rng"])
         self.episodes = int(state["episodes"])
         self.cycles = int(state["cycles"])
         self.elapsed = float(state["elapsed"])
         self._started = time.perf_counter()
+
+    def close(self) -> None:
+        """Stop the environment workers, if any."""
+        self.envs.close()
+        self.test_envs.close()
 
     def save_checkpoint(self, directory: Path) -> Path:
         state, replay = self.state_dict()
@@ -651,22 +671,44 @@ def _train(
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     stop_after_cycles: int | None,
 ) -> Trainer:
+    folder = RunFolder.prepare(out, config, resume)
+    trainer = Trainer(config, *_environments(config, make_envs))
+    with contextlib.closing(trainer):  # the environment workers stop with the run
+        return _run(trainer, folder, resume, make_recorder, stop_after_cycles)
+
+
+def _environments(
+    config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
+) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None]:
+    """The training copies and the test rollouts' copies of a run (see `train`)."""
+    tests_wanted = config.test_rollouts_per_worker > 0
+    if make_envs is not None:
+        if config.processes > 1:
+            raise ConfigError(
+                "env_processes > 1 builds the suite's environments in worker processes; a "
+                "custom make_envs runs in this process (env_processes=1)"
+            )
+        return make_envs(config), make_envs(config) if tests_wanted else None
+    from curious.envs import suite_env_fns
+
+    train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
+    test_fns = suite_env_fns(config.variant, config.seed, config.n_workers, stream=1)
+    tests = [fn() for fn in test_fns] if tests_wanted else None  # stepped once an epoch
+    if config.processes > 1:
+        return ProcessEnvs(train_fns, config.processes), tests
+    return [fn() for fn in train_fns], tests
+
+
+def _run(
+    trainer: Trainer,
+    folder: RunFolder,
+    resume: bool,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
+    stop_after_cycles: int | None,
+) -> Trainer:
     from tqdm.auto import tqdm
 
-    folder = RunFolder.prepare(out, config, resume)
-    if make_envs is None:
-        from curious.envs import make_suite_envs
-
-        def make_envs(cfg: Config) -> Sequence[GoalEnv]:
-            return make_suite_envs(cfg.variant, cfg.seed, cfg.n_workers)
-
-        def make_test_envs(cfg: Config) -> Sequence[GoalEnv]:
-            return make_suite_envs(cfg.variant, cfg.seed, cfg.n_workers, stream=1)
-    else:
-        make_test_envs = make_envs
-
-    test_envs = make_test_envs(config) if config.test_rollouts_per_worker else None
-    trainer = Trainer(config, make_envs(config), test_envs)
+    config = trainer.config
     latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None
     if latest is not None:
         trainer.load_state_dict(*latest[1:])  # raises on another config, before any write

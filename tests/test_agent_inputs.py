@@ -22,7 +22,7 @@ def goal_inputs(trainer: Trainer, module: int) -> np.ndarray:
     spec = trainer.spec
     n, g = spec.n_modules, spec.goal_dim
     goals = np.zeros((len(GRID), n, g), np.float32)
-    goals[:, module] = trainer.envs[0].goal_slot(module, GRID)
+    goals[:, module] = trainer.env.goal_slot(module, GRID)
     mask = np.zeros((len(GRID), n), np.float32)
     mask[:, module] = 1.0
     encoded = trainer.agent.encoder.encode_goals(torch.from_numpy(goals), torch.from_numpy(mask))

@@ -291,6 +291,9 @@ class CountingObserver:
     def __init__(self):
         self.rounds, self.steps, self.ended = [], [], []
 
+    def watched(self, episodes, evaluation):
+        return []
+
     def begin_round(self, episodes, modules, goals, evaluation, envs):
         self.rounds.append((episodes.copy(), len(envs)))
         self.steps.append([])
@@ -386,8 +389,8 @@ def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     result = trainer.cycle()
     assert trainer.failure_start == started_at
     assert result.rows["sensor_failure"].all()
-    assert all(env._task.sensor_failure for env in trainer.envs)
-    assert all(env._task.sensor_failure for env in trainer.test_envs)  # tests after an epoch
+    assert all(env._task.sensor_failure for env in trainer.envs.envs)
+    assert all(env._task.sensor_failure for env in trainer.test_envs.envs)  # tests, after an epoch
     # the onset survives a checkpoint
     path = trainer.save_checkpoint(tmp_path / "checkpoints")
     again = sensor_failure_trainer(sensor_failure_competence=0.75)

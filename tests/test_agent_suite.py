@@ -88,6 +88,9 @@ def test_sensor_failure_follows_each_episode_index():
     seen: list[tuple[int, bool]] = []
 
     class Watch:
+        def watched(self, episodes, evaluation):
+            return range(len(episodes))
+
         def begin_round(self, episodes, modules, goals, evaluation, envs):
             seen.extend(
                 (int(e), env.dm_env.task.sensor_failure)

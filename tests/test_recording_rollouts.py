@@ -82,6 +82,9 @@ class Probe:
         self.grip: dict[int, list[np.ndarray]] = {}
         self._eval: list[tuple[int, int, object]] = []
 
+    def watched(self, episodes, evaluation) -> list[int]:
+        return [int(i) for i in np.flatnonzero(evaluation)]
+
     def begin_round(self, episodes, modules, goals, evaluation, envs) -> None:
         self.calls.append("begin")
         self._eval = [

@@ -2,8 +2,9 @@
 
 With a display, starts the native viewer (the `rerun` binary that rerun-sdk installs) on every
 run's `recording.rrd`; several runs open in one viewer, each its own recording under the same
-layout, listed in the viewer's recordings panel to switch between. Without a display it prints how to look at them elsewhere, and `--web`
-serves them here to a browser (or to a native viewer on another machine) instead.
+layout, listed in the viewer's recordings panel to switch between. Without a display it prints
+how to look at them elsewhere, and `--web` serves them here to a browser (or to a native viewer
+on another machine) instead.
 """
 
 from __future__ import annotations

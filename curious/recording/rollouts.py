@@ -106,6 +106,21 @@ class RolloutObserver:
             self._slots[worker] = slot
         return slot
 
+    def _due(self, episodes: np.ndarray, evaluation: np.ndarray) -> list[int]:
+        """Positions in the round of the evaluation episodes due for a 3-D capture."""
+        return [
+            int(i)
+            for i in np.flatnonzero(evaluation)
+            if self.recorder.rollout_due(int(episodes[i]) // self.eval_every)
+        ]
+
+    def watched(self, episodes: np.ndarray, evaluation: np.ndarray) -> list[int]:
+        """The copies whose simulators this round's captures read (and the inner observer's)."""
+        mine = self._due(episodes, evaluation)
+        if self.inner is not None:
+            mine = sorted(set(mine) | set(self.inner.watched(episodes, evaluation)))
+        return mine
+
     def begin_round(
         self,
         episodes: np.ndarray,
@@ -116,12 +131,9 @@ class RolloutObserver:
     ) -> None:
         """Chooses the round's episodes to capture (evaluations whose count is due)."""
         self._active = []
-        for i in np.flatnonzero(evaluation):
-            episode = int(episodes[i])
-            if not self.recorder.rollout_due(episode // self.eval_every):
-                continue
+        for i in self._due(episodes, evaluation):
             _suite_parts(envs[i])  # fails here, before the round runs, for other envs
-            self._active.append(_Active(int(i), episode, int(modules[i]), envs[i]))
+            self._active.append(_Active(i, int(episodes[i]), int(modules[i]), envs[i]))
         if self.inner is not None:
             self.inner.begin_round(episodes, modules, goals, evaluation, envs)
 
