@@ -1,4 +1,5 @@
-"""`curious bench {env,learner}`: speed benchmarks, ours side by side with a bound and a peer.
+"""`curious bench {env,learner,cycle,recording}`: speed benchmarks, ours side by side with a
+bound and a peer.
 
 Each benchmark lives in `benchmarks/<name>_speed.py` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
@@ -19,6 +20,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "learner": (
         "benchmarks.learner_speed",
         "DDPG+HER updates/s: ours vs the fp32 compute bound vs Stable-Baselines3",
+    ),
+    "cycle": (
+        "benchmarks.cycle_speed",
+        "training episodes/s of whole cycles: worker processes vs the serial path",
     ),
     "recording": (
         "benchmarks.recording_overhead",

@@ -1,0 +1,120 @@
+"""`curious bench cycle`: training episodes per second of whole cycles, with worker processes
+(ours) against the serial path (peer), and where a cycle's time goes.
+
+Every contender is a `Trainer` of the same preset and seed on the suite, without test rollouts
+(they run once an epoch), warmed up by one untimed cycle; then the contenders run their timed
+cycles interleaved, one cycle each in turn, so that load from elsewhere hits them alike:
+
+* peer: the serial path, the copies stepped one after the other in the training process
+  (`env_processes=1`), the default update;
+* ours: the same with the copies in worker processes, one per core (`--set env_processes=0`,
+  one documented flag);
+* ours_workspace: ours with the written-out update as well (`learner_backend=workspace`).
+
+`bound` is the physics alone: the rate at which one core steps the suite's MuJoCo model for one
+episode's 50 control steps, times the cores the workers use (what rollouts could reach if
+nothing but physics ran).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--preset", default="laptop", help="training preset (default laptop)")
+    parser.add_argument("--cycles", type=int, default=4, help="timed cycles each (default 4)")
+    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+
+
+def _trainer(config: Any) -> Any:
+    from curious.env_batch import ProcessEnvs
+    from curious.envs import suite_env_fns
+    from curious.train import Trainer
+
+    fns = suite_env_fns(config.variant, config.seed, config.n_workers)
+    if config.processes > 1:
+        return Trainer(config, ProcessEnvs(fns, config.processes))
+    return Trainer(config, [fn() for fn in fns])
+
+
+def _physics_episodes_per_second(variant: str, episodes: int = 5) -> float:
+    """One core stepping the suite's compiled model, 50 control steps of 20 substeps."""
+    import mujoco
+
+    import suite
+
+    env = suite.load(variant, seed=0)
+    model, data = env.physics.model.ptr, env.physics.data.ptr
+    substeps = round(env.control_timestep() / env.physics.timestep())
+    tic = time.perf_counter()
+    for _ in range(episodes):
+        for _ in range(50):
+            mujoco.mj_step(model, data, substeps)
+    return episodes / (time.perf_counter() - tic)
+
+
+def measure(args: argparse.Namespace) -> dict[str, Any]:
+    """ours, bound, peer (episodes/s) and each contender's per-part milliseconds per cycle."""
+    from curious.config import resolve
+
+    base = resolve(
+        args.preset,
+        overrides=dict(progress=False, torch_threads=args.threads, test_rollouts_per_worker=0),
+    )
+    configs = {
+        "peer": base,
+        "ours": dataclasses.replace(base, env_processes=0),
+        "ours_workspace": dataclasses.replace(base, env_processes=0, learner_backend="workspace"),
+    }
+    trainers = {name: _trainer(config) for name, config in configs.items()}
+    try:
+        for trainer in trainers.values():
+            trainer.cycle()  # warm-up: workers, first allocations, replay
+        seconds = dict.fromkeys(trainers, 0.0)
+        episodes = dict.fromkeys(trainers, 0)
+        parts: dict[str, dict[str, float]] = {name: {} for name in trainers}
+        for _ in range(args.cycles):
+            for name, trainer in trainers.items():
+                tic = time.perf_counter()
+                result = trainer.cycle()
+                seconds[name] += time.perf_counter() - tic
+                episodes[name] += len(result.rows["episode"])
+                for key, value in result.losses.items():
+                    if key.startswith("seconds/"):
+                        part = key.split("/", 1)[1]
+                        parts[name][part] = parts[name].get(part, 0.0) + value
+    finally:
+        for trainer in trainers.values():
+            trainer.close()
+    rates = {name: episodes[name] / seconds[name] for name in trainers}
+    processes = configs["ours"].processes
+    out: dict[str, Any] = {
+        "ours": rates["ours"],
+        "bound": _physics_episodes_per_second(base.variant) * processes,
+        "peer": rates["peer"],
+        "unit": "episodes/s",
+        "ours_over_peer": rates["ours"] / rates["peer"],
+        "ours_workspace": rates["ours_workspace"],
+        "ours_workspace_over_peer": rates["ours_workspace"] / rates["peer"],
+        "processes": processes,
+        "cores": os.cpu_count(),
+        "shape": (
+            f"preset {args.preset}: {base.episodes_per_cycle} episodes and {base.n_updates} "
+            f"updates of {base.batch_size} per cycle, {args.cycles} timed cycles each"
+        ),
+    }
+    for name in trainers:
+        total = seconds[name] / args.cycles
+        out[f"{name}_cycle_ms"] = total * 1e3
+        for part, value in parts[name].items():
+            out[f"{name}_{part}_ms"] = value / args.cycles * 1e3
+        out[f"{name}_other_ms"] = (total - sum(parts[name].values()) / args.cycles) * 1e3
+    out["physics_episodes_per_s_one_core"] = float(np.round(out["bound"] / processes, 2))
+    return out
