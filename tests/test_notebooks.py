@@ -63,3 +63,22 @@ def test_notebook_executes_against_the_smoke_output(name, smoke):
     assert not [o for o in outputs if o.get("output_type") == "error"]
     images = [o for o in outputs if "image/png" in o.get("data", {})]
     assert images, f"{name} drew no figure"
+
+
+def test_the_documented_default_viewer_setting_opens_py_files_as_notebooks(tmp_path):
+    """notebooks/README.md tells JupyterLab users to run `jupytext-config set-default-viewer
+    python`; with the installed jupytext it writes the setting JupyterLab reads."""
+    import json
+    import shutil
+    import subprocess
+
+    command = shutil.which("jupytext-config")
+    assert command, "jupytext-config comes with the notebooks extra"
+    settings = tmp_path / "overrides.json"
+    subprocess.run(
+        [command, "--settings-file", str(settings), "set-default-viewer", "python"], check=True
+    )
+    viewers = json.loads(settings.read_text())["@jupyterlab/docmanager-extension:plugin"]
+    assert viewers["defaultViewers"]["python"] == "Jupytext Notebook"
+    readme = (Path(__file__).resolve().parents[1] / "notebooks" / "README.md").read_text()
+    assert "jupytext-config set-default-viewer python" in readme
