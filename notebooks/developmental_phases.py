@@ -81,6 +81,15 @@ ax.set_xlabel("episodes")
 ax.set_ylabel("p_LP (stacked)")
 ax.set_ylim(0, 1)
 ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize=8)
+ax.set_title(f"Module selection probability p_LP, {condition} seed {int(one['seed'].iat[0])}")
+fig.supxlabel(
+    f"The probability of practising each module after every episode of one run "
+    f"({int(one['episode'].max()) + 1:,} episodes), stacked; eps = 0.4 keeps a floor of 0.4 / "
+    f"{len(modules)} per module.",
+    fontsize=7.5,
+    ha="left",
+    x=0.01,
+)
 display(fig)
 
 # %% [markdown]

@@ -67,14 +67,17 @@ pd.concat(
 )
 
 # %% [markdown]
-# ## Learning curves per setting (Fig. 2a for each number of distractors)
+# ## Learning curves per setting
 #
-# Test success over achievable modules, from the runs' test rollouts.
+# Test success over achievable modules, from the runs' test rollouts (drawn as Fig. 2a is), one
+# figure per number of distractors.
 
 # %%
 tests = analysis.load_tests(layout.experiment_runs("distractors"))
 for variant in sorted(tests["variant"].astype(str).unique()):
-    display(analysis.fig2a(tests, variant=variant, compare=None))
+    n = int(tests.loc[tests["variant"] == variant, "n_distractors"].iat[0])
+    title = f"Test success over achievable modules, {n} distracting modules ({variant})"
+    display(analysis.fig2a(tests, variant=variant, compare=None, title=title))
 
 # %% [markdown]
 # ## Attention paid to the distractors
@@ -105,4 +108,14 @@ ax.set_xlabel("episodes")
 ax.set_ylabel("p(practise a distractor)")
 ax.set_ylim(0, 1)
 ax.legend(frameon=False, fontsize=8)
+ax.set_title("Probability of practising a distracting module")
+seeds = ", ".join(str(s) for s in sorted(df["seed"].unique()))
+fig.supxlabel(
+    f"Summed p_LP of the modules that are not achievable, mean over seeds ({seeds}) per "
+    "episode; dashed: 4 distractors or fewer, solid: more. Uniform selection keeps it at "
+    "n_distractors / n_modules.",
+    fontsize=7.5,
+    ha="left",
+    x=0.01,
+)
 display(fig)

@@ -61,8 +61,10 @@ def fig2a(
     note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "fig2a",
+    title: str = "Fig. 2a — average success over achievable modules",
 ) -> Figure:
-    """Average test success over achievable modules per condition (paper Fig. 2a).
+    """Average test success over achievable modules per condition (paper Fig. 2a; `title`
+    names other uses of the same plot).
 
     ``tests`` is a `load_tests` table: the runs' test rollouts, as the paper measured Fig. 2a.
     Mean ± std across seeds of `statistics.epoch_success`: one point per epoch, at the training
@@ -126,7 +128,7 @@ def fig2a(
         episodes_axis(ax)
         ax.set_xlim(0, None)
         legend_right(ax)
-        fig.suptitle("Fig. 2a — average success over achievable modules")
+        fig.suptitle(title)
         where = (
             "one point per epoch, at the training episodes done when its tests ran"
             if bin_size is None
