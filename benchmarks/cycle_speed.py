@@ -1,19 +1,23 @@
-"""`curious bench cycle`: training episodes per second of whole cycles, with worker processes
-(ours) against the serial path (peer), and where a cycle's time goes.
+"""`curious bench cycle`: training episodes per second of whole cycles, with rollouts overlapped
+with the updates (ours) against the serial path (peer), and where a cycle's time goes.
 
 Every contender is a `Trainer` of the same preset and seed on the suite, without test rollouts
-(they run once an epoch), warmed up by one untimed cycle; then the contenders run their timed
-cycles interleaved, one cycle each in turn, so that load from elsewhere hits them alike:
+(they run once an epoch), warmed up by one untimed cycle; then each runs its timed cycles in one
+block (overlapped rollouts go on after a cycle returns, so the cycles of different contenders
+cannot be interleaved). Each timed cycle scores one cycle of episodes: in steady state, the
+rounds collected during the untimed warm-up stand for those still in flight at the end.
 
-* peer: the serial path, the copies stepped one after the other in the training process
-  (`env_processes=1`), the default update;
-* ours: the same with the copies in worker processes, one per core (`--set env_processes=0`,
-  one documented flag);
-* ours_workspace: ours with the written-out update as well (`learner_backend=workspace`).
+* peer: the serial path, the authors' order: rollouts, then updates, the copies stepped one
+  after the other in the training process;
+* ours: the next cycle's rollouts collected during this cycle's updates
+  (`--set overlap_rollouts=true`, one documented flag);
+* workers: the copies in worker processes, one per core (`--set env_processes=0`);
+* ours_workers: both;
+* ours_workspace: ours with the written-out update (`learner_backend=workspace`).
 
 `bound` is the physics alone: the rate at which one core steps the suite's MuJoCo model for one
-episode's 50 control steps, times the cores the workers use (what rollouts could reach if
-nothing but physics ran).
+episode's 50 control steps, times the machine's cores (what rollouts could reach if nothing but
+physics ran).
 """
 
 from __future__ import annotations
@@ -70,8 +74,12 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     )
     configs = {
         "peer": base,
-        "ours": dataclasses.replace(base, env_processes=0),
-        "ours_workspace": dataclasses.replace(base, env_processes=0, learner_backend="workspace"),
+        "ours": dataclasses.replace(base, overlap_rollouts=True),
+        "workers": dataclasses.replace(base, env_processes=0),
+        "ours_workers": dataclasses.replace(base, overlap_rollouts=True, env_processes=0),
+        "ours_workspace": dataclasses.replace(
+            base, overlap_rollouts=True, learner_backend="workspace"
+        ),
     }
     trainers = {name: _trainer(config) for name, config in configs.items()}
     try:
@@ -80,8 +88,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         seconds = dict.fromkeys(trainers, 0.0)
         episodes = dict.fromkeys(trainers, 0)
         parts: dict[str, dict[str, float]] = {name: {} for name in trainers}
-        for _ in range(args.cycles):
-            for name, trainer in trainers.items():
+        for name, trainer in trainers.items():  # a block of cycles each: overlapped
+            for _ in range(args.cycles):  # rollouts go on after a cycle returns
                 tic = time.perf_counter()
                 result = trainer.cycle()
                 seconds[name] += time.perf_counter() - tic
@@ -94,17 +102,21 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         for trainer in trainers.values():
             trainer.close()
     rates = {name: episodes[name] / seconds[name] for name in trainers}
-    processes = configs["ours"].processes
+    cores = os.cpu_count() or 1
     out: dict[str, Any] = {
         "ours": rates["ours"],
-        "bound": _physics_episodes_per_second(base.variant) * processes,
+        "bound": _physics_episodes_per_second(base.variant) * cores,
         "peer": rates["peer"],
         "unit": "episodes/s",
         "ours_over_peer": rates["ours"] / rates["peer"],
+        "workers": rates["workers"],
+        "workers_over_peer": rates["workers"] / rates["peer"],
+        "ours_workers": rates["ours_workers"],
+        "ours_workers_over_peer": rates["ours_workers"] / rates["peer"],
         "ours_workspace": rates["ours_workspace"],
         "ours_workspace_over_peer": rates["ours_workspace"] / rates["peer"],
-        "processes": processes,
-        "cores": os.cpu_count(),
+        "processes": configs["workers"].processes,
+        "cores": cores,
         "shape": (
             f"preset {args.preset}: {base.episodes_per_cycle} episodes and {base.n_updates} "
             f"updates of {base.batch_size} per cycle, {args.cycles} timed cycles each"
@@ -116,5 +128,5 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         for part, value in parts[name].items():
             out[f"{name}_{part}_ms"] = value / args.cycles * 1e3
         out[f"{name}_other_ms"] = (total - sum(parts[name].values()) / args.cycles) * 1e3
-    out["physics_episodes_per_s_one_core"] = float(np.round(out["bound"] / processes, 2))
+    out["physics_episodes_per_s_one_core"] = float(np.round(out["bound"] / cores, 2))
     return out

@@ -9,6 +9,7 @@ device, is encoded, and drives one update of the chosen expert.
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 import numpy as np
@@ -19,6 +20,17 @@ from curious.envs import EnvSpec
 from curious.inputs import GoalBox, InputEncoder
 from curious.learner import Learner
 from curious.replay import Transitions
+
+
+class _FrozenActor:
+    """A copy of an expert's actor, for acting only."""
+
+    def __init__(self, actor: torch.nn.Module) -> None:
+        self.actor = actor
+
+    @torch.no_grad()
+    def act(self, x: torch.Tensor) -> torch.Tensor:
+        return self.actor(x)
 
 
 class Agent:
@@ -70,6 +82,13 @@ class Agent:
             noisy[random] = rng.uniform(-1.0, 1.0, (int(random.sum()), actions.shape[1]))
             actions[rows] = noisy
         return actions
+
+    def acting_copy(self) -> Agent:
+        """An agent that acts as this one does now, and keeps doing so while this one learns
+        (its actors copied; the input encoder shared, which only `update_stats` changes)."""
+        twin = copy.copy(self)
+        twin.experts = [_FrozenActor(copy.deepcopy(e.actor)) for e in self.experts]
+        return twin
 
     def update(self, expert: int, batch: Transitions) -> dict[str, torch.Tensor]:
         """One gradient step of `expert` on a relabelled minibatch."""

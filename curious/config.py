@@ -71,6 +71,12 @@ class Config:
     share of them; 1 steps them in the training process, 0 takes one per core, at most
     `n_workers`). Whatever the number, a run gives the same episodes. With more than 1,
     `train()` builds the suite's copies in the workers."""
+    overlap_rollouts: bool = False
+    """Collect the next cycle's episodes while this cycle's updates run (in a thread, with the
+    policy as it was before them: acting lags learning by one cycle, and module choices follow
+    the competence queues as they were when the cycle's collection began). The authors were
+    synchronous; False keeps to them. Checkpoints hold no episodes in flight, so a resumed run
+    equals an uninterrupted one either way."""
     episodes_per_worker: int = 2
     """Rounds of `n_workers` parallel episodes per cycle. Authors: rollout_batch_size 2."""
     n_cycles: int = 25

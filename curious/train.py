@@ -44,6 +44,7 @@ around every round of parallel episodes:
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import os
 import time
@@ -132,6 +133,14 @@ class RolloutInfo:
     success: np.ndarray  # (n,) bool, final success of the module
     data: EpisodeData  # states, achieved outcomes, actions
     sensor_failure: np.ndarray  # (n,) bool, episodes run with the sensory failure
+
+
+@dataclass
+class _Collected:
+    """A round of episodes rolled out, not yet stored or scored."""
+
+    info: RolloutInfo
+    epoch: int  # the epoch of the cycle it belongs to
 
 
 @dataclass
@@ -245,6 +254,8 @@ class Trainer:
         self._started = time.perf_counter()
         self._names = np.array(self.spec.module_names, dtype=object)
         self.observer: RoundObserver | None = None
+        self._pending: concurrent.futures.Future | None = None  # rounds in flight (overlap)
+        self._executor: concurrent.futures.ThreadPoolExecutor | None = None
         self.failure_start: int | None = None
         """First episode run with the sensory failure (None: not started)."""
         self.failure_module = -1
@@ -282,6 +293,7 @@ class Trainer:
 
     def _policy(
         self,
+        agent: Agent,
         goals: np.ndarray,
         mask: np.ndarray,
         task: np.ndarray,
@@ -292,11 +304,11 @@ class Trainer:
         """`act(states, t)` for a round of episodes with these goals, experts and noise."""
 
         def act(states: np.ndarray, t: int) -> np.ndarray:
-            return self.agent.act(states, goals, mask, task, experts, explore, rng)
+            return agent.act(states, goals, mask, task, experts, explore, rng)
 
         return act
 
-    def _start_failure_if_due(self) -> None:
+    def _start_failure_if_due(self, episode: int) -> None:
         """Start the failure now if the perturbed module's competence reached the threshold,
         measured over a full window of its evaluations (a few lucky results are not a learned
         module)."""
@@ -305,7 +317,7 @@ class Trainer:
             m = self.failure_module
             full = self.tracker.counts[m] >= self.config.lp_window
             if full and self.tracker.competence()[m] >= threshold:
-                self.failure_start = self.episodes
+                self.failure_start = episode
 
     def _apply_failure(self, envs: EnvBatch, failing: np.ndarray) -> None:
         if self.config.sensor_failure:
@@ -348,13 +360,15 @@ class Trainer:
         task[rows, modules] = 1.0
         return goals, task.copy(), task
 
-    def _round(self, n: int) -> RoundResult:
-        """n parallel episodes: choose modules and goals, roll out, store, score."""
+    def _collect(self, n: int, start: int, epoch: int, agent: Agent) -> _Collected:
+        """n parallel episodes from episode `start` on: choose modules and goals, roll out with
+        `agent`'s policy, judge success. Touches the training copies, the rollout stream and the
+        observer, nothing the learner or the test rollouts use (so it may run beside them)."""
         cfg, spec = self.config, self.spec
         n_mod = spec.n_modules
-        episodes = self.episodes + np.arange(n)
+        episodes = start + np.arange(n)
         evaluation = episodes % cfg.eval_every == cfg.eval_every - 1
-        practice = self.condition.practice_probs(self.tracker, self.epoch)
+        practice = self.condition.practice_probs(self.tracker, epoch)
         modules = np.where(
             evaluation,
             self.rng.integers(n_mod, size=n),
@@ -362,11 +376,10 @@ class Trainer:
         )
         raw = self.rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
         goals, mask, task = self._goals(modules, raw, self.rng)
-        experts = self.condition.acting_experts(modules, self.epoch)
+        experts = self.condition.acting_experts(modules, epoch)
         explore = ~evaluation
-        act = self._policy(goals, mask, task, experts, explore, self.rng)
+        act = self._policy(agent, goals, mask, task, experts, explore, self.rng)
 
-        self._start_failure_if_due()
         failing = self.failure_on(episodes)
         self._apply_failure(self.envs, failing)
         observer = self.observer
@@ -376,26 +389,43 @@ class Trainer:
         step_hook = observer.after_step if observer else None
         data = run_episodes(self.envs, modules, raw, act, step_hook)
         success = self._success(data, modules, goals)
+        info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
+        if observer is not None:
+            observer.end_round(info)
+        return _Collected(info, epoch)
 
-        self.replay.store(data.states, data.achieved, data.actions, modules, goals)
+    def _score(self, collected: _Collected) -> RoundResult:
+        """Store a round's episodes, add its evaluations to the competence queues, and the
+        measures after each of its episodes (the metrics rows)."""
+        info, n_mod = collected.info, self.spec.n_modules
+        data, modules, n = info.data, info.modules, len(info.episodes)
+        self.replay.store(data.states, data.achieved, data.actions, modules, info.goals)
         self.agent.encoder.update_stats(data.states)
-
         competence = np.empty((n, n_mod), np.float32)
         lp = np.empty((n, n_mod), np.float32)
         p_lp = np.empty((n, n_mod), np.float32)
         wall = np.empty(n, np.float64)
         for i in range(n):  # one episode at a time: rows hold the values after each episode
-            if evaluation[i]:
-                self.tracker.add(int(modules[i]), bool(success[i]))
+            if info.evaluation[i]:
+                self.tracker.add(int(modules[i]), bool(info.success[i]))
             competence[i] = self.tracker.competence()
             lp[i] = self.tracker.learning_progress()
-            p_lp[i] = self.condition.practice_probs(self.tracker, self.epoch)
+            p_lp[i] = self.condition.practice_probs(self.tracker, collected.epoch)
             wall[i] = self.wall_time()
         self.episodes += n
-        info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
-        if observer is not None:
-            observer.end_round(info)
         return RoundResult(info, competence, lp, p_lp, wall)
+
+    def _collect_cycle(self, epoch: int, agent: Agent) -> list[_Collected]:
+        """The rounds of one cycle, collected one after the other without scoring between them
+        (module choices follow the competence queues as they were at the start)."""
+        cfg, out, start = self.config, [], self.episodes
+        for _ in range(cfg.episodes_per_worker):
+            n = min(cfg.n_workers, cfg.total_episodes - start)
+            if n <= 0:
+                break
+            out.append(self._collect(n, start, epoch, agent))
+            start += n
+        return out
 
     def _success(self, data: EpisodeData, modules: np.ndarray, goals: np.ndarray) -> np.ndarray:
         """(n,) final success of each episode's module. In the holistic condition, the scored
@@ -429,7 +459,7 @@ class Trainer:
             goals, mask, task = self._goals(modules, raw, self.test_rng)
             experts = self.condition.acting_experts(modules, self.epoch)
 
-            act = self._policy(goals, mask, task, experts, explore, self.test_rng)
+            act = self._policy(self.agent, goals, mask, task, experts, explore, self.test_rng)
             data = run_episodes(envs, modules, raw, act)
             parts["worker"].append(np.arange(n, dtype=np.int32))
             parts["module"].append(modules)
@@ -470,21 +500,46 @@ class Trainer:
         rows["wall_time"] = round_.wall
         return rows
 
-    def cycle(self) -> CycleResult:
-        """One cycle: rollouts, then updates, then the target update (see the module docstring)."""
+    def cycle(self, drain: bool = False) -> CycleResult:
+        """One cycle: rollouts, then updates, then the target update (see the module docstring).
+
+        With `overlap_rollouts`, the rounds scored now were collected during the previous
+        cycle's updates, and the next cycle's rounds are collected during this one's, with the
+        policy as it is before them; `drain` (before a checkpoint) collects and scores those
+        too, so that a checkpoint holds no rounds in flight.
+        """
         cfg, n_mod = self.config, self.spec.n_modules
         timings = dict.fromkeys(("rollout_policy", "rollout_env", "store", "sample", "update"), 0.0)
+        epoch = self.cycles // cfg.n_cycles
         rounds: list[RoundResult] = []
-        for _ in range(cfg.episodes_per_worker):
-            n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
-            if n <= 0:
-                break
+
+        def score(collected: _Collected) -> None:
             tic = time.perf_counter()
-            rounds.append(self._round(n))
-            data = rounds[-1].info.data
-            timings["rollout_policy"] += data.policy_seconds
-            timings["rollout_env"] += data.env_seconds
-            timings["store"] += time.perf_counter() - tic - data.policy_seconds - data.env_seconds
+            rounds.append(self._score(collected))
+            timings["store"] += time.perf_counter() - tic
+            timings["rollout_policy"] += collected.info.data.policy_seconds
+            timings["rollout_env"] += collected.info.data.env_seconds
+
+        if not cfg.overlap_rollouts:
+            for _ in range(cfg.episodes_per_worker):
+                n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
+                if n <= 0:
+                    break
+                self._start_failure_if_due(self.episodes)
+                score(self._collect(n, self.episodes, epoch, self.agent))
+        else:
+            if self._pending is not None:
+                collected, self._pending = self._pending.result(), None
+            else:
+                self._start_failure_if_due(self.episodes)
+                collected = self._collect_cycle(epoch, self.agent)
+            for c in collected:
+                score(c)
+            if not self.done:  # the next cycle's rounds, beside this cycle's updates
+                next_epoch = (self.cycles + 1) // cfg.n_cycles
+                acting = self.agent.acting_copy()
+                self._start_failure_if_due(self.episodes)  # decided here, read in the thread
+                self._pending = self._pool().submit(self._collect_cycle, next_epoch, acting)
 
         losses: dict[str, float] = {}
         replay_counts = np.zeros(n_mod, np.int64)
@@ -510,6 +565,10 @@ class Trainer:
             losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
             losses["reward_mean"] = float(np.mean(rewards))
             timings["update"] += time.perf_counter() - tic
+        if drain and self._pending is not None:
+            collected, self._pending = self._pending.result(), None
+            for c in collected:
+                score(c)
         self.cycles += 1
         tests = None
         if cfg.test_rollouts_per_worker and (self.cycles % cfg.n_cycles == 0 or self.done):
@@ -543,6 +602,8 @@ class Trainer:
     # ------------------------------------------------------------------------------------------
     def state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(small state for torch.save, replay arrays for npz)."""
+        if self._pending is not None:
+            raise RuntimeError("rounds are in flight: run cycle(drain=True) before a checkpoint")
         state = {
             "config": self.config.to_dict(),
             "episodes": self.episodes,
@@ -584,8 +645,16 @@ class Trainer:
         self.elapsed = float(state["elapsed"])
         self._started = time.perf_counter()
 
+    def _pool(self) -> concurrent.futures.ThreadPoolExecutor:
+        if self._executor is None:
+            self._executor = concurrent.futures.ThreadPoolExecutor(1, "rollouts")
+        return self._executor
+
     def close(self) -> None:
-        """Stop the environment workers, if any."""
+        """Finish rounds in flight, and stop the rollout thread and the environment workers."""
+        if self._executor is not None:
+            self._executor.shutdown(wait=True)
+            self._executor = None
         self.envs.close()
         self.test_envs.close()
 
@@ -748,7 +817,11 @@ def _run(
     cycles_here = 0
     try:
         while not trainer.done:
-            result = trainer.cycle()
+            every = config.checkpoint_every_cycles
+            drain = (trainer.cycles + 1) % every == 0 or (
+                stop_after_cycles is not None and cycles_here + 1 >= stop_after_cycles
+            )
+            result = trainer.cycle(drain=drain)
             cycles_here += 1
             metrics.append(result.rows)
             if result.tests is not None:

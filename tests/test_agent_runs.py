@@ -85,13 +85,15 @@ def test_run_folder_holds_config_metrics_and_checkpoint(tmp_path, condition):
     assert len(list_checkpoints(folder / "checkpoints")) == 2  # the newest and the one before
 
 
-def test_resume_gives_the_same_run_as_no_interruption(tmp_path):
-    whole = run_stop(tmp_path / "whole", stop=None, total_episodes=48, checkpoint_every_cycles=3)
-    first = run_stop(tmp_path / "split", stop=5, total_episodes=48, checkpoint_every_cycles=3)
-    assert first.episodes == 20
-    rest = run_stop(
-        tmp_path / "split", stop=None, resume=True, total_episodes=48, checkpoint_every_cycles=3
-    )
+@pytest.mark.parametrize("overlap", [False, True])
+def test_resume_gives_the_same_run_as_no_interruption(tmp_path, overlap):
+    common = dict(total_episodes=48, checkpoint_every_cycles=3, overlap_rollouts=overlap)
+    whole = run_stop(tmp_path / "whole", stop=None, **common)
+    # A kill resumes from a checkpoint: overlapped, checkpoints collect the rounds in flight,
+    # so the split is taken at a checkpoint cycle (6), where the whole run drained them too.
+    first = run_stop(tmp_path / "split", stop=6 if overlap else 5, **common)
+    assert first.episodes == (32 if overlap else 20)
+    rest = run_stop(tmp_path / "split", stop=None, resume=True, **common)
     assert rest.episodes == 48
     for a, b in zip(
         whole.agent.experts[0].state_dict().items(),
@@ -382,7 +384,7 @@ def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     trainer.tracker = CompetenceTracker(trainer.spec.n_modules, trainer.config.lp_window)
     for _ in range(trainer.config.lp_window - 1):  # competence 1.0 over less than a window
         trainer.tracker.add(module, True)
-    trainer._start_failure_if_due()
+    trainer._start_failure_if_due(trainer.episodes)
     assert trainer.failure_start is None
     trainer.tracker.add(module, True)  # a full window at competence >= 0.75
     started_at = trainer.episodes
@@ -569,3 +571,34 @@ def test_a_damaged_recording_does_not_stop_a_resume(tmp_path):
     np.testing.assert_array_equal(
         recorded_episodes(tmp_path / "r" / "recording.rrd"), np.arange(16, 24)
     )
+
+
+def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_path, monkeypatch):
+    """With overlap_rollouts, the next cycle's episodes are collected during this cycle's
+    updates by a copy of the policy taken before them: acting lags learning by one cycle."""
+    from curious.agent import Agent
+    from curious.train import Trainer
+
+    copies = []
+    original = Agent.acting_copy
+
+    def recorded(self):
+        copies.append(original(self))
+        return copies[-1]
+
+    monkeypatch.setattr(Agent, "acting_copy", recorded)
+    config = resolve("smoke", "curious", 0, {**SMALL, "overlap_rollouts": True})
+    trainer = Trainer(config, toy_envs(config))
+    try:
+        before = [p.detach().clone() for p in trainer.agent.experts[0].actor.parameters()]
+        trainer.cycle()  # collects its own rounds, then the next cycle's beside the updates
+        assert len(copies) == 1 and trainer._pending is not None
+        frozen = list(copies[0].experts[0].actor.parameters())
+        live = list(trainer.agent.experts[0].actor.parameters())
+        assert all(torch.equal(f, b) for f, b in zip(frozen, before, strict=True))
+        assert any(not torch.equal(f, p) for f, p in zip(frozen, live, strict=True))
+        result = trainer.cycle(drain=True)  # the rounds in flight, then the next ones, stored
+        assert trainer._pending is None and len(result.rows["episode"]) == 8
+        np.testing.assert_array_equal(result.rows["episode"], np.arange(4, 12))
+    finally:
+        trainer.close()
