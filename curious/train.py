@@ -19,9 +19,14 @@ call of `Trainer.cycle()`:
    stream): the success that Fig. 2a plots, as the authors' evaluator. They change nothing of
    training.
 
+With `overlap_rollouts`, step 1 for the next cycle runs in a thread during step 3, acting with a
+copy of the policy from before the updates; its rounds are stored and scored at the start of the
+next cycle. The environment copies step in this process or in worker processes
+(`curious.env_batch`, `env_processes`).
+
 `train()` runs a `Trainer` in a run folder: `metrics.parquet` and `tests.parquet` rows,
-checkpoints every
-`checkpoint_every_cycles` cycles, `--resume`, a progress bar and an optional recorder.
+checkpoints every `checkpoint_every_cycles` cycles (with no rounds in flight), `--resume`, a
+progress bar and an optional recorder.
 
 A recorder (`Recorder`, e.g. `curious.recording.RunRecorder`) is optional; after every cycle
 `train()` calls it, with B the cycle's episodes and N the modules:
