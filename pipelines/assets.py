@@ -17,6 +17,7 @@ For every experiment E (`curious.experiments`), in group E:
 And `report` (group `report`): `report.md` from the figures and statistics that exist.
 """
 
+import base64
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -38,6 +39,24 @@ FIGURES: dict[str, tuple[str, ...]] = {
     "distractors": ("distractors",),
     "sensor_failure": ("forgetting",),
 }
+
+
+def _path(repro: Reproduction, path: Path) -> dg.MetadataValue:
+    """A path in asset metadata, relative to the output folder where it lies inside it, so that
+    the metadata stays true when the folder is moved or shared."""
+    path = Path(path)
+    try:
+        return dg.MetadataValue.path(
+            path.resolve().relative_to(repro.layout.out.resolve()).as_posix()
+        )
+    except ValueError:  # outside it (--runs-dir on shared storage)
+        return dg.MetadataValue.path(str(path))
+
+
+def _inline_png(path: Path) -> dg.MetadataValue:
+    """The figure itself, as markdown with the PNG inlined, for the asset's page."""
+    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    return dg.MetadataValue.md(f"![{Path(path).stem}](data:image/png;base64,{data})")
 
 
 def partitions_of(experiment: Experiment) -> dg.MultiPartitionsDefinition:
@@ -85,7 +104,7 @@ def _runs_asset(experiment: Experiment) -> dg.AssetsDefinition:
         trained = [r for r in results if r.trained]
         return dg.MaterializeResult(
             metadata={
-                "runs_root": dg.MetadataValue.path(str(repro.layout.experiment_runs(name))),
+                "runs_root": _path(repro, repro.layout.experiment_runs(name)),
                 "partitions": len(results),
                 "trained": len(trained),
                 "already_finished": len(results) - len(trained),
@@ -173,7 +192,7 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
         runs = analysis.runs_table(table)
         return dg.MaterializeResult(
             metadata={
-                "path": dg.MetadataValue.path(str(path)),
+                "path": _path(repro, path),
                 "runs": len(runs),
                 "rows": len(table),
                 "episodes_per_run": int(runs["n_episodes"].max()),
@@ -204,7 +223,7 @@ def _draw(
             fig, per_run = analysis.forgetting(table, note=note, out_dir=out_dir)
             csv = f"{out_dir}/forgetting.csv"
             per_run.drop(columns=["run"]).to_csv(csv, index=False, float_format="%.6g")
-            extra["recovery_csv"] = dg.MetadataValue.path(csv)
+            extra["recovery_csv"] = _path(repro, Path(csv))
         else:  # pragma: no cover - FIGURES and this function are kept in step
             raise KeyError(name)
         caption = " ".join(fig.get_supxlabel().split())  # unwrapped
@@ -233,8 +252,9 @@ def _figure_asset(experiment: Experiment, name: str) -> dg.AssetsDefinition:
         repro.say(f"  figure: {out_dir / name}.png")
         return dg.MaterializeResult(
             metadata={
-                "png": dg.MetadataValue.path(str(out_dir / f"{name}.png")),
-                "svg": dg.MetadataValue.path(str(out_dir / f"{name}.svg")),
+                "figure": _inline_png(out_dir / f"{name}.png"),
+                "png": _path(repro, out_dir / f"{name}.png"),
+                "svg": _path(repro, out_dir / f"{name}.svg"),
                 **extra,
             }
         )
@@ -258,7 +278,7 @@ def _report_asset(experiments: list[Experiment]) -> dg.AssetsDefinition:
         path, included = write_report(repro)
         return dg.MaterializeResult(
             metadata={
-                "path": dg.MetadataValue.path(str(path)),
+                "path": _path(repro, path),
                 "experiments": ", ".join(included),
             }
         )

@@ -134,6 +134,9 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
                 event = instance.get_latest_materialization_event(dg.AssetKey([name, figure]))
                 metadata = event.asset_materialization.metadata
                 assert metadata["caption"].value.endswith(note), (name, figure)
+                # paths relative to the output folder (it may move); the figure shown inline
+                assert metadata["png"].value == f"figures/{figure}.png"
+                assert metadata["figure"].value.startswith(f"![{figure}](data:image/png;base64,")
     finally:
         instance.dispose()
 
