@@ -206,27 +206,33 @@ KILL_SCRIPT = textwrap.dedent(
 )
 
 
-def test_sigkill_leaves_readable_metrics_and_a_resumable_run(tmp_path):
-    out = tmp_path / "killed"
-    script = KILL_SCRIPT.format(tests=str(TESTS), out=str(out))
+def kill_after_a_checkpoint(script: str, out: Path, episodes: int = 40, wait: float = 90) -> int:
+    """Run a training script, SIGKILL it once it has a checkpoint at `episodes` or more, and
+    return the episodes of the last checkpoint it left."""
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.Popen([sys.executable, "-c", script], env=env)
     try:
-        deadline = time.time() + 60
+        deadline = time.time() + wait
         while time.time() < deadline:
             ckpts = list_checkpoints(out / "checkpoints")
-            if ckpts and int(ckpts[-1].name[3:]) >= 40:
+            if ckpts and int(ckpts[-1].name[3:]) >= episodes:
                 break
             assert proc.poll() is None, "training process ended early"
             time.sleep(0.05)
         else:
-            pytest.fail("no checkpoint after 60 s")
+            pytest.fail(f"no checkpoint after {wait} s")
         time.sleep(0.1)
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
     finally:
         if proc.poll() is None:
             proc.kill()
+    return int(list_checkpoints(out / "checkpoints")[-1].name[3:])
+
+
+def test_sigkill_leaves_readable_metrics_and_a_resumable_run(tmp_path):
+    out = tmp_path / "killed"
+    kill_after_a_checkpoint(KILL_SCRIPT.format(tests=str(TESTS), out=str(out)), out)
     df = pq.read_table(out / "metrics.parquet").to_pandas()  # readable after SIGKILL
     np.testing.assert_array_equal(df["episode"], np.arange(len(df)))
     saved = int(list_checkpoints(out / "checkpoints")[-1].name[3:])
@@ -515,24 +521,9 @@ def test_sigkill_leaves_a_whole_recording_that_a_resume_continues_without_a_gap(
     from curious.recording.rollouts import recorder_factory
 
     out = tmp_path / "killed"
-    script = RECORDED_KILL_SCRIPT.format(tests=str(TESTS), out=str(out))
-    proc = subprocess.Popen([sys.executable, "-c", script], env={**os.environ})
-    try:
-        deadline = time.time() + 90
-        while time.time() < deadline:
-            ckpts = list_checkpoints(out / "checkpoints")
-            if ckpts and int(ckpts[-1].name[3:]) >= 40:
-                break
-            assert proc.poll() is None, "training process ended early"
-            time.sleep(0.05)
-        else:
-            pytest.fail("no checkpoint after 90 s")
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=10)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    saved = int(list_checkpoints(out / "checkpoints")[-1].name[3:])
+    saved = kill_after_a_checkpoint(
+        RECORDED_KILL_SCRIPT.format(tests=str(TESTS), out=str(out)), out
+    )
     held = recorded_episodes(out / "recording.rrd")  # a whole file after the kill
     assert held.max() >= saved - 1 - 4  # at most one checkpoint interval behind
     np.testing.assert_array_equal(held, np.arange(len(held)))
