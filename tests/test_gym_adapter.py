@@ -88,3 +88,37 @@ def test_stable_baselines3_her_trains_on_a_module():
     model.learn(total_timesteps=150)
     assert model.replay_buffer.size() > 0
     env.close()
+
+
+@pytest.mark.slow
+def test_stable_baselines3_td3_her_learns_reach_through_the_adapter():
+    """An independent library learns a module of the suite through `suite.gym_adapter` (about
+    5 minutes on 2 cores): Stable-Baselines3 TD3 + HER ('future', 4 goals), 20,000 steps (400
+    episodes), then 50 noise-free episodes on new goals."""
+    sb3 = pytest.importorskip("stable_baselines3")
+    import torch
+    from stable_baselines3.her.her_replay_buffer import HerReplayBuffer
+
+    torch.set_num_threads(1)
+    env = ModuleGoalEnv("default", "reach", seed=0)
+    model = sb3.TD3(
+        "MultiInputPolicy",
+        env,
+        replay_buffer_class=HerReplayBuffer,
+        replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
+        learning_starts=1000,
+        batch_size=256,
+        policy_kwargs={"net_arch": [256, 256, 256]},
+        gamma=0.98,
+        seed=0,
+    )
+    model.learn(total_timesteps=20_000)
+    test = ModuleGoalEnv("default", "reach", seed=123)
+    successes = 0
+    for _ in range(50):
+        obs, _ = test.reset()
+        for _ in range(50):
+            action, _ = model.predict(obs, deterministic=True)
+            obs, _, _, _, info = test.step(action)
+        successes += info["is_success"]
+    assert successes >= 40
