@@ -6,13 +6,13 @@ Common to all: every `eval_every`-th episode is a self-evaluation without explor
 module drawn uniformly (the released code evaluated "random tasks"), so that every module's
 competence queue fills at the same rate whatever the condition selects for practice.
 
-* `curious`: one E-UVFA policy; the next module and every replayed transition's substitute module
-  are drawn from p_LP.
-* `m-uvfa`: the same policy with uniform module selection and uniform substitution (the later
+* `curious`: one E-UVFA policy; the next module and the module each relabelled transition is
+  replayed as (task replay, `curious.replay`) are drawn from p_LP.
+* `m-uvfa`: the same policy with uniform module selection and uniform task replay (the later
   paper's ablation of learning progress).
 * `mg-te`: one expert policy per module (each with the E-UVFA input, whose task part is then
   constant), sharing one replay buffer. Epoch e practises module e mod N with expert e mod N and
-  trains that expert only, replaying every transition as its module (with HER goals); an
+  trains that expert only, replaying relabelled transitions as its module (with HER goals); an
   evaluation of module m uses expert m.
 * `her`: one policy over the holistic goal space: every episode draws a goal for every module at
   once and the reward is 0 only when all of them are met (the paper's flat baseline). The task
@@ -51,7 +51,8 @@ class Condition:
         return self.uniform()
 
     def replay_probs(self, tracker: CompetenceTracker, epoch: int) -> np.ndarray | None:
-        """(N,) probabilities of replayed transitions' substitute module (None: holistic)."""
+        """(N,) probabilities of the module relabelled transitions are replayed as (None:
+        holistic)."""
         return self.uniform()
 
     def acting_experts(self, modules: np.ndarray, epoch: int) -> np.ndarray:
