@@ -16,7 +16,7 @@ Entity paths (fixed, so that recordings of different runs line up):
 | `p_lp/<module>` | module selection probability (line, written where it changes*) |
 | `success/eval/<module>`, `success/train/<module>` | 0/1 final success of each episode (points) |
 | `module/<module>` | the module of each episode, drawn at its slot index (points) |
-| `replay/<module>` | share of replayed transitions substituted with that module |
+| `replay/<module>` | share of replayed transitions with that module (relabelled or their own) |
 | `losses/<name>`, `q/<name>` | learner statistics |
 | `scene/...` | rollouts in 3D: bodies, goal, gripper path (see `curious.recording.scene`) |
 
@@ -496,8 +496,8 @@ class RunRecorder:
         self._maybe_send()
 
     def log_replay(self, episode: Any, counts: Any, wall_time: Any = None) -> None:
-        """Logs the replay composition: how often each module was substituted into replayed
-        transitions (counts or shares; each row is normalised to shares).
+        """Logs the replay composition: how many replayed transitions had each module (counts
+        or shares; each row is normalised to shares).
 
         Args:
             episode: int or (B,) episode index at which each row was measured.
