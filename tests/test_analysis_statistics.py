@@ -333,8 +333,9 @@ def test_a_failure_that_never_started_is_said_so_not_measured(tmp_path):
     per_run = recovery(df)
     assert per_run["status"].tolist() == ["never_started"]
     assert per_run["note"].iat[0] == (
-        "the failure never started: push_cube3 never reached competence 0.50 within 400 "
-        "episodes (highest 0.10)"
+        "the failure never started: push_cube3 never reached competence 0.50 over a full window "
+        "of its evaluations within 400 episodes (highest 0.10, early values over fewer "
+        "evaluations included)"
     )
     assert per_run["recovery_episodes"].isna().all()
     fig, _ = analysis.forgetting(df)

@@ -461,8 +461,9 @@ def _never_started(
         note = f"the run ended after {n_episodes:,} episodes, before episode {planned:,}"
     elif np.isfinite(threshold):
         note = (
-            f"{module} never reached competence {threshold:.2f} within {n_episodes:,} episodes "
-            f"(highest {np.nanmax(values):.2f})"
+            f"{module} never reached competence {threshold:.2f} over a full window of its "
+            f"evaluations within {n_episodes:,} episodes (highest {np.nanmax(values):.2f}, early "
+            "values over fewer evaluations included)"
         )
     else:
         note = f"no episode of its {n_episodes:,} ran with it"
