@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from curious.envs import EnvSpec, GoalEnv
-from curious.normalizer import RunningNormalizer
+from curious.normalizer import RunningNormalizer, device_copies
 
 
 @dataclass(frozen=True)
@@ -94,7 +94,7 @@ class InputEncoder:
         self.clip = float(norm_clip)
         self._goal_centre = goal_box.centre.astype(np.float32)
         self._goal_scale = goal_box.scale
-        self._torch: dict[str, tuple[torch.Tensor, torch.Tensor]] = {}
+        self._torch: dict[str, tuple[torch.Tensor, ...]] = {}
         n, g = spec.n_modules, spec.goal_dim
         self.input_dim = spec.state_dim + n * g + n
 
@@ -102,18 +102,11 @@ class InputEncoder:
         """Add the states of a batch of episodes, (E, T+1, S), to the state statistics."""
         self.state_norm.update(states.reshape(-1, self.spec.state_dim))
 
-    def _goal_map(self, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
-        key = str(device)
-        if key not in self._torch:
-            self._torch[key] = (
-                torch.as_tensor(self._goal_centre, device=device),
-                torch.as_tensor(self._goal_scale, device=device),
-            )
-        return self._torch[key]
-
     def encode_goals(self, goals: torch.Tensor, goal_mask: torch.Tensor) -> torch.Tensor:
         """(B, N * G) network goal inputs from goal slots (B, N, G) and their mask (B, N)."""
-        centre, scale = self._goal_map(goals.device)
+        centre, scale = device_copies(
+            self._torch, goals.device, self._goal_centre, self._goal_scale
+        )
         scaled = torch.clamp((goals - centre) / scale, -self.clip, self.clip)
         return (scaled * goal_mask.unsqueeze(-1)).flatten(1)
 

@@ -17,17 +17,22 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+_EPISODE_COLUMNS: list[tuple[str, pa.DataType]] = [
+    ("episode", pa.int64()),
+    ("worker", pa.int32()),
+    ("module", pa.string()),
+    ("g0", pa.float32()),
+    ("g1", pa.float32()),
+    ("g2", pa.float32()),
+    ("success", pa.bool_()),
+]
+"""What both tables say of an episode: which, on which copy, its module and goal, its success."""
+
 
 def metrics_schema(module_names: Sequence[str]) -> pa.Schema:
     """The columns, in order, for a run over `module_names`."""
     columns = [
-        ("episode", pa.int64()),
-        ("worker", pa.int32()),
-        ("module", pa.string()),
-        ("g0", pa.float32()),
-        ("g1", pa.float32()),
-        ("g2", pa.float32()),
-        ("success", pa.bool_()),
+        *_EPISODE_COLUMNS,
         ("eval", pa.bool_()),
         ("sensor_failure", pa.bool_()),
     ]
@@ -43,19 +48,7 @@ def tests_schema() -> pa.Schema:
     `episode` is the number of training episodes done when the test ran (test rollouts are not
     training episodes and are not counted in it); `worker` is the test copy that ran it.
     """
-    return pa.schema(
-        [
-            ("epoch", pa.int64()),
-            ("episode", pa.int64()),
-            ("worker", pa.int32()),
-            ("module", pa.string()),
-            ("g0", pa.float32()),
-            ("g1", pa.float32()),
-            ("g2", pa.float32()),
-            ("success", pa.bool_()),
-            ("wall_time", pa.float64()),
-        ]
-    )
+    return pa.schema([("epoch", pa.int64()), *_EPISODE_COLUMNS, ("wall_time", pa.float64())])
 
 
 class TableLog:

@@ -13,6 +13,17 @@ import numpy as np
 import torch
 
 
+def device_copies(
+    cache: dict[str, tuple[torch.Tensor, ...]], device: torch.device, *arrays: np.ndarray
+) -> tuple[torch.Tensor, ...]:
+    """`arrays` as tensors on `device`, made once per device and kept in `cache` (which the
+    owner clears when the arrays change)."""
+    key = str(device)
+    if key not in cache:
+        cache[key] = tuple(torch.as_tensor(a, device=device) for a in arrays)
+    return cache[key]
+
+
 class RunningNormalizer:
     """Per-feature running mean and std over `shape`."""
 
@@ -25,7 +36,7 @@ class RunningNormalizer:
         self.sumsq = np.zeros(self.shape, dtype=np.float64)
         self.mean = np.zeros(self.shape, dtype=np.float32)
         self.std = np.ones(self.shape, dtype=np.float32)
-        self._torch: dict[str, tuple[torch.Tensor, torch.Tensor]] = {}
+        self._torch: dict[str, tuple[torch.Tensor, ...]] = {}
 
     def update(self, x: np.ndarray) -> None:
         """Add samples `x` of shape (n, *shape)."""
@@ -46,19 +57,10 @@ class RunningNormalizer:
             self.std = np.sqrt(np.maximum(self.eps**2, var)).astype(np.float32)
         self._torch.clear()
 
-    def _stats(self, device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
-        key = str(device)
-        if key not in self._torch:
-            self._torch[key] = (
-                torch.as_tensor(self.mean, device=device),
-                torch.as_tensor(self.std, device=device),
-            )
-        return self._torch[key]
-
     def normalize(self, x: Any) -> Any:
         """(x - mean) / std clipped; x of shape (..., *stat shape), numpy or torch."""
         if isinstance(x, torch.Tensor):
-            mean, std = self._stats(x.device)
+            mean, std = device_copies(self._torch, x.device, self.mean, self.std)
             return torch.clamp((x - mean) / std, -self.clip, self.clip)
         return np.clip((np.asarray(x) - self.mean) / self.std, -self.clip, self.clip)
 

@@ -182,7 +182,7 @@ class RunFolder:
                 f"(its config.json lacks {', '.join(lacking)}); start a new run, or resume "
                 "with the version that wrote it"
             )
-        stored = folder.read_config()
+        stored = Config.from_dict(raw)
         diff = config_differences(stored.to_dict(), config.to_dict())
         if diff:
             detail = ", ".join(
