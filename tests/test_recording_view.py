@@ -68,6 +68,29 @@ def test_with_display_opens_every_recording_in_one_viewer(
     (command,) = calls
     assert command[-2:] == [str(a / RECORDING_FILENAME), str(rrd)]
     assert "rerun" in " ".join(command[:-2])
+    # a window of its own even when another viewer listens (it would get the files silently)
+    assert "--new" in command
+
+
+def test_web_refuses_a_port_already_taken(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import socket
+
+    monkeypatch.setattr(view, "run_viewer", _no_viewer)
+    a = _run_folder(tmp_path, "run_a")
+    with socket.socket() as taken, socket.socket() as free:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        free.bind(("127.0.0.1", 0))  # bound, not listening: nobody serves there
+        busy, idle = taken.getsockname()[1], free.getsockname()[1]
+        for args, flag in (
+            (["--web-port", str(busy), "--grpc-port", str(idle)], "--web-port"),
+            (["--web-port", str(idle), "--grpc-port", str(busy)], "--grpc-port"),
+        ):
+            assert main(["view", "--web", *args, str(a)]) == 2
+            err = capsys.readouterr().err
+            assert f"port {busy} is already in use" in err and flag in err
 
 
 def test_web_serves_the_recordings(

@@ -2,7 +2,9 @@
 
 With a display, starts the native viewer (the `rerun` binary that rerun-sdk installs) on every
 run's `recording.rrd`; several runs open in one viewer, each its own recording under the same
-layout, listed in the viewer's recordings panel to switch between. Without a display it prints
+layout, listed in the viewer's recordings panel to switch between. Every `curious view` opens a
+window of its own, also when another viewer is running (which would otherwise receive the
+recordings silently). Without a display it prints
 how to look at them elsewhere, and `--web` serves them here to a browser (or to a native viewer
 on another machine) instead.
 """
@@ -14,6 +16,7 @@ import os
 import shlex
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -99,6 +102,24 @@ def web_viewer_url(host: str, web_port: int, grpc_port: int) -> str:
     return f"http://{host}:{web_port}/?url=rerun%2Bhttp://{host}:{grpc_port}/proxy"
 
 
+def port_in_use(port: int) -> bool:
+    """True when something on this machine already listens on `port` (a running viewer)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+        sock.settimeout(0.5)
+        return sock.connect_ex(("127.0.0.1", port)) == 0
+
+
+def busy_ports_error(web_port: int, grpc_port: int) -> str | None:
+    """Why `--web` cannot serve on these ports, or None when both are free."""
+    for port, flag in ((web_port, "--web-port"), (grpc_port, "--grpc-port")):
+        if port_in_use(port):
+            return (
+                f"port {port} is already in use (another `curious view --web` or Rerun server?); "
+                f"stop it, or choose a free port with {flag}"
+            )
+    return None
+
+
 def elsewhere_instructions(
     runs: list[str], paths: list[Path], web_port: int, grpc_port: int
 ) -> str:
@@ -161,6 +182,10 @@ def run(args: argparse.Namespace) -> int:
         return 2
     files = [str(p) for p in paths]
     if args.web:
+        busy = busy_ports_error(args.web_port, args.grpc_port)
+        if busy:
+            print(f"curious view: {busy}", file=sys.stderr)
+            return 2
         command = [
             *viewer_command(),
             "--serve-web",
@@ -180,4 +205,6 @@ def run(args: argparse.Namespace) -> int:
     if not has_display():
         print(elsewhere_instructions(args.runs, paths, args.web_port, args.grpc_port))
         return 0
-    return run_viewer([*viewer_command(), *files])
+    # `--new`: a window of this command's own; without it, a viewer already listening on the
+    # default port receives the recordings, and nothing opens here.
+    return run_viewer([*viewer_command(), "--new", *files])
