@@ -38,6 +38,7 @@ A recorder (`Recorder`, e.g. `curious.recording.RunRecorder`) is optional; after
     recorder.log_learner(episode, losses={"critic", "actor"}, q={"target_mean"})
     recorder.checkpoint()                    # before every checkpoint: make it durable
     recorder.close()                         # once, when training stops
+    recorder.close_after_error()             # instead, when an error stops it
 
 and a `Trainer.observer` (e.g. one that captures MuJoCo body poses for 3-D rollouts) is called
 around every round of parallel episodes:
@@ -103,6 +104,9 @@ class Recorder(Protocol):
         """Make what was logged so far durable (called before every training checkpoint)."""
 
     def close(self) -> None: ...
+
+    def close_after_error(self) -> None:
+        """Close when an error stopped training, never raising over that error."""
 
 
 class RoundObserver(Protocol):
@@ -845,8 +849,12 @@ def _run(
                 trainer.save_checkpoint(folder.checkpoints)
             if stop_now:
                 break
-    finally:
+    except BaseException:
         bar.close()
         if recorder is not None:
-            recorder.close()
+            recorder.close_after_error()  # never hides the error that stopped training
+        raise
+    bar.close()
+    if recorder is not None:
+        recorder.close()
     return trainer

@@ -336,6 +336,9 @@ class ListRecorder:
     def close(self):
         self.calls.append(("close",))
 
+    def close_after_error(self):
+        self.calls.append(("close_after_error",))
+
 
 def test_observer_and_recorder_hooks_are_called_in_order(tmp_path):
     observer, recorder = CountingObserver(), ListRecorder()
@@ -593,3 +596,61 @@ def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_pat
         np.testing.assert_array_equal(result.rows["episode"], np.arange(4, 12))
     finally:
         trainer.close()
+
+
+def test_a_full_disk_under_the_recording_is_a_clear_error_and_the_run_resumes(
+    tmp_path, monkeypatch
+):
+    """Disk full while the recording is made durable at a checkpoint: the error says so and
+    names the file (Rerun alone says "File-writer thread shut down prematurely"), no
+    temporary file is left, and a resume once there is room gives the whole recording."""
+    import errno
+    import shutil
+
+    from curious.recording import RecorderSettings, rrd_files
+    from curious.recording.rollouts import recorder_factory
+
+    settings = RecorderSettings(rollout_every=0)
+    config = resolve(
+        "smoke", "curious", 0, {**SMALL, "total_episodes": 32, "checkpoint_every_cycles": 1}
+    )
+    copies = []
+
+    def full_at_the_third(source, target):
+        copies.append(target)
+        if len(copies) == 3:
+            raise OSError(errno.ENOSPC, "No space left on device", str(source))
+        return shutil.copyfile(source, target)
+
+    monkeypatch.setattr(rrd_files.shutil, "copyfile", full_at_the_third)
+    out = tmp_path / "r"
+    with pytest.raises(OSError, match="No space left on device") as error:
+        train(config, out, make_envs=toy_envs, make_recorder=recorder_factory(False, settings))
+    assert error.value.errno == errno.ENOSPC and error.value.filename == str(out / "recording.rrd")
+    assert not list(out.glob(".recording.rrd.*"))  # neither the working file nor a half copy
+    monkeypatch.undo()
+    train(
+        config, out, resume=True, make_envs=toy_envs, make_recorder=recorder_factory(True, settings)
+    )
+    np.testing.assert_array_equal(recorded_episodes(out / "recording.rrd"), np.arange(32))
+
+
+def test_a_sink_that_dies_on_a_full_disk_is_named_as_one(tmp_path, monkeypatch):
+    import errno
+    from collections import namedtuple
+
+    from curious.recording import rrd_files
+
+    class DeadSink:
+        def flush(self, timeout_sec):
+            raise RuntimeError("File-writer thread shut down prematurely")
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(rrd_files.shutil, "disk_usage", lambda path: usage(10**9, 10**9, 4096))
+    with pytest.raises(OSError) as full:
+        rrd_files.flush_to_file(DeadSink(), tmp_path / "x.rrd")
+    assert full.value.errno == errno.ENOSPC and "File-writer" in str(full.value)
+    monkeypatch.setattr(rrd_files.shutil, "disk_usage", lambda path: usage(10**12, 0, 10**12))
+    with pytest.raises(OSError, match=r"could not be written to .*x\.rrd: File-writer") as other:
+        rrd_files.flush_to_file(DeadSink(), tmp_path / "x.rrd")
+    assert other.value.errno is None

@@ -39,6 +39,7 @@ at the rollout's episode, where the 3D view then shows how each recorded episode
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import time
@@ -57,6 +58,8 @@ from curious.recording.blueprint import default_blueprint
 from curious.recording.rrd_files import (
     PreviousRecording,
     compact_recording,
+    flush_to_file,
+    has_room_for,
     load_previous,
     replace_with_copy,
 )
@@ -628,7 +631,7 @@ class RunRecorder:
         """Sends the buffered scalars and blocks until everything logged so far is written."""
         self._check_open()
         self._send_buffer()
-        self.stream.flush()
+        flush_to_file(self.stream, self.working)
 
     def checkpoint(self) -> None:
         """Makes `recording.rrd` hold everything logged so far (before a training checkpoint):
@@ -649,14 +652,35 @@ class RunRecorder:
                     if self._logged_until[kind][m] < self._latest_episode:
                         self._send_scalars(f"{kind}/{name}", ep, wall, self._last[kind][m : m + 1])
         self._send_buffer()
-        self.stream.flush()
+        flush_to_file(self.stream, self.working)
         self.stream.disconnect()
         self._closed = True
-        if self.settings.compact_on_close:
+        size = self.working.stat().st_size
+        if self.settings.compact_on_close and has_room_for(self.working, size):
             compact_recording(self.working, self.path)
             self.working.unlink()
-        else:
+        else:  # compacting needs room for a second copy; the recording is whole without it
             os.replace(self.working, self.path)
+
+    def close_after_error(self) -> None:
+        """Ends the recording when an error stopped training, never raising over that error.
+
+        What was logged is flushed and becomes `recording.rrd`, uncompacted (a rename needs no
+        room on a full disk; the next resume compacts it). If even that cannot be written, the
+        recording stays as at the last checkpoint, where a resume starts anyway.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._send_buffer()
+            flush_to_file(self.stream, self.working, timeout=60.0)
+            self.stream.disconnect()
+            os.replace(self.working, self.path)
+        except Exception:
+            with contextlib.suppress(Exception):
+                self.stream.disconnect()
+            self.working.unlink(missing_ok=True)
 
     def __enter__(self) -> RunRecorder:
         return self

@@ -9,6 +9,7 @@ run reads the recording of its last checkpoint into memory, cut at the checkpoin
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 from dataclasses import dataclass
@@ -21,7 +22,57 @@ from rerun.chunk import Chunk, OptimizationProfile, RrdReader
 
 from curious.recording.blueprint import default_blueprint
 
-__all__ = ["PreviousRecording", "compact_recording", "load_previous", "replace_with_copy"]
+__all__ = [
+    "PreviousRecording",
+    "RecordingWriteError",
+    "compact_recording",
+    "flush_to_file",
+    "load_previous",
+    "replace_with_copy",
+]
+
+_NEARLY_FULL = 64 * 2**20
+"""Free bytes under which a failed write is put down to a full disk."""
+
+
+class RecordingWriteError(OSError):
+    """A recording file could not be written (Rerun's file writer stopped), with the reason in
+    the user's terms: Rerun itself says only "File-writer thread shut down prematurely"."""
+
+
+FLUSH_TIMEOUT_SECONDS = 300.0
+"""Longest wait for a file sink to take what was logged: Rerun's flush can wait forever on a file
+writer that died (a full disk), and a healthy one takes seconds even for a whole run."""
+
+
+def flush_to_file(
+    stream: rr.RecordingStream, path: Path, timeout: float = FLUSH_TIMEOUT_SECONDS
+) -> None:
+    """`stream.flush()`, with a failure of its file sink writing `path` raised as a
+    `RecordingWriteError` naming the file (and a full disk, when it is one)."""
+    try:
+        stream.flush(timeout_sec=timeout)
+    except RuntimeError as exc:
+        raise _write_error(path, exc) from exc
+
+
+def has_room_for(path: Path, size: int) -> bool:
+    """Whether the disk holding `path` has `size` bytes free, and a margin."""
+    return shutil.disk_usage(path.parent).free >= size + _NEARLY_FULL
+
+
+def _write_error(path: Path, cause: BaseException) -> RecordingWriteError:
+    try:
+        full = shutil.disk_usage(path.parent).free < _NEARLY_FULL
+    except OSError:
+        full = False
+    if full:
+        return RecordingWriteError(
+            errno.ENOSPC,
+            f"No space left on device: the recording could not be written ({cause})",
+            str(path),
+        )
+    return RecordingWriteError(f"the recording could not be written to {path}: {cause}")
 
 
 @dataclass
@@ -35,10 +86,17 @@ class PreviousRecording:
 def replace_with_copy(source: Path, target: Path) -> None:
     """`target` becomes a copy of `source`, atomically (a temporary file, fsync, rename)."""
     tmp = target.with_name(f".{target.name}.tmp")
-    shutil.copyfile(source, tmp)
-    with open(tmp, "rb") as handle:
-        os.fsync(handle.fileno())
-    os.replace(tmp, target)
+    try:
+        shutil.copyfile(source, tmp)
+        with open(tmp, "rb") as handle:
+            os.fsync(handle.fileno())
+        os.replace(tmp, target)
+    except OSError as exc:  # named after the file being made, not the working copy it reads
+        raise RecordingWriteError(
+            exc.errno, f"{exc.strerror or exc}: the recording could not be copied", str(target)
+        ) from exc
+    finally:
+        tmp.unlink(missing_ok=True)  # a half-written copy (disk full) is not left behind
 
 
 def compact_recording(
@@ -62,11 +120,14 @@ def compact_recording(
     stream = rr.RecordingStream(
         stores[0].application_id, recording_id=stores[0].recording_id, send_properties=False
     )
-    stream.set_sinks(rr.FileSink(str(tmp)), default_blueprint=default_blueprint())
-    stream.send_chunks(store)
-    stream.flush()
-    stream.disconnect()
-    os.replace(tmp, target)
+    try:
+        stream.set_sinks(rr.FileSink(str(tmp)), default_blueprint=default_blueprint())
+        stream.send_chunks(store)
+        flush_to_file(stream, tmp)
+        stream.disconnect()
+        os.replace(tmp, target)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def load_previous(path: Path, after_episode: int | None) -> tuple[PreviousRecording, str]:
