@@ -1,4 +1,4 @@
-"""What `curious reproduce` trains: the paper's experiments, per reproduce preset.
+"""What `curious reproduce` trains: the paper's experiments, per budget.
 
 An *experiment* is a set of training runs that one group of figures compares:
 
@@ -10,7 +10,7 @@ An *experiment* is a set of training runs that one group of figures compares:
   perturbation study: cube 3's observed x reads 5 cm too far, in the state and in push_cube3's
   outcome). The failure starts when push_cube3's competence first reaches a threshold
   (`sensor_failure_competence`), so that it perturbs a module that was learned, whatever the
-  budget; the `paper` preset starts it at the authors' fixed epoch instead, and `smoke` at a
+  budget; the `paper` budget starts it at the authors' fixed epoch instead, and `smoke` at a
   fixed episode, so that the pipeline's tests see a failure start. At small budgets the
   threshold may never be reached: the report then says so instead of measuring a recovery.
 
@@ -19,8 +19,9 @@ partition. Partitions are two-dimensional (Dagster's multi-partitions take exact
 `condition` x `seed`. Where an experiment trains several variants its condition axis carries the
 variant as well: `curious@distractors_4`.
 
-A *reproduce preset* chooses the training preset (`curious.config.PRESETS`), the seeds and the
-episode budget of every experiment:
+A *budget* (`curious reproduce --budget NAME`) chooses the training preset
+(`curious.config.PRESETS`, what `curious train --preset` takes), the seeds and the episodes per
+run of every experiment:
 
 =========  ===============================================================================
 `smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
@@ -29,7 +30,7 @@ episode budget of every experiment:
 `paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
 =========  ===============================================================================
 
-The numbers behind `quick` were measured on a 2-core machine; see `ReproducePreset.notes`.
+The numbers behind `quick` were measured on a 2-core machine; see `ReproduceBudget.notes`.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ VARIANT_SEPARATOR = "@"
 
 
 class ExperimentError(ValueError):
-    """An unknown reproduce preset or experiment, or a bad experiment definition."""
+    """An unknown budget or experiment, or a bad experiment definition."""
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,7 @@ class RunSpec:
 
 @dataclass(frozen=True)
 class Experiment:
-    """One experiment of a reproduce preset: what is trained, and for how long."""
+    """One experiment of a budget: what is trained, and for how long."""
 
     name: str
     title: str
@@ -212,8 +213,8 @@ class Experiment:
 
 
 @dataclass(frozen=True)
-class ReproducePreset:
-    """A reproduce preset: the experiments `curious reproduce --preset NAME` trains."""
+class ReproduceBudget:
+    """A budget: the experiments, seeds and episodes `curious reproduce --budget NAME` trains."""
 
     name: str
     description: str
@@ -254,7 +255,7 @@ class ReproducePreset:
         return [run for experiment in self.select(names) for run in experiment.runs()]
 
 
-def _main(preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
+def _main(train_preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
     return Experiment(
         name="main",
         title="Main comparison: CURIOUS, MG-TE and HER (paper Fig. 2, Table 1)",
@@ -262,12 +263,12 @@ def _main(preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
         variants=("default",),
         seeds=tuple(seeds),
         total_episodes=episodes,
-        train_preset=preset,
+        train_preset=train_preset,
         compare=("curious", "mg-te"),
     )
 
 
-def _distractors(preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
+def _distractors(train_preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
     return Experiment(
         name="distractors",
         title="Distracting modules: CURIOUS against M-UVFA with 0, 4 and 7 distractors",
@@ -275,7 +276,7 @@ def _distractors(preset: str, seeds: Sequence[int], episodes: int) -> Experiment
         variants=("distractors_0", "distractors_4", "distractors_7"),
         seeds=tuple(seeds),
         total_episodes=episodes,
-        train_preset=preset,
+        train_preset=train_preset,
         compare=("curious", "m-uvfa"),
     )
 
@@ -285,13 +286,13 @@ PAPER_FAILURE_EPISODE = 250 * 950
 (their train.py switches the bias on when `epoch == 250` in the perturbation study)."""
 
 LEARNED_FAILURE_COMPETENCE = 0.5
-"""The competence of push_cube3 that starts the failure in the `quick` and `laptop` presets: the
+"""The competence of push_cube3 that starts the failure in the `quick` and `laptop` budgets: the
 competence the analysis asks of a module before it counts a fall as forgetting
 (`curious.analysis.LEARNED_COMPETENCE`)."""
 
 
 def _sensor_failure(
-    preset: str,
+    train_preset: str,
     seeds: Sequence[int],
     episodes: int,
     at: int | None = None,
@@ -304,36 +305,36 @@ def _sensor_failure(
         variants=("sensor_failure",),
         seeds=tuple(seeds),
         total_episodes=episodes,
-        train_preset=preset,
+        train_preset=train_preset,
         sensor_failure_episode=at,
         sensor_failure_competence=competence,
         compare=("curious", "m-uvfa"),
     )
 
 
-def _preset(
+def _budget(
     name: str, description: str, notes: str, caption_note: str, *experiments: Experiment
-) -> ReproducePreset:
-    return ReproducePreset(name, description, {e.name: e for e in experiments}, notes, caption_note)
+) -> ReproduceBudget:
+    return ReproduceBudget(name, description, {e.name: e for e in experiments}, notes, caption_note)
 
 
-PRESETS_BY_NAME: dict[str, ReproducePreset] = {
-    p.name: p
-    for p in (
-        _preset(
+BUDGETS: dict[str, ReproduceBudget] = {
+    b.name: b
+    for b in (
+        _budget(
             "smoke",
             "seconds per run, for the tests: every figure and the report from tiny runs",
             "Training preset `smoke` (24 episodes, small networks). Curves are flat: the figures "
             "check that the pipeline works, not what the agent learns. The sensory failure "
             "starts at episode 12 (a fixed episode, so that a failure starts in the tests), where "
             "nothing has been learned: the report says there is nothing to forget.",
-            "Smoke-test budget (reproduce preset smoke): the curves check the pipeline, not what "
-            "the agent learns.",
+            "Budget smoke (for the tests): the curves check the pipeline, not what the agent "
+            "learns.",
             _main("smoke", (0, 1), 24),
             _distractors("smoke", (0,), 24),
             _sensor_failure("smoke", (0,), 24, at=12),
         ),
-        _preset(
+        _budget(
             "quick",
             "the README's job: every figure from small budgets, in minutes on 2 cores",
             "Training preset `quick` (2 workers x 2 episodes and 20 updates of 256 per cycle). "
@@ -343,14 +344,14 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
             "report then says so). One torch thread per run, 2 runs at a time. At this budget "
             "the agent learns reach and starts on push; the later modules, their phases and "
             "the effects of distractors and of the sensory failure need the `laptop` or `paper` "
-            "preset.",
-            "Small budget (reproduce preset quick): 1,000 episodes per run, 1/300 of the "
+            "budget.",
+            "Budget quick (small): 1,000 episodes per run, 1/300 of the "
             "paper's; at this budget only the first modules are learned.",
             _main("quick", (0, 1), 1_000),
             _distractors("quick", (0,), 1_000),
             _sensor_failure("quick", (0, 1), 1_000, competence=LEARNED_FAILURE_COMPETENCE),
         ),
-        _preset(
+        _budget(
             "laptop",
             "a day and a half on 2 cores (hours on more, or with --ray-address)",
             "Training preset `laptop` (4 workers x 2 episodes and 40 updates of 512 per cycle): "
@@ -359,13 +360,12 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
             "take about 35 h on 2 cores, 9 h on 8. The runs are independent: `--workers` runs "
             "them side by side, `--ray-address` across a cluster; an interrupted reproduction "
             "resumes.",
-            "Reduced budget (reproduce preset laptop): a third of the paper's episodes per run "
-            "and fewer seeds.",
+            "Budget laptop (reduced): a third of the paper's episodes per run and fewer seeds.",
             _main("laptop", (0, 1, 2), 100_000),
             _distractors("laptop", (0, 1), 50_000),
             _sensor_failure("laptop", (0, 1), 60_000, competence=LEARNED_FAILURE_COMPETENCE),
         ),
-        _preset(
+        _budget(
             "paper",
             "the authors' protocol, 5 seeds: for a cluster (--ray-address) or GPUs",
             "Training preset `paper` (19 workers x 2 episodes x 25 cycles per epoch, 100 updates "
@@ -382,25 +382,23 @@ PRESETS_BY_NAME: dict[str, ReproducePreset] = {
     )
 }
 
-DEFAULT_PRESET = "quick"
+DEFAULT_BUDGET = "quick"
 
 
-def get_preset(name: str) -> ReproducePreset:
-    """The reproduce preset called `name` (a clear error naming the known ones otherwise)."""
-    if name not in PRESETS_BY_NAME:
-        raise ExperimentError(
-            f"unknown reproduce preset {name!r}; choose one of {', '.join(PRESETS_BY_NAME)}"
-        )
-    return PRESETS_BY_NAME[name]
+def get_budget(name: str) -> ReproduceBudget:
+    """The budget called `name` (a clear error naming the known ones otherwise)."""
+    if name not in BUDGETS:
+        raise ExperimentError(f"unknown budget {name!r}; choose one of {', '.join(BUDGETS)}")
+    return BUDGETS[name]
 
 
 __all__ = [
-    "DEFAULT_PRESET",
+    "BUDGETS",
+    "DEFAULT_BUDGET",
     "EXPERIMENTS",
-    "PRESETS_BY_NAME",
     "Experiment",
     "ExperimentError",
-    "ReproducePreset",
+    "ReproduceBudget",
     "RunSpec",
-    "get_preset",
+    "get_budget",
 ]

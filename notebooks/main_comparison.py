@@ -21,10 +21,10 @@
 # CURIOUS > MG-TE.
 #
 # The paper's claim: CURIOUS rises faster than MG-TE (about 150k against 300k episodes), and
-# HER, one goal over the holistic goal space, stays flat. With the `quick` preset's small
-# budgets only the start of the curves is visible; `laptop` and `paper` go further.
+# HER, one goal over the holistic goal space, stays flat. With the `quick` budget's 1,000
+# episodes per run only the start of the curves is visible; `laptop` and `paper` go further.
 #
-# `out` is the output folder of `curious reproduce` (default: the quick preset's).
+# `out` is the output folder of `curious reproduce` (default: the quick budget's).
 
 # %%
 # %matplotlib inline

@@ -1,7 +1,7 @@
 """Dagster assets that train every condition and seed and rebuild the figures of the paper.
 
     dagster dev -m pipelines                      # the asset graph in the UI (needs curious[ui])
-    curious reproduce --preset quick              # the same assets, materialised in process
+    curious reproduce --budget quick              # the same assets, materialised in process
 
 `defs` (the `Definitions` Dagster loads) is built on first access from environment variables
 (`pipelines.definitions`), so importing this package, as every training worker does, stays cheap.

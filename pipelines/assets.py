@@ -1,4 +1,4 @@
-"""The Dagster assets of one reproduce preset, one asset group per experiment.
+"""The Dagster assets of one budget, one asset group per experiment.
 
 For every experiment E (`curious.experiments`), in group E:
 
@@ -206,7 +206,7 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
 def _draw(
     name: str, experiment: Experiment
 ) -> Callable[[Reproduction, pd.DataFrame, str, str], dict]:
-    """The analysis call of one figure, with the preset's caption note; returns the figure's
+    """The analysis call of one figure, with the budget's caption note; returns the figure's
     metadata: its caption, and extras such as a statistics CSV."""
     from curious import analysis
 
@@ -248,7 +248,7 @@ def _figure_asset(experiment: Experiment, name: str) -> dg.AssetsDefinition:
         table = load_metrics(repro, experiment.name)
         out_dir = repro.layout.figures
         out_dir.mkdir(parents=True, exist_ok=True)
-        extra = draw(repro, table, str(out_dir), repro.preset.caption_note)
+        extra = draw(repro, table, str(out_dir), repro.budget.caption_note)
         repro.say(f"  figure: {out_dir / name}.png")
         return dg.MaterializeResult(
             metadata={

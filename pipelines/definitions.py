@@ -1,17 +1,21 @@
-"""The Dagster `Definitions` of one reproduce preset, for `curious reproduce` and `dagster dev`.
+"""The Dagster `Definitions` of one budget, for `curious reproduce` and `dagster dev`.
 
 `build_definitions(reproduction)` holds every experiment's assets (see `pipelines.assets`) and
 the `reproduction` resource. `definitions_from_environment()` builds them from environment
 variables, which is what `dagster dev -m pipelines` loads:
 
-    CURIOUS_PRESET       reproduce preset (default: quick)
-    CURIOUS_OUT          output folder (default: the preset's, e.g. runs/quick)
+    CURIOUS_BUDGET       budget: smoke, quick, laptop or paper (default: quick)
+    CURIOUS_OUT          output folder (default: the budget's, e.g. runs/quick)
     CURIOUS_RUNS_DIR     run folders, e.g. on shared storage (default: $CURIOUS_OUT/runs)
     CURIOUS_RAY_ADDRESS  train partitions as Ray tasks there (default: local processes)
     CURIOUS_WORKERS      local worker processes (default: one per core)
 
 To see the runs `curious reproduce` made in the UI, point Dagster at its instance:
-`DAGSTER_HOME=runs/quick/.dagster CURIOUS_PRESET=quick dagster dev -m pipelines`.
+`DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster dev -m pipelines`.
+
+`CURIOUS_PRESET`, the variable's name before budgets were named apart from training presets,
+is refused with an error naming `CURIOUS_BUDGET` rather than ignored (ignored, the default
+budget would be loaded in place of the one meant).
 """
 
 from __future__ import annotations
@@ -20,15 +24,15 @@ import os
 
 import dagster as dg
 
-from curious.experiments import DEFAULT_PRESET, get_preset
+from curious.experiments import DEFAULT_BUDGET, ExperimentError, get_budget
 from pipelines.assets import RESOURCE, all_assets
 from pipelines.executors import make_pool
 from pipelines.resources import OutputLayout, Reproduction
 
 
 def build_definitions(reproduction: Reproduction) -> dg.Definitions:
-    """Every asset of the reproduction's preset, with `reproduction` as the shared resource."""
-    experiments = list(reproduction.preset.experiments.values())
+    """Every asset of the reproduction's budget, with `reproduction` as the shared resource."""
+    experiments = list(reproduction.budget.experiments.values())
     return dg.Definitions(
         assets=all_assets(experiments),
         resources={RESOURCE: dg.ResourceDefinition.hardcoded_resource(reproduction)},
@@ -37,14 +41,19 @@ def build_definitions(reproduction: Reproduction) -> dg.Definitions:
 
 def reproduction_from_environment() -> Reproduction:
     """The `Reproduction` the environment variables of the module docstring describe."""
-    preset = get_preset(os.environ.get("CURIOUS_PRESET", DEFAULT_PRESET))
+    if "CURIOUS_PRESET" in os.environ and "CURIOUS_BUDGET" not in os.environ:
+        raise ExperimentError(
+            f"CURIOUS_PRESET is no longer read: set CURIOUS_BUDGET={os.environ['CURIOUS_PRESET']} "
+            "instead (the budget, as in `curious reproduce --budget`)"
+        )
+    budget = get_budget(os.environ.get("CURIOUS_BUDGET") or DEFAULT_BUDGET)
     layout = OutputLayout.at(
-        os.environ.get("CURIOUS_OUT") or preset.default_out, os.environ.get("CURIOUS_RUNS_DIR")
+        os.environ.get("CURIOUS_OUT") or budget.default_out, os.environ.get("CURIOUS_RUNS_DIR")
     )
     address = os.environ.get("CURIOUS_RAY_ADDRESS") or None
     workers = int(os.environ["CURIOUS_WORKERS"]) if os.environ.get("CURIOUS_WORKERS") else None
     return Reproduction(
-        preset=preset,
+        budget=budget,
         layout=layout,
         make_pool=lambda: make_pool(address, workers),
         progress=False,

@@ -4,7 +4,7 @@ The main comparison's numbers (final success, Welch tests) come from the test ro
 2a's; the distractors' from the competence; the sensory failure's from `analysis.recovery`, which
 reports a recovery only where the failure started and the perturbed module was learned before it.
 
-The report is a function of the preset, the combined metrics and test tables and the figures on
+The report is a function of the budget, the combined metrics and test tables and the figures on
 disk (nothing in it depends on when it was written), so rebuilding it from the same runs gives the
 same bytes. An experiment appears once its metrics table exists; figures are linked relatively,
 so the output folder can be moved or shared as a whole.
@@ -365,10 +365,10 @@ def _versions(table: pd.DataFrame) -> str:
 
 def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
     """Write report.md for every experiment whose metrics table exists; returns (path, names)."""
-    layout, preset = repro.layout, repro.preset
+    layout, budget = repro.layout, repro.budget
     tables = {
         name: pd.read_parquet(layout.metrics(name))
-        for name in preset.experiments
+        for name in budget.experiments
         if layout.metrics(name).is_file()
     }
     points = {
@@ -376,13 +376,13 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         for name in tables
         if layout.tests(name).is_file()
     }
-    included = [preset.experiments[name] for name in tables]
+    included = [budget.experiments[name] for name in tables]
     lines = [
-        f"# CURIOUS reproduction — preset `{preset.name}`",
+        f"# CURIOUS reproduction — budget `{budget.name}`",
         "",
-        f"Made by `curious reproduce --preset {preset.name}`: {preset.description}.",
+        f"Made by `curious reproduce --budget {budget.name}`: {budget.description}.",
         "",
-        preset.notes,
+        budget.notes,
         "",
     ]
     if not included:
@@ -407,11 +407,11 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         lines += [f"## {e.title}", ""]
         lines += SECTIONS[e.name](repro, e, table, points.get(e.name))
         lines += ["### Runs", "", *_runs_table(table, points.get(e.name))]
-    missing = [name for name in preset.experiments if name not in tables]
+    missing = [name for name in budget.experiments if name not in tables]
     if missing and included:
         lines += [
             f"Not in this report (not reproduced yet): {', '.join(missing)}; run "
-            f"`curious reproduce --preset {preset.name} --experiments {','.join(missing)}`.",
+            f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`.",
             "",
         ]
     layout.out.mkdir(parents=True, exist_ok=True)

@@ -1,9 +1,9 @@
-"""Materialise a reproduce preset in process, on a Dagster instance kept in the output folder.
+"""Materialise a budget in process, on a Dagster instance kept in the output folder.
 
 `reproduce(...)` is what `curious reproduce` runs:
 
-1. checks everything it can before writing anything: the preset and experiments exist; the
-   output folder is new, empty, or was made by the same preset (`reproduce.json`); every run
+1. checks everything it can before writing anything: the budget and experiments exist; the
+   output folder is new, empty, or was made by the same budget (`reproduce.json`); every run
    folder is empty, or holds (part of) the very run its partition should hold; the Ray cluster,
    if one is named, answers;
 2. for each experiment, one Dagster run materialises its `runs` asset over all its partitions
@@ -26,7 +26,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from curious.experiments import Experiment, ExperimentError, ReproducePreset, get_preset
+from curious.experiments import Experiment, ExperimentError, ReproduceBudget, get_budget
 from pipelines.resources import OutputLayout, Reproduction
 from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy, folder_state
 
@@ -36,14 +36,14 @@ _QUIET_LOGS = {"loggers": {"console": {"config": {"log_level": "WARNING"}}}}
 
 
 class ReproduceError(RuntimeError):
-    """The output folder cannot be used for this preset (nothing was written)."""
+    """The output folder cannot be used for this budget (nothing was written)."""
 
 
 @dataclass
 class ReproduceResult:
     """What a call of `reproduce` did, and where its products are."""
 
-    preset: str
+    budget: str
     experiments: list[str]
     layout: OutputLayout
     results: list[PartitionResult] = field(default_factory=list)
@@ -58,21 +58,23 @@ class ReproduceResult:
         return [r for r in self.results if not r.trained]
 
 
-def check_output_folder(layout: OutputLayout, preset: ReproducePreset) -> None:
-    """Raise `ReproduceError` unless OUT is absent, empty, or made by `preset`."""
+def check_output_folder(layout: OutputLayout, budget: ReproduceBudget) -> None:
+    """Raise `ReproduceError` unless OUT is absent, empty, or made by `budget`."""
     out = layout.out
     if out.exists() and not out.is_dir():
         raise ReproduceError(f"--out {out} exists and is not a folder")
     if layout.manifest.is_file():
         try:
-            made_by = json.loads(layout.manifest.read_text()).get("preset")
+            manifest = json.loads(layout.manifest.read_text())
+            # Folders made before budgets were named apart from training presets say "preset".
+            made_by = manifest.get("budget", manifest.get("preset"))
         except (OSError, ValueError) as exc:
             raise ReproduceError(f"{layout.manifest} is unreadable ({exc})") from None
-        if made_by != preset.name:
+        if made_by != budget.name:
             raise ReproduceError(
-                f"{out} holds the output of preset {made_by!r}, not {preset.name!r}: pass "
-                f"--preset {made_by} to go on with it, or choose another --out "
-                f"(default for {preset.name}: {preset.default_out})"
+                f"{out} holds the output of budget {made_by!r}, not {budget.name!r}: pass "
+                f"--budget {made_by} to go on with it, or choose another --out "
+                f"(default for {budget.name}: {budget.default_out})"
             )
         return
     if out.is_dir() and any(out.iterdir()):
@@ -97,9 +99,9 @@ def check_runs(reproduction: Reproduction, experiments: Sequence[Experiment]) ->
     return counts
 
 
-def _write_manifest(layout: OutputLayout, preset: ReproducePreset) -> None:
+def _write_manifest(layout: OutputLayout, budget: ReproduceBudget) -> None:
     layout.out.mkdir(parents=True, exist_ok=True)
-    data: dict[str, Any] = {"version": MANIFEST_VERSION, "preset": preset.name}
+    data: dict[str, Any] = {"version": MANIFEST_VERSION, "budget": budget.name}
     if layout.runs_root != layout.out / "runs":
         data["runs_dir"] = str(layout.runs_root)
     if layout.manifest.is_file():
@@ -168,7 +170,7 @@ def _materialize(defs, instance, selection, tags: dict[str, str] | None = None) 
 
 
 def reproduce(
-    preset: str,
+    budget: str,
     experiments: Sequence[str] | None = None,
     out: str | os.PathLike | None = None,
     runs_dir: str | os.PathLike | None = None,
@@ -178,7 +180,7 @@ def reproduce(
     progress: bool = True,
     say: Callable[[str], None] | None = None,
 ) -> ReproduceResult:
-    """Train and draw everything `preset` asks for (see the module docstring).
+    """Train and draw everything `budget` asks for (see the module docstring).
 
     `make_pool` builds the training pool (`pipelines.executors.make_pool`); it is called before
     anything is written, so that a Ray cluster that does not answer fails first. `overrides`
@@ -191,12 +193,12 @@ def reproduce(
     from pipelines.executors import make_pool as default_pool
 
     tic = time.perf_counter()
-    chosen = get_preset(preset)
+    chosen = get_budget(budget)
     selected = chosen.select(experiments)
     layout = OutputLayout.at(out or chosen.default_out, runs_dir)
     check_output_folder(layout, chosen)
     repro = Reproduction(
-        preset=chosen,
+        budget=chosen,
         layout=layout,
         make_pool=make_pool or (lambda: default_pool(None)),
         overrides=dict(overrides or {}),
@@ -208,7 +210,7 @@ def reproduce(
     counts = check_runs(repro, selected)
     pool = repro.pool  # connects to Ray (or fails) before anything is written
     repro.say(
-        f"curious reproduce --preset {chosen.name}: {', '.join(e.name for e in selected)}; "
+        f"curious reproduce --budget {chosen.name}: {', '.join(e.name for e in selected)}; "
         f"{sum(counts.values())} runs ({counts.get('finished', 0)} finished, "
         f"{counts.get('partial', 0)} to resume, {counts.get('new', 0)} new) on {pool.description}"
     )
@@ -229,7 +231,7 @@ def reproduce(
                         tags={
                             "dagster/asset_partition_range_start": keys[0],
                             "dagster/asset_partition_range_end": keys[-1],
-                            "curious/preset": chosen.name,
+                            "curious/budget": chosen.name,
                         },
                     )
                 downstream = [
@@ -244,14 +246,14 @@ def reproduce(
                     defs,
                     instance,
                     [*downstream, dg.AssetKey("report")],
-                    tags={"curious/preset": chosen.name},
+                    tags={"curious/budget": chosen.name},
                 )
             finally:
                 instance.dispose()
     finally:
         repro.close()
     return ReproduceResult(
-        preset=chosen.name,
+        budget=chosen.name,
         experiments=[e.name for e in selected],
         layout=layout,
         results=list(repro.results),

@@ -1,13 +1,13 @@
 """The one Dagster resource the assets share: where things live and where training runs.
 
 `Reproduction` is a plain object handed to Dagster as the `reproduction` resource. It knows the
-reproduce preset, the output folder's layout and the pool that trains partitions (created on
+budget, the output folder's layout and the pool that trains partitions (created on
 first use, so building the definitions, e.g. for `dagster dev`, starts no process and contacts no
 cluster).
 
 Output folder layout (`OutputLayout`):
 
-    OUT/reproduce.json          which preset made this folder (checked on every later call)
+    OUT/reproduce.json          which budget made this folder (checked on every later call)
     OUT/runs/<experiment>/<condition>/seed-<s>/    run folders (or --runs-dir on shared storage)
     OUT/metrics/<experiment>.parquet               the combined metrics table of an experiment
     OUT/metrics/<experiment>.tests.parquet         its combined test rollouts (Fig. 2a), where
@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from curious.experiments import Experiment, ReproducePreset, RunSpec
+from curious.experiments import Experiment, ReproduceBudget, RunSpec
 from pipelines.executors import Job, Pool, run_all
 from pipelines.training import (
     FINISHED,
@@ -112,9 +112,9 @@ def _print(message: str) -> None:
 
 @dataclass
 class Reproduction:
-    """Shared by every asset: preset, output layout, the training pool and the display."""
+    """Shared by every asset: budget, output layout, the training pool and the display."""
 
-    preset: ReproducePreset
+    budget: ReproduceBudget
     layout: OutputLayout
     make_pool: Callable[[], Pool]
     overrides: dict[str, Any] = field(default_factory=dict)
@@ -136,7 +136,7 @@ class Reproduction:
             self._pool = None
 
     def experiment(self, name: str) -> Experiment:
-        return self.preset.experiments[name]
+        return self.budget.experiments[name]
 
     def train(self, experiment: Experiment, specs: Sequence[RunSpec]) -> list[PartitionResult]:
         """Bring every run of `specs` to its budget on the pool, with a progress bar.

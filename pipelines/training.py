@@ -13,7 +13,7 @@ state          what happens
                nothing is done
 =============  ===================================================================
 
-A folder holding anything else (another preset's run, another condition, files that are not a
+A folder holding anything else (another budget's run, another condition, files that are not a
 run) raises `RunFolderMismatch` before anything is written, so a finished run is never touched.
 While a process trains a run it holds a lock beside the folder (`.seed-<s>.lock`, an advisory
 `flock` that dies with the process), so two reproductions never train the same folder at once.
@@ -126,8 +126,9 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
         raise RunFolderMismatch(f"{spec.label}: {exc}") from None
     if stored.get("preset") != expected.preset:
         raise RunFolderMismatch(
-            f"{folder} holds a run of preset {stored.get('preset')!r}, not {expected.preset!r}: "
-            "this output folder was made by another reproduce preset; choose another --out"
+            f"{folder} holds a run of training preset {stored.get('preset')!r}, not "
+            f"{expected.preset!r}: this output folder was made by another budget; choose another "
+            "--out"
         )
     diff = config_differences(stored_config, expected.to_dict())
     if diff:

@@ -1,4 +1,4 @@
-"""One `curious reproduce --preset smoke` output, built once per test session and shared.
+"""One `curious reproduce --budget smoke` output, built once per test session and shared.
 
 Test modules wrap `smoke_output` in a session-scoped fixture; the cache here makes sure the
 reproduction runs once however many modules ask for it (imported fixtures are registered per
@@ -28,14 +28,14 @@ class SmokeOutput:
 
 
 def smoke_output(tmp_path_factory) -> SmokeOutput:
-    """The smoke preset reproduced (every experiment) into a session temp folder."""
+    """The smoke budget reproduced (every experiment) into a session temp folder."""
     if "smoke" not in _CACHE:
         out = tmp_path_factory.mktemp("smoke_reproduce") / "out"
         os.environ.setdefault("MUJOCO_GL", "disable")
         stdout, stderr = io.StringIO(), io.StringIO()
         tic = time.perf_counter()
         with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-            code = curious_cli(["reproduce", "--preset", "smoke", "--out", str(out)])
+            code = curious_cli(["reproduce", "--budget", "smoke", "--out", str(out)])
         seconds = time.perf_counter() - tic
         assert code == 0, stderr.getvalue()[-3000:]
         _CACHE["smoke"] = SmokeOutput(out, seconds, stdout.getvalue(), stderr.getvalue())

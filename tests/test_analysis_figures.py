@@ -95,9 +95,9 @@ def test_every_figure_writes_png_and_svg_and_rebuilds_byte_identical(name, studi
 @pytest.mark.parametrize("name", FIGURES)
 def test_every_caption_ends_with_the_note_it_is_given(name, studies):
     plain = _caption(_build(name, studies))
-    noted = _caption(_build(name, studies, note="Small budget (quick preset)."))
-    assert "Small budget" not in plain
-    assert noted.startswith(plain) and noted.endswith("Small budget (quick preset).")
+    noted = _caption(_build(name, studies, note="Budget quick (small)."))
+    assert "Budget quick" not in plain
+    assert noted.startswith(plain) and noted.endswith("Budget quick (small).")
 
 
 def test_fig2a_dots_are_the_significant_points_of_the_test_rollouts(studies):

@@ -15,7 +15,7 @@ import pytest
 from nbclient import NotebookClient
 from pipeline_smoke import smoke_output
 
-from curious.experiments import DEFAULT_PRESET, get_preset
+from curious.experiments import DEFAULT_BUDGET, get_budget
 
 NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
 NAMES = (
@@ -39,7 +39,7 @@ def parameters_cell(nb: nbformat.NotebookNode) -> int:
 
 def test_every_notebook_is_listed_and_defaults_to_the_quick_output():
     assert sorted(p.stem for p in NOTEBOOKS.glob("*.py")) == sorted(NAMES)
-    default = get_preset(DEFAULT_PRESET).default_out
+    default = get_budget(DEFAULT_BUDGET).default_out
     for name in NAMES:
         nb = jupytext.read(NOTEBOOKS / f"{name}.py")
         assert f'out = "{default}"' in nb.cells[parameters_cell(nb)].source

@@ -1,4 +1,4 @@
-"""`curious reproduce` and the Dagster pipeline behind it, on the smoke preset.
+"""`curious reproduce` and the Dagster pipeline behind it, on the smoke budget.
 
 One smoke reproduction (every experiment, 14 runs of 24 episodes) is built once per session
 (`pipeline_smoke`) and shared with the notebook tests.
@@ -20,15 +20,15 @@ import pytest
 from pipeline_smoke import smoke_output
 
 from curious.cli import main as curious_cli
-from curious.experiments import get_preset
+from curious.experiments import get_budget
 from curious.recording.reader import summarize
 from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
-from pipelines.reproduce import reproduce
+from pipelines.reproduce import ReproduceError, check_output_folder, reproduce
 from pipelines.training import FINISHED, folder_state, run_folder, run_partition
 
 FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "distractors", "forgetting")
-SMOKE = get_preset("smoke")
+SMOKE = get_budget("smoke")
 
 
 @pytest.fixture(scope="session")
@@ -80,7 +80,9 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert f"{len(walls)} runs, {sum(walls) / 60:,.1f} run-minutes in all" in report
     # the command ends by saying where the products are
     assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
-    assert json.loads((out / "reproduce.json").read_text())["preset"] == "smoke"
+    assert json.loads((out / "reproduce.json").read_text())["budget"] == "smoke"
+    assert "# CURIOUS reproduction — budget `smoke`" in report
+    assert "`curious reproduce --budget smoke`" in report
 
 
 def test_every_partition_is_one_finished_run_folder(smoke):
@@ -199,8 +201,8 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
     from pipelines.report import _sensor_failure
     from pipelines.resources import OutputLayout, Reproduction
 
-    # The quick preset's case: push_cube3 never reaches the 0.5 that would start the failure.
-    quick = get_preset("quick")
+    # The quick budget's case: push_cube3 never reaches the 0.5 that would start the failure.
+    quick = get_budget("quick")
     for condition in ("curious", "m-uvfa"):
         write_run(
             tmp_path / "runs" / condition,
@@ -234,7 +236,7 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
 
     write_perturbation_study(tmp_path / "runs", perturbation=300, n_episodes=900, seeds=(0, 1))
     table = analysis.load_runs(tmp_path / "runs")
-    paper = get_preset("paper")
+    paper = get_budget("paper")
     repro = Reproduction(paper, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
     _, per_run = analysis.forgetting(table, out_dir=repro.layout.figures)
     per_run.drop(columns=["run"]).to_csv(repro.layout.figures / "forgetting.csv", index=False)
@@ -293,10 +295,12 @@ def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
             say=lambda _: None,
         )
     runs_root = out / "runs"
-    finished, killed = get_preset("smoke").experiments["sensor_failure"].runs()
+    finished, killed = get_budget("smoke").experiments["sensor_failure"].runs()
     assert folder_state(finished, runs_root) == FINISHED
     assert folder_state(killed, runs_root) == "partial"
     kept = hashes(run_folder(finished, runs_root))
+    # as an earlier version wrote it, naming the budget `preset`: the folder still resumes
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "preset": "smoke"}))
 
     result = reproduce(
         "smoke",
@@ -318,6 +322,7 @@ def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
     episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
     assert episodes.to_pylist() == list(range(24))
     assert (out / "figures" / "forgetting.png").is_file()
+    assert json.loads((out / "reproduce.json").read_text()) == {"version": 1, "budget": "smoke"}
 
 
 # ------------------------------------------------------------------------------ bad input
@@ -328,22 +333,50 @@ def run_cli(args: list[str], capsys) -> tuple[int, str]:
     return code, capsys.readouterr().err
 
 
-def test_unknown_preset_or_experiment_is_a_clear_error(tmp_path, capsys):
-    code, err = run_cli(["--preset", "huge", "--out", str(tmp_path / "a")], capsys)
-    assert code == 2 and "unknown reproduce preset 'huge'" in err and "quick" in err
-    code, err = run_cli(["--preset", "smoke", "--experiments", "main,colours"], capsys)
+def test_unknown_budget_or_experiment_is_a_clear_error(tmp_path, capsys):
+    code, err = run_cli(["--budget", "huge", "--out", str(tmp_path / "a")], capsys)
+    assert code == 2 and "unknown budget 'huge'" in err and "quick" in err
+    code, err = run_cli(["--budget", "smoke", "--experiments", "main,colours"], capsys)
     assert code == 2 and "unknown experiment(s) 'colours'" in err and "distractors" in err
     assert not (tmp_path / "a").exists()
 
 
-def test_output_of_another_preset_is_refused_untouched(smoke, tmp_path, capsys):
+def test_reproduce_given_preset_says_it_takes_budget(tmp_path, capsys):
+    """`--preset`, reproduce's option before budgets were named apart, is a one-line error."""
+    with pytest.raises(SystemExit) as exit_:
+        run_cli(["--preset", "smoke", "--out", str(tmp_path / "a")], capsys)
+    assert exit_.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "curious reproduce: error: reproduce takes --budget smoke (smoke, quick, laptop, paper), "
+        "not --preset; training presets are for `curious train --preset`"
+    )
+    with pytest.raises(SystemExit):
+        run_cli(["--preset"], capsys)
+    assert "reproduce takes --budget NAME" in capsys.readouterr().err
+    assert not (tmp_path / "a").exists()
+
+
+def test_an_output_folder_whose_manifest_says_preset_is_read_as_its_budget(tmp_path):
+    """reproduce.json of an earlier version names the budget `preset`: the folder still goes on."""
+    from pipelines.resources import OutputLayout
+
+    out = tmp_path / "quick"
+    out.mkdir()
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "preset": "smoke"}))
+    layout = OutputLayout.at(out)
+    check_output_folder(layout, SMOKE)
+    with pytest.raises(ReproduceError, match="holds the output of budget 'smoke', not 'quick'"):
+        check_output_folder(layout, get_budget("quick"))
+
+
+def test_output_of_another_budget_is_refused_untouched(smoke, tmp_path, capsys):
     before = hashes(smoke.out)
-    code, err = run_cli(["--preset", "quick", "--out", str(smoke.out)], capsys)
-    assert code == 2 and "holds the output of preset 'smoke'" in err
+    code, err = run_cli(["--budget", "quick", "--out", str(smoke.out)], capsys)
+    assert code == 2 and "holds the output of budget 'smoke'" in err
     # the same runs given as --runs-dir of a new output folder: refused run by run
     code, err = run_cli(
         [
-            "--preset",
+            "--budget",
             "quick",
             "--out",
             str(tmp_path / "new"),
@@ -352,14 +385,15 @@ def test_output_of_another_preset_is_refused_untouched(smoke, tmp_path, capsys):
         ],
         capsys,
     )
-    assert code == 2 and "holds a run of preset 'smoke', not 'quick'" in err
+    assert code == 2 and "holds a run of training preset 'smoke', not 'quick'" in err
+    assert "made by another budget" in err
     assert hashes(smoke.out) == before
     assert not (tmp_path / "new").exists()
 
 
 def test_a_folder_that_is_not_a_reproduction_is_refused(tmp_path, capsys):
     (tmp_path / "notes.txt").write_text("mine")
-    code, err = run_cli(["--preset", "smoke", "--out", str(tmp_path)], capsys)
+    code, err = run_cli(["--budget", "smoke", "--out", str(tmp_path)], capsys)
     assert code == 2 and "not made by `curious reproduce`" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
 
@@ -370,7 +404,7 @@ def test_a_run_being_trained_elsewhere_is_not_touched(smoke, capsys):
     spec = SMOKE.experiments["main"].runs()[0]
     before = hashes(smoke.out)
     with training_lock(spec, smoke.out / "runs"):  # as a worker of another reproduction would
-        code, err = run_cli(["--preset", "smoke", "--out", str(smoke.out)], capsys)
+        code, err = run_cli(["--budget", "smoke", "--out", str(smoke.out)], capsys)
     assert code == 2 and f"is being trained by {socket.gethostname()} pid {os.getpid()}" in err
     assert hashes(smoke.out) == before
 
@@ -379,13 +413,13 @@ def test_ray_address_that_does_not_answer_fails_fast(tmp_path, capsys):
     tic = time.perf_counter()
     port = free_port()
     code, err = run_cli(
-        ["--preset", "smoke", "--out", str(tmp_path / "o"), "--ray-address", f"127.0.0.1:{port}"],
+        ["--budget", "smoke", "--out", str(tmp_path / "o"), "--ray-address", f"127.0.0.1:{port}"],
         capsys,
     )
     assert code == 2 and f"no Ray cluster answers at 127.0.0.1:{port}" in err
     assert time.perf_counter() - tic < 60  # an error, not Ray's minutes-long connect retries
     assert not (tmp_path / "o").exists()
-    code, err = run_cli(["--preset", "smoke", "--ray-address", "nonsense"], capsys)
+    code, err = run_cli(["--budget", "smoke", "--ray-address", "nonsense"], capsys)
     assert code == 2 and "HOST:PORT" in err
 
 
@@ -397,7 +431,7 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
 
     from pipelines.definitions import definitions_from_environment
 
-    monkeypatch.setenv("CURIOUS_PRESET", "smoke")
+    monkeypatch.setenv("CURIOUS_BUDGET", "smoke")
     monkeypatch.setenv("CURIOUS_OUT", str(tmp_path))
     defs = definitions_from_environment()
     graph = defs.resolve_asset_graph()
@@ -419,7 +453,7 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
     }
     assert "curious@distractors_7|0" in distractors.get_partition_keys()
     # `dagster dev -m pipelines` finds the same definitions (without a server: validate)
-    env = {**os.environ, "CURIOUS_PRESET": "smoke", "CURIOUS_OUT": str(tmp_path)}
+    env = {**os.environ, "CURIOUS_BUDGET": "smoke", "CURIOUS_OUT": str(tmp_path)}
     done = subprocess.run(
         [sys.executable, "-m", "dagster", "definitions", "validate", "-m", "pipelines"],
         capture_output=True,
@@ -429,6 +463,20 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
     )
     assert done.returncode == 0, done.stderr[-2000:]
     assert not any(tmp_path.iterdir())  # loading the definitions writes nothing
+
+
+def test_definitions_refuse_the_old_curious_preset_variable(tmp_path, monkeypatch):
+    from curious.experiments import ExperimentError
+    from pipelines.definitions import reproduction_from_environment
+
+    monkeypatch.delenv("CURIOUS_BUDGET", raising=False)
+    monkeypatch.setenv("CURIOUS_PRESET", "smoke")
+    monkeypatch.setenv("CURIOUS_OUT", str(tmp_path))
+    with pytest.raises(ExperimentError, match="no longer read: set CURIOUS_BUDGET=smoke instead"):
+        reproduction_from_environment()
+    monkeypatch.setenv("CURIOUS_BUDGET", "smoke")
+    assert reproduction_from_environment().budget.name == "smoke"
+    assert not any(tmp_path.iterdir())
 
 
 def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke, tmp_path):
@@ -442,7 +490,7 @@ def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke,
     env = {
         **os.environ,
         "DAGSTER_HOME": str(out / ".dagster"),
-        "CURIOUS_PRESET": "smoke",
+        "CURIOUS_BUDGET": "smoke",
         "CURIOUS_OUT": str(out),
     }
     port = free_port()

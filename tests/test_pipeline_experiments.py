@@ -1,4 +1,4 @@
-"""The experiment definitions of the reproduce presets (curious/experiments.py)."""
+"""The experiment definitions of the budgets (curious/experiments.py)."""
 
 from __future__ import annotations
 
@@ -7,22 +7,22 @@ import re
 import pytest
 
 from curious.experiments import (
-    DEFAULT_PRESET,
+    BUDGETS,
+    DEFAULT_BUDGET,
     EXPERIMENTS,
-    PRESETS_BY_NAME,
     Experiment,
     ExperimentError,
-    get_preset,
+    get_budget,
 )
 
 
-@pytest.mark.parametrize("name", list(PRESETS_BY_NAME))
-def test_every_run_of_every_preset_resolves_to_a_valid_config(name):
-    preset = get_preset(name)
-    assert tuple(preset.experiments) == EXPERIMENTS
-    runs = preset.runs()
+@pytest.mark.parametrize("name", list(BUDGETS))
+def test_every_run_of_every_budget_resolves_to_a_valid_config(name):
+    budget = get_budget(name)
+    assert tuple(budget.experiments) == EXPERIMENTS
+    runs = budget.runs()
     assert len({r.relative_path for r in runs}) == len(runs)  # one folder per run
-    for experiment in preset.experiments.values():
+    for experiment in budget.experiments.values():
         keys = [r.partition_key for r in experiment.runs()]
         assert len(set(keys)) == len(keys)  # one partition per run
         assert len(keys) == len(experiment.condition_keys) * len(experiment.seed_keys)
@@ -42,39 +42,39 @@ def test_every_run_of_every_preset_resolves_to_a_valid_config(name):
             assert run.variant == "sensor_failure" and config.sensor_failure_episode == -1
 
 
-def test_presets_compare_what_the_paper_compares():
-    for preset in PRESETS_BY_NAME.values():
-        main, distractors, sensor = (preset.experiments[n] for n in EXPERIMENTS)
+def test_budgets_compare_what_the_paper_compares():
+    for budget in BUDGETS.values():
+        main, distractors, sensor = (budget.experiments[n] for n in EXPERIMENTS)
         assert main.conditions == ("curious", "mg-te", "her") and main.variants == ("default",)
         assert distractors.conditions == ("curious", "m-uvfa")
         assert distractors.variants == ("distractors_0", "distractors_4", "distractors_7")
         assert sensor.conditions == ("curious", "m-uvfa") and sensor.variants == ("sensor_failure",)
         assert sensor.sensor_failure_episode or sensor.sensor_failure_competence
-    assert get_preset("paper").experiments["main"].seeds == (0, 1, 2, 3, 4)
-    assert get_preset("paper").experiments["main"].total_episodes == 300_000
+    assert get_budget("paper").experiments["main"].seeds == (0, 1, 2, 3, 4)
+    assert get_budget("paper").experiments["main"].total_episodes == 300_000
 
 
 def test_the_sensory_failure_starts_on_a_learned_module_or_at_the_authors_epoch():
     # quick and laptop: when push_cube3's competence reaches 0.5, whatever the budget
     for name in ("quick", "laptop"):
-        sensor = get_preset(name).experiments["sensor_failure"]
+        sensor = get_budget(name).experiments["sensor_failure"]
         assert sensor.sensor_failure_competence == 0.5 and sensor.sensor_failure_episode is None
         config = sensor.runs()[0].config()
         assert (config.sensor_failure_competence, config.sensor_failure_episode) == (0.5, -1)
     # paper: the authors' epoch 250 of 316 at 950 episodes an epoch
-    paper = get_preset("paper").experiments["sensor_failure"]
+    paper = get_budget("paper").experiments["sensor_failure"]
     assert paper.sensor_failure_episode == 237_500 and paper.sensor_failure_competence is None
     assert paper.runs()[0].config().sensor_failure_competence == -1.0
     # smoke: a fixed episode, so that the pipeline's tests see a failure start
-    assert get_preset("smoke").experiments["sensor_failure"].sensor_failure_episode == 12
+    assert get_budget("smoke").experiments["sensor_failure"].sensor_failure_episode == 12
     assert (
         "competence reaches 0.5"
-        in get_preset("quick").experiments["sensor_failure"].sensor_failure_text
+        in get_budget("quick").experiments["sensor_failure"].sensor_failure_text
     )
 
 
 def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several():
-    smoke = get_preset("smoke")
+    smoke = get_budget("smoke")
     assert smoke.experiments["main"].condition_keys == ("curious", "mg-te", "her")
     assert "m-uvfa@distractors_4" in smoke.experiments["distractors"].condition_keys
     spec = smoke.experiments["distractors"].run("curious@distractors_7|0")
@@ -84,18 +84,18 @@ def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several
         smoke.experiments["main"].run("curious|9")
 
 
-def test_the_quick_preset_is_the_default_and_small():
-    quick = get_preset(DEFAULT_PRESET)
+def test_the_quick_budget_is_the_default_and_small():
+    quick = get_budget(DEFAULT_BUDGET)
     assert quick.name == "quick" and quick.default_out == "runs/quick"
     assert sum(len(e.runs()) * e.total_episodes for e in quick.experiments.values()) <= 16_000
 
 
 def test_unknown_names_and_bad_definitions_are_clear_errors():
-    with pytest.raises(ExperimentError, match=r"unknown reproduce preset 'fast'.*smoke, quick"):
-        get_preset("fast")
+    with pytest.raises(ExperimentError, match=r"unknown budget 'fast'.*smoke, quick"):
+        get_budget("fast")
     with pytest.raises(ExperimentError, match=r"unknown experiment.*'forgetting'"):
-        get_preset("smoke").select(["main", "forgetting"])
-    assert [e.name for e in get_preset("smoke").select(["sensor_failure", "main"])] == [
+        get_budget("smoke").select(["main", "forgetting"])
+    assert [e.name for e in get_budget("smoke").select(["sensor_failure", "main"])] == [
         "main",
         "sensor_failure",
     ]

@@ -18,7 +18,7 @@ import time
 import pyarrow.parquet as pq
 import pytest
 
-from curious.experiments import get_preset
+from curious.experiments import get_budget
 from pipelines.executors import RayPool, RayUnavailable, check_cluster, resolve_ray_address
 from pipelines.reproduce import reproduce
 from pipelines.training import FINISHED, folder_state, run_folder
@@ -79,7 +79,7 @@ def ray_cluster(tmp_path_factory):
 def test_two_partitions_train_as_ray_tasks(ray_cluster, tmp_path):
     os.environ.setdefault("MUJOCO_GL", "disable")
     out = tmp_path / "out"
-    experiment = get_preset("smoke").experiments["sensor_failure"]
+    experiment = get_budget("smoke").experiments["sensor_failure"]
     assert len(experiment.runs()) == 2
     result = reproduce(
         "smoke",

@@ -1,16 +1,16 @@
-"""`curious reproduce`: train every run a preset asks for and rebuild every figure and the report.
+"""`curious reproduce`: train every run a budget asks for and rebuild every figure and the report.
 
-    curious reproduce                                   # preset quick into runs/quick
-    curious reproduce --preset smoke --out /tmp/smoke   # seconds per run
+    curious reproduce                                   # budget quick into runs/quick
+    curious reproduce --budget smoke --out /tmp/smoke   # seconds per run
     curious reproduce --experiments main,distractors    # a subset of the experiments
-    curious reproduce --preset paper --ray-address auto --runs-dir /shared/curious
+    curious reproduce --budget paper --ray-address auto --runs-dir /shared/curious
 
 The assets (pipelines/) are materialised in this process on a Dagster instance kept in
 OUT/.dagster: no server to start. Training runs go to worker processes (one per core unless
 --workers says otherwise), or to Ray tasks with --ray-address. A second call with the same
-preset and --out retrains nothing that is finished and resumes what was interrupted.
+budget and --out retrains nothing that is finished and resumes what was interrupted.
 
-Errors about the input (unknown preset or experiment, an output folder made by another preset,
+Errors about the input (unknown budget or experiment, an output folder made by another budget,
 a run folder holding another run, a Ray address that does not answer) are reported in one line,
 exit status 2, before anything is written.
 """
@@ -20,21 +20,50 @@ from __future__ import annotations
 import argparse
 import sys
 
-from curious.experiments import DEFAULT_PRESET, EXPERIMENTS, PRESETS_BY_NAME
+from curious.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
+
+
+class _PresetIsForTrain(argparse.Action):
+    """`--preset` given to `curious reproduce`: an error naming `--budget`, its option.
+
+    Reproduce took `--preset` before budgets were named apart from training presets; the hidden
+    option turns the old spelling into a clear error instead of "unrecognized arguments".
+    """
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: str | None,
+        option_string: str | None = None,
+    ) -> None:
+        parser.error(
+            f"reproduce takes --budget {values or 'NAME'} ({', '.join(BUDGETS)}), not --preset; "
+            "training presets are for `curious train --preset`"
+        )
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious reproduce`."""
     parser = sub.add_parser(
         "reproduce",
-        help="train a preset's runs and rebuild every figure and report.md",
+        help="train a budget's runs and rebuild every figure and report.md",
         description=__doc__.split("\n\n")[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="presets:\n"
-        + "\n".join(f"  {name:8s}{p.description}" for name, p in PRESETS_BY_NAME.items()),
+        epilog="budgets:\n"
+        + "\n".join(f"  {name:8s}{b.description}" for name, b in BUDGETS.items()),
     )
     parser.add_argument(
-        "--preset", default=DEFAULT_PRESET, help=f"{', '.join(PRESETS_BY_NAME)} (default quick)"
+        "--budget",
+        default=DEFAULT_BUDGET,
+        help=f"experiments, seeds and episodes: {', '.join(BUDGETS)} (default {DEFAULT_BUDGET})",
+    )
+    parser.add_argument(
+        "--preset",
+        nargs="?",
+        action=_PresetIsForTrain,
+        default=argparse.SUPPRESS,
+        help=argparse.SUPPRESS,
     )
     parser.add_argument(
         "--experiments",
@@ -42,7 +71,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="LIST",
         help=f"comma-separated subset of {','.join(EXPERIMENTS)} (default: all)",
     )
-    parser.add_argument("--out", default=None, help="output folder (default: runs/<preset>)")
+    parser.add_argument("--out", default=None, help="output folder (default: runs/<budget>)")
     parser.add_argument(
         "--runs-dir",
         default=None,
@@ -116,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         result = reproduce(
-            args.preset,
+            args.budget,
             experiments=_experiments(args.experiments),
             out=args.out,
             runs_dir=args.runs_dir,
@@ -142,7 +171,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"  figures: {layout.figures}")
     print(f"  runs:    {layout.runs_root}")
     print(
-        f"  Dagster: DAGSTER_HOME={layout.dagster_home} CURIOUS_PRESET={result.preset} "
+        f"  Dagster: DAGSTER_HOME={layout.dagster_home} CURIOUS_BUDGET={result.budget} "
         f"CURIOUS_OUT={layout.out} dagster dev -m pipelines"
     )
     return 0
