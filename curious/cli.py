@@ -101,9 +101,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _no_gl_without_a_display(command: str | None) -> None:
+    """Without a display and with no `MUJOCO_GL` chosen, commands that do not render run the
+    physics with GL off: dm_control would otherwise try GLFW and warn that DISPLAY is missing."""
+    from curious.commands.view import has_display
+
+    if command != "render" and "MUJOCO_GL" not in os.environ and not has_display():
+        os.environ["MUJOCO_GL"] = "disable"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `curious` console script."""
     parser = build_parser()
+    _no_gl_without_a_display(next((a for a in (argv or sys.argv[1:]) if a[:1] != "-"), None))
     args = parser.parse_args(argv)
     if getattr(args, "func", None) is None:
         parser.print_help()

@@ -28,6 +28,7 @@ RESUMABLE_FIELDS: frozenset[str] = frozenset(
         "device",
         "torch_threads",
         "env_processes",
+        "prefetch_minibatches",
         "checkpoint_every_cycles",
         "progress",
     }
@@ -128,6 +129,10 @@ class Config:
     equals the authors' mean of per-worker gradients. Authors: 256 per worker."""
     n_updates: int = 100
     """Gradient steps per cycle. Authors: n_batches 100."""
+    prefetch_minibatches: bool = False
+    """Draw and relabel the next minibatch in a thread while the learner steps on this one. The
+    same draws in the same order, so the same run; it pays where the update does not hold the
+    interpreter (`--device cuda`), and hardly on a CPU, where sampling is a few % of a cycle."""
     norm_clip: float = 5.0
     """Normalised states are clipped to [-norm_clip, norm_clip], and scaled goals (`GoalBox`) to
     as many half-widths of their goal space. Authors: 5 (Baselines; unused by their default,

@@ -52,9 +52,10 @@ from __future__ import annotations
 
 import concurrent.futures
 import contextlib
+import functools
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -71,7 +72,7 @@ from curious.envs import EnvSpec, GoalEnv
 from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
 from curious.metrics import MetricsLog, TableLog, TestsLog
-from curious.replay import EpisodeReplay
+from curious.replay import EpisodeReplay, Transitions
 from curious.rollouts import EpisodeData, run_episodes
 from curious.run_folder import RunFolder, RunFolderError, config_differences, folder_lock
 
@@ -265,6 +266,7 @@ class Trainer:
         self.observer: RoundObserver | None = None
         self._pending: concurrent.futures.Future | None = None  # rounds in flight (overlap)
         self._executor: concurrent.futures.ThreadPoolExecutor | None = None
+        self._sampler: concurrent.futures.ThreadPoolExecutor | None = None  # prefetching
         self.failure_start: int | None = None
         """First episode run with the sensory failure (None: not started)."""
         self.failure_module = -1
@@ -557,18 +559,17 @@ class Trainer:
             probs = self.condition.replay_probs(self.tracker, self.epoch)
             stats: list[dict[str, torch.Tensor]] = []
             rewards = []
-            for _ in range(cfg.n_updates):
+            draw = functools.partial(
+                self.replay.sample, cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
+            )
+            for batch, waited in self._minibatches(draw, cfg.n_updates):
                 tic = time.perf_counter()
-                batch = self.replay.sample(
-                    cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
-                )
                 if not self.condition.holistic:
                     replay_counts += np.bincount(batch.module, minlength=n_mod)
                 rewards.append(float(batch.reward.mean()))
-                toc = time.perf_counter()
                 stats.append(self.agent.update(expert, batch))
-                timings["sample"] += toc - tic
-                timings["update"] += time.perf_counter() - toc
+                timings["sample"] += waited
+                timings["update"] += time.perf_counter() - tic
             tic = time.perf_counter()
             self.agent.update_targets(expert)
             losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
@@ -659,11 +660,36 @@ class Trainer:
             self._executor = concurrent.futures.ThreadPoolExecutor(1, "rollouts")
         return self._executor
 
+    def _minibatches(
+        self, draw: Callable[[], Transitions], n: int
+    ) -> Iterator[tuple[Transitions, float]]:
+        """`n` minibatches from `draw`, each with the seconds the learner waited for it. With
+        `prefetch_minibatches` the next one is drawn in a thread while the caller steps on
+        this one: one draw at a time, in order, so the minibatches are the same."""
+        if not self.config.prefetch_minibatches:
+            for _ in range(n):
+                tic = time.perf_counter()
+                batch = draw()
+                yield batch, time.perf_counter() - tic
+            return
+        if self._sampler is None:
+            self._sampler = concurrent.futures.ThreadPoolExecutor(1, "minibatches")
+        ahead = self._sampler.submit(draw)
+        for i in range(n):
+            tic = time.perf_counter()
+            batch = ahead.result()
+            waited = time.perf_counter() - tic
+            if i + 1 < n:
+                ahead = self._sampler.submit(draw)
+            yield batch, waited
+
     def close(self) -> None:
-        """Finish rounds in flight, and stop the rollout thread and the environment workers."""
-        if self._executor is not None:
-            self._executor.shutdown(wait=True)
-            self._executor = None
+        """Finish rounds in flight, and stop the rollout and sampling threads and the
+        environment workers."""
+        for pool in (self._executor, self._sampler):
+            if pool is not None:
+                pool.shutdown(wait=True)
+        self._executor = self._sampler = None
         self.envs.close()
         self.test_envs.close()
 

@@ -268,6 +268,20 @@ def test_cli_tells_its_version_and_helps_with_real_names_and_defaults(capsys):
     assert "(default 50)" in " ".join(capsys.readouterr().out.split())  # --rollout-every
 
 
+def test_without_a_display_the_commands_that_do_not_render_say_nothing_of_gl():
+    """dm_control tries GLFW when MUJOCO_GL is unset and warns that DISPLAY is missing."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY")}
+    env.pop("WAYLAND_DISPLAY", None)
+    command = [sys.executable, "-m", "curious.cli", "train", "--help"]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and "variants: default" in done.stdout
+    assert "GLFW" not in done.stderr and "DISPLAY" not in done.stderr, done.stderr
+
+
 def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
     out = str(tmp_path / "r")
     cases = [
@@ -654,3 +668,20 @@ def test_a_sink_that_dies_on_a_full_disk_is_named_as_one(tmp_path, monkeypatch):
     with pytest.raises(OSError, match=r"could not be written to .*x\.rrd: File-writer") as other:
         rrd_files.flush_to_file(DeadSink(), tmp_path / "x.rrd")
     assert other.value.errno is None
+
+
+@pytest.mark.parametrize("overlap", [False, True])
+def test_prefetched_minibatches_give_the_same_run(tmp_path, overlap):
+    """`prefetch_minibatches` draws the next minibatch beside the update: same draws, same
+    order, so the same networks and the same metrics, with or without overlapped rollouts."""
+    runs = [
+        run(tmp_path / f"p{prefetch}", overlap_rollouts=overlap, prefetch_minibatches=prefetch)
+        for prefetch in (False, True)
+    ]
+    states = [trainer.agent.state_dict()["experts"] for trainer in runs]
+    for a, b in zip(*states, strict=True):
+        for key in ("actor", "critics"):
+            for name, tensor in a[key].items():
+                assert torch.equal(tensor, b[key][name]), (key, name)
+    tables = [pq.read_table(tmp_path / f"p{p}" / "metrics.parquet") for p in (False, True)]
+    assert tables[0].drop(["wall_time"]).equals(tables[1].drop(["wall_time"]))
