@@ -13,7 +13,11 @@ rounds collected during the untimed warm-up stand for those still in flight at t
   (`--set overlap_rollouts=true`, one documented flag);
 * workers: the copies in worker processes, one per core (`--set env_processes=0`);
 * ours_workers: both;
-* ours_workspace: ours with the written-out update (`learner_backend=workspace`).
+* ours_workspace: ours with the written-out update (`learner_backend=workspace`);
+* peer_threads and ours_threads: peer and ours with one torch thread per core for the updates
+  (`--set torch_threads=0`) instead of `--threads`.
+
+torch's thread count is one per process, so it is set before each contender's block.
 
 `bound` is the physics alone: the rate at which one core steps the suite's MuJoCo model for one
 episode's 50 control steps, times the machine's cores (what rollouts could reach if nothing but
@@ -29,6 +33,7 @@ import time
 from typing import Any
 
 import numpy as np
+import torch
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -80,7 +85,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "ours_workspace": dataclasses.replace(
             base, overlap_rollouts=True, learner_backend="workspace"
         ),
+        "peer_threads": dataclasses.replace(base, torch_threads=0),
+        "ours_threads": dataclasses.replace(base, overlap_rollouts=True, torch_threads=0),
     }
+    default_threads = torch.get_num_threads()  # torch's own, before a trainer sets it
     trainers = {name: _trainer(config) for name, config in configs.items()}
     try:
         for trainer in trainers.values():
@@ -89,6 +97,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         episodes = dict.fromkeys(trainers, 0)
         parts: dict[str, dict[str, float]] = {name: {} for name in trainers}
         for name, trainer in trainers.items():  # a block of cycles each: overlapped
+            torch.set_num_threads(configs[name].torch_threads or default_threads)
             for _ in range(args.cycles):  # rollouts go on after a cycle returns
                 tic = time.perf_counter()
                 result = trainer.cycle()
@@ -101,6 +110,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     finally:
         for trainer in trainers.values():
             trainer.close()
+        torch.set_num_threads(default_threads)
     rates = {name: episodes[name] / seconds[name] for name in trainers}
     cores = os.cpu_count() or 1
     out: dict[str, Any] = {
@@ -122,6 +132,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             f"updates of {base.batch_size} per cycle, {args.cycles} timed cycles each"
         ),
     }
+    for name in ("peer_threads", "ours_threads"):
+        out[name] = rates[name]
+        out[f"{name}_over_peer"] = rates[name] / rates["peer"]
+    out["threads"] = default_threads
     for name in trainers:
         total = seconds[name] / args.cycles
         out[f"{name}_cycle_ms"] = total * 1e3

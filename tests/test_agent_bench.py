@@ -44,3 +44,17 @@ def test_measure_reports_ours_bound_peer_unit():
     assert result["ours"] > 0 and result["bound"] > 0 and result["peer"] is None
     assert result["unit"] == "updates/s" and result["ours_with_replay"] > 0
     assert result["workspace"] > 0 and result["compiled"] > 0
+
+
+def test_the_cycle_benchmark_reports_every_contender_and_its_parts():
+    from benchmarks import cycle_speed
+
+    parser = argparse.ArgumentParser()
+    cycle_speed.add_arguments(parser)
+    result = cycle_speed.measure(parser.parse_args(["--preset", "smoke", "--cycles", "1"]))
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    assert result["unit"] == "episodes/s"
+    for name in ("peer", "ours", "workers", "ours_workers", "ours_workspace", "ours_threads"):
+        assert result[name] > 0 and result[f"{name}_cycle_ms"] > 0
+        assert result[f"{name}_update_ms"] > 0 and f"{name}_rollout_env_ms" in result
+    assert torch.get_num_threads() == result["threads"]  # left as it was found
