@@ -58,3 +58,15 @@ def test_the_cycle_benchmark_reports_every_contender_and_its_parts():
         assert result[name] > 0 and result[f"{name}_cycle_ms"] > 0
         assert result[f"{name}_update_ms"] > 0 and f"{name}_rollout_env_ms" in result
     assert torch.get_num_threads() == result["threads"]  # left as it was found
+
+
+def test_the_rollout_scaling_benchmark_reports_every_process_count():
+    from benchmarks import rollout_scaling
+
+    parser = argparse.ArgumentParser()
+    rollout_scaling.add_arguments(parser)
+    args = ["--preset", "quick", "--episodes", "1", "--max-processes", "2"]
+    result = rollout_scaling.measure(parser.parse_args(args))
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    assert result["processes_1"] > 0 and result["processes_2"] == result["ours"]
+    assert result["bound"] == 2 * result["physics_episodes_per_s_one_core"]

@@ -1,7 +1,7 @@
-"""`curious bench {env,learner,cycle,recording}`: speed benchmarks, ours side by side with a
+"""`curious bench {env,learner,cycle,rollouts,recording}`: speed benchmarks, ours side by side with a
 bound and a peer.
 
-Each benchmark lives in `benchmarks/<name>_speed.py` and exposes `measure(args) -> dict` with
+Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
 `add_arguments(parser)` for its own options.
 """
@@ -24,6 +24,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "cycle": (
         "benchmarks.cycle_speed",
         "training episodes/s of whole cycles: worker processes vs the serial path",
+    ),
+    "rollouts": (
+        "benchmarks.rollout_scaling",
+        "rollout episodes/s with 1, 2, ... worker processes vs the physics bound per core",
     ),
     "recording": (
         "benchmarks.recording_overhead",
