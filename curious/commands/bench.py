@@ -1,5 +1,5 @@
-"""`curious bench {env,learner,cycle,rollouts,recording}`: speed benchmarks, ours side by side with a
-bound and a peer.
+"""`curious bench {env,learner,cycle,rollouts,recording}`: speed benchmarks, ours side by side
+with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
