@@ -66,9 +66,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     for processes in range(1, top + 1):
         envs = ProcessEnvs(fns, processes)
         try:
-            rates[processes] = (
-                _rounds_per_second(envs, args.episodes, length, 0) * config.n_workers
-            )
+            rates[processes] = _rounds_per_second(envs, args.episodes, length, 0) * config.n_workers
         finally:
             envs.close()
     one_core = _physics_episodes_per_second(config.variant)
