@@ -107,8 +107,9 @@ class Config:
     """`ddpg` (the authors') or `td3` (twin critics, target smoothing, delayed actor)."""
     learner_backend: str = "autograd"
     """How the update runs, the same arithmetic each: `autograd` (the reference, readable),
-    `compiled` (its losses through `torch.compile`; for CUDA) or `workspace` (both passes
-    written out into preallocated buffers; the fastest on a CPU, docs/benchmarks.md)."""
+    `compiled` (each step, losses, backward and Adam, through `torch.compile`; on CUDA captured
+    as CUDA graphs with a capturable Adam) or `workspace` (both passes written out into
+    preallocated buffers; the fastest on a CPU, docs/benchmarks.md)."""
     hidden: int = 256
     """Units per hidden layer of actor and critic. Authors: 256."""
     layers: int = 3

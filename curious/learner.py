@@ -10,7 +10,8 @@ clipped Gaussian smoothing noise on the target action, and an actor step every
 `td3_policy_delay` critic steps. The target schedule stays the cycle's.
 
 `Learner.update` is written with autograd and is the reference. `Config.learner_backend` picks
-how it runs: `autograd` (the default), `compiled` (the same losses through `torch.compile`) or
+how it runs: `autograd` (the default), `compiled` (each step, losses, backward and Adam, through
+`torch.compile`; on CUDA in `reduce-overhead` mode, CUDA graphs with a capturable Adam) or
 `workspace` (both passes written out into preallocated buffers, `curious.mlp_workspace`; the
 fastest on a CPU, tested against the reference). docs/benchmarks.md has the speed of each.
 
@@ -52,8 +53,11 @@ def flatten_parameters(module: nn.Module, grads: bool) -> torch.Tensor:
     return flat
 
 
-def _adam(params: list[nn.Parameter], lr: float) -> torch.optim.Adam:
-    """Adam with the fastest implementation this torch offers for the device."""
+def _adam(params: list[nn.Parameter], lr: float, capturable: bool = False) -> torch.optim.Adam:
+    """Adam with the fastest implementation this torch offers for the device; `capturable`
+    keeps its step count on the device, so that a CUDA graph can replay the step."""
+    if capturable:
+        return torch.optim.Adam(params, lr=lr, foreach=True, capturable=True)
     try:
         return torch.optim.Adam(params, lr=lr, fused=True)
     except (RuntimeError, TypeError):  # fused not available for this device / build
@@ -84,8 +88,10 @@ class Learner:
         self._online = [flatten(net, grads=True) for net in (self.actor, self.critics)]
         nets = (self.actor_target, self.critics_target)
         self._targets = [flatten(net, grads=False) for net in nets]
-        self.actor_opt = _adam([self._online[0]], config.actor_lr)
-        self.critic_opt = _adam([self._online[1]], config.critic_lr)
+        compiled = config.learner_backend == "compiled"
+        graphs = compiled and self.device.type == "cuda"  # the whole step as one CUDA graph
+        self.actor_opt = _adam([self._online[0]], config.actor_lr, capturable=graphs)
+        self.critic_opt = _adam([self._online[1]], config.critic_lr, capturable=graphs)
         self.generator = torch.Generator(device=self.device)
         self.generator.manual_seed(seed + 1)
         self.clip_return = 1.0 / (1.0 - config.gamma)
@@ -93,10 +99,12 @@ class Learner:
         self.input_dim = input_dim
         self._last_actor_loss = torch.zeros((), device=self.device)
         self._workspace = WorkspaceUpdate(self) if config.learner_backend == "workspace" else None
-        passes = (self.td_target, self.critic_loss, self.actor_loss)
-        if config.learner_backend == "compiled":
-            passes = tuple(torch.compile(f) for f in passes)
-        self._td_target, self._critic_loss, self._actor_loss = passes
+        steps = (self._ddpg_step, self._critic_step, self._actor_step)
+        if compiled:  # losses, backward and Adam in one compiled function each
+            mode = "reduce-overhead" if graphs else None
+            steps = tuple(torch.compile(f, mode=mode) for f in steps)
+        self._steps = steps
+        self._graphs = graphs
 
     # -------------------------------------------------------------------------------------------
     @torch.no_grad()
@@ -146,29 +154,59 @@ class Learner:
         if self._workspace is not None:
             return self._workspace.update(x, action, reward, x_next)
         self.n_updates += 1
+        ddpg_step, critic_step, actor_step = self._steps
+        if self._graphs:  # a new replay of the captured graphs begins
+            torch.compiler.cudagraph_mark_step_begin()
+        if not self.td3:
+            critic_loss, actor_loss, q_target = self._kept(ddpg_step(x, action, reward, x_next))
+            self._last_actor_loss = actor_loss
+        else:
+            critic_loss, q_target = self._kept(critic_step(x, action, reward, x_next))
+            if self.n_updates % self.config.td3_policy_delay == 0:
+                (self._last_actor_loss,) = self._kept((actor_step(x),))
+        return {
+            "critic_loss": critic_loss,
+            "actor_loss": self._last_actor_loss,
+            "q_target_mean": q_target,
+        }
+
+    def _kept(self, outputs: tuple[torch.Tensor, ...]) -> tuple[torch.Tensor, ...]:
+        """A step's outputs, copied out of the CUDA graph's buffers (its next replay
+        overwrites them); as they are otherwise."""
+        return tuple(t.clone() for t in outputs) if self._graphs else outputs
+
+    def _ddpg_step(
+        self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Both losses from the current networks, both gradients, both Adam steps."""
         for flat in self._online:
             flat.grad.zero_()
-        target = self._td_target(reward, x_next)
-        critic_loss = self._critic_loss(x, action, target)
-        actor_due = not self.td3 or self.n_updates % self.config.td3_policy_delay == 0
-        if not self.td3:
-            actor_loss = self._actor_loss(x)
-            (critic_loss + actor_loss).backward()  # each loss reaches its own network only
-            self.critic_opt.step()
-        else:
-            critic_loss.backward()
-            self.critic_opt.step()
-            if actor_due:
-                actor_loss = self._actor_loss(x)  # through the stepped critic
-                actor_loss.backward()
-        if actor_due:
-            self.actor_opt.step()
-            self._last_actor_loss = actor_loss.detach()
-        return {
-            "critic_loss": critic_loss.detach(),
-            "actor_loss": self._last_actor_loss,
-            "q_target_mean": target.mean(),
-        }
+        target = self.td_target(reward, x_next)
+        critic_loss = self.critic_loss(x, action, target)
+        actor_loss = self.actor_loss(x)
+        (critic_loss + actor_loss).backward()  # each loss reaches its own network only
+        self.critic_opt.step()
+        self.actor_opt.step()
+        return critic_loss.detach(), actor_loss.detach(), target.mean()
+
+    def _critic_step(
+        self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """TD3: the critics' loss, gradient and Adam step."""
+        self._online[1].grad.zero_()
+        target = self.td_target(reward, x_next)
+        critic_loss = self.critic_loss(x, action, target)
+        critic_loss.backward()
+        self.critic_opt.step()
+        return critic_loss.detach(), target.mean()
+
+    def _actor_step(self, x: torch.Tensor) -> torch.Tensor:
+        """TD3: the actor's loss through the stepped critic, its gradient and Adam step."""
+        self._online[0].grad.zero_()
+        actor_loss = self.actor_loss(x)
+        actor_loss.backward()
+        self.actor_opt.step()
+        return actor_loss.detach()
 
     @torch.no_grad()
     def update_targets(self) -> None:
