@@ -40,6 +40,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", default="laptop", help="training preset (default laptop)")
     parser.add_argument("--cycles", type=int, default=4, help="timed cycles each (default 4)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    parser.add_argument(
+        "--contenders",
+        default=",".join(CONTENDERS),
+        help="comma-separated contenders besides peer and ours (default: all)",
+    )
+
+
+CONTENDERS: dict[str, dict[str, Any]] = {
+    "workers": dict(env_processes=0),
+    "ours_workers": dict(overlap_rollouts=True, env_processes=0),
+    "ours_workspace": dict(overlap_rollouts=True, learner_backend="workspace"),
+    "peer_threads": dict(torch_threads=0),
+    "ours_threads": dict(overlap_rollouts=True, torch_threads=0),
+}
+"""The settings of every optional contender, over the preset's (see the module docstring)."""
 
 
 def _trainer(config: Any) -> Any:
@@ -77,17 +92,12 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         args.preset,
         overrides=dict(progress=False, torch_threads=args.threads, test_rollouts_per_worker=0),
     )
-    configs = {
-        "peer": base,
-        "ours": dataclasses.replace(base, overlap_rollouts=True),
-        "workers": dataclasses.replace(base, env_processes=0),
-        "ours_workers": dataclasses.replace(base, overlap_rollouts=True, env_processes=0),
-        "ours_workspace": dataclasses.replace(
-            base, overlap_rollouts=True, learner_backend="workspace"
-        ),
-        "peer_threads": dataclasses.replace(base, torch_threads=0),
-        "ours_threads": dataclasses.replace(base, overlap_rollouts=True, torch_threads=0),
-    }
+    wanted = [name for name in args.contenders.split(",") if name]
+    unknown = sorted(set(wanted) - set(CONTENDERS))
+    if unknown:
+        raise ValueError(f"unknown contenders {unknown}; choose from {', '.join(CONTENDERS)}")
+    configs = {"peer": base, "ours": dataclasses.replace(base, overlap_rollouts=True)}
+    configs |= {name: dataclasses.replace(base, **CONTENDERS[name]) for name in wanted}
     default_threads = torch.get_num_threads()  # torch's own, before a trainer sets it
     trainers = {name: _trainer(config) for name, config in configs.items()}
     try:
@@ -119,20 +129,14 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "peer": rates["peer"],
         "unit": "episodes/s",
         "ours_over_peer": rates["ours"] / rates["peer"],
-        "workers": rates["workers"],
-        "workers_over_peer": rates["workers"] / rates["peer"],
-        "ours_workers": rates["ours_workers"],
-        "ours_workers_over_peer": rates["ours_workers"] / rates["peer"],
-        "ours_workspace": rates["ours_workspace"],
-        "ours_workspace_over_peer": rates["ours_workspace"] / rates["peer"],
-        "processes": configs["workers"].processes,
+        "processes": dataclasses.replace(base, env_processes=0).processes,
         "cores": cores,
         "shape": (
             f"preset {args.preset}: {base.episodes_per_cycle} episodes and {base.n_updates} "
             f"updates of {base.batch_size} per cycle, {args.cycles} timed cycles each"
         ),
     }
-    for name in ("peer_threads", "ours_threads"):
+    for name in wanted:
         out[name] = rates[name]
         out[f"{name}_over_peer"] = rates[name] / rates["peer"]
     out["threads"] = default_threads
