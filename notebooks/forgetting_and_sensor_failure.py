@@ -26,7 +26,10 @@
 # where the failure started and push_cube3 was learned before it; the others say why not.
 #
 # Part 1 reads the `sensor_failure` experiment; part 2 looks for spontaneous forgetting in the
-# CURIOUS runs of the `main` experiment. `out` is the output folder of `curious reproduce`.
+# CURIOUS runs of the `main` experiment. `out` is the output folder of `curious reproduce`. The
+# `quick` budget leaves the sensory failure out (`curious reproduce --budget laptop --experiments
+# sensor_failure` trains it): where the folder has no `sensor_failure` runs, part 1's cells say so
+# and do nothing, and part 2 runs all the same.
 
 # %%
 # %matplotlib inline
@@ -35,6 +38,7 @@ import pandas as pd
 from IPython.display import display
 
 from curious import analysis
+from curious.experiments import get_budget
 from pipelines.resources import OutputLayout
 
 # %% tags=["parameters"]
@@ -42,19 +46,34 @@ out = "runs/quick"
 fraction = 0.9  # recovery: back at this fraction of the competence before the perturbation
 module = None  # the module to follow; None: the one the variant's failure perturbs
 
+# %% [markdown]
+# ## Part 1: the sensory failure
+#
+# `has_failure`: whether the output folder holds `sensor_failure` runs; every cell of part 1
+# does nothing without them.
+
 # %%
 layout = OutputLayout.open(out)
-df = analysis.load_runs(layout.experiment_runs("sensor_failure"))
-runs = analysis.runs_table(df).set_index("run")
-runs = runs.join(analysis.failure_onsets(df)[["onset", "source"]])
-runs[["condition", "seed", "variant", "perturbation_episode", "failure_competence", "onset"]]
+has_failure = any(layout.experiment_runs("sensor_failure").rglob("metrics.parquet"))
+if has_failure:
+    df = analysis.load_runs(layout.experiment_runs("sensor_failure"))
+    runs = analysis.runs_table(df).set_index("run")
+    runs = runs.join(analysis.failure_onsets(df)[["onset", "source"]])
+    columns = ["condition", "seed", "variant", "perturbation_episode", "failure_competence"]
+    display(runs[[*columns, "onset"]])
+else:
+    print(
+        f"{layout.out} holds no sensor_failure runs, so part 1 is skipped. "
+        + get_budget(layout.budget_name()).why_absent("sensor_failure")
+    )
 
 # %% [markdown]
 # ## Competence and LP around the perturbation
 
 # %%
-fig, per_run = analysis.forgetting(df, module=module, fraction=fraction)
-display(fig)
+if has_failure:
+    fig, per_run = analysis.forgetting(df, module=module, fraction=fraction)
+    display(fig)
 
 # %% [markdown]
 # ## Time to recover, per run and per condition
@@ -65,10 +84,10 @@ display(fig)
 # after its lowest point, is back at `fraction` of its level before (NaN: not regained).
 
 # %%
-per_run[["condition", "seed", "status", "perturbation_episode", "recovery_episodes", "note"]]
-
-# %%
-analysis.recovery_summary(per_run)
+if has_failure:
+    columns = ["condition", "seed", "status", "perturbation_episode", "recovery_episodes", "note"]
+    display(per_run[columns])
+    display(analysis.recovery_summary(per_run))
 
 # %% [markdown]
 # ## Module selection after the perturbation
@@ -78,28 +97,29 @@ analysis.recovery_summary(per_run)
 # drops.
 
 # %%
-followed = str(per_run["module"].iat[0])
-rows = []
-for r in per_run.dropna(subset=["perturbation_episode"]).itertuples():
-    run = df[df["run"] == r.run]
-    p = int(r.perturbation_episode)
-    window = max(1, p // 2)
-    e = run["episode"].to_numpy()
-    values = run[f"p_lp/{followed}"].to_numpy()
-    rows.append(
-        {
-            "condition": r.condition,
-            "seed": r.seed,
-            "failure from": p,
-            "p_lp before": float(values[(e >= p - window) & (e < p)].mean()),
-            "p_lp after": float(values[(e >= p) & (e < p + window)].mean()),
-        }
-    )
-columns = ["condition", "seed", "failure from", "p_lp before", "p_lp after"]
-pd.DataFrame(rows, columns=columns).round(3)
+if has_failure:
+    followed = str(per_run["module"].iat[0])
+    rows = []
+    for r in per_run.dropna(subset=["perturbation_episode"]).itertuples():
+        run = df[df["run"] == r.run]
+        p = int(r.perturbation_episode)
+        window = max(1, p // 2)
+        e = run["episode"].to_numpy()
+        values = run[f"p_lp/{followed}"].to_numpy()
+        rows.append(
+            {
+                "condition": r.condition,
+                "seed": r.seed,
+                "failure from": p,
+                "p_lp before": float(values[(e >= p - window) & (e < p)].mean()),
+                "p_lp after": float(values[(e >= p) & (e < p + window)].mean()),
+            }
+        )
+    columns = ["condition", "seed", "failure from", "p_lp before", "p_lp after"]
+    display(pd.DataFrame(rows, columns=columns).round(3))
 
 # %% [markdown]
-# ## Spontaneous forgetting in the main runs
+# ## Part 2: spontaneous forgetting in the main runs
 #
 # For every CURIOUS run of the `main` experiment and every achievable module: the largest fall
 # of competence from a running peak, where it happened, and the module's LP there.

@@ -6,8 +6,9 @@ reports a recovery only where the failure started and the perturbed module was l
 
 The report is a function of the budget, the combined metrics and test tables and the figures on
 disk (nothing in it depends on when it was written), so rebuilding it from the same runs gives the
-same bytes. An experiment appears once its metrics table exists; figures are linked relatively,
-so the output folder can be moved or shared as a whole.
+same bytes. An experiment appears once its metrics table exists, and one the budget leaves out
+(`ReproduceBudget.omitted`) gets a sentence saying why; figures are linked relatively, so the
+output folder can be moved or shared as a whole.
 """
 
 from __future__ import annotations
@@ -385,6 +386,8 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         budget.notes,
         "",
     ]
+    if budget.omitted:
+        lines += [" ".join(budget.why_absent(name) for name in budget.omitted), ""]
     if not included:
         lines += ["No experiment has finished yet.", ""]
     else:

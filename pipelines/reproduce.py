@@ -65,9 +65,7 @@ def check_output_folder(layout: OutputLayout, budget: ReproduceBudget) -> None:
         raise ReproduceError(f"--out {out} exists and is not a folder")
     if layout.manifest.is_file():
         try:
-            manifest = json.loads(layout.manifest.read_text())
-            # Folders made before budgets were named apart from training presets say "preset".
-            made_by = manifest.get("budget", manifest.get("preset"))
+            made_by = layout.budget_name()
         except (OSError, ValueError) as exc:
             raise ReproduceError(f"{layout.manifest} is unreadable ({exc})") from None
         if made_by != budget.name:

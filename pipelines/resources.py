@@ -77,6 +77,17 @@ class OutputLayout:
     def manifest(self) -> Path:
         return self.out / "reproduce.json"
 
+    def budget_name(self) -> str | None:
+        """The budget that made this folder, from reproduce.json (None without one).
+
+        Raises OSError or ValueError on an unreadable manifest. Folders made before budgets were
+        named apart from training presets call it `preset`.
+        """
+        if not self.manifest.is_file():
+            return None
+        manifest = json.loads(self.manifest.read_text())
+        return manifest.get("budget", manifest.get("preset"))
+
     @property
     def figures(self) -> Path:
         return self.out / "figures"

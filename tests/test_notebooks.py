@@ -7,6 +7,8 @@ nbclient in a fresh kernel from the notebooks folder.
 
 from __future__ import annotations
 
+import json
+import shutil
 from pathlib import Path
 
 import jupytext
@@ -45,11 +47,11 @@ def test_every_notebook_is_listed_and_defaults_to_the_quick_output():
         assert f'out = "{default}"' in nb.cells[parameters_cell(nb)].source
 
 
-@pytest.mark.parametrize("name", NAMES)
-def test_notebook_executes_against_the_smoke_output(name, smoke):
+def execute(name: str, out: Path) -> list[nbformat.NotebookNode]:
+    """Run notebook `name` with `out` as its output folder; the outputs of its code cells."""
     nb = jupytext.read(NOTEBOOKS / f"{name}.py")
     injected = nbformat.v4.new_code_cell(
-        f"out = {str(smoke.out)!r}", metadata={"tags": ["injected-parameters"]}
+        f"out = {str(out)!r}", metadata={"tags": ["injected-parameters"]}
     )
     nb.cells.insert(parameters_cell(nb) + 1, injected)
     client = NotebookClient(
@@ -61,8 +63,32 @@ def test_notebook_executes_against_the_smoke_output(name, smoke):
     client.execute()  # raises CellExecutionError, with the cell and traceback, on any error
     outputs = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])]
     assert not [o for o in outputs if o.get("output_type") == "error"]
+    return outputs
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_notebook_executes_against_the_smoke_output(name, smoke):
+    outputs = execute(name, smoke.out)
     images = [o for o in outputs if "image/png" in o.get("data", {})]
     assert images, f"{name} drew no figure"
+
+
+def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(smoke, tmp_path):
+    """The quick budget trains no sensor_failure runs: part 1 says why and skips, part 2 runs.
+
+    The smoke output, copied without its sensor_failure runs and relabelled as made by `quick`,
+    stands for a quick output folder.
+    """
+    out = tmp_path / "quick"
+    left = ("sensor_failure*", "*.lock", ".dagster", "*.rrd", "checkpoints")
+    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns(*left))
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "quick"}))
+    outputs = execute("forgetting_and_sensor_failure", out)
+    printed = "".join(o.get("text", "") for o in outputs if o.get("output_type") == "stream")
+    why = get_budget("quick").why_absent("sensor_failure")
+    assert printed == f"{out.resolve()} holds no sensor_failure runs, so part 1 is skipped. {why}\n"
+    tables = [o["data"]["text/plain"] for o in outputs if "text/plain" in o.get("data", {})]
+    assert len(tables) == 1 and "largest fall" in tables[0]  # part 2's table, and only that
 
 
 def test_the_documented_default_viewer_setting_opens_py_files_as_notebooks(tmp_path):

@@ -201,8 +201,8 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
     from pipelines.report import _sensor_failure
     from pipelines.resources import OutputLayout, Reproduction
 
-    # The quick budget's case: push_cube3 never reaches the 0.5 that would start the failure.
-    quick = get_budget("quick")
+    # A short laptop run's case: push_cube3 never reaches the 0.5 that would start the failure.
+    laptop = get_budget("laptop")
     for condition in ("curious", "m-uvfa"):
         write_run(
             tmp_path / "runs" / condition,
@@ -215,16 +215,44 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
             log_failure=True,
         )
     table = analysis.load_runs(tmp_path / "runs")
-    repro = Reproduction(quick, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
+    repro = Reproduction(laptop, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
     figures = repro.layout.figures
     _, per_run = analysis.forgetting(table, out_dir=figures)
     per_run.drop(columns=["run"]).to_csv(figures / "forgetting.csv", index=False)
-    text = "\n".join(_sensor_failure(repro, quick.experiments["sensor_failure"], table, None))
+    text = "\n".join(_sensor_failure(repro, laptop.experiments["sensor_failure"], table, None))
     assert "The failure starts when the perturbed module's competence reaches 0.5." in text
     assert "It never started in any of the 2 runs." in text
     assert "push_cube3 never reached competence 0.50 over a full window" in text
     assert "No recovery can be measured in these runs." in text
     assert "regained" not in text and "mean recovery" not in text
+
+
+def test_a_budget_without_the_sensory_failure_says_why_in_its_report(smoke, tmp_path):
+    """The quick budget's report over main and distractors tables (here the smoke runs'): one
+    sentence on why the sensory failure is left out, and no claim that it is still to come."""
+    import shutil
+
+    from pipelines.report import write_report
+    from pipelines.resources import OutputLayout, Reproduction
+
+    quick = get_budget("quick")
+    out = tmp_path / "out"
+    empty = Reproduction(quick, OutputLayout.at(out), make_pool=LocalPool)
+    text = write_report(empty)[0].read_text()
+    assert quick.why_absent("sensor_failure") in text and "No experiment has finished yet" in text
+    for folder in ("metrics", "figures"):
+        shutil.copytree(
+            smoke.out / folder, out / folder, ignore=shutil.ignore_patterns("sensor_failure*")
+        )
+    report, included = write_report(Reproduction(quick, OutputLayout.at(out), make_pool=LocalPool))
+    text = report.read_text()
+    assert included == ["main", "distractors"]
+    assert text.count(quick.why_absent("sensor_failure")) == 1
+    assert "sensor_failure" not in text.replace(quick.why_absent("sensor_failure"), "")
+    assert "Budget `quick` leaves out the `sensor_failure` experiment: the failure starts" in text
+    assert "not reproduced yet" not in text and "Not in this report" not in text
+    assert "Sensory failure" not in text and "figures/forgetting" not in text
+    assert all(e.title in text for e in quick.experiments.values())
 
 
 def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
@@ -339,6 +367,21 @@ def test_unknown_budget_or_experiment_is_a_clear_error(tmp_path, capsys):
     code, err = run_cli(["--budget", "smoke", "--experiments", "main,colours"], capsys)
     assert code == 2 and "unknown experiment(s) 'colours'" in err and "distractors" in err
     assert not (tmp_path / "a").exists()
+
+
+def test_an_experiment_the_budget_leaves_out_is_a_one_line_error_saying_where_it_is(
+    tmp_path, capsys
+):
+    out = tmp_path / "q"
+    args = ["--budget", "quick", "--experiments", "sensor_failure", "--out", str(out)]
+    code, err = run_cli(args, capsys)
+    assert code == 2 and len(err.splitlines()) == 1
+    assert err.startswith(
+        "curious reproduce: error: budget 'quick' has no sensor_failure experiment (budgets with "
+        "it: smoke, laptop, paper): the failure starts once push_cube3's competence reaches 0.5"
+    )
+    assert "`curious reproduce --budget laptop --experiments sensor_failure`" in err
+    assert not out.exists()
 
 
 def test_reproduce_given_preset_says_it_takes_budget(tmp_path, capsys):

@@ -12,6 +12,8 @@ from curious.experiments import (
     EXPERIMENTS,
     Experiment,
     ExperimentError,
+    ReproduceBudget,
+    budgets_with,
     get_budget,
 )
 
@@ -19,7 +21,7 @@ from curious.experiments import (
 @pytest.mark.parametrize("name", list(BUDGETS))
 def test_every_run_of_every_budget_resolves_to_a_valid_config(name):
     budget = get_budget(name)
-    assert tuple(budget.experiments) == EXPERIMENTS
+    assert sorted([*budget.experiments, *budget.omitted]) == sorted(EXPERIMENTS)
     runs = budget.runs()
     assert len({r.relative_path for r in runs}) == len(runs)  # one folder per run
     for experiment in budget.experiments.values():
@@ -44,33 +46,32 @@ def test_every_run_of_every_budget_resolves_to_a_valid_config(name):
 
 def test_budgets_compare_what_the_paper_compares():
     for budget in BUDGETS.values():
-        main, distractors, sensor = (budget.experiments[n] for n in EXPERIMENTS)
+        main, distractors = budget.experiments["main"], budget.experiments["distractors"]
         assert main.conditions == ("curious", "mg-te", "her") and main.variants == ("default",)
         assert distractors.conditions == ("curious", "m-uvfa")
         assert distractors.variants == ("distractors_0", "distractors_4", "distractors_7")
+    for name in budgets_with("sensor_failure"):
+        sensor = get_budget(name).experiments["sensor_failure"]
         assert sensor.conditions == ("curious", "m-uvfa") and sensor.variants == ("sensor_failure",)
         assert sensor.sensor_failure_episode or sensor.sensor_failure_competence
+    assert budgets_with("sensor_failure") == ["smoke", "laptop", "paper"]
     assert get_budget("paper").experiments["main"].seeds == (0, 1, 2, 3, 4)
     assert get_budget("paper").experiments["main"].total_episodes == 300_000
 
 
 def test_the_sensory_failure_starts_on_a_learned_module_or_at_the_authors_epoch():
-    # quick and laptop: when push_cube3's competence reaches 0.5, whatever the budget
-    for name in ("quick", "laptop"):
-        sensor = get_budget(name).experiments["sensor_failure"]
-        assert sensor.sensor_failure_competence == 0.5 and sensor.sensor_failure_episode is None
-        config = sensor.runs()[0].config()
-        assert (config.sensor_failure_competence, config.sensor_failure_episode) == (0.5, -1)
+    # laptop: when push_cube3's competence reaches 0.5, whatever the budget
+    sensor = get_budget("laptop").experiments["sensor_failure"]
+    assert sensor.sensor_failure_competence == 0.5 and sensor.sensor_failure_episode is None
+    config = sensor.runs()[0].config()
+    assert (config.sensor_failure_competence, config.sensor_failure_episode) == (0.5, -1)
     # paper: the authors' epoch 250 of 316 at 950 episodes an epoch
     paper = get_budget("paper").experiments["sensor_failure"]
     assert paper.sensor_failure_episode == 237_500 and paper.sensor_failure_competence is None
     assert paper.runs()[0].config().sensor_failure_competence == -1.0
     # smoke: a fixed episode, so that the pipeline's tests see a failure start
     assert get_budget("smoke").experiments["sensor_failure"].sensor_failure_episode == 12
-    assert (
-        "competence reaches 0.5"
-        in get_budget("quick").experiments["sensor_failure"].sensor_failure_text
-    )
+    assert "competence reaches 0.5" in sensor.sensor_failure_text
 
 
 def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several():
@@ -87,7 +88,47 @@ def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several
 def test_the_quick_budget_is_the_default_and_small():
     quick = get_budget(DEFAULT_BUDGET)
     assert quick.name == "quick" and quick.default_out == "runs/quick"
-    assert sum(len(e.runs()) * e.total_episodes for e in quick.experiments.values()) <= 16_000
+    assert tuple(quick.experiments) == ("main", "distractors") and len(quick.runs()) == 12
+    assert sum(len(e.runs()) * e.total_episodes for e in quick.experiments.values()) == 12_000
+
+
+def test_the_quick_budget_leaves_the_sensory_failure_out_and_says_why():
+    """In a quick reproduction the failure never started (push_cube3 not learned by 1,000
+    episodes): the budget omits the experiment, and asking for it is a one-line error."""
+    quick = get_budget("quick")
+    reason = quick.omitted["sensor_failure"]
+    assert "in none of the 4 runs" in reason and "2026-11-23" in reason
+    assert "`curious reproduce --budget laptop --experiments sensor_failure`" in reason
+    assert quick.why_absent("sensor_failure") == (
+        f"Budget `quick` leaves out the `sensor_failure` experiment: {reason}."
+    )
+    with pytest.raises(ExperimentError) as error:
+        quick.select(["main", "sensor_failure"])
+    message = str(error.value)
+    assert message == (
+        "budget 'quick' has no sensor_failure experiment (budgets with it: smoke, laptop, "
+        f"paper): {reason}"
+    )
+    assert "\n" not in message
+    # a budget that trains the experiment: its absence from an output folder is a missing run
+    assert get_budget("laptop").why_absent("sensor_failure") == (
+        "The `sensor_failure` experiment has not been reproduced yet: run "
+        "`curious reproduce --budget laptop --experiments sensor_failure`."
+    )
+
+
+def test_a_budget_trains_every_experiment_or_says_why_not():
+    smoke = get_budget("smoke")
+    trained = {n: e for n, e in smoke.experiments.items() if n != "sensor_failure"}
+    with pytest.raises(ExperimentError, match="'sensor_failure' must be either trained or omitted"):
+        ReproduceBudget("b", "d", trained)  # left out without a reason
+    with pytest.raises(ExperimentError, match="'sensor_failure' must be either trained or omitted"):
+        ReproduceBudget("b", "d", trained, omitted={"sensor_failure": ""})
+    with pytest.raises(ExperimentError, match="'main' must be either trained or omitted"):
+        ReproduceBudget("b", "d", smoke.experiments, omitted={"main": "why"})  # both
+    with pytest.raises(ExperimentError, match=r"omits unknown experiment\(s\) \['colours'\]"):
+        ReproduceBudget("b", "d", smoke.experiments, omitted={"colours": "why"})
+    assert ReproduceBudget("b", "d", trained, omitted={"sensor_failure": "why"}).omitted
 
 
 def test_unknown_names_and_bad_definitions_are_clear_errors():

@@ -69,7 +69,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--experiments",
         default=None,
         metavar="LIST",
-        help=f"comma-separated subset of {','.join(EXPERIMENTS)} (default: all)",
+        help=f"comma-separated subset of {','.join(EXPERIMENTS)} (default: all the budget's)",
     )
     parser.add_argument("--out", default=None, help="output folder (default: runs/<budget>)")
     parser.add_argument(
