@@ -54,7 +54,13 @@ def _path(repro: Reproduction, path: Path) -> dg.MetadataValue:
 
 
 def _inline_png(path: Path) -> dg.MetadataValue:
-    """The figure itself, as markdown with the PNG inlined, for the asset's page."""
+    """The figure itself, as markdown with the PNG inlined as a data URI.
+
+    The Dagster UI draws markdown metadata of under 1000 characters in the metadata table and
+    longer markdown, such as this, behind a "[Show Markdown]" link that opens it in a dialog,
+    where the figure shows. In the table itself a figure would need a URL the browser can load
+    (a path on this machine is not one), served by something other than Dagster.
+    """
     data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
     return dg.MetadataValue.md(f"![{Path(path).stem}](data:image/png;base64,{data})")
 

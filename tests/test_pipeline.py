@@ -6,6 +6,7 @@ One smoke reproduction (every experiment, 14 runs of 24 episodes) is built once 
 
 from __future__ import annotations
 
+import base64
 import hashlib
 import json
 import os
@@ -136,9 +137,14 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
                 event = instance.get_latest_materialization_event(dg.AssetKey([name, figure]))
                 metadata = event.asset_materialization.metadata
                 assert metadata["caption"].value.endswith(note), (name, figure)
-                # paths relative to the output folder (it may move); the figure shown inline
+                # paths relative to the output folder (it may move); the figure itself, as a
+                # markdown image of the PNG file (the UI's "[Show Markdown]" dialog draws it)
                 assert metadata["png"].value == f"figures/{figure}.png"
-                assert metadata["figure"].value.startswith(f"![{figure}](data:image/png;base64,")
+                prefix = f"![{figure}](data:image/png;base64,"
+                markdown = metadata["figure"].value
+                assert markdown.startswith(prefix) and markdown.endswith(")")
+                png = base64.b64decode(markdown[len(prefix) : -1], validate=True)
+                assert png == (smoke.out / "figures" / f"{figure}.png").read_bytes()
     finally:
         instance.dispose()
 

@@ -316,6 +316,28 @@ def test_rollout_stride_keeps_the_last_step(tmp_path: Path, fetch: mujoco.MjMode
     np.testing.assert_array_equal(frames, np.arange(5))
 
 
+def test_every_moving_body_has_a_pose_from_the_start_of_every_timeline(
+    tmp_path: Path, fetch: mujoco.MjModel
+) -> None:
+    """A geom without its body's pose is drawn in the world frame (the arm in scattered links),
+    so the rest pose is on each timeline the recording has, at its start."""
+    capture = _fill_capture(fetch, steps=3)
+    with RunRecorder(tmp_path, MODULES) as recorder:
+        recorder.log_episodes(
+            [7], [0], [1], [1], np.zeros((1, 5)), np.zeros((1, 5)), np.zeros((1, 5)), [2.5]
+        )
+        recorder.log_rollout(7, 0, capture, goal=np.zeros(3), success=True)
+    path = tmp_path / RECORDING_FILENAME
+    timelines = summarize(path).timelines
+    assert timelines == {"episode", "rollout_frame", "wall_time"}
+    for body in capture.layout.moving_bodies:
+        for timeline in timelines:
+            times, _ = read_component(
+                path, capture.layout.body_paths[body], "Transform3D:translation", timeline
+            )
+            assert times.size and times[0] == 0, (capture.layout.body_names[body], timeline)
+
+
 PRIMITIVES = """
 <mujoco>
   <worldbody>

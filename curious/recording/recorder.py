@@ -273,7 +273,8 @@ class RunRecorder:
         if connect:
             sinks.append(rr.GrpcSink(connect))
         self.live = len(sinks) > 1
-        self.stream.set_sinks(*sinks, default_blueprint=default_blueprint())
+        self.blueprint = default_blueprint(len(self.module_names))
+        self.stream.set_sinks(*sinks, default_blueprint=self.blueprint)
         self.stream.send_recording_name(run_name or self.run_dir.resolve().name)
 
         self._t0 = time.perf_counter()
@@ -657,7 +658,7 @@ class RunRecorder:
         self._closed = True
         size = self.working.stat().st_size
         if self.settings.compact_on_close and has_room_for(self.working, size):
-            compact_recording(self.working, self.path)
+            compact_recording(self.working, self.path, self.blueprint)
             self.working.unlink()
         else:  # compacting needs room for a second copy; the recording is whole without it
             os.replace(self.working, self.path)

@@ -18,6 +18,7 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.compute as pc
 import rerun as rr
+import rerun.blueprint as rrb
 from rerun.chunk import Chunk, OptimizationProfile, RrdReader
 
 from curious.recording.blueprint import default_blueprint
@@ -100,10 +101,12 @@ def replace_with_copy(source: Path, target: Path) -> None:
 
 
 def compact_recording(
-    path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None
+    path: str | os.PathLike[str],
+    out: str | os.PathLike[str] | None = None,
+    blueprint: rrb.Blueprint | None = None,
 ) -> None:
-    """Rewrites a recording with its chunks merged (same ids, data and blueprint; smaller), in
-    place or into `out`.
+    """Rewrites a recording with its chunks merged (same ids and data; smaller), in place or
+    into `out`, with `blueprint` as its default layout (`default_blueprint()` if None).
 
     Each `send_columns` call is one chunk in the file, with ~1.2 kB of overhead; merging them
     (Rerun's `OptimizationProfile.LIVE`, chunks of up to 4096 rows) shrinks a run's recording
@@ -120,8 +123,9 @@ def compact_recording(
     stream = rr.RecordingStream(
         stores[0].application_id, recording_id=stores[0].recording_id, send_properties=False
     )
+    layout = blueprint if blueprint is not None else default_blueprint()
     try:
-        stream.set_sinks(rr.FileSink(str(tmp)), default_blueprint=default_blueprint())
+        stream.set_sinks(rr.FileSink(str(tmp)), default_blueprint=layout)
         stream.send_chunks(store)
         flush_to_file(stream, tmp)
         stream.disconnect()

@@ -243,8 +243,12 @@ def log_scene_geometry(
     """Logs a model's drawn geometry as static data; returns the number of geoms logged.
 
     Bodies that never move get their world pose as a static transform. Moving bodies get their
-    reference pose at episode 0 / rollout frame 0, so the scene is in place before the first
-    rollout; rollouts then add their poses on the timelines.
+    reference pose at episode 0 / rollout frame 0 / wall time 0, so the scene is in place before
+    the first rollout and on every timeline; rollouts then add their poses on `episode` and
+    `rollout_frame`. (A geom is static data in its body's frame: where its body has no pose at
+    the viewer's time, the viewer draws it in the world frame, and the arm falls apart into
+    links around the origin. A static pose cannot stand in, as static data hides the body's
+    poses on the timelines.)
     """
     recording.log(SCENE_ROOT, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     xpos, xquat = _rest_poses(model)
@@ -254,7 +258,11 @@ def log_scene_geometry(
             rr.Transform3D(translation=xpos[b], quaternion=wxyz_to_xyzw(xquat[b])),
             static=True,
         )
-    index = [rr.TimeColumn("episode", sequence=[0]), rr.TimeColumn("rollout_frame", sequence=[0])]
+    index = [
+        rr.TimeColumn("episode", sequence=[0]),
+        rr.TimeColumn("rollout_frame", sequence=[0]),
+        rr.TimeColumn("wall_time", duration=[0.0]),
+    ]
     for b in layout.moving_bodies:
         recording.send_columns(
             layout.body_paths[b],
