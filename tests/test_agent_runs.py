@@ -529,7 +529,8 @@ def recorded_episodes(path: Path) -> np.ndarray:
     """Every episode the recording holds a module point for (one per episode)."""
     from curious.recording.reader import read_scalars
 
-    found = [read_scalars(path, f"module/{name}")[0] for name in ("reach", "dial", "beacon")]
+    names = ("T1-reach", "dial", "beacon")  # entity parts: the paper's T1 leads (the legend)
+    found = [read_scalars(path, f"module/{name}")[0] for name in names]
     return np.sort(np.concatenate([np.asarray(e) for e in found]))
 
 

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from curious.analysis.palette import module_label, module_rgb
+from curious.analysis.palette import module_entity, module_label, module_rgb
 from curious.commands.view import viewer_command
 from curious.recording import (
     APPLICATION_ID,
@@ -87,20 +87,22 @@ def test_scalars_read_back_equal_what_was_logged(tmp_path: Path, on_change: bool
     n = len(data["episode"])
     for m, name in enumerate(MODULES):
         for kind in ("competence", "lp", "p_lp"):
-            times, values = read_scalars(path, f"{kind}/{name}")
+            times, values = read_scalars(path, f"{kind}/{module_entity(name)}")
             np.testing.assert_array_equal(_forward_fill(times, values, n), data[kind][:, m])
             if not on_change:
                 np.testing.assert_array_equal(times, data["episode"])
         mine = data["module"] == m
         for split, mask in (("eval", mine & data["eval"]), ("train", mine & ~data["eval"])):
-            times, values = read_scalars(path, f"success/{split}/{name}")
+            times, values = read_scalars(path, f"success/{split}/{module_entity(name)}")
             np.testing.assert_array_equal(times, data["episode"][mask])
             np.testing.assert_array_equal(values, data["success"][mask].astype(float))
-        times, values = read_scalars(path, f"module/{name}")
+        times, values = read_scalars(path, f"module/{module_entity(name)}")
         np.testing.assert_array_equal(times, data["episode"][mine])
         assert (values == m).all()
     # the wall-time timeline carries the same rows, in seconds
-    seconds, values = read_scalars(path, f"competence/{MODULES[0]}", timeline="wall_time")
+    seconds, values = read_scalars(
+        path, f"competence/{module_entity(MODULES[0])}", timeline="wall_time"
+    )
     np.testing.assert_allclose(seconds[0], 0.0)
     assert seconds[-1] == pytest.approx((n - 1) * 0.5)
 
@@ -121,7 +123,9 @@ def test_a_value_that_holds_is_rewritten_so_live_lines_reach_the_present(tmp_pat
                 episodes[rows], np.zeros(count, int), np.ones(count, bool), np.zeros(count, bool),
                 held[rows], held[rows] * 0.0, held[rows] / len(MODULES),
             )  # fmt: skip
-    times, values = read_scalars(tmp_path / RECORDING_FILENAME, f"competence/{MODULES[0]}")
+    times, values = read_scalars(
+        tmp_path / RECORDING_FILENAME, f"competence/{module_entity(MODULES[0])}"
+    )
     assert times[0] == 0 and times[1] == 10 and times[-1] == n - 1
     assert np.diff(times).max() <= every + 64  # a point at least once per keyframe interval
     assert len(times) < 3 + n // every + 1  # and only then: the file stays small
@@ -146,8 +150,12 @@ def test_series_styles_use_the_shared_module_palette(tmp_path: Path) -> None:
         recorder.log_episodes(0, 1, True, True, np.zeros((1, 5)), np.zeros((1, 5)), np.ones((1, 5)))
     path = tmp_path / RECORDING_FILENAME
     for name in MODULES:
-        _, names = read_component(path, f"competence/{name}", "SeriesLines:names", None)
-        _, colors = read_component(path, f"competence/{name}", "SeriesLines:colors", None)
+        _, names = read_component(
+            path, f"competence/{module_entity(name)}", "SeriesLines:names", None
+        )
+        _, colors = read_component(
+            path, f"competence/{module_entity(name)}", "SeriesLines:colors", None
+        )
         assert names[-1] == [module_label(name)]
         r, g, b = module_rgb(name)
         assert colors[-1] == [(r << 24) | (g << 16) | (b << 8) | 0xFF]  # Rerun packs RGBA
@@ -158,7 +166,7 @@ def test_replay_and_learner_statistics(tmp_path: Path) -> None:
         recorder.log_replay([10, 20], [[1, 1, 2, 0, 0], [0, 0, 0, 0, 5]])
         recorder.log_learner([10, 20], losses={"critic": [0.5, 0.25]}, q={"mean": [-3.0, -2.0]})
     path = tmp_path / RECORDING_FILENAME
-    times, shares = read_scalars(path, "replay/cube1_above_cube2")
+    times, shares = read_scalars(path, "replay/T3-cube1_above_cube2")
     np.testing.assert_array_equal(times, [10, 20])
     np.testing.assert_allclose(shares, [0.5, 0.0])
     np.testing.assert_allclose(read_scalars(path, "losses/critic")[1], [0.5, 0.25])
@@ -400,7 +408,7 @@ def test_two_processes_write_two_recordings(tmp_path: Path) -> None:
     ids = [summarize(Path(f) / RECORDING_FILENAME).recording_ids for f in folders]
     assert len(ids[0]) == 1 and len(ids[1]) == 1 and ids[0] != ids[1]
     for folder, value in zip(folders, (0.25, 0.75), strict=True):
-        _, values = read_scalars(Path(folder) / RECORDING_FILENAME, "competence/reach")
+        _, values = read_scalars(Path(folder) / RECORDING_FILENAME, "competence/T1-reach")
         assert values.tolist() == [value]
 
 
@@ -421,7 +429,7 @@ def test_resume_keeps_the_id_and_drops_episodes_after_the_checkpoint(tmp_path: P
     _log_in_batches(resumed, {k: v[150:] for k, v in data.items()}, batch=50)
     resumed.close()
     path = tmp_path / RECORDING_FILENAME
-    times, values = read_scalars(path, "p_lp/reach")
+    times, values = read_scalars(path, "p_lp/T1-reach")
     np.testing.assert_array_equal(times, np.arange(300))
     np.testing.assert_array_equal(values, data["p_lp"][:, 0])
     assert summarize(path).recording_ids == (run_id,)
@@ -437,7 +445,7 @@ def test_spawn_without_display_warns_and_still_writes(
         recorder = RunRecorder(tmp_path, MODULES, spawn=True)
     recorder.log_episodes(0, 0, True, True, np.ones((1, 5)), np.ones((1, 5)), np.ones((1, 5)))
     recorder.close()
-    assert read_scalars(tmp_path / RECORDING_FILENAME, "competence/reach")[1].tolist() == [1.0]
+    assert read_scalars(tmp_path / RECORDING_FILENAME, "competence/T1-reach")[1].tolist() == [1.0]
 
 
 def test_logging_cost_measurement_runs(tmp_path: Path, fetch: mujoco.MjModel) -> None:
@@ -495,10 +503,10 @@ def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
     finally:
         os.killpg(server.pid, signal.SIGTERM)
         server.wait(timeout=10)
-    expected = read_scalars(tmp_path / "run" / RECORDING_FILENAME, "competence/reach")
+    expected = read_scalars(tmp_path / "run" / RECORDING_FILENAME, "competence/T1-reach")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a streamed file has no footer
-        got = read_scalars(live, "competence/reach")
+        got = read_scalars(live, "competence/T1-reach")
     np.testing.assert_array_equal(got[0], expected[0])
     np.testing.assert_array_equal(got[1], expected[1])
 

@@ -95,3 +95,13 @@ def test_the_compacted_recording_keeps_the_runs_module_range(tmp_path: Path) -> 
     by_origin = {origin: ranges.get(path) for path, origin in origins.items()}
     assert by_origin["/module"] == [[[-0.5, n - 0.5]]]
     assert by_origin["/competence"] == [[list(UNIT_RANGE)]]
+
+
+def test_module_entity_paths_sort_in_the_papers_order():
+    """The viewer lists a legend in entity-path order: T1..T7, then the distractors by cube."""
+    from curious.analysis.palette import module_entity, module_sort_key
+
+    names = ["stack", "push_cube7", "reach", "push_cube3", "cube1_above_cube2", "push_cube1"]
+    names += ["push_cube5", "push_cube4", "push_cube6", "push_cube9", "push_cube8"]
+    assert sorted(names, key=module_entity) == sorted(names, key=module_sort_key)
+    assert module_entity("reach") == "T1-reach" and module_entity("push_cube9") == "push_cube9"

@@ -13,7 +13,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from curious.analysis.palette import module_label
+from curious.analysis.palette import module_entity, module_label
 from curious.cli import main
 from curious.config import resolve
 from curious.recording import RECORDING_FILENAME, RecorderSettings, RunRecorder
@@ -51,7 +51,9 @@ def test_curious_train_records_every_kth_evaluation_in_3d(tmp_path: Path) -> Non
     # the test rollouts of every epoch (smoke: 8 episodes an epoch, 2 tests), as success rates
     tests = pq.read_table(out / "tests.parquet").to_pandas()
     for name, rows in tests.groupby("module", observed=True):
-        episodes, rates = read_component(path, f"test/{name}", "Scalars:scalars", "episode")
+        episodes, rates = read_component(
+            path, f"test/{module_entity(name)}", "Scalars:scalars", "episode"
+        )
         expected = rows.groupby("episode")["success"].mean()
         assert episodes.tolist() == expected.index.tolist()
         np.testing.assert_allclose([r[0] for r in rates], expected.to_numpy())

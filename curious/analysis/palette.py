@@ -107,6 +107,14 @@ def module_label(name: str) -> str:
     return _module_style(name).label
 
 
+def module_entity(name: str) -> str:
+    """The module's entity path part in a Rerun recording, e.g. ``"T2-push_cube1"``: the
+    viewer lists a plot's series in entity-path order, so the paper's task number leads and the
+    legend reads T1..T7 (then other modules by name)."""
+    match = re.match(r"T(\d+) ", module_label(name))
+    return f"T{match.group(1)}-{name}" if match else name
+
+
 def module_name(name: str) -> str:
     """The label without the paper's task number, e.g. ``"push cube 3"``: for variants whose
     slots are not the paper's T1-T7 (in `sensor_failure`, push_cube3 is an achievable module)."""

@@ -13,8 +13,8 @@ at the bottom open them). A legend sits in the bottom-right corner, away from th
 run, where every module's curve begins. Absolute learning progress, p_LP and the replay
 composition show no legend of their own: their colours are those of the competence legend above
 them (every view draws a module in the same colour). The viewer lists a legend in the order of
-the entity paths (`competence/cube1_above_cube2` first), not of the modules; the labels carry
-the task number (T1..T7).
+the entity paths, so a module's path part leads with the paper's task number
+(`competence/T1-reach`, `curious.analysis.palette.module_entity`) and the legend reads T1..T7.
 
 Axes of shares and success rates span [-0.05, 1.05], and the module of each episode (its slot
 index) -0.5 to n_modules - 0.5, so that points and lines at the ends are drawn whole instead of

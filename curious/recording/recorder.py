@@ -7,7 +7,9 @@ buffered per entity and sent with `send_columns` in large chunks (every `flush_r
 `flush_seconds`, and on `flush()`/`close()`), indexed on two timelines: `episode` (the global
 episode index, a sequence) and `wall_time` (seconds since the run started, a duration).
 
-Entity paths (fixed, so that recordings of different runs line up):
+Entity paths (fixed, so that recordings of different runs line up; `<module>` is the module's
+name led by its task number in the paper where it has one, `T1-reach`, `T2-push_cube1`, ...,
+`curious.analysis.palette.module_entity`, so that the viewer's legends read T1..T7):
 
 | path | content |
 |---|---|
@@ -53,7 +55,7 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from curious.analysis.palette import module_label, module_rgb
+from curious.analysis.palette import module_entity, module_label, module_rgb
 from curious.recording.blueprint import default_blueprint
 from curious.recording.rrd_files import (
     PreviousRecording,
@@ -238,6 +240,7 @@ class RunRecorder:
         self._module_index = {name: i for i, name in enumerate(self.module_names)}
         self._rgb = np.array([module_rgb(n) for n in self.module_names], dtype=np.uint8)
         self._labels = [module_label(n) for n in self.module_names]
+        self._entities = [module_entity(n) for n in self.module_names]
 
         previous: PreviousRecording | None = None
         if resume and self.path.exists():
@@ -301,7 +304,7 @@ class RunRecorder:
         """Static names, colours and styles of every per-module series."""
         log = self.stream.log
         step = "StepAfter" if self.settings.stats_on_change else "Linear"
-        for m, name in enumerate(self.module_names):
+        for m, name in enumerate(self._entities):
             color, label = self._rgb[m], self._labels[m]
             for kind in _STATS:
                 log(
@@ -429,7 +432,7 @@ class RunRecorder:
             "lp": self._per_module("lp", lp, n),
             "p_lp": self._per_module("p_lp", p_lp, n),
         }
-        for m, name in enumerate(self.module_names):
+        for m, name in enumerate(self._entities):
             mine = modules == m
             rows = np.flatnonzero(mine)
             if rows.size:
@@ -467,7 +470,7 @@ class RunRecorder:
                 keep[-1] |= (written <= episodes[-1] - every) & ~np.isnan(values[-1])
         else:
             keep = np.ones_like(values, dtype=bool)
-        for m, name in enumerate(self.module_names):
+        for m, name in enumerate(self._entities):
             rows = np.flatnonzero(keep[:, m])
             if rows.size:
                 self._send_scalars(f"{kind}/{name}", episodes[rows], wall[rows], values[rows, m])
@@ -492,7 +495,7 @@ class RunRecorder:
         wall = self._wall(wall_time, 1)
         for m in np.flatnonzero(counts):
             self._send_scalars(
-                f"test/{self.module_names[m]}",
+                f"test/{self._entities[m]}",
                 np.array([episode], np.int64),
                 wall,
                 np.array([rates[m] / counts[m]]),
@@ -517,7 +520,7 @@ class RunRecorder:
         total = arr.sum(axis=1, keepdims=True)
         shares = np.divide(arr, total, out=np.zeros_like(arr), where=total > 0)
         wall = self._wall(wall_time, n)
-        for m, name in enumerate(self.module_names):
+        for m, name in enumerate(self._entities):
             self._send_scalars(f"replay/{name}", episodes, wall, shares[:, m])
         self._maybe_send()
 
@@ -649,7 +652,7 @@ class RunRecorder:
             ep = np.array([self._latest_episode], dtype=np.int64)
             wall = np.array([self._last_wall])
             for kind in _STATS:
-                for m, name in enumerate(self.module_names):
+                for m, name in enumerate(self._entities):
                     if self._logged_until[kind][m] < self._latest_episode:
                         self._send_scalars(f"{kind}/{name}", ep, wall, self._last[kind][m : m + 1])
         self._send_buffer()
