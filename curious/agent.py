@@ -83,11 +83,16 @@ class Agent:
             actions[rows] = noisy
         return actions
 
-    def acting_copy(self) -> Agent:
+    def acting_copy(self, device: str | None = None) -> Agent:
         """An agent that acts as this one does now, and keeps doing so while this one learns
-        (its actors copied; the input encoder shared, which only `update_stats` changes)."""
+        (its actors copied, to `device` if given; the input encoder shared, which only
+        `update_stats` changes and which normalises on any device)."""
         twin = copy.copy(self)
-        twin.experts = [_FrozenActor(copy.deepcopy(e.actor)) for e in self.experts]
+        if device is not None:
+            twin.device = torch.device(device)
+        twin.experts = [
+            _FrozenActor(copy.deepcopy(e.actor).to(twin.device)) for e in self.experts
+        ]
         return twin
 
     def update(self, expert: int, batch: Transitions) -> dict[str, torch.Tensor]:

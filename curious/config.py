@@ -26,6 +26,7 @@ RESUMABLE_FIELDS: frozenset[str] = frozenset(
     {
         "total_episodes",
         "device",
+        "act_on_cpu",
         "torch_threads",
         "env_processes",
         "prefetch_minibatches",
@@ -185,6 +186,10 @@ class Config:
     # --- running -----------------------------------------------------------------------------
     device: str = "cpu"
     """`cpu` or `cuda` (networks and updates; environments always run on the CPU)."""
+    act_on_cpu: bool = False
+    """With `device=cuda`: the rollouts' policy calls run on a CPU copy of the actors, taken
+    after each cycle's updates, where a forward pass of `n_workers` rows per step may cost less
+    than a round trip to the GPU (the same policy, float rounding aside; no effect on a CPU)."""
     torch_threads: int = 1
     """torch intra-op threads (0 keeps torch's default)."""
     checkpoint_every_cycles: int = 50

@@ -531,24 +531,27 @@ class Trainer:
             timings["rollout_policy"] += collected.info.data.policy_seconds
             timings["rollout_env"] += collected.info.data.env_seconds
 
+        cpu_actors = cfg.act_on_cpu and self.agent.device.type != "cpu"
         if not cfg.overlap_rollouts:
+            acting = self.agent.acting_copy("cpu") if cpu_actors else self.agent
             for _ in range(cfg.episodes_per_worker):
                 n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
                 if n <= 0:
                     break
                 self._start_failure_if_due(self.episodes)
-                score(self._collect(n, self.episodes, epoch, self.agent))
+                score(self._collect(n, self.episodes, epoch, acting))
         else:
             if self._pending is not None:
                 collected, self._pending = self._pending.result(), None
             else:
                 self._start_failure_if_due(self.episodes)
-                collected = self._collect_cycle(epoch, self.agent)
+                acting = self.agent.acting_copy("cpu") if cpu_actors else self.agent
+                collected = self._collect_cycle(epoch, acting)
             for c in collected:
                 score(c)
             if not self.done:  # the next cycle's rounds, beside this cycle's updates
                 next_epoch = (self.cycles + 1) // cfg.n_cycles
-                acting = self.agent.acting_copy()
+                acting = self.agent.acting_copy("cpu" if cpu_actors else None)
                 self._start_failure_if_due(self.episodes)  # decided here, read in the thread
                 self._pending = self._pool().submit(self._collect_cycle, next_epoch, acting)
 

@@ -591,8 +591,8 @@ def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_pat
     copies = []
     original = Agent.acting_copy
 
-    def recorded(self):
-        copies.append(original(self))
+    def recorded(self, device=None):
+        copies.append(original(self, device))
         return copies[-1]
 
     monkeypatch.setattr(Agent, "acting_copy", recorded)
@@ -686,3 +686,36 @@ def test_prefetched_minibatches_give_the_same_run(tmp_path, overlap):
                 assert torch.equal(tensor, b[key][name]), (key, name)
     tables = [pq.read_table(tmp_path / f"p{p}" / "metrics.parquet") for p in (False, True)]
     assert tables[0].drop(["wall_time"]).equals(tables[1].drop(["wall_time"]))
+
+
+def test_an_acting_copy_on_another_device_acts_as_the_agent(tmp_path):
+    """`act_on_cpu` hands the rollouts a CPU copy of the actors: it picks the same actions
+    (here from a CPU agent; on CUDA, float rounding aside) and stays put while the agent
+    learns. A run with the setting on a CPU is the same run (the setting is for CUDA)."""
+    from curious.train import Trainer
+
+    config = resolve("smoke", "curious", 0, SMALL)
+    trainer = Trainer(config, toy_envs(config))
+    try:
+        trainer.cycle()
+        agent = trainer.agent
+        twin = agent.acting_copy("cpu")
+        assert twin.device == torch.device("cpu") and twin.encoder is agent.encoder
+        rng = np.random.default_rng(0)
+        n, spec = 3, trainer.spec
+        states = rng.normal(size=(n, spec.state_dim)).astype(np.float32)
+        goals = rng.uniform(-1, 1, (n, spec.n_modules, spec.goal_dim)).astype(np.float32)
+        mask, task = np.ones((n, spec.n_modules)), np.eye(spec.n_modules)[[0, 1, 0]]
+        experts, calm = np.zeros(n, np.int64), np.zeros(n, bool)
+        args = (states, goals, mask, task, experts, calm, rng)
+        np.testing.assert_array_equal(agent.act(*args), twin.act(*args))
+    finally:
+        trainer.close()
+    plain = run(tmp_path / "plain")
+    on_cpu = run(tmp_path / "cpu", act_on_cpu=True)
+    for p, q in zip(
+        plain.agent.experts[0].actor.parameters(),
+        on_cpu.agent.experts[0].actor.parameters(),
+        strict=True,
+    ):
+        assert torch.equal(p, q)
