@@ -90,9 +90,7 @@ class Agent:
         twin = copy.copy(self)
         if device is not None:
             twin.device = torch.device(device)
-        twin.experts = [
-            _FrozenActor(copy.deepcopy(e.actor).to(twin.device)) for e in self.experts
-        ]
+        twin.experts = [_FrozenActor(copy.deepcopy(e.actor).to(twin.device)) for e in self.experts]
         return twin
 
     def update(self, expert: int, batch: Transitions) -> dict[str, torch.Tensor]:
