@@ -36,6 +36,11 @@ RESUMABLE_FIELDS: frozenset[str] = frozenset(
 )
 
 
+PLACEMENT_FIELDS: frozenset[str] = RESUMABLE_FIELDS - {"total_episodes", "progress"}
+"""Settings of where and how fast a run goes that leave what it computes as it is (float
+rounding aside): those `curious reproduce --set` may change for every run of a budget."""
+
+
 class ConfigError(ValueError):
     """A configuration that cannot run: unknown preset, condition, key or a bad value."""
 

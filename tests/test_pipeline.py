@@ -390,6 +390,30 @@ def test_an_experiment_the_budget_leaves_out_is_a_one_line_error_saying_where_it
     assert not out.exists()
 
 
+def test_reproduce_set_takes_where_and_how_fast_runs_go_only(tmp_path, capsys, monkeypatch):
+    """`--set` reaches every run for settings that leave what a run computes as it is; one that
+    would change the budget's runs is a one-line error, and nothing is written."""
+    import pipelines.reproduce
+
+    code, err = run_cli(
+        ["--budget", "smoke", "--out", str(tmp_path / "a"), "--set", "n_updates=3"], capsys
+    )
+    assert code == 2 and len(err.splitlines()) == 1
+    assert "n_updates would change the budget's runs" in err and "env_processes" in err
+    assert not (tmp_path / "a").exists()
+    seen = {}
+
+    def fake(budget, **kwargs):
+        seen.update(kwargs)
+        raise pipelines.reproduce.ReproduceError("stop here")
+
+    monkeypatch.setattr(pipelines.reproduce, "reproduce", fake)
+    args = ["--set", "env_processes=2", "--set", "prefetch_minibatches=true", "--device", "cpu"]
+    code, err = run_cli(["--budget", "smoke", *args], capsys)
+    assert code == 2 and "stop here" in err
+    assert seen["overrides"] == {"env_processes": 2, "prefetch_minibatches": True, "device": "cpu"}
+
+
 def test_reproduce_given_preset_says_it_takes_budget(tmp_path, capsys):
     """`--preset`, reproduce's option before budgets were named apart, is a one-line error."""
     with pytest.raises(SystemExit) as exit_:

@@ -4,6 +4,8 @@
     curious reproduce --budget smoke --out /tmp/smoke   # seconds per run
     curious reproduce --experiments main,distractors    # a subset of the experiments
     curious reproduce --budget paper --ray-address auto --runs-dir /shared/curious
+    curious reproduce --budget paper --device cuda --workers 4 \
+        --set env_processes=4 --set prefetch_minibatches=true   # one GPU node (docs/scaling.md)
 
 The assets (pipelines/) are materialised in this process on a Dagster instance kept in
 OUT/.dagster: no server to start. Training runs go to worker processes (one per core unless
@@ -103,6 +105,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="where the networks train in local runs (default cpu; Ray runs with GPUs use cuda)",
     )
     parser.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help=(
+            "set where and how fast every run goes (repeatable): device, env_processes, "
+            "torch_threads, act_on_cpu, prefetch_minibatches, checkpoint_every_cycles"
+        ),
+    )
+    parser.add_argument(
         "--no-record", action="store_true", help="do not write Rerun recordings (recording.rrd)"
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
@@ -113,6 +126,22 @@ def _experiments(text: str | None) -> list[str] | None:
     if text is None:
         return None
     return [part.strip() for part in text.split(",")]
+
+
+def placement_overrides(items: list[str]) -> dict[str, object]:
+    """`--set KEY=VALUE` items, typed; only settings that leave what a run computes as it is
+    (`curious.config.PLACEMENT_FIELDS`), since the budget defines the runs."""
+    from curious.config import PLACEMENT_FIELDS, ConfigError, parse_overrides
+
+    overrides = parse_overrides(items)
+    other = sorted(set(overrides) - PLACEMENT_FIELDS)
+    if other:
+        raise ConfigError(
+            f"reproduce --set takes only {', '.join(sorted(PLACEMENT_FIELDS))}, which change "
+            f"where and how fast the runs go, not what they compute; {', '.join(other)} would "
+            "change the budget's runs (train such runs one by one with `curious train --set`)"
+        )
+    return overrides
 
 
 def run(args: argparse.Namespace) -> int:
@@ -129,7 +158,14 @@ def run(args: argparse.Namespace) -> int:
         )
         return 2
 
-    if args.device == "cuda" and not args.ray_address:
+    try:
+        overrides = placement_overrides(args.overrides)
+    except ConfigError as exc:
+        print(f"curious reproduce: error: {exc}", file=sys.stderr)
+        return 2
+    if args.device:
+        overrides["device"] = args.device
+    if overrides.get("device") == "cuda" and not args.ray_address:
         import torch
 
         if not torch.cuda.is_available():
@@ -150,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
             out=args.out,
             runs_dir=args.runs_dir,
             make_pool=pool,
-            overrides={"device": args.device} if args.device else None,
+            overrides=overrides or None,
             record=not args.no_record,
             progress=not args.no_progress,
         )
