@@ -15,7 +15,11 @@ rounds collected during the untimed warm-up stand for those still in flight at t
 * ours_workers: both;
 * ours_workspace: ours with the written-out update (`learner_backend=workspace`);
 * peer_threads and ours_threads: peer and ours with one torch thread per core for the updates
-  (`--set torch_threads=0`) instead of `--threads`.
+  (`--set torch_threads=0`) instead of `--threads`;
+* ours_gpu: everything for a GPU node (`--device cuda`): overlap, a worker process per core,
+  prefetched minibatches, the compiled update (CUDA graphs) and acting on CPU copies. Not in the
+  default list, as the compiled update takes minutes to compile on a CPU:
+  `--device cuda --contenders ours_gpu,workers`.
 
 torch's thread count is one per process, so it is set before each contender's block.
 
@@ -41,9 +45,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cycles", type=int, default=4, help="timed cycles each (default 4)")
     parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     parser.add_argument(
+        "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train"
+    )
+    parser.add_argument(
         "--contenders",
-        default=",".join(CONTENDERS),
-        help="comma-separated contenders besides peer and ours (default: all)",
+        default=",".join(name for name in CONTENDERS if name != "ours_gpu"),
+        help="comma-separated contenders besides peer and ours (default: all but ours_gpu)",
     )
 
 
@@ -53,6 +60,13 @@ CONTENDERS: dict[str, dict[str, Any]] = {
     "ours_workspace": dict(overlap_rollouts=True, learner_backend="workspace"),
     "peer_threads": dict(torch_threads=0),
     "ours_threads": dict(overlap_rollouts=True, torch_threads=0),
+    "ours_gpu": dict(
+        overlap_rollouts=True,
+        env_processes=0,
+        prefetch_minibatches=True,
+        learner_backend="compiled",
+        act_on_cpu=True,
+    ),
 }
 """The settings of every optional contender, over the preset's (see the module docstring)."""
 
@@ -90,7 +104,12 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
 
     base = resolve(
         args.preset,
-        overrides=dict(progress=False, torch_threads=args.threads, test_rollouts_per_worker=0),
+        overrides=dict(
+            progress=False,
+            torch_threads=args.threads,
+            test_rollouts_per_worker=0,
+            device=args.device,
+        ),
     )
     wanted = [name for name in args.contenders.split(",") if name]
     unknown = sorted(set(wanted) - set(CONTENDERS))
