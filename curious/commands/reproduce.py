@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from curious.commands import add_set_option
 from curious.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
 
 
@@ -104,16 +105,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="where the networks train in local runs (default cpu; Ray runs with GPUs use cuda)",
     )
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help=(
-            "set where and how fast every run goes (repeatable): device, env_processes, "
-            "torch_threads, act_on_cpu, prefetch_minibatches, checkpoint_every_cycles"
-        ),
+    add_set_option(
+        parser,
+        "set where and how fast every run goes (repeatable): device, env_processes, "
+        "torch_threads, act_on_cpu, prefetch_minibatches, checkpoint_every_cycles",
     )
     parser.add_argument(
         "--no-record", action="store_true", help="do not write Rerun recordings (recording.rrd)"

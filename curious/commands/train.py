@@ -16,6 +16,7 @@ import argparse
 import sys
 
 from curious.cli import HelpFormatter
+from curious.commands import add_set_option
 from curious.config import CONDITIONS, PRESETS, ConfigError, parse_overrides, resolve
 
 
@@ -47,14 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--preset", default="quick", help="smoke, quick, laptop or paper (default quick)"
     )
     parser.add_argument("--out", required=True, help="run folder (must be empty unless --resume)")
-    parser.add_argument(
-        "--set",
-        dest="overrides",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="override one setting (repeatable), e.g. --set n_workers=8",
-    )
+    add_set_option(parser, "override one setting (repeatable), e.g. --set n_workers=8")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out")
     parser.add_argument(
         "--device", choices=("cpu", "cuda"), default=None, help="where networks train (default cpu)"
