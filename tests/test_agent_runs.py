@@ -268,6 +268,19 @@ def test_cli_tells_its_version_and_helps_with_real_names_and_defaults(capsys):
     assert "(default 50)" in " ".join(capsys.readouterr().out.split())  # --rollout-every
 
 
+def test_every_command_and_benchmark_prints_its_help(capsys):
+    from curious.cli import build_parser
+    from curious.commands.bench import BENCHMARKS
+
+    commands = [[name] for name in build_parser()._subparsers._group_actions[0].choices]
+    commands += [["bench", name] for name in BENCHMARKS]
+    for command in [[], *commands]:
+        with pytest.raises(SystemExit) as exit_:
+            main([*command, "--help"])
+        assert exit_.value.code == 0, command
+        assert capsys.readouterr().out.startswith("usage: curious"), command
+
+
 def test_without_a_display_the_commands_that_do_not_render_say_nothing_of_gl():
     """dm_control tries GLFW when MUJOCO_GL is unset and warns that DISPLAY is missing."""
     import os

@@ -31,7 +31,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     ),
     "recording": (
         "benchmarks.recording_overhead",
-        "training with vs without the Rerun recording: % overhead and .rrd size",
+        "training with vs without the Rerun recording: the overhead and the .rrd size",
     ),
 }
 
