@@ -82,7 +82,7 @@ def _trainer(config: Any) -> Any:
     return Trainer(config, [fn() for fn in fns])
 
 
-def _physics_episodes_per_second(variant: str, episodes: int = 5) -> float:
+def physics_episodes_per_second(variant: str, episodes: int = 5) -> float:
     """One core stepping the suite's compiled model, 50 control steps of 20 substeps."""
     import mujoco
 
@@ -144,7 +144,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     cores = os.cpu_count() or 1
     out: dict[str, Any] = {
         "ours": rates["ours"],
-        "bound": _physics_episodes_per_second(base.variant) * cores,
+        "bound": physics_episodes_per_second(base.variant) * cores,
         "peer": rates["peer"],
         "unit": "episodes/s",
         "ours_over_peer": rates["ours"] / rates["peer"],

@@ -47,7 +47,7 @@ def _rounds_per_second(envs: Any, rounds: int, episode_length: int, seed: int) -
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """ours, bound, peer (episodes/s) and the rate of every process count."""
-    from benchmarks.cycle_speed import _physics_episodes_per_second
+    from benchmarks.cycle_speed import physics_episodes_per_second
     from curious.config import resolve
     from curious.env_batch import LocalEnvs, ProcessEnvs
     from curious.envs import suite_env_fns
@@ -69,7 +69,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             rates[processes] = _rounds_per_second(envs, args.episodes, length, 0) * config.n_workers
         finally:
             envs.close()
-    one_core = _physics_episodes_per_second(config.variant)
+    one_core = physics_episodes_per_second(config.variant)
     out: dict[str, Any] = {
         "ours": rates[top],
         "bound": one_core * top,

@@ -180,9 +180,7 @@ class CycleResult:
 
 def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
     """A list of copies becomes a `LocalEnvs`; an `EnvBatch` stays as it is."""
-    if isinstance(envs, LocalEnvs | ProcessEnvs):
-        return envs
-    return LocalEnvs(envs)
+    return LocalEnvs(envs) if isinstance(envs, Sequence) else envs
 
 
 def available_memory() -> int:
@@ -426,6 +424,15 @@ class Trainer:
         self.episodes += n
         return RoundResult(info, competence, lp, p_lp, wall)
 
+    def _acting_agent(self, frozen: bool) -> Agent:
+        """Who acts in the rollouts: a copy of the policy as it is now when it must stay so
+        while the agent learns (`frozen`), or on the CPU (`act_on_cpu` with a GPU); else the
+        agent itself."""
+        on_cpu = self.config.act_on_cpu and self.agent.device.type != "cpu"
+        if frozen or on_cpu:
+            return self.agent.acting_copy("cpu" if on_cpu else None)
+        return self.agent
+
     def _collect_cycle(self, epoch: int, agent: Agent) -> list[_Collected]:
         """The rounds of one cycle, collected one after the other without scoring between them
         (module choices follow the competence queues as they were at the start)."""
@@ -531,9 +538,8 @@ class Trainer:
             timings["rollout_policy"] += collected.info.data.policy_seconds
             timings["rollout_env"] += collected.info.data.env_seconds
 
-        cpu_actors = cfg.act_on_cpu and self.agent.device.type != "cpu"
         if not cfg.overlap_rollouts:
-            acting = self.agent.acting_copy("cpu") if cpu_actors else self.agent
+            acting = self._acting_agent(frozen=False)
             for _ in range(cfg.episodes_per_worker):
                 n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
                 if n <= 0:
@@ -545,13 +551,12 @@ class Trainer:
                 collected, self._pending = self._pending.result(), None
             else:
                 self._start_failure_if_due(self.episodes)
-                acting = self.agent.acting_copy("cpu") if cpu_actors else self.agent
-                collected = self._collect_cycle(epoch, acting)
+                collected = self._collect_cycle(epoch, self._acting_agent(frozen=False))
             for c in collected:
                 score(c)
             if not self.done:  # the next cycle's rounds, beside this cycle's updates
                 next_epoch = (self.cycles + 1) // cfg.n_cycles
-                acting = self.agent.acting_copy("cpu" if cpu_actors else None)
+                acting = self._acting_agent(frozen=True)
                 self._start_failure_if_due(self.episodes)  # decided here, read in the thread
                 self._pending = self._pool().submit(self._collect_cycle, next_epoch, acting)
 
@@ -879,11 +884,11 @@ def _run(
             if stop_now:
                 break
     except BaseException:
-        bar.close()
         if recorder is not None:
             recorder.close_after_error()  # never hides the error that stopped training
         raise
-    bar.close()
+    finally:
+        bar.close()
     if recorder is not None:
         recorder.close()
     return trainer

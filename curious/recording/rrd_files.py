@@ -64,7 +64,7 @@ def has_room_for(path: Path, size: int) -> bool:
 
 def _write_error(path: Path, cause: BaseException) -> RecordingWriteError:
     try:
-        full = shutil.disk_usage(path.parent).free < _NEARLY_FULL
+        full = not has_room_for(path, 0)
     except OSError:
         full = False
     if full:

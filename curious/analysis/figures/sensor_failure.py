@@ -146,6 +146,18 @@ def _onset_text(per_run: pd.DataFrame, onsets: pd.Series) -> str:
     return f"{where} ({len(onsets)} of {len(per_run)} runs; in the others it never started)"
 
 
+def _draw_conditions(
+    top: Axes, bottom: Axes, comp: pd.DataFrame, lp: pd.DataFrame, conditions: Sequence[str]
+) -> None:
+    """Each condition's mean ± std of competence (top) and LP (bottom), over the points that
+    all its seeds reach."""
+    for i, c in enumerate(conditions):
+        color, width = palette.condition_color(c), line_width(i, len(conditions))
+        for ax, table in ((top, comp), (bottom, lp)):
+            s = table[table["condition"] == c]
+            draw_mean_std(ax, s[s["n"] == s["n"].max()], color, width, None)
+
+
 def _draw_aligned(
     top: Axes,
     bottom: Axes,
@@ -166,13 +178,11 @@ def _draw_aligned(
     offsets = np.arange(-(before // step), (after - 1) // step + 1) * step
     comp = across_seeds(_aligned(rows, f"competence/{module}", onsets, offsets))
     lp = across_seeds(_aligned(rows, f"lp/{module}", onsets, offsets))
-    for i, c in enumerate(conditions):
-        color, width = palette.condition_color(c), line_width(i, len(conditions))
-        for ax, table in ((top, comp), (bottom, lp)):
-            s = table[table["condition"] == c]
-            draw_mean_std(ax, s[s["n"] == s["n"].max()], color, width, None)
+    _draw_conditions(top, bottom, comp, lp, conditions)
+    for c in conditions:
         mine = per_run[(per_run["condition"] == c) & (per_run["status"] == "measured")]
         if not mine.empty:
+            color = palette.condition_color(c)
             top.axhline(mine["threshold"].mean(), color=color, linestyle=":", linewidth=1.0)
     lp_axis(bottom, float(np.nanmax(lp["mean"] + lp["std"].fillna(0.0))) if len(lp) else 0.0)
     for ax in (top, bottom):
@@ -214,11 +224,7 @@ def _draw_unstarted(
     step = curve_bin(n_episodes)
     comp = across_seeds(bin_runs(rows, f"competence/{module}", step))
     lp = across_seeds(bin_runs(rows, f"lp/{module}", step))
-    for i, c in enumerate(conditions):
-        color, width = palette.condition_color(c), line_width(i, len(conditions))
-        for ax, table in ((top, comp), (bottom, lp)):
-            s = table[table["condition"] == c]
-            draw_mean_std(ax, s[s["n"] == s["n"].max()], color, width, None)
+    _draw_conditions(top, bottom, comp, lp, conditions)
     waited = rows.groupby("run", observed=True)["failure_competence"].first().dropna()
     for level in sorted(set(waited.astype(float))):
         top.axhline(level, color="black", linestyle=":", linewidth=1.0)
