@@ -30,6 +30,17 @@ def test_paper_preset_is_the_authors_protocol():
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))
+def test_every_preset_is_synchronous_like_the_authors(preset):
+    """flowersteam/curious, baselines/her/experiment/train.py: each cycle rolls out, then trains
+    on what it stored; acting never lags learning. The speed settings that would change that
+    (`overlap_rollouts`) are off, and those that do not (prefetching, CPU acting copies, worker
+    processes) keep their in-process defaults."""
+    c = resolve(preset)
+    assert not c.overlap_rollouts
+    assert (c.prefetch_minibatches, c.act_on_cpu, c.env_processes) == (False, False, 1)
+
+
+@pytest.mark.parametrize("preset", list(PRESETS))
 def test_every_preset_keeps_the_whole_run_in_replay(preset):
     """The authors' per-task buffers (flowersteam/curious, baselines/her/experiment/config.py:
     buffer_size 1e6 transitions) evicted nothing in a 300k-episode run."""
