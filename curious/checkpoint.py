@@ -27,10 +27,13 @@ PREFIX = "ep-"
 _NAME = re.compile(r"ep-(\d{12})")
 KEEP = 2
 """Checkpoints kept in a run folder: the newest and the one before."""
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 """2: goals enter the networks through a fixed map (no goal statistics), Xavier-initialised
 networks, the authors' stack guard and T3 heights; 3: test rollouts' random streams and the
-sensory failure's onset. A run of another format cannot go on with this agent."""
+sensory failure's onset; 4: the suite's outcomes in the world frame as the authors' (the replay's
+`achieved` arrays change size: cube1_above_cube2 and stack carry cube 1's and cube 2's
+positions, stack the gripper), goals that follow cube 2, cube velocities relative to the
+gripper. A run of another format cannot go on with this agent."""
 
 
 class CheckpointError(RuntimeError):

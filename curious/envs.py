@@ -5,17 +5,24 @@ The agent never touches dm_control objects: it trains on anything that implement
 
 * `reset(module, g)` starts an episode practising module `module` with goal `g` in [-1, 1]^3;
 * `step(action)` returns the next `Obs` and the per-module success flags;
-* `goal_slot(module, g)` maps goals in [-1, 1]^3 to the module's 3-D goal slot (vectorised);
+* `goal_slot(module, g)` maps goals in [-1, 1]^3 to the module's 3-D goal slot (vectorised),
+  fixed for an episode;
+* `goal(module, slot, achieved)` is the goal that slot stands for at the step where the full
+  `achieved` vector (..., sum of outcome dims) was observed, in the frame of the outcomes: the
+  slot itself, except in the suite's `cube1_above_cube2` and `stack`, whose goal follows cube 2's
+  xy as in the authors' env (vectorised);
 * `reward(module, achieved, goal)` is the module's sparse reward in {-1, 0} for full `achieved`
-  vectors (..., sum of outcome dims) against goal slots (..., goal_dim), vectorised over the
-  leading axes: the replay recomputes rewards for whole minibatches with it.
+  vectors against goals (..., goal_dim) in the frame of the outcomes: a hindsight goal, or
+  `goal(module, slot, achieved)` for an episode's own goal (never the bare slot of a module whose
+  goal follows something). Vectorised over the leading axes: the replay recomputes rewards for
+  whole minibatches with it.
 
 An environment with a perturbation also offers `set_sensor_failure(on)`, which the trainer
 calls before every episode of a run with a sensory failure, and `sensor_failure_module`, the name
 of the module it perturbs (whose competence can start it, `Config.sensor_failure_competence`).
 
 A hindsight goal for a module is the first `goal_dim` coordinates of its outcome (the module's
-slice of `achieved`); see `EnvSpec.hindsight_columns`.
+slice of `achieved`, the part comparable with its goals); see `EnvSpec.hindsight_columns`.
 """
 
 from __future__ import annotations
@@ -64,8 +71,8 @@ class EnvSpec:
     def hindsight_columns(self) -> np.ndarray:
         """(n_modules, goal_dim) int: columns of `achieved` that form each module's hindsight goal.
 
-        A module whose outcome is longer than its goal slot (the suite's `stack` watches 4 numbers
-        and has a 3-D slot) relabels with the first `goal_dim` numbers of its outcome.
+        A module whose outcome is longer than its goal (the suite's `stack` watches cube 1, the
+        gripper and cube 2's xy) relabels with the first `goal_dim` numbers of its outcome.
         """
         cols = np.empty((self.n_modules, self.goal_dim), dtype=np.int64)
         for m, sl in enumerate(self.outcome_slices):
@@ -100,6 +107,8 @@ class GoalEnv(Protocol):
 
     def goal_slot(self, module: int, g: np.ndarray) -> np.ndarray: ...
 
+    def goal(self, module: int, slot: np.ndarray, achieved: np.ndarray) -> np.ndarray: ...
+
     def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray: ...
 
     def get_rng_state(self) -> Any: ...
@@ -112,7 +121,7 @@ class SuiteEnv:
 
     Uses only the suite's public interface: `suite.load`, `env.task.modules`,
     `env.task.set_next_episode`, `env.reset`, `env.step`, and each module's vectorised
-    `goal_slot` and `reward`.
+    `goal_slot`, `goal` and `reward`.
     """
 
     EPISODE_LENGTH = 50
@@ -181,6 +190,10 @@ class SuiteEnv:
 
     def goal_slot(self, module: int, g: np.ndarray) -> np.ndarray:
         return np.asarray(self._modules[module].goal_slot(np.asarray(g)), dtype=np.float32)
+
+    def goal(self, module: int, slot: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
+        return self._modules[module].goal(np.asarray(slot), outcome)
 
     def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
         outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]

@@ -15,7 +15,9 @@ built at sample time, with numpy indexing only (loops run over modules, never ov
    strictly after the transition's state s_t). The other transitions keep the module the episode
    practised and the episode's own goal, so that ~(1 - her_p) of every minibatch are real
    (module, goal) pairs, as in the authors' sampler (flowersteam/curious, her.py: only the HER
-   indices get a substituted task);
+   indices get a substituted task). An episode's own goal is its slot placed at step t+1
+   (`GoalEnv.goal`): goals that follow an object (the suite's `cube1_above_cube2` and `stack`
+   follow cube 2) are where the authors' rollout stored them, the goal after the step;
 4. the reward is recomputed for each transition's module and goal with the environment's
    vectorised reward, one call per module present in the batch.
 
@@ -159,7 +161,7 @@ class EpisodeReplay:
         future = step + 1 + (rng.random(B) * (T - step)).astype(np.int64)
 
         module = np.where(her, replay_module, self.modules[episode])
-        goal = self.goals[episode, module]  # the episode's own goal where it kept its module
+        goal = self.goals[episode, module]  # the episode's own slot where it kept its module
         cols = self._hindsight[module[her]]  # (nh, G)
         goal[her] = self.achieved[episode[her, None], future[her, None], cols]
         goal_step = np.where(her, future, GOAL_OWN)
@@ -167,6 +169,9 @@ class EpisodeReplay:
         reward = np.empty(B, np.float32)
         for k in np.unique(module):
             sel = np.flatnonzero(module == k)
+            own = sel[~her[sel]]
+            if own.size:  # the slot's goal after the step
+                goal[own] = env.goal(int(k), goal[own], next_achieved[own])
             reward[sel] = env.reward(int(k), next_achieved[sel], goal[sel])
 
         goals = np.zeros((B, n_mod, spec.goal_dim), np.float32)
@@ -200,6 +205,10 @@ class EpisodeReplay:
         goals[her] = self.achieved[episode[her], future[her]][:, self._hindsight]
         goal_step = np.where(her, future, GOAL_OWN)
         next_achieved = self.achieved[episode, step + 1]
+        own = np.flatnonzero(~her)
+        if own.size:  # the slots' goals after the step
+            for k in range(n_mod):
+                goals[own, k] = env.goal(k, goals[own, k], next_achieved[own])
         met = np.ones(B, bool)
         for k in range(n_mod):
             met &= env.reward(k, next_achieved, goals[:, k]) == 0

@@ -32,13 +32,15 @@ def run_episodes(
     envs: EnvBatch,
     modules: np.ndarray,
     raw_goals: np.ndarray,
-    act: Callable[[np.ndarray, int], np.ndarray],
+    act: Callable[[np.ndarray, np.ndarray, int], np.ndarray],
     on_step: Callable[[int], None] | None = None,
 ) -> EpisodeData:
     """One episode in each of the first n = len(modules) copies of `envs`: copy i practises
     `modules[i]` with goal `raw_goals[i]`.
 
-    `act(states, t)` maps the (n, S) states at step t to (n, A) actions for all copies at once.
+    `act(states, achieved, t)` maps the (n, S) states and (n, sum of outcome dims) outcomes at
+    step t to (n, A) actions for all copies at once (the outcomes place goals that follow an
+    object, `GoalEnv.goal`).
     `on_step(t)`, if given, is called after the resets (t = 0) and after each step (t = 1..T),
     when every copy has moved (recorders read the simulators' state there).
     """
@@ -56,7 +58,7 @@ def run_episodes(
     success = np.zeros((n, spec.n_modules), bool)
     for t in range(T):
         tic = time.perf_counter()
-        actions[:, t] = act(states[:, t], t)
+        actions[:, t] = act(states[:, t], achieved[:, t], t)
         toc = time.perf_counter()
         policy_seconds += toc - tic
         states[:, t + 1], achieved[:, t + 1], success = envs.step(actions[:, t])

@@ -309,13 +309,25 @@ class Trainer:
         experts: np.ndarray,
         explore: np.ndarray,
         rng: np.random.Generator,
-    ) -> Callable[[np.ndarray, int], np.ndarray]:
-        """`act(states, t)` for a round of episodes with these goals, experts and noise."""
+    ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
+        """`act(states, achieved, t)` for a round of episodes with these goal slots, experts
+        and noise: the policy sees each slot's goal at step t (`_goals_now`)."""
 
-        def act(states: np.ndarray, t: int) -> np.ndarray:
-            return agent.act(states, goals, mask, task, experts, explore, rng)
+        def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
+            now = self._goals_now(goals, mask, achieved)
+            return agent.act(states, now, mask, task, experts, explore, rng)
 
         return act
+
+    def _goals_now(self, slots: np.ndarray, mask: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        """(n, N, G) the goals that the slots (n, N, G) stand for given the outcomes (n, .) of
+        one step (`GoalEnv.goal`: the suite's `cube1_above_cube2` and `stack` goals follow cube
+        2, as the authors' env moves them); zero where `mask` (n, N) is."""
+        goals = np.zeros_like(slots)
+        for k in np.flatnonzero(mask.any(axis=0)):
+            rows = np.flatnonzero(mask[:, k])
+            goals[rows, k] = self.env.goal(int(k), slots[rows, k], achieved[rows])
+        return goals
 
     def _start_failure_if_due(self, episode: int) -> None:
         """Start the failure now if the perturbed module's competence reached the threshold,
@@ -455,7 +467,8 @@ class Trainer:
         success = np.zeros(n, bool)
         for k in np.unique(modules):
             sel = np.flatnonzero(modules == k)
-            success[sel] = self.env.reward(int(k), final[sel], goals[sel, k]) == 0
+            goal = self.env.goal(int(k), goals[sel, k], final[sel])
+            success[sel] = self.env.reward(int(k), final[sel], goal) == 0
         return success
 
     def test_rollouts(self) -> dict[str, np.ndarray]:

@@ -1,10 +1,10 @@
 """Placement and random walk of the out-of-reach distractor cubes (vectorised).
 
 Distractors start near fixed points beyond the arm's reach and, every env step, move by
-N(0, 0.005^2) in x and y. A move that would end within 0.05 m of another cube is redrawn (a few
-times; a distractor that finds no free move stays put), and every move is clipped to the region
-`layout.DISTRACTOR_X_RANGE x layout.DISTRACTOR_Y_RANGE`: on the table, and beyond the arm's
-reach.
+N(0, 0.005^2) in x and y. A move that would end within 0.05 m of another cube is redrawn (99 draws
+in all, as the authors do; a distractor that finds no free move stays put), and every move is
+clipped to the region `layout.DISTRACTOR_X_RANGE x layout.DISTRACTOR_Y_RANGE`: on the table, and
+beyond the arm's reach (the authors' walk has no bound; docs/suite.md says what that changes).
 """
 
 from __future__ import annotations
@@ -15,11 +15,12 @@ from suite import layout
 
 _LOW = np.array([layout.DISTRACTOR_X_RANGE[0], layout.DISTRACTOR_Y_RANGE[0]])
 _HIGH = np.array([layout.DISTRACTOR_X_RANGE[1], layout.DISTRACTOR_Y_RANGE[1]])
-MAX_REDRAWS = 10
+MAX_REDRAWS = layout.DISTRACTOR_MAX_DRAWS - 1  # after the first draw of a step
 
 
 def start_positions(n: int, random_state: np.random.RandomState) -> np.ndarray:
-    """Start xy (n, 2) of `n` distractors: the fixed start points plus a little noise."""
+    """Start xy (n, 2) of `n` distractors: the fixed start points plus U(-0.01, 0.01) in x and
+    U(-0.02, 0.02) in y."""
     if n > layout.MAX_DISTRACTORS:
         raise ValueError(f"at most {layout.MAX_DISTRACTORS} distractors, got {n}")
     noise = layout.DISTRACTOR_START_NOISE
@@ -95,7 +96,7 @@ class DistractorWalk:
 
     def _redraw(self, random_state: np.random.RandomState) -> None:
         """Redraw the candidates that end too close to another cube; whoever still collides
-        after a few tries stays where it is. The others were checked against the current
+        after `MAX_REDRAWS` redraws stays where it is. The others were checked against the current
         positions of everyone, so every pair stays apart."""
         current, candidate = self._current, self._candidate
         for _ in range(MAX_REDRAWS):

@@ -74,7 +74,9 @@ class StateLayout:
     @property
     def cube_vel(self) -> slice:
         """Each reachable cube's velocity in the world frame, (angular xyz, linear xyz), times
-        the control timestep."""
+        the control timestep; the linear one relative to the grip site's (the cube's minus the
+        gripper's, as the authors' `object0_velp -= grip_velp`, gym_flowers
+        multi_task_fetch_arm_v0.py `_get_obs`)."""
         return self._after_cubes(6 * self.n_reachable + 2, 6 * self.n_reachable)
 
     @property
@@ -179,6 +181,8 @@ class StateReader:
         self._cube_vel_rows = list(
             zip(self._reach_body_ids, b[lay.cube_vel].reshape(n_reach, 6), strict=True)
         )
+        # The linear halves of those rows: made relative to the grip site's velocity.
+        self._b_cube_lin_vel = b[lay.cube_vel].reshape(n_reach, 6)[:, 3:]
         self._b_grip_vel = b[lay.gripper_vel]
         self._b_finger_vel = b[lay.finger_vel]
         # Views into MuJoCo's arrays (stable for the life of `data`).
@@ -221,6 +225,7 @@ class StateReader:
             mujoco.mj_objectVelocity(m, d, _BODY, body, row, 0)
         mujoco.mj_objectVelocity(m, d, _SITE, self._grip_site, self._grip_vel, 0)
         self._b_grip_vel[:] = self._grip_vel[3:]
+        self._b_cube_lin_vel -= self._b_grip_vel
         self._b_finger_vel[:] = self._finger_v
         np.multiply(self.raw, self._scale, out=out)
         return out

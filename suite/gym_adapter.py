@@ -3,14 +3,15 @@
 `ModuleGoalEnv` exposes a single module of a registered variant as a goal-conditioned
 `gymnasium.Env` (the shape of gymnasium-robotics' `GoalEnv`): a dict observation with
 `observation` (the state features), `achieved_goal` (the module's outcome) and `desired_goal`
-(its goal slot), and a vectorised `compute_reward`, so that libraries built for goal-conditioned
-Gymnasium envs (Stable-Baselines3's HER replay buffer, say) train on our tasks.
+(its goal at this step, world frame: `task.goal_positions()`), and a vectorised
+`compute_reward`, so that libraries built for goal-conditioned Gymnasium envs
+(Stable-Baselines3's HER replay buffer, say) train on our tasks.
 
 HER substitutes an achieved goal for the desired one, so both have the same size. For modules
-whose outcome has more entries than the goal slot (`stack` watches the gripper's distance from
-cube 1 as a fourth entry), `desired_goal` is padded with the value of that entry the module
-requires (0.05 m) and `compute_reward` reads the goal's first three entries only: a relabelled
-goal is then still a valid goal for the module.
+whose outcome has more entries than the goal (`cube1_above_cube2` also watches cube 2's xy,
+`stack` the gripper and cube 2's xy), `desired_goal` is padded with zeros and `compute_reward`
+reads the goal's first three entries only: a relabelled goal (an outcome) is then the position
+of the module's object at that step, a valid goal for the module, as in the authors' HER.
 """
 
 from __future__ import annotations
@@ -132,26 +133,28 @@ class ModuleGoalEnv(gymnasium.Env):
     # -- helpers -------------------------------------------------------------------------------
 
     @property
+    def module_index(self) -> int:
+        """The module's slot index in the variant (its rows of `task.goal_positions()`)."""
+        return self._index
+
+    @property
     def suite_env(self):
         """The underlying dm_control composer environment."""
         return self._env
 
     def _observation(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        slot = obs["goal"][self._goal_slice]
+        goal = obs["goal"][self._goal_slice]
         return {
             "observation": obs["state"].copy(),
             "achieved_goal": obs["achieved"][self._outcome].copy(),
-            "desired_goal": np.concatenate([slot, self._pad]).astype(np.float32),
+            "desired_goal": np.concatenate([goal, self._pad]).astype(np.float32),
         }
 
 
 def _goal_padding(outcome_dim: int, goal_dim: int) -> np.ndarray:
-    """Entries appended to the goal slot so that desired and achieved goals have one size.
-
-    The only module whose outcome is larger than its goal is `stack`, whose fourth outcome entry
-    is the gripper's distance from cube 1; the padding states the distance it must exceed.
-    """
+    """Zeros appended to the goal so that desired and achieved goals have one size (the reward
+    reads the goal's first `goal_dim` entries only)."""
     extra = outcome_dim - goal_dim
     if extra < 0:
-        raise ValueError(f"outcome ({outcome_dim}) smaller than the goal slot ({goal_dim})")
-    return np.full(extra, 0.05, dtype=np.float32)
+        raise ValueError(f"outcome ({outcome_dim}) smaller than the goal ({goal_dim})")
+    return np.zeros(extra, dtype=np.float32)

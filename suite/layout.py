@@ -59,9 +59,12 @@ DISTRACTOR_STARTS = np.array(
         [2.15, 1.05],
     ]
 )
-DISTRACTOR_START_NOISE = 0.02  # each start point gets U(-noise, noise)^2
-DISTRACTOR_WALK_STD = 0.005  # xy += N(0, std^2) every env step
+# Each start point gets x + U(-0.01, 0.01), y + U(-0.02, 0.02) (gym_flowers
+# multi_task_fetch_arm_v0.py, `_reset_sim`).
+DISTRACTOR_START_NOISE = np.array([0.01, 0.02])
+DISTRACTOR_WALK_STD = 0.005  # xy += N(0, std^2) every env step (v0.py, `_get_obs`)
 DISTRACTOR_MIN_SEPARATION = 0.05  # a walk move ending closer than this to another cube is redrawn
+DISTRACTOR_MAX_DRAWS = 99  # moves drawn and checked, then it stays put (v0.py: gives up at i == 100)
 # The region a distractor centre may occupy: on the table with a margin, and beyond the arm's
 # reach (x >= DISTRACTOR_MIN_X; tests/test_suite_reach.py checks the arm at full stretch cannot
 # touch a cube there).
@@ -78,8 +81,13 @@ DISTRACTOR_Y_RANGE = (
 
 MAX_DISTRACTORS = len(DISTRACTOR_STARTS)
 
-# Success threshold of every module (distance to the goal slot).
+# Success threshold of every module (distance to the goal; gym_flowers __init__ registration of
+# MultiTaskFetchArm-v0, `distance_threshold=0.05`).
 SUCCESS_DISTANCE = 0.05
+# `stack`'s guard: the gripper must be at least this far from the goal (v0.py, compute_reward:
+# `dgrip < distance_threshold` fails). The later v5 (2019) raised it to 1.2 x 0.05; the paper's
+# environment is v0.
+STACK_GRIPPER_AWAY = SUCCESS_DISTANCE
 
 # Sensory failure: the perceived x of the failing cube reads this much too far, in the state and
 # in every outcome (gym_flowers multi_task_fetch_arm_v3.py, `object2_pos[0] += 0.05`).

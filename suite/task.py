@@ -245,7 +245,6 @@ class MultiTaskFetch(composer.Task):
             self._slots[i] = m.slot_fn(goals[i])
         self._evaluator.set_slots(self._slots)
         self._goal_obs[:] = 0.0
-        self._goal_obs[3 * active : 3 * active + 3] = self._slots[active]
         self._task_obs[:] = 0.0
         self._task_obs[active] = 1.0
         self._steps = 0
@@ -375,14 +374,16 @@ class MultiTaskFetch(composer.Task):
 
     @property
     def goal_slots(self) -> np.ndarray:
-        """This episode's goal slot for every module, (n_modules, 3) float32 (a copy)."""
+        """This episode's goal slot for every module, (n_modules, 3) float32 (a copy): fixed for
+        the episode; `goal_positions()` gives the goals they stand for now."""
         return self._slots.copy()
 
     def goal_positions(self) -> np.ndarray:
-        """Where every module's goal is in the world now, (n_modules, 3) float64 (for display):
-        goal slots expressed in cube 2's frame follow cube 2 (as perceived)."""
+        """Every module's goal now, (n_modules, 3) float64, world frame: the slot, moved with
+        cube 2's xy (as perceived) for the modules whose goal follows it
+        (`TaskModule.goal`). What success is judged against."""
         self._compute()
-        return self._evaluator.goal_positions(self._reader.positions)
+        return self._evaluator.goals.astype(np.float64)
 
     @property
     def has_sensor_failure(self) -> bool:
@@ -551,7 +552,9 @@ class MultiTaskFetch(composer.Task):
         reader = self._reader
         reader.read(self._state)
         self._evaluator.evaluate(reader.positions, reader.gripper, reader.cubes)
-        self._reward = -1.0 + float(self._success[self._active])
+        a = self._active
+        self._goal_obs[3 * a : 3 * a + 3] = self._evaluator.goals[a]
+        self._reward = -1.0 + float(self._success[a])
         self._computed = key
 
     def _observe_state(self, physics) -> np.ndarray:
@@ -563,6 +566,7 @@ class MultiTaskFetch(composer.Task):
         return self._achieved
 
     def _observe_goal(self, physics) -> np.ndarray:
+        self._compute()
         return self._goal_obs
 
     def _observe_task(self, physics) -> np.ndarray:

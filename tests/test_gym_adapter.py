@@ -44,11 +44,17 @@ def test_compute_reward_matches_step_reward(module):
 
 def test_stack_goal_is_padded_to_the_outcome_size(stack_env):
     obs, _ = stack_env.reset(seed=0)
-    assert obs["achieved_goal"].shape == obs["desired_goal"].shape == (4,)
+    assert obs["achieved_goal"].shape == obs["desired_goal"].shape == (8,)
     assert stack_env.observation_space.contains(obs)
-    # A goal relabelled from an outcome where cube 1 sits on cube 2, gripper away, is a success.
-    placed = np.array([0.0, 0.0, 0.05, 0.2], dtype=np.float32)
-    held = np.array([0.0, 0.0, 0.05, 0.01], dtype=np.float32)
+    # The desired goal is the goal now: cube 2's xy, one cube height above the table.
+    cube2 = stack_env.suite_env.task.goal_positions()[stack_env.module_index]
+    np.testing.assert_allclose(obs["desired_goal"][:3], cube2, atol=1e-6)
+    np.testing.assert_array_equal(obs["desired_goal"][3:], 0.0)
+    # A goal relabelled from an outcome where cube 1 was placed and let go, gripper away, is a
+    # success; the same place with the gripper still at the cube is not.
+    cube1, cube2_xy = np.array([1.3, 0.7, 0.425]), np.array([1.45, 0.85])
+    placed = np.r_[cube1, cube1 + [0.0, 0.0, 0.1], cube2_xy].astype(np.float32)
+    held = np.r_[cube1, cube1, cube2_xy].astype(np.float32)
     rewards = stack_env.compute_reward(np.stack([placed, held]), np.stack([placed, placed]), None)
     np.testing.assert_array_equal(rewards, [0.0, -1.0])
 

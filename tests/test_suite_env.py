@@ -66,8 +66,10 @@ def test_caller_chooses_module_and_goal_for_the_next_episode_only():
 
 @pytest.mark.parametrize("variant", ["default", "distractors_7"])
 def test_vectorised_reward_equals_step_reward_on_recorded_trajectories(variant):
-    """What the agent does with relabelled transitions: recompute each module's reward from the
-    recorded outcomes and a goal slot, in one batched call, and get the env's numbers."""
+    """What the agent does with replayed transitions: recompute each module's reward from the
+    recorded outcomes and the goal its slot stands for at each step (`TaskModule.goal`, which
+    follows cube 2 for cube1_above_cube2 and stack), in one batched call, and get the env's
+    numbers; the `goal` observation is that goal."""
     env = suite.load(variant, seed=3)
     task = env.task
     rng = np.random.default_rng(1)
@@ -87,15 +89,19 @@ def test_vectorised_reward_equals_step_reward_on_recorded_trajectories(variant):
             obs.append(ts.observation)
             rewards.append(ts.reward)
         achieved = np.stack([o["achieved"] for o in obs[1:]])[:, task.outcome_slices[i]]
-        recomputed = module.reward(achieved, np.broadcast_to(slot, (50, 3)))
+        goal = module.goal(np.broadcast_to(slot, (50, 3)), achieved)
+        observed = np.stack([o["goal"][3 * i : 3 * i + 3] for o in obs[1:]])
+        np.testing.assert_array_equal(observed, goal, module.name)
+        recomputed = module.reward(achieved, goal)
         np.testing.assert_array_equal(recomputed, np.array(rewards, np.float32), module.name)
         seen_rewards.update(rewards)
         successes = np.stack([o["success"] for o in obs[1:]])
         # success of every module, against that module's goal, from the same outcomes
         for j, other in enumerate(task.modules):
             ach = np.stack([o["achieved"] for o in obs[1:]])[:, task.outcome_slices[j]]
+            goal = other.goal(task.goal_slots[j], ach)
             np.testing.assert_array_equal(
-                other.success(ach, task.goal_slots[j]).astype(np.float32), successes[:, j]
+                other.success(ach, goal).astype(np.float32), successes[:, j]
             )
     assert seen_rewards == {0.0, -1.0}  # the comparison covered successes too
 
@@ -115,6 +121,20 @@ def test_start_state_gripper_and_reachable_cubes():
         assert np.linalg.norm(cubes[0, :2] - cubes[1, :2]) >= 0.1 - 1e-6
         np.testing.assert_allclose(cubes[2:, :2], layout.DISTRACTOR_STARTS[:3], atol=0.021)
         np.testing.assert_allclose(state[state_layout.cube_euler], 0.0, atol=1e-6)
+
+
+def test_distractors_start_with_the_authors_noise():
+    """gym_flowers multi_task_fetch_arm_v0.py `_reset_sim`: each distractor starts at its point
+    plus U(-0.01, 0.01) in x and U(-0.02, 0.02) in y."""
+    env = suite.load("default", seed=6)
+    sl = env.task.state_layout
+    offsets = []
+    for _ in range(60):
+        cubes = env.reset().observation["state"][sl.cube_pos].reshape(5, 3)
+        offsets.append(cubes[2:, :2] - layout.DISTRACTOR_STARTS[:3])
+    offsets = np.abs(np.concatenate(offsets))
+    assert offsets[:, 0].max() <= 0.01 + 1e-6 and offsets[:, 0].max() > 0.009
+    assert offsets[:, 1].max() <= 0.02 + 1e-6 and offsets[:, 1].max() > 0.018
 
 
 def test_reset_does_not_resimulate_the_settled_arm():
@@ -207,3 +227,25 @@ def test_gripper_follows_the_action():
     # 0.32 m in 10 full steps, as the gymnasium-robotics Fetch arm does (0.3207 measured there).
     assert 0.29 < state[1] - start[1] < 0.35
     np.testing.assert_allclose(state[[0, 2]], start[[0, 2]], atol=0.01)
+
+
+def test_cube_linear_velocities_are_relative_to_the_gripper():
+    """gym_flowers multi_task_fetch_arm_v0.py `_get_obs`: `object0_velp -= grip_velp` (both times
+    the control timestep)."""
+    env = suite.load("default", seed=4)
+    task, physics = env.task, env.physics
+    sl = task.state_layout
+    env.reset()
+    joints = [physics.bind(j) for j in task._cube_joints]
+    dt = layout.CONTROL_TIMESTEP
+    moving = 0
+    for t in range(30):
+        action = np.array([1.0, 0.2, -0.5, 1.0]) if t < 15 else np.array([-1.0, 0.0, 0.3, -1.0])
+        state = env.step(action).observation["state"]
+        vel = state[sl.cube_vel].reshape(2, 6)
+        grip_vel = state[sl.gripper_vel]
+        for k, joint in enumerate(joints):
+            qvel = np.asarray(joint.qvel, dtype=np.float64)  # free joint: linear velocity first
+            np.testing.assert_allclose(vel[k, 3:], qvel[:3] * dt - grip_vel, atol=1e-6)
+        moving += bool(np.abs(grip_vel).max() > 1e-3)
+    assert moving > 10  # the gripper moved, so relative and absolute differ

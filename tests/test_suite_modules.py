@@ -31,7 +31,7 @@ def test_standard_module_names_and_dims():
         "push_cube4",
         "push_cube5",
     ]
-    assert [m.outcome_dim for m in MODULES] == [3, 3, 3, 4, 3, 3, 3]
+    assert [m.outcome_dim for m in MODULES] == [3, 3, 5, 8, 3, 3, 3]
     assert all(m.goal_dim == 3 for m in MODULES)
 
 
@@ -47,13 +47,18 @@ def test_goal_slots_map_the_cube_onto_the_documented_regions():
     np.testing.assert_allclose(push_slots[:, 2], 0.426, atol=1e-7)
     np.testing.assert_allclose(push_slots[:, :2], slots[:, :2])
     above_slots = above.goal_slot(corners)
-    np.testing.assert_array_equal(above_slots[:, :2], 0.0)
-    # 0.05 to 0.45 m above a resting cube's centre: the authors' height_offset + (g_z + 1.25) * 0.2
-    # (gym_flowers, multi_task_fetch_arm_v3.py, the "cube above cube" goal)
+    # The slots of the goals that follow cube 2 are those goals with cube 2 at grip0's xy.
+    np.testing.assert_allclose(above_slots[:, :2], np.tile([gx, gy], (8, 1)), atol=1e-6)
+    # 0.05 to 0.45 m above a resting cube's centre: gym_flowers multi_task_fetch_arm_v0.py
+    # `_compute_goal` (as of its 2018-10-22 revision, kept to the end of v0; v3 has the same),
+    # task 2: height_offset + (g_z + 1.25) * 0.45 / 2.25.
+    g_z = corners[:, 2]
     np.testing.assert_allclose(
-        [above_slots[:, 2].min(), above_slots[:, 2].max()], [0.476, 0.876], atol=1e-6
+        above_slots[:, 2], 0.426 + (g_z + 1.25) * 0.45 / 2.25, atol=1e-6
     )
-    np.testing.assert_allclose(stack.goal_slot(corners), np.tile([0, 0, 0.05], (8, 1)))
+    # Stacking: one cube height above the table's resting height whatever g (v0.py
+    # `_compute_goal`, task 3: height_offset + 0.05).
+    np.testing.assert_allclose(stack.goal_slot(corners), np.tile([gx, gy, 0.476], (8, 1)))
     for m in MODULES:
         assert m.goal_slot(corners).dtype == np.float32
 
@@ -65,9 +70,10 @@ def test_functions_are_vectorised_and_agree_with_one_at_a_time(batch):
     g = rng.uniform(-1, 1, size=(*batch, 3))
     for m in MODULES:
         outcome = m.achieved(gripper, cubes).astype(np.float32)
-        slot = m.goal_slot(g)
-        reward = m.reward(outcome, slot)
-        success = m.success(outcome, slot)
+        goal = m.goal(m.goal_slot(g), outcome)
+        reward = m.reward(outcome, goal)
+        success = m.success(outcome, goal)
+        assert goal.shape == (*batch, 3) and goal.dtype == np.float32
         assert outcome.shape == (*batch, m.outcome_dim)
         assert reward.shape == batch and reward.dtype == np.float32
         assert success.shape == batch and success.dtype == bool
@@ -76,10 +82,16 @@ def test_functions_are_vectorised_and_agree_with_one_at_a_time(batch):
         for index in np.ndindex(*batch):
             one = m.achieved(gripper[index], cubes[index]).astype(np.float32)
             np.testing.assert_array_equal(one, outcome[index])
-            assert m.reward(one, m.goal_slot(g[index])) == reward[index]
+            one_goal = m.goal(m.goal_slot(g[index]), one)
+            np.testing.assert_array_equal(one_goal, goal[index])
+            assert m.reward(one, one_goal) == reward[index]
 
 
-def test_outcomes_are_what_the_paper_describes():
+def test_outcomes_are_the_authors_world_positions():
+    """gym_flowers multi_task_fetch_arm_v0.py `tasks_obs_id`: T1 the gripper, T2 and T3 cube 1's
+    world position, T4 cube 1's then the gripper's, T5-7 the distractors'. Ours add cube 2's xy
+    after them for the two modules whose goal follows cube 2; the hindsight goal (the part
+    compared with goals) is the first three numbers, as the authors' `tasks_ag_id[:3]`."""
     rng = np.random.default_rng(1)
     gripper, cubes = random_positions(rng, (4,))
     reach, push1, above, stack, push3, _, push5 = MODULES
@@ -88,42 +100,78 @@ def test_outcomes_are_what_the_paper_describes():
     np.testing.assert_allclose(push1.achieved(gripper, cubes), c1)
     np.testing.assert_allclose(push3.achieved(gripper, cubes), cubes[:, 2])
     np.testing.assert_allclose(push5.achieved(gripper, cubes), cubes[:, 4])
-    np.testing.assert_allclose(
-        above.achieved(gripper, cubes), np.c_[c1[:, :2] - c2[:, :2], c1[:, 2]]
-    )
-    np.testing.assert_allclose(
-        stack.achieved(gripper, cubes),
-        np.c_[c1 - c2, np.linalg.norm(gripper - c2 - [0, 0, 0.05], axis=1)],
-        rtol=1e-6,
-    )
+    np.testing.assert_allclose(above.achieved(gripper, cubes), np.c_[c1, c2[:, :2]])
+    np.testing.assert_allclose(stack.achieved(gripper, cubes), np.c_[c1, gripper, c2[:, :2]])
+    for m in (push1, above, stack):  # T2, T3 and T4 relabel with the same numbers
+        outcome = m.achieved(gripper, cubes).astype(np.float32)
+        np.testing.assert_array_equal(m.hindsight_goal(outcome), c1.astype(np.float32))
 
 
 def test_success_threshold_and_the_stack_guard():
+    """gym_flowers multi_task_fetch_arm_v0.py compute_reward: success within
+    distance_threshold = 0.05 of the goal; for stacking, failure also where the gripper lies
+    within 0.05 of the goal (`dgrip < distance_threshold`)."""
     reach, _, _, stack = MODULES[:4]
     slot = np.array([1.3, 0.7, 0.6], np.float32)
     inside = slot + np.array([0.049, 0, 0], np.float32)
     outside = slot + np.array([0.0, 0.03, 0.041], np.float32)  # 0.0506 away
     assert reach.success(inside, slot) and not reach.success(outside, slot)
-    # The guard is the authors' (gym_flowers multi_task_fetch_arm_v5.py): the gripper at least
-    # 1.2 x 0.05 = 0.06 m from the stack target, which is the goal.
-    stacked_near = np.array([0.0, 0.0, 0.05, 0.059], np.float32)
-    stacked_away = np.array([0.0, 0.0, 0.05, 0.061], np.float32)
-    target = stack.goal_slot(np.zeros(3))
-    assert not stack.success(stacked_near, target)
-    assert stack.success(stacked_away, target)
-    assert stack.reward(np.stack([stacked_near, stacked_away]), target).tolist() == [-1.0, 0.0]
+    goal = np.array([1.4, 0.8, 0.476], np.float32)
+    cube1 = goal + np.array([0.0, 0.0, 0.01], np.float32)
+    near = goal + np.array([0.0, 0.03, 0.039], np.float32)  # 0.0492 from the goal
+    away = goal + np.array([0.0, 0.03, 0.041], np.float32)  # 0.0506 from the goal
+    cube2_xy = goal[:2]
+    held = np.r_[cube1, near, cube2_xy]
+    released = np.r_[cube1, away, cube2_xy]
+    assert not stack.success(held, goal)
+    assert stack.success(released, goal)
+    assert stack.reward(np.stack([held, released]), goal).tolist() == [-1.0, 0.0]
 
 
-def test_goal_slots_in_cube2_frame_are_pure_functions_of_g():
-    """A relabelled outcome of cube1_above_cube2 is a valid slot: it does not depend on where
-    cube 2 is."""
-    above = MODULES[2]
+def test_stack_guard_is_measured_from_the_transitions_goal():
+    """The authors measure the gripper's distance from the goal the reward is computed for
+    (gym_flowers multi_task_fetch_arm_v0.py compute_reward, `dgrip`): a hindsight goal, a later
+    position of cube 1 anywhere on the table, pays only once the gripper has let go of the
+    cube and moved away from it, not while it still holds the cube there."""
+    stack = MODULES[3]
+    cube2 = np.array([1.45, 0.85, 0.425])
+    cube1 = np.array([1.25, 0.65, 0.425])  # on the table, far from cube 2
+    cubes = np.c_[np.r_[[cube1[:2], cube2[:2]], layout.DISTRACTOR_STARTS[:3]], np.full(5, 0.425)]
+    in_hand = stack.achieved(cube1, cubes).astype(np.float32)  # grip site at the cube
+    let_go = stack.achieved(cube1 + [0.0, 0.0, 0.1], cubes).astype(np.float32)
+    hindsight = stack.hindsight_goal(in_hand)  # cube 1 where it was placed
+    np.testing.assert_array_equal(hindsight, cube1.astype(np.float32))
+    assert stack.reward(in_hand, hindsight) == -1.0
+    assert stack.reward(let_go, hindsight) == 0.0
+    # The episode's own goal (on cube 2) is not met by either: cube 1 is far from it.
+    own = stack.goal(stack.goal_slot(np.zeros(3)), let_go)
+    np.testing.assert_allclose(own, [1.45, 0.85, 0.476], atol=1e-6)
+    assert stack.reward(let_go, own) == -1.0
+
+
+def test_goals_above_cube2_follow_it_and_hindsight_goals_stay_in_the_world():
+    """gym_flowers multi_task_fetch_arm_v0.py `_update_goals`: the goal of T3/T4 takes cube 2's
+    xy at every step; a hindsight goal is cube 1's world position (her.py `future_ag`), met
+    where cube 1 is there, wherever cube 2 went meanwhile, as T2's."""
+    push1, above = MODULES[1], MODULES[2]
     rng = np.random.default_rng(2)
     gripper, cubes = random_positions(rng, (3,))
+    slot = above.goal_slot(np.zeros((3, 3)))
     cubes[:, 0, :2] = cubes[:, 1, :2]  # cube 1 straight above cube 2 ...
-    cubes[:, 0, 2] = above.goal_slot(np.zeros(3))[2]  # ... at the slot's height
+    cubes[:, 0, 2] = slot[:, 2]  # ... at the slot's height
     outcome = above.achieved(gripper, cubes).astype(np.float32)
-    assert np.all(above.success(outcome, above.goal_slot(np.zeros((3, 3)))))
+    goal = above.goal(slot, outcome)
+    np.testing.assert_allclose(goal, np.c_[cubes[:, 1, :2], slot[:, 2]], atol=1e-6)
+    assert np.all(above.success(outcome, goal))
+    # Cube 2 moves away; cube 1 stays: the episode's goal moved with cube 2, the hindsight goal
+    # taken before the move did not.
+    hindsight = above.hindsight_goal(outcome)
+    cubes[:, 1, :2] += 0.2
+    moved = above.achieved(gripper, cubes).astype(np.float32)
+    assert not np.any(above.success(moved, above.goal(slot, moved)))
+    assert np.all(above.success(moved, hindsight))
+    pushed = push1.achieved(gripper, cubes).astype(np.float32)
+    np.testing.assert_array_equal(push1.reward(pushed, hindsight), above.reward(moved, hindsight))
 
 
 def test_bad_shapes_raise_clear_errors():
@@ -153,7 +201,9 @@ def test_batched_evaluator_matches_each_module_exactly():
         for i, (m, sl) in enumerate(zip(MODULES, evaluator.slices, strict=True)):
             expected = m.achieved(gripper, cubes).astype(np.float32)
             np.testing.assert_array_equal(evaluator.achieved[sl], expected, err_msg=m.name)
-            assert evaluator.success[i] == float(m.success(expected, slots[i])), m.name
+            goal = m.goal(slots[i], expected)
+            np.testing.assert_array_equal(evaluator.goals[i], goal, err_msg=m.name)
+            assert evaluator.success[i] == float(m.success(expected, goal)), m.name
 
 
 def test_goal_positions_follow_cube2():
@@ -163,10 +213,11 @@ def test_goal_positions_follow_cube2():
     gripper = np.array([1.3, 0.75, 0.6])
     cubes = np.array([[1.2, 0.7], [1.4, 0.8], *layout.DISTRACTOR_STARTS[:3]])
     cubes = np.c_[cubes, np.full(5, 0.425)]
-    world = evaluator.goal_positions(np.concatenate([gripper, cubes.ravel()]))
+    evaluator.evaluate(np.concatenate([gripper, cubes.ravel()]), gripper, cubes)
+    world = evaluator.goals
     np.testing.assert_allclose(world[0], slots[0])
     np.testing.assert_allclose(world[2], [1.4, 0.8, slots[2][2]], rtol=1e-6)
-    np.testing.assert_allclose(world[3], [1.4, 0.8, 0.475], rtol=1e-6)
+    np.testing.assert_allclose(world[3], [1.4, 0.8, 0.476], rtol=1e-6)
 
 
 def lift_cube1() -> TaskModule:
@@ -191,7 +242,7 @@ def test_a_new_module_plugs_in_without_touching_the_env():
     env = suite.SuiteEnvironment(suite.MultiTaskFetch(modules, n_cubes=2), random_state=0)
     env.task.set_next_episode(module="lift_cube1", goal=[0.0, 0.0, -1.0])  # 0.45 m
     ts = env.reset()
-    assert ts.observation["achieved"].shape == (14,)
+    assert ts.observation["achieved"].shape == (20,)
     z = ts.observation["achieved"][-1]
     assert z == pytest.approx(0.425, abs=2e-3)
     assert ts.observation["success"][-1] == 0.0  # on the table, 2.5 cm short of 0.45

@@ -84,6 +84,11 @@ class ToyGoalEnv:
             return slot
         return 0.9 * g
 
+    def goal(self, module: int, slot: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        """The goal is the slot at every step (no goal here follows an object)."""
+        batch = np.broadcast_shapes(np.shape(slot)[:-1], np.shape(achieved)[:-1])
+        return np.array(np.broadcast_to(slot, (*batch, 3)), dtype=np.float32)
+
     def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
         outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
         distance = np.linalg.norm(outcome - np.asarray(goal), axis=-1)
