@@ -64,7 +64,8 @@ DISTRACTOR_STARTS = np.array(
 DISTRACTOR_START_NOISE = np.array([0.01, 0.02])
 DISTRACTOR_WALK_STD = 0.005  # xy += N(0, std^2) every env step (v0.py, `_get_obs`)
 DISTRACTOR_MIN_SEPARATION = 0.05  # a walk move ending closer than this to another cube is redrawn
-DISTRACTOR_MAX_DRAWS = 99  # moves drawn and checked, then it stays put (v0.py: gives up at i == 100)
+# Moves drawn and checked in a step, then the distractor stays put (v0.py gives up at i == 100).
+DISTRACTOR_MAX_DRAWS = 99
 # The region a distractor centre may occupy: on the table with a margin, and beyond the arm's
 # reach (x >= DISTRACTOR_MIN_X; tests/test_suite_reach.py checks the arm at full stretch cannot
 # touch a cube there).

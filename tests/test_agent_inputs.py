@@ -13,6 +13,7 @@ from curious.config import ConfigError, resolve
 from curious.envs import SuiteEnv
 from curious.inputs import GoalBox
 from curious.train import Trainer, train
+from suite import layout
 
 GRID = np.array(list(itertools.product([-1.0, -0.5, 0.0, 0.5, 1.0], repeat=3)))
 
@@ -65,6 +66,37 @@ def test_goal_box_is_read_off_the_modules():
     np.testing.assert_allclose(toy.half_width, [[0.9] * 3, [0.9, 0, 0], [0.9] * 3])
 
 
+def test_goals_that_follow_cube2_map_into_the_box_of_its_start_region():
+    """cube1_above_cube2's and stack's goals are world positions that follow cube 2's xy (the
+    authors' env): their slot is the goal with cube 2 at grip0's xy, so they are encoded in a box
+    centred on cube 2's start region, grip0 +- 0.15, the same xy encoding as push_cube1's; a
+    goal over a cube 2 anywhere it can start encodes within [-1, 1], and a hindsight goal (a
+    world position of cube 1) encodes alike for push_cube1 and cube1_above_cube2."""
+    env = SuiteEnv("default", seed=0)
+    box = GoalBox.of(env)
+    names = env.spec.module_names
+    push, above, stack = (names.index(n) for n in ("push_cube1", "cube1_above_cube2", "stack"))
+    gx, gy = layout.GRIP0[:2]
+    np.testing.assert_allclose(box.centre[above], [gx, gy, 0.676], atol=1e-6)
+    np.testing.assert_allclose(box.centre[stack], [gx, gy, 0.476], atol=1e-6)
+    np.testing.assert_allclose(box.scale[stack], [0.15, 0.15, 0.15], atol=1e-6)
+    rng = np.random.default_rng(0)
+    cube2 = np.c_[layout.GRIP0[:2] + rng.uniform(-0.15, 0.15, (200, 2)), np.full(200, 0.425)]
+    for k in (above, stack):
+        module = env.dm_env.task.modules[k]
+        gripper, cubes = np.zeros((200, 3)), np.zeros((200, 2, 3))
+        cubes[:, 1] = cube2
+        slots = env.goal_slot(k, rng.uniform(-1, 1, (200, 3)))
+        goals = module.goal(slots, module.achieved(gripper, cubes).astype(np.float32))
+        np.testing.assert_allclose(goals[:, :2], cube2[:, :2], atol=1e-6)
+        scaled = (goals - box.centre[k]) / box.scale[k]
+        assert np.all(np.abs(scaled) <= 1 + 1e-5), names[k]
+    hindsight = np.c_[cube2[:, :2], np.full(200, 0.425)].astype(np.float32)
+    as_push = (hindsight - box.centre[push]) / box.scale[push]
+    as_above = (hindsight - box.centre[above]) / box.scale[above]
+    np.testing.assert_allclose(as_push[:, :2], as_above[:, :2], atol=1e-5)
+
+
 def test_a_goal_map_that_is_not_affine_is_refused():
     class Curved(ToyGoalEnv):
         def goal_slot(self, module, g):
@@ -82,3 +114,32 @@ def test_a_replay_that_cannot_fit_is_refused_before_anything_is_written(tmp_path
     with pytest.raises(ConfigError, match="buffer_episodes"):
         train(config, tmp_path / "run", make_envs=lambda c: [ToyGoalEnv(i) for i in range(2)])
     assert not (tmp_path / "run").exists()
+
+
+def test_the_policy_sees_each_episodes_goal_where_it_is_at_every_step():
+    """The authors' rollout feeds the policy the env's desired goal of every step (rollout.py,
+    `self.g[i] = curr_o_new['desired_goal']`), which for cube1_above_cube2 and stack follows
+    cube 2: the goals our policy is given are `env.goal` of the episode's slot and the step's
+    outcomes."""
+    config = resolve("smoke", overrides={"total_episodes": 2, "progress": False})
+    envs = [SuiteEnv("default", seed=s) for s in range(config.n_workers)]
+    trainer = Trainer(config, envs)
+    k = trainer.spec.module_names.index("cube1_above_cube2")
+    trainer.condition.practice_probs = lambda tracker, epoch: np.eye(trainer.spec.n_modules)[k]
+    seen = []
+    act = trainer.agent.act
+
+    def recording_act(states, goals, *args):
+        seen.append(goals.copy())
+        return act(states, goals, *args)
+
+    trainer.agent.act = recording_act
+    trainer.cycle()
+    replay = trainer.replay
+    assert replay.size == 2 and np.all(replay.modules[:2] == k)
+    T = trainer.spec.episode_length
+    for t in range(T):
+        expected = envs[0].goal(k, replay.goals[:2, k], replay.achieved[:2, t])
+        np.testing.assert_array_equal(seen[t][:, k], expected)
+        others = np.delete(seen[t], k, axis=1)
+        np.testing.assert_array_equal(others, 0.0)

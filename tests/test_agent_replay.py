@@ -198,3 +198,77 @@ def test_sampling_errors_are_clear():
     filled, _ = filled_replay()
     with pytest.raises(ValueError, match="module_probs"):
         filled.sample(8, np.random.default_rng(0), ToyGoalEnv(), None)
+
+
+@pytest.fixture(scope="module")
+def suite_env():
+    from curious.envs import SuiteEnv
+
+    return SuiteEnv("default", seed=0)
+
+
+def suite_outcomes(env, mover):
+    """(T+1, achieved) outcomes of the default variant written from positions: the gripper still,
+    cube `mover` (0 or 1) sliding 2 mm a step in x, the other cubes still."""
+    T = env.spec.episode_length
+    gripper = np.tile([1.34, 0.75, 0.6], (T + 1, 1))
+    cubes = np.tile(
+        np.c_[[[1.25, 0.7], [1.45, 0.8], [2.0, 0.65], [1.9, 0.8], [2.0, 0.9]], np.full(5, 0.425)],
+        (T + 1, 1, 1),
+    )
+    cubes[:, mover, 0] += 0.002 * np.arange(T + 1)
+    modules = env.dm_env.task.modules
+    return np.concatenate([m.achieved(gripper, cubes) for m in modules], -1).astype(np.float32)
+
+
+def test_pools_of_modules_above_cube2_hold_episodes_where_cube1_moved(suite_env):
+    """flowersteam/curious ddpg.py `store_episode`: an episode enters the buffer of task j when
+    `change[-1, tasks_ag_id[j][:3]]`, i.e. where cube 1's world position moved for T2, T3 and
+    T4 alike (gym_flowers multi_task_fetch_arm_v0.py `tasks_obs_id`): an episode where only
+    cube 2 moved is in none of them."""
+    spec = suite_env.spec
+    T = spec.episode_length
+    achieved = np.stack([suite_outcomes(suite_env, 1), suite_outcomes(suite_env, 0)])
+    replay = EpisodeReplay(spec, capacity=4)
+    replay.store(
+        np.zeros((2, T + 1, spec.state_dim), np.float32),
+        achieved,
+        np.zeros((2, T, spec.action_dim), np.float32),
+        np.array([2, 2]),
+        np.zeros((2, spec.n_modules, 3), np.float32),
+    )
+    names = spec.module_names
+    cube1_modules = [names.index(n) for n in ("push_cube1", "cube1_above_cube2", "stack")]
+    assert not replay.moved[0, cube1_modules].any()  # only cube 2 moved
+    assert replay.moved[1, cube1_modules].all()  # cube 1 moved
+    assert not replay.moved[:2, names.index("reach")].any()
+
+
+def test_own_goals_above_cube2_follow_it_after_each_step(suite_env):
+    """The authors' rollout stores at every step the goal after that step (rollout.py
+    `self.g[i] = curr_o_new['desired_goal']`), which for T3 follows cube 2's xy
+    (multi_task_fetch_arm_v0.py `_update_goals`); a replayed real goal is that, and its reward
+    the env's for it."""
+    spec = suite_env.spec
+    T = spec.episode_length
+    k = spec.module_names.index("cube1_above_cube2")
+    achieved = suite_outcomes(suite_env, 1)[None]  # cube 2 slides away
+    slot = suite_env.goal_slot(k, np.zeros(3))
+    goals = np.zeros((1, spec.n_modules, 3), np.float32)
+    goals[0, k] = slot
+    replay = EpisodeReplay(spec, capacity=2, active_only=False)
+    replay.store(
+        np.zeros((1, T + 1, spec.state_dim), np.float32),
+        achieved,
+        np.zeros((1, T, spec.action_dim), np.float32),
+        np.array([k]),
+        goals,
+    )
+    probs = np.eye(spec.n_modules)[k]
+    batch = replay.sample(500, np.random.default_rng(0), suite_env, probs, her_p=0.0)
+    nxt = achieved[0, batch.step + 1]
+    expected = suite_env.goal(k, slot, nxt)
+    np.testing.assert_array_equal(batch.goals[:, k], expected)
+    cube2_x = 1.45 + 0.002 * (batch.step + 1)
+    np.testing.assert_allclose(batch.goals[:, k, 0], cube2_x, atol=1e-5)
+    np.testing.assert_array_equal(batch.reward, suite_env.reward(k, nxt, expected))

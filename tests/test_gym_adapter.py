@@ -53,7 +53,7 @@ def test_stack_goal_is_padded_to_the_outcome_size(stack_env):
     # A goal relabelled from an outcome where cube 1 was placed and let go, gripper away, is a
     # success; the same place with the gripper still at the cube is not.
     cube1, cube2_xy = np.array([1.3, 0.7, 0.425]), np.array([1.45, 0.85])
-    placed = np.r_[cube1, cube1 + [0.0, 0.0, 0.1], cube2_xy].astype(np.float32)
+    placed = np.r_[cube1, cube1 + np.array([0.0, 0.0, 0.1]), cube2_xy].astype(np.float32)
     held = np.r_[cube1, cube1, cube2_xy].astype(np.float32)
     rewards = stack_env.compute_reward(np.stack([placed, held]), np.stack([placed, placed]), None)
     np.testing.assert_array_equal(rewards, [0.0, -1.0])

@@ -53,9 +53,7 @@ def test_goal_slots_map_the_cube_onto_the_documented_regions():
     # `_compute_goal` (as of its 2018-10-22 revision, kept to the end of v0; v3 has the same),
     # task 2: height_offset + (g_z + 1.25) * 0.45 / 2.25.
     g_z = corners[:, 2]
-    np.testing.assert_allclose(
-        above_slots[:, 2], 0.426 + (g_z + 1.25) * 0.45 / 2.25, atol=1e-6
-    )
+    np.testing.assert_allclose(above_slots[:, 2], 0.426 + (g_z + 1.25) * 0.45 / 2.25, atol=1e-6)
     # Stacking: one cube height above the table's resting height whatever g (v0.py
     # `_compute_goal`, task 3: height_offset + 0.05).
     np.testing.assert_allclose(stack.goal_slot(corners), np.tile([gx, gy, 0.476], (8, 1)))
@@ -138,7 +136,7 @@ def test_stack_guard_is_measured_from_the_transitions_goal():
     cube1 = np.array([1.25, 0.65, 0.425])  # on the table, far from cube 2
     cubes = np.c_[np.r_[[cube1[:2], cube2[:2]], layout.DISTRACTOR_STARTS[:3]], np.full(5, 0.425)]
     in_hand = stack.achieved(cube1, cubes).astype(np.float32)  # grip site at the cube
-    let_go = stack.achieved(cube1 + [0.0, 0.0, 0.1], cubes).astype(np.float32)
+    let_go = stack.achieved(cube1 + np.array([0.0, 0.0, 0.1]), cubes).astype(np.float32)
     hindsight = stack.hindsight_goal(in_hand)  # cube 1 where it was placed
     np.testing.assert_array_equal(hindsight, cube1.astype(np.float32))
     assert stack.reward(in_hand, hindsight) == -1.0
