@@ -211,6 +211,13 @@ class Config:
     def batch_size(self) -> int:
         return self.batch_per_worker * self.n_workers
 
+    def samples_per_stored_transition(self, episode_length: int = 50) -> float:
+        """Replayed transitions per transition stored, per cycle: `n_updates * batch_size`
+        over `episodes_per_cycle * episode_length`. Authors: 100 x 256 / (2 x 50) = 256 per
+        worker (experiment/config.py), whatever the number of workers."""
+        stored = self.episodes_per_cycle * episode_length
+        return self.n_updates * self.batch_size / stored
+
     @property
     def processes(self) -> int:
         """The environment worker processes this run uses (`env_processes` resolved)."""
@@ -317,6 +324,10 @@ def setting_names() -> tuple[str, ...]:
 
 
 PRESETS: dict[str, dict[str, Any]] = {
+    # Every preset keeps the algorithm and its settings (networks, learning rates, discount,
+    # noise, HER, replay rules, p_LP) unless it says otherwise below; it changes the scale: the
+    # number of workers, the updates per cycle and their minibatch (hence the replay ratio,
+    # `Config.samples_per_stored_transition`: the authors' is 256), and the competence window.
     # Seconds: for tests and CI. Tiny networks, a handful of episodes, every code path touched
     # (evaluations, updates, target updates, a checkpoint, an epoch boundary).
     "smoke": dict(
@@ -333,8 +344,10 @@ PRESETS: dict[str, dict[str, Any]] = {
         eval_every=5,
         test_rollouts_per_worker=1,
     ),
-    # A few minutes on a 2-core laptop: enough for reach. The authors' networks and ratios,
-    # fewer workers, a short competence window so that competence is measured at this scale.
+    # A few minutes on a 2-core laptop: enough for reach. Keeps the authors' networks and
+    # learner settings. Changes: 2 workers (authors 19), 128 transitions per worker per update
+    # (256) and 20 updates per cycle (100), i.e. 25.6 replayed transitions per stored one (256),
+    # a competence window of 20 (300), a self-evaluation every 5th episode (10th).
     "quick": dict(
         total_episodes=1_200,
         n_workers=2,
@@ -347,6 +360,10 @@ PRESETS: dict[str, dict[str, Any]] = {
         eval_every=5,
     ),
     # Hours on 2 cores: enough episodes for the developmental phases (reach, then push).
+    # Keeps the authors' networks, learner settings and evaluation rate. Changes: 4 workers
+    # (authors 19), 128 transitions per worker per update (256) and 40 updates per cycle (100),
+    # i.e. 51.2 replayed transitions per stored one (256), a competence window of 100 (300),
+    # 100,000 episodes (~300,000).
     "laptop": dict(
         total_episodes=100_000,
         n_workers=4,
@@ -357,8 +374,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         lp_window=100,
         checkpoint_every_cycles=100,
     ),
-    # The authors' protocol: 19 workers x 2 episodes x 25 cycles per epoch, 100 updates per
-    # cycle, ~300k episodes. For a cluster node or a GPU.
+    # The authors' protocol: 19 workers x 2 episodes x 25 cycles per epoch, 100 updates of
+    # 256 per worker per cycle (256 replayed transitions per stored one), a window of 300,
+    # ~300k episodes. For a cluster node or a GPU.
     "paper": dict(),
 }
 

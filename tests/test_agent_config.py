@@ -29,6 +29,15 @@ def test_paper_preset_is_the_authors_protocol():
     assert (c.norm_eps, c.algorithm) == (0.01, "ddpg")
 
 
+def test_replay_ratio_of_each_preset_is_the_documented_one():
+    """flowersteam/curious, baselines/her/experiment/config.py: n_batches 100 of batch_size 256
+    per worker per cycle, after rollout_batch_size 2 episodes of T = 50 per worker: 256
+    replayed transitions per stored one. The smaller presets replay less (config.py's preset
+    comments and docs/agent.md say so)."""
+    ratios = {p: resolve(p).samples_per_stored_transition() for p in ("paper", "laptop", "quick")}
+    assert ratios == {"paper": 256.0, "laptop": 51.2, "quick": 25.6}
+
+
 @pytest.mark.parametrize("preset", list(PRESETS))
 def test_every_preset_is_synchronous_like_the_authors(preset):
     """flowersteam/curious, baselines/her/experiment/train.py: each cycle rolls out, then trains

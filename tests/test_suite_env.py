@@ -151,6 +151,8 @@ def test_reset_does_not_resimulate_the_settled_arm():
 
 @pytest.mark.parametrize("variant", ["default", "distractors_4", "distractors_7"])
 def test_distractors_random_walk_on_the_table_out_of_reach(variant):
+    """gym_flowers multi_task_fetch_arm_v0.py `_get_obs`: every step each distractor's xy moves
+    by N(0, 0.005^2), never within 0.05 of another cube; ours also stays in its region."""
     env = suite.load(variant, seed=2)
     n = env.task.n_cubes
     low = np.array([layout.DISTRACTOR_X_RANGE[0], layout.DISTRACTOR_Y_RANGE[0]])
@@ -249,3 +251,40 @@ def test_cube_linear_velocities_are_relative_to_the_gripper():
             np.testing.assert_allclose(vel[k, 3:], qvel[:3] * dt - grip_vel, atol=1e-6)
         moving += bool(np.abs(grip_vel).max() > 1e-3)
     assert moving > 10  # the gripper moved, so relative and absolute differ
+
+
+def test_cubes_are_the_authors_bodies():
+    """gym_flowers assets/fetch/multi_task_fetch_arm.xml: `object0` ... free joints with
+    damping 0.01, boxes of half-size 0.025 and mass 2, condim 3."""
+    env = suite.load("default", seed=0)
+    physics, task = env.physics, env.task
+    for joint in task._cube_joints:  # the reachable cubes' free joints
+        bound = physics.bind(joint)
+        assert joint.type == "free"
+        np.testing.assert_allclose(bound.damping, 0.01)
+    for cube in task.cubes:
+        geom = physics.bind(cube.geom)
+        np.testing.assert_allclose(geom.size, [0.025] * 3)
+        assert int(geom.condim) == 3
+    for cube in task.cubes[: task.n_reachable]:
+        body = physics.model.geom_bodyid[physics.bind(cube.geom).element_id]
+        np.testing.assert_allclose(physics.model.body_mass[body], 2.0)
+
+
+def test_a_blocked_distractor_draws_99_moves_then_stays_put():
+    """gym_flowers multi_task_fetch_arm_v0.py `_get_obs`: a move within 0.05 of another cube is
+    drawn again, and the loop gives up (the cube stays) when its counter reaches 100: 99 moves
+    drawn and checked in all."""
+    from suite.distractors import DistractorWalk
+
+    walk = DistractorWalk(n_cubes=2, n_distractors=1, episode_steps=50)
+    rng = np.random.RandomState(0)
+    walk.reset(rng)
+    reference = np.random.RandomState(0)
+    reference.normal(0.0, layout.DISTRACTOR_WALK_STD, (50, 1, 2))  # the episode's first draws
+    here = np.array([[2.0, 0.8]])
+    # A reachable cube on the distractor itself: every move ends within 0.05 of it.
+    new = walk.step(here.copy(), here.copy(), rng)
+    np.testing.assert_array_equal(new, here)
+    reference.normal(0.0, layout.DISTRACTOR_WALK_STD, (98, 2))  # the 98 redraws
+    assert rng.uniform() == reference.uniform()
