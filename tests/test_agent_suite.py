@@ -22,7 +22,7 @@ def test_suite_env_spec(env):
     spec = env.spec
     assert spec.n_modules == 7 and spec.state_dim == 49 and spec.action_dim == 4
     assert spec.achievable == (True, True, True, True, False, False, False)
-    assert spec.achieved_dim == 22 and spec.goal_dim == 3 and spec.episode_length == 50
+    assert spec.achieved_dim == 28 and spec.goal_dim == 3 and spec.episode_length == 50
     assert env.goal_slot(0, np.zeros((5, 2, 3))).shape == (5, 2, 3)
 
 
@@ -41,7 +41,8 @@ def test_recomputed_suite_rewards_match_reported_success(env):
         for t in range(T):
             obs, success = env.step(actions[module, t])
             states[module, t + 1], achieved[module, t + 1] = obs
-            reward = env.reward(module, obs.achieved, goals[module, module])
+            goal = env.goal(module, goals[module, module], obs.achieved)
+            reward = env.reward(module, obs.achieved, goal)
             assert (reward == 0) == success[module]
     # the replay's batched rewards equal the suite's reward row by row
     replay = EpisodeReplay(spec, capacity=n)

@@ -21,11 +21,12 @@ def test_distractor_region_is_on_the_table():
     assert table_lo[0] + half <= x_lo < x_hi <= table_hi[0] - half
     assert table_lo[1] + half <= y_lo < y_hi <= table_hi[1] - half
     starts = layout.DISTRACTOR_STARTS
-    assert np.all(starts[:, 0] - layout.DISTRACTOR_START_NOISE >= x_lo)
-    assert np.all(starts[:, 1] - layout.DISTRACTOR_START_NOISE >= y_lo)
-    assert np.all(starts[:, 1] + layout.DISTRACTOR_START_NOISE <= y_hi)
+    noise_x, noise_y = layout.DISTRACTOR_START_NOISE
+    assert np.all(starts[:, 0] - noise_x >= x_lo)
+    assert np.all(starts[:, 1] - noise_y >= y_lo)
+    assert np.all(starts[:, 1] + noise_y <= y_hi)
     gaps = np.linalg.norm(starts[:, None] - starts[None], axis=-1) + np.eye(len(starts))
-    assert gaps.min() > layout.DISTRACTOR_MIN_SEPARATION + 2 * layout.DISTRACTOR_START_NOISE
+    assert gaps.min() > layout.DISTRACTOR_MIN_SEPARATION + 2 * np.hypot(noise_x, noise_y)
 
 
 @pytest.mark.parametrize("variant", ["default", "distractors_7"])
