@@ -1,0 +1,199 @@
+"""How far a set of runs has got: one row per run folder, read from the folders alone.
+
+A long campaign (`curious reproduce --budget laptop`, or many `curious train` runs) is stopped
+and resumed many times; `progress_table` says where each run stands from what its folder holds:
+episodes logged in ``metrics.parquet`` against the config's ``total_episodes``, the newest
+checkpoint, the run's own clock, the commits it ran from, and its test success over the last
+epochs (``tests.parquet``: noise-free test rollouts, scored as the paper's Fig. 2a, which for the
+flat `her` baseline is its holistic goal). A run that has written its config but no episode yet
+is listed with 0 episodes.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass
+from os import PathLike
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from curious.analysis.loading import (
+    CONFIG_FILE,
+    METRICS_FILE,
+    TESTS_FILE,
+    AnalysisError,
+    read_run_info,
+)
+
+__all__ = ["DEFAULT_TEST_EPOCHS", "RunProgress", "progress_markdown", "progress_table"]
+
+DEFAULT_TEST_EPOCHS = 5
+"""Test success is pooled over this many of a run's last epochs: a `laptop` epoch tests each
+module about 40 / N times, too few alone to read."""
+
+_CHECKPOINT = re.compile(r"ep-(\d+)")
+
+
+@dataclass(frozen=True)
+class RunProgress:
+    """Where one run stands."""
+
+    run: str
+    condition: str
+    variant: str
+    seed: int
+    episodes: int
+    total_episodes: int
+    checkpoint: int | None
+    run_hours: float
+    commits: tuple[str, ...]
+    test_episode: int | None
+    test_success: float | None
+    test_count: int
+    module_success: dict[str, float]
+
+    @property
+    def done(self) -> float:
+        """Fraction of the run's episodes logged."""
+        return self.episodes / self.total_episodes if self.total_episodes else 0.0
+
+
+def _run_folders(root: Path) -> list[Path]:
+    """Folders below (or at) `root` that hold a config.json: runs, started or not."""
+    if not root.exists():
+        raise AnalysisError(f"{root} does not exist")
+    if (root / CONFIG_FILE).is_file():
+        return [root]
+    found = sorted(
+        p.parent
+        for p in root.rglob(CONFIG_FILE)
+        if not any(part.startswith(".") for part in p.relative_to(root).parts)
+        and "checkpoints" not in p.relative_to(root).parts
+    )
+    if not found:
+        raise AnalysisError(f"{root} holds no run folder (no {CONFIG_FILE} below it)")
+    return found
+
+
+def _commits(config: dict[str, Any]) -> tuple[str, ...]:
+    """Short commits the run was trained from, first run then resumes, without repeats; a
+    commit with local changes is marked with '+'."""
+    out: list[str] = []
+    for entry in [config.get("git", {}), *(r.get("git", {}) for r in config.get("resumed", []))]:
+        commit = entry.get("commit") if isinstance(entry, dict) else None
+        if commit:
+            text = commit[:7] + ("+" if entry.get("dirty") else "")
+            if text not in out:
+                out.append(text)
+    return tuple(out)
+
+
+def _newest_checkpoint(folder: Path) -> int | None:
+    names = [
+        m for p in (folder / "checkpoints").glob("ep-*") if (m := _CHECKPOINT.fullmatch(p.name))
+    ]
+    return max((int(m.group(1)) for m in names), default=None)
+
+
+def _tests(folder: Path, achievable: tuple[str, ...], epochs: int) -> tuple[Any, ...]:
+    """(episode of the newest test, pooled success, count, per-module success) over the last
+    `epochs` epochs of achievable-module tests; Nones where the run has none yet."""
+    path = folder / TESTS_FILE
+    if not path.is_file():
+        return None, None, 0, {}
+    tests = pd.read_parquet(path, columns=["epoch", "episode", "module", "success"])
+    if tests.empty:
+        return None, None, 0, {}
+    last = np.sort(tests["epoch"].unique())[-epochs:]
+    recent = tests[tests["epoch"].isin(last) & tests["module"].astype(str).isin(achievable)]
+    per_module = recent.groupby(recent["module"].astype(str), sort=False)["success"].mean()
+    success = float(recent["success"].mean()) if len(recent) else None
+    modules = {m: float(per_module[m]) for m in achievable if m in per_module.index}
+    return int(tests["episode"].max()), success, len(recent), modules
+
+
+def _progress(folder: Path, epochs: int) -> RunProgress:
+    info = read_run_info(folder)
+    config = json.loads((folder / CONFIG_FILE).read_text(encoding="utf-8"))
+    settings = config.get("config", {})
+    episodes, hours = 0, 0.0
+    if (folder / METRICS_FILE).is_file():
+        metrics = pd.read_parquet(folder / METRICS_FILE, columns=["episode", "wall_time"])
+        episodes = len(metrics)
+        hours = float(metrics["wall_time"].max()) / 3600 if episodes else 0.0
+    test_episode, success, count, modules = _tests(folder, info.achievable_modules, epochs)
+    return RunProgress(
+        run=str(folder),
+        condition=info.condition,
+        variant=info.variant,
+        seed=info.seed,
+        episodes=episodes,
+        total_episodes=int(settings.get("total_episodes", 0)),
+        checkpoint=_newest_checkpoint(folder),
+        run_hours=hours,
+        commits=_commits(config),
+        test_episode=test_episode,
+        test_success=success,
+        test_count=count,
+        module_success=modules,
+    )
+
+
+def progress_table(
+    roots: str | PathLike[str] | Iterable[str | PathLike[str]],
+    epochs: int = DEFAULT_TEST_EPOCHS,
+) -> list[RunProgress]:
+    """Progress of every run folder below `roots` (one path or several), sorted by path."""
+    if epochs < 1:
+        raise AnalysisError(f"epochs must be at least 1, got {epochs}")
+    paths = [Path(roots)] if isinstance(roots, (str, PathLike)) else [Path(r) for r in roots]
+    if not paths:
+        raise AnalysisError("no folder given")
+    folders = sorted({f.resolve() for root in paths for f in _run_folders(root)})
+    return [_progress(folder, epochs) for folder in folders]
+
+
+def _name(run: str, base: Path | None) -> str:
+    path = Path(run)
+    if base is not None:
+        try:
+            return str(path.relative_to(base))
+        except ValueError:
+            pass
+    return path.name
+
+
+def progress_markdown(
+    rows: list[RunProgress],
+    base: str | PathLike[str] | None = None,
+    epochs: int = DEFAULT_TEST_EPOCHS,
+) -> str:
+    """A markdown table of `rows`; run names relative to `base` where they lie below it."""
+    root = Path(base).resolve() if base is not None else None
+    header = (
+        "| run | condition | variant | seed | episodes | of | done | checkpoint | run hours "
+        f"| episodes/s | test success, last {epochs} epochs (tests) | per achievable module "
+        "| commits |\n"
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|---|\n"
+    )
+    lines = []
+    for r in rows:
+        rate = r.episodes / (r.run_hours * 3600) if r.run_hours > 0 else float("nan")
+        success = (
+            f"{r.test_success:.2f} ({r.test_count}, at {r.test_episode:,})"
+            if r.test_success is not None and r.test_episode is not None
+            else "none yet"
+        )
+        modules = ", ".join(f"{m} {s:.2f}" for m, s in r.module_success.items()) or "-"
+        checkpoint = f"{r.checkpoint:,}" if r.checkpoint is not None else "none"
+        lines.append(
+            f"| {_name(r.run, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
+            f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "
+            f"| {rate:.1f} | {success} | {modules} | {' '.join(r.commits) or '?'} |"
+        )
+    return header + "\n".join(lines) + "\n"

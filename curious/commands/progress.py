@@ -1,0 +1,84 @@
+"""`curious progress ROOT [ROOT ...]`: how far every run below ROOT has got, as a table.
+
+    curious progress ~/curious-runs/laptop
+    curious progress ~/curious-runs/laptop --update docs/results.md
+
+Read from the run folders alone (config.json, metrics.parquet, tests.parquet, checkpoints/), so
+it can be run while the runs train. `--update FILE` replaces the block between the lines
+`<!-- progress:begin -->` and `<!-- progress:end -->` of FILE with the table and the time it
+was computed, leaving the rest of the file as it is.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import sys
+from pathlib import Path
+
+BEGIN = "<!-- progress:begin -->"
+END = "<!-- progress:end -->"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add `curious progress`."""
+    from curious.analysis.progress import DEFAULT_TEST_EPOCHS
+
+    parser = sub.add_parser(
+        "progress",
+        help="how far the runs below a folder have got (episodes, checkpoints, test success)",
+        description=__doc__.split("\n\n")[0]
+        + "\n\nOne row per run folder: episodes logged against the run's total, the newest "
+        "checkpoint, the run's own clock, test success on the achievable modules pooled over "
+        "the last epochs (HER scored on its holistic goal, as the paper's Fig. 2a), and the "
+        "commits the run was trained from (a '+' marks local changes).",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("roots", nargs="+", metavar="ROOT", help="run folder, or a folder of them")
+    parser.add_argument(
+        "--epochs",
+        type=int,
+        default=DEFAULT_TEST_EPOCHS,
+        help="pool test success over this many of each run's last epochs",
+    )
+    parser.add_argument(
+        "--update",
+        metavar="FILE",
+        help=f"write the table into FILE between the lines {BEGIN} and {END}",
+    )
+    parser.set_defaults(func=run)
+
+
+def replace_block(text: str, block: str, path: Path) -> str:
+    """`text` with the lines between the progress markers replaced by `block`."""
+    if text.count(BEGIN) != 1 or text.count(END) != 1 or text.index(BEGIN) > text.index(END):
+        raise ValueError(f"{path} must hold one line {BEGIN} followed by one line {END}")
+    head, rest = text.split(BEGIN, 1)
+    _, tail = rest.split(END, 1)
+    return f"{head}{BEGIN}\n{block}{END}{tail}"
+
+
+def run(args: argparse.Namespace) -> int:
+    from curious.analysis import AnalysisError
+    from curious.analysis.progress import progress_markdown, progress_table
+
+    if args.epochs < 1:
+        raise ValueError(f"--epochs must be at least 1, got {args.epochs}")
+    try:
+        rows = progress_table(args.roots, args.epochs)
+    except AnalysisError as exc:
+        raise ValueError(str(exc)) from exc
+    base = args.roots[0] if len(args.roots) == 1 else None
+    table = progress_markdown(rows, base, args.epochs)
+    if args.update is None:
+        sys.stdout.write(table)
+        return 0
+    path = Path(args.update)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist; create it with the two marker lines")
+    now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    roots = " ".join(str(r) for r in args.roots)
+    block = f"Computed by `curious progress {roots}` at {now}.\n\n{table}"
+    path.write_text(replace_block(path.read_text(encoding="utf-8"), block, path), encoding="utf-8")
+    print(f"updated {path} ({len(rows)} runs)")
+    return 0

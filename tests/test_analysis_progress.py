@@ -1,0 +1,100 @@
+"""`curious progress`: where each run of a campaign stands, read from its folder alone."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pandas as pd
+import pytest
+
+from curious.analysis.progress import progress_markdown, progress_table
+from curious.cli import main as curious_cli
+from curious.commands.progress import BEGIN, END
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """Two finished smoke runs and one that has written its config but no episode yet."""
+    root = tmp_path_factory.mktemp("campaign")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("MUJOCO_GL", "disable")
+        for condition in ("curious", "her"):
+            out = root / "main" / f"{condition}-0"
+            args = ["train", "--condition", condition, "--seed", "0", "--preset", "smoke"]
+            assert curious_cli([*args, "--out", str(out), "--no-progress"]) in (0, None)
+    started = root / "main" / "mg-te-1"
+    started.mkdir()
+    config = json.loads((root / "main" / "curious-0" / "config.json").read_text())
+    config.update(condition="mg-te", seed=1)
+    (started / "config.json").write_text(json.dumps(config))
+    return root
+
+
+def test_rows_come_from_the_folders(campaign):
+    rows = {(r.condition, r.seed): r for r in progress_table(campaign, epochs=2)}
+    assert set(rows) == {("curious", 0), ("her", 0), ("mg-te", 1)}
+    for key in (("curious", 0), ("her", 0)):
+        row, folder = rows[key], campaign / "main" / f"{key[0]}-0"
+        metrics = pd.read_parquet(folder / "metrics.parquet")
+        assert row.episodes == len(metrics) == row.total_episodes == 24
+        assert row.done == 1.0
+        assert row.checkpoint == 24
+        assert row.run_hours == pytest.approx(metrics["wall_time"].max() / 3600)
+        tests = pd.read_parquet(folder / "tests.parquet")
+        last = sorted(tests["epoch"].unique())[-2:]
+        achievable = json.loads((folder / "config.json").read_text())
+        names = [
+            m for m, a in zip(achievable["modules"], achievable["achievable"], strict=True) if a
+        ]
+        recent = tests[tests["epoch"].isin(last) & tests["module"].isin(names)]
+        assert row.test_count == len(recent) > 0
+        assert row.test_success == pytest.approx(recent["success"].mean())
+        assert row.test_episode == tests["episode"].max()
+        assert len(row.commits) >= 1
+    fresh = rows[("mg-te", 1)]
+    assert (fresh.episodes, fresh.checkpoint, fresh.test_success) == (0, None, None)
+
+
+def test_markdown_names_runs_below_the_root(campaign):
+    text = progress_markdown(progress_table(campaign), campaign)
+    assert "| main/curious-0 | curious | default | 0 | 24 | 24 | 100% |" in text
+    assert "| main/mg-te-1 | mg-te | default | 1 | 0 | 24 | 0% | none |" in text
+    assert text.count("\n") == 2 + 3
+
+
+def test_update_replaces_only_the_marked_block(campaign, tmp_path, capsys):
+    doc = tmp_path / "results.md"
+    doc.write_text(f"# Results\n\nbefore\n{BEGIN}\nold table\n{END}\nafter\n")
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
+    text = doc.read_text()
+    assert text.startswith("# Results\n\nbefore\n") and text.endswith(f"{END}\nafter\n")
+    assert "old table" not in text and "main/her-0" in text
+    assert "Computed by `curious progress" in text
+    again = text
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
+    assert doc.read_text().count(BEGIN) == 1 and len(doc.read_text()) == len(again)
+
+
+@pytest.mark.parametrize(
+    "content", ["no markers\n", f"{END}\n{BEGIN}\n", f"{BEGIN}\n{BEGIN}\n{END}\n"]
+)
+def test_update_refuses_a_file_without_one_block(campaign, tmp_path, capsys, content):
+    doc = tmp_path / "results.md"
+    doc.write_text(content)
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 2
+    assert "must hold one line" in capsys.readouterr().err
+    assert doc.read_text() == content
+
+
+def test_bad_roots_are_one_line_errors(tmp_path, capsys):
+    assert curious_cli(["progress", str(tmp_path / "nowhere")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert curious_cli(["progress", str(tmp_path)]) == 2
+    assert "holds no run folder" in capsys.readouterr().err
+
+
+def test_a_copied_run_is_listed_once(campaign, tmp_path):
+    shutil.copytree(campaign / "main" / "curious-0", tmp_path / "curious-0")
+    rows = progress_table([tmp_path, tmp_path / "curious-0"])
+    assert len(rows) == 1
