@@ -5,7 +5,7 @@ import pytest
 from scipy import stats
 from toy_env import ToyGoalEnv
 
-from curious.conditions import HolisticGoals
+from curious.conditions import MUVFA, HolisticGoals
 from curious.replay import GOAL_OWN, EpisodeReplay
 
 SPEC = ToyGoalEnv.spec
@@ -144,6 +144,25 @@ def test_modules_replay_only_episodes_where_their_outcome_moved():
     everything.store(states, achieved, actions, modules, goals)
     batch = everything.sample(2000, np.random.default_rng(10), ToyGoalEnv(), [0, 1, 0])
     assert set(batch.episode % 2) == {0, 1}
+
+
+def test_a_module_with_nothing_to_replay_gets_no_share_of_the_minibatch():
+    """flowersteam/curious ddpg.py (`sample_batch`): the proportions cover only the task
+    buffers holding an episode (`ind_valid_buffers`); a module whose outcome never moved gets
+    none of the minibatch, rather than being replayed on episodes where nothing happened to it."""
+    modules = np.zeros(20, np.int64)
+    states, achieved, actions, modules, goals, _ = rollouts(20, modules, 9, dial_still=range(20))
+    replay = EpisodeReplay(SPEC, capacity=50, active_only=True)
+    replay.store(states, achieved, actions, modules, goals)
+    np.testing.assert_array_equal(replay.replayable(), [True, False, True])
+    probs = MUVFA(SPEC).replay_probs(None, 0, replay.replayable())
+    batch = replay.sample(3000, np.random.default_rng(3), ToyGoalEnv(), probs, her_p=1.0)
+    assert not np.any(batch.module == 1)
+    assert np.bincount(batch.module, minlength=3)[[0, 2]].min() > 1300
+    everything = EpisodeReplay(SPEC, capacity=50, active_only=False)
+    assert not everything.replayable().any()
+    everything.store(states, achieved, actions, modules, goals)
+    assert everything.replayable().all()
 
 
 def test_holistic_reward_is_one_distance_over_every_goal_coordinate():

@@ -19,7 +19,11 @@ def env():
 
 
 def test_suite_env_spec(env):
+    """The success distance is the authors' `distance_threshold` 0.05 (gym_flowers
+    envs/robotics/fetch/multi_task_fetch_arm.py, `MultiTaskFetchArmV0`), which the holistic goal
+    of `her` is measured against too (multi_task_fetch_arm_v0.py, `compute_reward`)."""
     spec = env.spec
+    assert spec.success_distance == 0.05
     assert spec.n_modules == 7 and spec.state_dim == 49 and spec.action_dim == 4
     assert spec.achievable == (True, True, True, True, False, False, False)
     assert spec.achieved_dim == 22 and spec.goal_dim == 3 and spec.episode_length == 50
