@@ -27,10 +27,13 @@ PREFIX = "ep-"
 _NAME = re.compile(r"ep-(\d{12})")
 KEEP = 2
 """Checkpoints kept in a run folder: the newest and the one before."""
-FORMAT_VERSION = 3
+FORMAT_VERSION = 4
 """2: goals enter the networks through a fixed map (no goal statistics), Xavier-initialised
 networks, the authors' stack guard and T3 heights; 3: test rollouts' random streams and the
-sensory failure's onset. A run of another format cannot go on with this agent."""
+sensory failure's onset; 4: the conditions as the authors' (her's holistic reward and score,
+the released code's module rule for self-evaluations, mg-te's evaluations on its epoch's module,
+task replay over modules with an episode to replay). A run of another format cannot go on with
+this agent."""
 
 
 class CheckpointError(RuntimeError):

@@ -454,7 +454,8 @@ def load_tests(paths_or_root: PathsOrRoot) -> pd.DataFrame:
     ``episode`` (training episodes done when the test ran), ``worker``, ``module``, ``g0..g2``,
     ``success`` (the condition's score, the paper's: in ``her``, its holistic goal met),
     ``module_success`` (``module`` met its own goal slot: a per-module view, the same as
-    ``success`` but in ``her``) and ``wall_time``. Rows are ordered by run folder path, then episode and worker.
+    ``success`` but in ``her``) and ``wall_time``. Rows are ordered by run folder path, then
+    episode and worker.
     Raises `AnalysisError` naming the folder for a run without test rollouts: there is no
     fallback to the competence of ``metrics.parquet``, which measures something else.
     """
