@@ -7,12 +7,11 @@ call of `Trainer.cycle()`:
    if `total_episodes` is reached, so episodes are counted exactly). Episode e (global, 0-based)
    is a self-evaluation when e % eval_every == eval_every - 1 (except in `her`, which has
    none): no noise, and its final success goes to its module's competence queue. Other
-   episodes practise with exploration noise. The condition draws every module (p_LP for
-   `curious`; which modules the evaluations take follows `Config.eval_modules`, drawn once per
-   cycle: `curious.conditions`) and the goals, uniform in [-1, 1]^3, and scores the episodes.
-   Once the sensory failure has started (at
-   `sensor_failure_episode`, or when the perturbed module's competence reaches
-   `sensor_failure_competence`), every episode runs with it;
+   episodes practise with exploration noise. The condition (`curious.conditions`) draws every
+   module (p_LP for `curious`; the evaluations' follow `Config.eval_modules`, decided once per
+   cycle) and the goals, uniform in [-1, 1]^3, and scores the episodes. Once the sensory
+   failure has started (at `sensor_failure_episode`, or when the perturbed module's competence
+   reaches `sensor_failure_competence`), every episode runs with it;
 2. stores the episodes in the replay and the state statistics;
 3. runs `n_updates` gradient steps on relabelled minibatches of `batch_per_worker * n_workers`
    transitions, then one Polyak update of the target networks;
@@ -512,7 +511,7 @@ class Trainer:
 
         if not cfg.overlap_rollouts:
             acting = self._acting_agent(frozen=False)
-            lead = self.condition.lead_draw(self.rng) if not self.done else None
+            lead = self.condition.lead_draw(self.rng)
             for _ in range(cfg.episodes_per_worker):
                 n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
                 if n <= 0:
