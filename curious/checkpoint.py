@@ -30,10 +30,12 @@ KEEP = 2
 FORMAT_VERSION = 4
 """2: goals enter the networks through a fixed map (no goal statistics), Xavier-initialised
 networks, the authors' stack guard and T3 heights; 3: test rollouts' random streams and the
-sensory failure's onset; 4: the suite's outcomes in the world frame as the authors' (the replay's
-`achieved` arrays change size: cube1_above_cube2 and stack carry cube 1's and cube 2's
+sensory failure's onset; 4: the authors' suite and conditions: outcomes in the world frame (the
+replay's `achieved` arrays change size: cube1_above_cube2 and stack carry cube 1's and cube 2's
 positions, stack the gripper), goals that follow cube 2, cube velocities relative to the
-gripper. A run of another format cannot go on with this agent."""
+gripper; her's holistic reward and score, the released code's module rule for
+self-evaluations, mg-te's evaluations on its epoch's module, task replay over modules with an
+episode to replay. A run of another format cannot go on with this agent."""
 
 
 class CheckpointError(RuntimeError):

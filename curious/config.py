@@ -19,6 +19,7 @@ CONDITIONS: tuple[str, ...] = ("curious", "m-uvfa", "mg-te", "her")
 ALGORITHMS: tuple[str, ...] = ("ddpg", "td3")
 LEARNER_BACKENDS: tuple[str, ...] = ("autograd", "compiled", "workspace")
 DEVICES: tuple[str, ...] = ("cpu", "cuda")
+EVAL_MODULE_RULES: tuple[str, ...] = ("released", "uniform")
 
 # Fields that may differ between a run folder's stored config and the config of a `--resume`:
 # they change how long or where a run goes on, not what it computes.
@@ -90,10 +91,21 @@ class Config:
     """Cycles per epoch (25 x 2 x 19 = 950 episodes per epoch with the authors' sizes). Authors:
     25."""
     eval_every: int = 10
-    """Every `eval_every`-th episode (by global index) is a self-evaluation without noise on a
-    module drawn uniformly; its final success feeds that module's competence. Authors: a rollout
-    is a self-evaluation with probability 0.1 (rollout.py); every 10th is the same rate, counted
-    exactly."""
+    """Every `eval_every`-th episode (by global index) is a self-evaluation without noise, on a
+    module chosen as `eval_modules` says; its final success feeds that module's competence.
+    Authors: a rollout is a self-evaluation with probability 0.1 (rollout.py); every 10th is the
+    same rate, counted exactly. The `her` condition has none (the authors' flat agent)."""
+    eval_modules: str = "released"
+    """Which modules the single-policy conditions (`curious`, `m-uvfa`) self-evaluate and
+    practise. `released`: the authors' code (rollout.py), which made the paper's figures: once per
+    cycle, with probability 1 / `eval_every` (the chance that their rank-0 worker self-evaluates),
+    every module of the cycle, practised or evaluated, is drawn uniformly; otherwise every one is
+    drawn from the practice probabilities (p_LP for `curious`). Evaluations then follow about
+    0.9 p_LP + 0.1 uniform: the module in focus refills its competence queue faster, a neglected
+    one slower. `uniform`: the paper's text (§6.2, "evaluates itself on random tasks"):
+    evaluations on modules drawn uniformly, practice from the practice probabilities. `mg-te`
+    always evaluates its epoch's module with its expert, as the authors' task experts did, and
+    `her` never self-evaluates (the authors' flat agent did not), whatever this says."""
     test_rollouts_per_worker: int = 10
     """Noise-free test rollouts per environment copy after every epoch (authors: 5 test
     rollouts x 2 parallel episodes = 10 per worker, 190 per epoch with 19 workers), each on a
@@ -249,6 +261,11 @@ class Config:
                 f"unknown learner_backend {self.learner_backend!r}; choose one of "
                 f"{', '.join(LEARNER_BACKENDS)}"
             )
+        if self.eval_modules not in EVAL_MODULE_RULES:
+            raise ConfigError(
+                f"unknown eval_modules {self.eval_modules!r}; choose one of "
+                f"{', '.join(EVAL_MODULE_RULES)}"
+            )
         if self.device not in DEVICES:
             raise ConfigError(f"unknown device {self.device!r}; choose one of {DEVICES}")
         positive = (
@@ -277,6 +294,11 @@ class Config:
             raise ConfigError(f"sensor_failure_competence must be in (0, 1] or -1, got {c}")
         if c != -1.0 and self.sensor_failure_episode >= 0:
             raise ConfigError("set sensor_failure_episode or sensor_failure_competence, not both")
+        if c != -1.0 and self.condition == "her":
+            raise ConfigError(
+                "sensor_failure_competence needs self-evaluations, and the her condition has "
+                "none (the authors' flat agent); use sensor_failure_episode"
+            )
         if self.sensor_failure_episode < -1:
             raise ConfigError(
                 f"sensor_failure_episode must be an episode (>= 0) or -1 for never, "

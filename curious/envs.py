@@ -59,6 +59,9 @@ class EnvSpec:
     outcome_slices: tuple[slice, ...]
     """One slice per module into the `achieved` vector."""
     episode_length: int
+    success_distance: float = 0.05
+    """Distance within which an outcome meets its goal (0.05 m in the suite); the holistic goal
+    space of the `her` condition measures its one distance against it."""
 
     @property
     def n_modules(self) -> int:
@@ -129,6 +132,7 @@ class SuiteEnv:
 
     def __init__(self, variant: str = "default", seed: int = 0) -> None:
         import suite  # imported here: MuJoCo is only needed when the real suite is used
+        from suite import layout
 
         if variant not in suite.ALL_VARIANTS:
             raise ConfigError(
@@ -156,6 +160,7 @@ class SuiteEnv:
             goal_dim=int(self._modules[0].goal_dim),
             outcome_slices=tuple(slices),
             episode_length=self.EPISODE_LENGTH,
+            success_distance=float(layout.SUCCESS_DISTANCE),
         )
         self._t = 0
 

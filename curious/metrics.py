@@ -47,8 +47,17 @@ def tests_schema() -> pa.Schema:
 
     `episode` is the number of training episodes done when the test ran (test rollouts are not
     training episodes and are not counted in it); `worker` is the test copy that ran it.
+    `success` is the condition's score, the paper's (in `her`, its holistic goal met);
+    `module_success` whether `module` met its own goal slot (the same, except in `her`).
     """
-    return pa.schema([("epoch", pa.int64()), *_EPISODE_COLUMNS, ("wall_time", pa.float64())])
+    return pa.schema(
+        [
+            ("epoch", pa.int64()),
+            *_EPISODE_COLUMNS,
+            ("module_success", pa.bool_()),
+            ("wall_time", pa.float64()),
+        ]
+    )
 
 
 class TableLog:

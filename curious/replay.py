@@ -5,10 +5,11 @@ below the run's length; the presets keep the whole run, `Config.buffer_episodes`
 built at sample time, with numpy indexing only (loops run over modules, never over transitions):
 
 1. each transition gets a *replay module* drawn from the given module probabilities (p_LP for
-   `curious`, uniform for `m-uvfa`, the trained expert's module for `mg-te`);
+   `curious`, uniform for `m-uvfa`, over the modules with an episode to replay, `replayable`;
+   the trained expert's module for `mg-te`: `curious.conditions`);
 2. its episode is drawn among the episodes where that module's outcome changed
-   (`active_only`, as the released code's per-module buffers), or among all while there is none;
-   its time step t is uniform in [0, T);
+   (`active_only`, as the released code's per-module buffers), or among all while there is none
+   (only `mg-te` replays a module that has none); its time step t is uniform in [0, T);
 3. with probability `her_p` the transition is relabelled: its module becomes the replay module
    and its goal that module's outcome at a step f drawn uniformly in [t+1, T] of the same episode
    (HER 'future'; `achieved[f]` is the outcome after f actions, so the goal is always reached
@@ -21,18 +22,22 @@ built at sample time, with numpy indexing only (loops run over modules, never ov
 4. the reward is recomputed for each transition's module and goal with the environment's
    vectorised reward, one call per module present in the batch.
 
-The holistic `her` condition replays one goal over all modules: relabelled goals put every
-module's outcome at step f into its slot, and the reward is 0 only where every module's reward is.
+The holistic `her` condition replays one goal over all modules (its `HolisticGoals`, given as
+`goal_space`): episodes are drawn among all, relabelled goals put every module's outcome at step f
+into its slot, and the reward is the goal space's (one distance over every slot at once).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from curious.envs import EnvSpec, GoalEnv
+
+if TYPE_CHECKING:
+    from curious.conditions import HolisticGoals
 
 GOAL_OWN = -1
 """`Transitions.goal_step` of a transition that kept its episode's module and goal."""
@@ -62,13 +67,15 @@ class EpisodeReplay:
         self,
         spec: EnvSpec,
         capacity: int,
-        holistic: bool = False,
+        goal_space: HolisticGoals | None = None,
         active_only: bool = True,
         moved_threshold: float = 1e-3,
     ) -> None:
+        """`goal_space`: the holistic goal space of a flat condition (None: every episode
+        practises one module)."""
         self.spec = spec
         self.capacity = int(capacity)
-        self.holistic = holistic
+        self.goal_space = goal_space
         self.active_only = active_only
         self.moved_threshold = moved_threshold
         T, n, g = spec.episode_length, spec.n_modules, spec.goal_dim
@@ -123,12 +130,23 @@ class EpisodeReplay:
         self._pools = None
 
     # -------------------------------------------------------------------------------------------
+    def _pool_list(self) -> list[np.ndarray]:
+        """Per module, the episodes its outcome moved in (recomputed once per store)."""
+        if self._pools is None:
+            moved = self.moved[: self.size]
+            self._pools = [np.flatnonzero(moved[:, k]) for k in range(moved.shape[1])]
+        return self._pools
+
+    def replayable(self) -> np.ndarray:
+        """(N,) bool: the modules that have an episode to replay (one where their outcome
+        moved, with `active_only`; any stored episode otherwise)."""
+        if not self.active_only:
+            return np.full(self.spec.n_modules, self.size > 0)
+        return np.array([pool.size > 0 for pool in self._pool_list()], bool)
+
     def _episodes_for(self, module: int, n: int, rng: np.random.Generator) -> np.ndarray:
         if self.active_only:
-            if self._pools is None:  # recomputed once per store, not per minibatch
-                moved = self.moved[: self.size]
-                self._pools = [np.flatnonzero(moved[:, k]) for k in range(moved.shape[1])]
-            pool = self._pools[module]
+            pool = self._pool_list()[module]
             if pool.size:
                 return pool[rng.integers(pool.size, size=n)]
         return rng.integers(self.size, size=n)
@@ -144,8 +162,8 @@ class EpisodeReplay:
         """A relabelled minibatch; `module_probs` (N,) is required unless holistic."""
         if self.size == 0:
             raise RuntimeError("cannot sample from an empty replay")
-        if self.holistic:
-            return self._sample_holistic(batch_size, rng, env, her_p)
+        if self.goal_space is not None:
+            return self._sample_holistic(self.goal_space, batch_size, rng, env, her_p)
         if module_probs is None:
             raise ValueError("module_probs are needed to substitute modules")
         spec = self.spec
@@ -193,8 +211,16 @@ class EpisodeReplay:
         )
 
     def _sample_holistic(
-        self, batch_size: int, rng: np.random.Generator, env: GoalEnv, her_p: float
+        self,
+        goal_space: HolisticGoals,
+        batch_size: int,
+        rng: np.random.Generator,
+        env: GoalEnv,
+        her_p: float,
     ) -> Transitions:
+        """The flat baseline's minibatch (flowersteam/curious her.py,
+        `make_sample_her_transitions`: episodes drawn among all, HER 'future' goals over the
+        whole goal vector, the env's flat reward)."""
         spec = self.spec
         n_mod, T, B = spec.n_modules, spec.episode_length, batch_size
         episode = rng.integers(self.size, size=B)
@@ -202,17 +228,13 @@ class EpisodeReplay:
         her = rng.random(B) < her_p
         future = step + 1 + (rng.random(B) * (T - step)).astype(np.int64)
         goals = self.goals[episode]  # (B, N, G) copy
-        goals[her] = self.achieved[episode[her], future[her]][:, self._hindsight]
+        goals[her] = goal_space.hindsight(self.achieved[episode[her], future[her]])
         goal_step = np.where(her, future, GOAL_OWN)
         next_achieved = self.achieved[episode, step + 1]
         own = np.flatnonzero(~her)
-        if own.size:  # the slots' goals after the step
-            for k in range(n_mod):
-                goals[own, k] = env.goal(k, goals[own, k], next_achieved[own])
-        met = np.ones(B, bool)
-        for k in range(n_mod):
-            met &= env.reward(k, next_achieved, goals[:, k]) == 0
-        reward = np.where(met, 0.0, -1.0).astype(np.float32)
+        if own.size:  # the slots' goals after the step (the suite's T3/T4 goals follow cube 2)
+            goals[own] = goal_space.place(env, goals[own], next_achieved[own])
+        reward = goal_space.reward(next_achieved, goals)
         return Transitions(
             state=self.states[episode, step],
             next_state=self.states[episode, step + 1],

@@ -5,19 +5,20 @@ call of `Trainer.cycle()`:
 
 1. runs `episodes_per_worker` rounds of `n_workers` parallel episodes (fewer in the last round
    if `total_episodes` is reached, so episodes are counted exactly). Episode e (global, 0-based)
-   is a self-evaluation when e % eval_every == eval_every - 1: no noise, a module drawn
-   uniformly, and its final success goes to that module's competence queue. Other episodes
-   practise a module drawn by the condition (p_LP for `curious`) with a goal uniform in
-   [-1, 1]^3, with exploration noise. Once the sensory failure has started (at
-   `sensor_failure_episode`, or when the perturbed module's competence reaches
-   `sensor_failure_competence`), every episode runs with it;
+   is a self-evaluation when e % eval_every == eval_every - 1 (except in `her`, which has
+   none): no noise, and its final success goes to its module's competence queue. Other
+   episodes practise with exploration noise. The condition (`curious.conditions`) draws every
+   module (p_LP for `curious`; the evaluations' follow `Config.eval_modules`, decided once per
+   cycle) and the goals, uniform in [-1, 1]^3, and scores the episodes. Once the sensory
+   failure has started (at `sensor_failure_episode`, or when the perturbed module's competence
+   reaches `sensor_failure_competence`), every episode runs with it;
 2. stores the episodes in the replay and the state statistics;
 3. runs `n_updates` gradient steps on relabelled minibatches of `batch_per_worker * n_workers`
    transitions, then one Polyak update of the target networks;
 4. after the last cycle of an epoch, runs `test_rollouts_per_worker` rounds of noise-free test
    rollouts on test copies of the environment (modules drawn uniformly, their own random
-   stream): the success that Fig. 2a plots, as the authors' evaluator. They change nothing of
-   training.
+   stream): the success that Fig. 2a plots (the condition's score: `her`'s is its holistic
+   goal's), as the authors' evaluator. They change nothing of training.
 
 With `overlap_rollouts`, step 1 for the next cycle runs in a thread during step 3, acting with a
 copy of the policy from before the updates; its rounds are stored and scored at the start of the
@@ -241,13 +242,13 @@ class Trainer:
         if config.device == "cuda" and not torch.cuda.is_available():
             raise ConfigError("device 'cuda' was asked for but torch sees no CUDA device")
         n = self.spec.n_modules
-        self.condition = make_condition(config.condition, n, config.lp_eps)
+        self.condition = make_condition(config, self.spec)
         self.agent = Agent(self.spec, config, GoalBox.of(self.env), self.condition.n_experts)
         _check_replay_fits(config, self.spec)
         self.replay = EpisodeReplay(
             self.spec,
             config.replay_capacity,
-            holistic=self.condition.holistic,
+            goal_space=self.condition.goal_space,
             active_only=config.replay_active_only,
             moved_threshold=config.moved_threshold,
         )
@@ -356,47 +357,20 @@ class Trainer:
     def wall_time(self) -> float:
         return self.elapsed + time.perf_counter() - self._started
 
-    def _goals(
-        self, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
-    ) -> tuple[np.ndarray, ...]:
-        """Goal slots (n, N, G), slot mask (n, N) and task descriptor (n, N) of n episodes.
-
-        The holistic condition draws a goal for every module from `rng` (the scored module
-        keeps `raw`).
-        """
-        spec, env = self.spec, self.env
-        n, n_mod, g = len(modules), spec.n_modules, spec.goal_dim
-        goals = np.zeros((n, n_mod, g), np.float32)
-        rows = np.arange(n)
-        if self.condition.holistic:
-            raw_all = rng.uniform(-1.0, 1.0, (n, n_mod, g))
-            raw_all[rows, modules] = raw
-            for k in range(n_mod):
-                goals[:, k] = env.goal_slot(k, raw_all[:, k])
-            return goals, np.ones((n, n_mod), np.float32), np.zeros((n, n_mod), np.float32)
-        for k in np.unique(modules):
-            sel = np.flatnonzero(modules == k)
-            goals[sel, k] = env.goal_slot(int(k), raw[sel])
-        task = np.zeros((n, n_mod), np.float32)
-        task[rows, modules] = 1.0
-        return goals, task.copy(), task
-
-    def _collect(self, n: int, start: int, epoch: int, agent: Agent) -> _Collected:
+    def _collect(
+        self, n: int, start: int, epoch: int, agent: Agent, lead: bool | None
+    ) -> _Collected:
         """n parallel episodes from episode `start` on: choose modules and goals, roll out with
-        `agent`'s policy, judge success. Touches the training copies, the rollout stream and the
-        observer, nothing the learner or the test rollouts use (so it may run beside them)."""
-        cfg, spec = self.config, self.spec
-        n_mod = spec.n_modules
+        `agent`'s policy, judge success (`lead`: the cycle's `Condition.lead_draw`). Touches the
+        training copies, the rollout stream and the observer, nothing the learner or the test
+        rollouts use (so it may run beside them)."""
+        cfg, spec, condition = self.config, self.spec, self.condition
         episodes = start + np.arange(n)
         evaluation = episodes % cfg.eval_every == cfg.eval_every - 1
-        practice = self.condition.practice_probs(self.tracker, epoch)
-        modules = np.where(
-            evaluation,
-            self.rng.integers(n_mod, size=n),
-            self.rng.choice(n_mod, size=n, p=practice),
-        )
+        evaluation &= condition.self_evaluates
+        modules = condition.modules(evaluation, self.tracker, epoch, self.rng, lead)
         raw = self.rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-        goals, mask, task = self._goals(modules, raw, self.rng)
+        goals, mask, task = condition.goals(self.env, modules, raw, self.rng)
         experts = self.condition.acting_experts(modules, epoch)
         explore = ~evaluation
         act = self._policy(agent, goals, mask, task, experts, explore, self.rng)
@@ -409,7 +383,7 @@ class Trainer:
             observer.begin_round(episodes, modules, goals, evaluation, views[:n])
         step_hook = observer.after_step if observer else None
         data = run_episodes(self.envs, modules, raw, act, step_hook)
-        success = self._success(data, modules, goals)
+        success = condition.success(self.env, data, modules, goals)
         info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
         if observer is not None:
             observer.end_round(info)
@@ -433,6 +407,9 @@ class Trainer:
             lp[i] = self.tracker.learning_progress()
             p_lp[i] = self.condition.practice_probs(self.tracker, collected.epoch)
             wall[i] = self.wall_time()
+        if not self.condition.self_evaluates:  # never measured (her): no competence, no LP
+            competence[:] = np.nan
+            lp[:] = np.nan
         self.episodes += n
         return RoundResult(info, competence, lp, p_lp, wall)
 
@@ -449,31 +426,20 @@ class Trainer:
         """The rounds of one cycle, collected one after the other without scoring between them
         (module choices follow the competence queues as they were at the start)."""
         cfg, out, start = self.config, [], self.episodes
+        lead = self.condition.lead_draw(self.rng)
         for _ in range(cfg.episodes_per_worker):
             n = min(cfg.n_workers, cfg.total_episodes - start)
             if n <= 0:
                 break
-            out.append(self._collect(n, start, epoch, agent))
+            out.append(self._collect(n, start, epoch, agent, lead))
             start += n
         return out
 
-    def _success(self, data: EpisodeData, modules: np.ndarray, goals: np.ndarray) -> np.ndarray:
-        """(n,) final success of each episode's module. In the holistic condition, the scored
-        module's part of the holistic goal, judged by that module's reward."""
-        n = len(modules)
-        if not self.condition.holistic:
-            return data.final_success[np.arange(n), modules]
-        final = data.achieved[:, -1]
-        success = np.zeros(n, bool)
-        for k in np.unique(modules):
-            sel = np.flatnonzero(modules == k)
-            goal = self.env.goal(int(k), goals[sel, k], final[sel])
-            success[sel] = self.env.reward(int(k), final[sel], goal) == 0
-        return success
-
     def test_rollouts(self) -> dict[str, np.ndarray]:
         """`test_rollouts_per_worker` rounds of noise-free episodes on the test copies, modules
-        drawn uniformly and goals uniform, from the test stream; tests.parquet rows.
+        drawn uniformly and goals uniform, from the test stream; tests.parquet rows: `success`
+        is the condition's score (the paper's), `module_success` whether the named module met
+        its own goal slot (the same but in `her`, where it is a per-module view).
 
         Nothing of training changes: no storage, no statistics, no competence, and the training
         copies and random streams are not touched (the authors' separate evaluator).
@@ -483,19 +449,22 @@ class Trainer:
         failing = self.failure_on(np.full(n, self.episodes))
         self._apply_failure(envs, failing)
         explore = np.zeros(n, bool)
-        parts: dict[str, list[np.ndarray]] = {k: [] for k in ("worker", "module", "raw", "ok")}
+        condition, env = self.condition, self.env
+        names = ("worker", "module", "raw", "ok", "module_ok")
+        parts: dict[str, list[np.ndarray]] = {k: [] for k in names}
         for _ in range(cfg.test_rollouts_per_worker):
             modules = self.test_rng.integers(spec.n_modules, size=n)
             raw = self.test_rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-            goals, mask, task = self._goals(modules, raw, self.test_rng)
-            experts = self.condition.acting_experts(modules, self.epoch)
+            goals, mask, task = condition.goals(env, modules, raw, self.test_rng)
+            experts = condition.acting_experts(modules, self.epoch)
 
             act = self._policy(self.agent, goals, mask, task, experts, explore, self.test_rng)
             data = run_episodes(envs, modules, raw, act)
             parts["worker"].append(np.arange(n, dtype=np.int32))
             parts["module"].append(modules)
             parts["raw"].append(raw.astype(np.float32))
-            parts["ok"].append(self._success(data, modules, goals))
+            parts["ok"].append(condition.success(env, data, modules, goals))
+            parts["module_ok"].append(condition.module_success(env, data, modules, goals))
         raw = np.concatenate(parts["raw"])
         rows = len(raw)
         return {
@@ -507,6 +476,7 @@ class Trainer:
             "g1": raw[:, 1],
             "g2": raw[:, 2],
             "success": np.concatenate(parts["ok"]),
+            "module_success": np.concatenate(parts["module_ok"]),
             "wall_time": np.full(rows, self.wall_time()),
         }
 
@@ -553,12 +523,13 @@ class Trainer:
 
         if not cfg.overlap_rollouts:
             acting = self._acting_agent(frozen=False)
+            lead = self.condition.lead_draw(self.rng)
             for _ in range(cfg.episodes_per_worker):
                 n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
                 if n <= 0:
                     break
                 self._start_failure_if_due(self.episodes)
-                score(self._collect(n, self.episodes, epoch, acting))
+                score(self._collect(n, self.episodes, epoch, acting, lead))
         else:
             if self._pending is not None:
                 collected, self._pending = self._pending.result(), None
@@ -577,7 +548,7 @@ class Trainer:
         replay_counts = np.zeros(n_mod, np.int64)
         if cfg.n_updates and self.replay.size:
             expert = self.condition.trained_expert(self.epoch)
-            probs = self.condition.replay_probs(self.tracker, self.epoch)
+            probs = self.condition.replay_probs(self.tracker, self.epoch, self.replay.replayable())
             stats: list[dict[str, torch.Tensor]] = []
             rewards = []
             draw = functools.partial(
@@ -585,7 +556,7 @@ class Trainer:
             )
             for batch, waited in self._minibatches(draw, cfg.n_updates):
                 tic = time.perf_counter()
-                if not self.condition.holistic:
+                if probs is not None:  # per-module replay (not the holistic condition)
                     replay_counts += np.bincount(batch.module, minlength=n_mod)
                 rewards.append(float(batch.reward.mean()))
                 stats.append(self.agent.update(expert, batch))
@@ -726,6 +697,8 @@ class Trainer:
 # ----------------------------------------------------------------------------------------------
 def _progress_text(trainer: Trainer) -> dict[str, str]:
     spec = trainer.spec
+    if not trainer.condition.self_evaluates:
+        return {}  # no competence to show (her)
     competence = trainer.tracker.competence()
     achievable = np.array(spec.achievable, bool)
     success = competence[achievable].mean() if achievable.any() else float("nan")

@@ -5,6 +5,7 @@ import pytest
 from scipy import stats
 from toy_env import ToyGoalEnv
 
+from curious.conditions import MUVFA, HolisticGoals
 from curious.replay import GOAL_OWN, EpisodeReplay
 
 SPEC = ToyGoalEnv.spec
@@ -39,7 +40,8 @@ def filled_replay(n=60, holistic=False, seed=0, **kwargs):
         env = ToyGoalEnv(seed)
         raw = np.random.default_rng(seed + 1).uniform(-1, 1, (n, 3, 3))
         goals = np.stack([env.goal_slot(k, raw[:, k]) for k in range(3)], axis=1)
-    replay = EpisodeReplay(SPEC, capacity=200, holistic=holistic, **kwargs)
+    goal_space = HolisticGoals(SPEC) if holistic else None
+    replay = EpisodeReplay(SPEC, capacity=200, goal_space=goal_space, **kwargs)
     replay.store(states, achieved, actions, modules, goals)
     return replay, success
 
@@ -144,16 +146,41 @@ def test_modules_replay_only_episodes_where_their_outcome_moved():
     assert set(batch.episode % 2) == {0, 1}
 
 
-def test_holistic_reward_needs_every_module():
+def test_a_module_with_nothing_to_replay_gets_no_share_of_the_minibatch():
+    """flowersteam/curious ddpg.py (`sample_batch`): the proportions cover only the task
+    buffers holding an episode (`ind_valid_buffers`); a module whose outcome never moved gets
+    none of the minibatch, rather than being replayed on episodes where nothing happened to it."""
+    modules = np.zeros(20, np.int64)
+    states, achieved, actions, modules, goals, _ = rollouts(20, modules, 9, dial_still=range(20))
+    replay = EpisodeReplay(SPEC, capacity=50, active_only=True)
+    replay.store(states, achieved, actions, modules, goals)
+    np.testing.assert_array_equal(replay.replayable(), [True, False, True])
+    probs = MUVFA(SPEC).replay_probs(None, 0, replay.replayable())
+    batch = replay.sample(3000, np.random.default_rng(3), ToyGoalEnv(), probs, her_p=1.0)
+    assert not np.any(batch.module == 1)
+    assert np.bincount(batch.module, minlength=3)[[0, 2]].min() > 1300
+    everything = EpisodeReplay(SPEC, capacity=50, active_only=False)
+    assert not everything.replayable().any()
+    everything.store(states, achieved, actions, modules, goals)
+    assert everything.replayable().all()
+
+
+def test_holistic_reward_is_one_distance_over_every_goal_coordinate():
+    """gym_flowers multi_task_fetch_arm_v0.py, `compute_reward` in its flat branch (the flat
+    agent's reward through flowersteam/curious her.py): 0 only where the Euclidean distance
+    between the whole outcome and the whole goal is within the success distance."""
     replay, _ = filled_replay(holistic=True)
     env = ToyGoalEnv()
     batch = replay.sample(3000, np.random.default_rng(11), env, None, her_p=0.8)
     assert np.all(batch.goal_mask == 1) and np.all(batch.task == 0) and np.all(batch.module == -1)
     nxt = replay.achieved[batch.episode, batch.step + 1]
-    met = np.all([env.reward(k, nxt, batch.goals[:, k]) == 0 for k in range(3)], axis=0)
-    np.testing.assert_array_equal(batch.reward == 0, met)
-    her = batch.goal_step >= 0
     cols = SPEC.hindsight_columns()
+    joint = np.linalg.norm((nxt[:, cols] - batch.goals).reshape(len(nxt), -1), axis=1)
+    np.testing.assert_array_equal(batch.reward == 0, joint <= SPEC.success_distance)
+    # every module within its own distance is not enough (the rule this replaced)
+    each = np.all([env.reward(k, nxt, batch.goals[:, k]) == 0 for k in range(3)], axis=0)
+    assert np.any(each & (batch.reward == -1))
+    her = batch.goal_step >= 0
     future = replay.achieved[batch.episode[her], batch.goal_step[her]][:, cols]
     np.testing.assert_array_equal(batch.goals[her], future)
     np.testing.assert_array_equal(batch.goals[~her], replay.goals[batch.episode[~her]])

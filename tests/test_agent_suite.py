@@ -19,7 +19,11 @@ def env():
 
 
 def test_suite_env_spec(env):
+    """The success distance is the authors' `distance_threshold` 0.05 (gym_flowers
+    envs/robotics/fetch/multi_task_fetch_arm.py, `MultiTaskFetchArmV0`), which the holistic goal
+    of `her` is measured against too (multi_task_fetch_arm_v0.py, `compute_reward`)."""
     spec = env.spec
+    assert spec.success_distance == 0.05
     assert spec.n_modules == 7 and spec.state_dim == 49 and spec.action_dim == 4
     assert spec.achievable == (True, True, True, True, False, False, False)
     assert spec.achieved_dim == 28 and spec.goal_dim == 3 and spec.episode_length == 50
@@ -131,3 +135,43 @@ def test_the_quick_preset_learns_reach_on_the_suite(tmp_path):
     tests = pq.read_table(out / "tests.parquet").to_pandas()
     last = tests[tests["epoch"] >= tests["epoch"].max() - 2]
     assert last.loc[last["module"] == "reach", "success"].mean() >= 0.7
+
+
+def test_her_places_its_goals_above_cube2_where_cube2_is(env):
+    """The flat baseline's goals of cube1_above_cube2 and stack follow cube 2 as every
+    condition's do (docs/agent.md, "her's goals of the modules that follow cube 2"): its score
+    compares the outcome with the goals placed where cube 2 is at the final step."""
+    from curious.conditions import HER
+    from curious.rollouts import EpisodeData
+
+    spec = env.spec
+    her = HER(spec)
+    space = her.goal_space
+    names = spec.module_names
+    above, stack = names.index("cube1_above_cube2"), names.index("stack")
+    obs = env.reset(above, np.zeros(3))
+    start = np.asarray(obs.achieved, np.float32)[None]  # (1, A) at reset
+    moved = start.copy()  # cube 2 pushed 0.1 along x
+    for k, x2 in ((above, 3), (stack, 6)):
+        moved[0, spec.outcome_slices[k].start + x2] += 0.1
+    slots = np.stack([env.goal_slot(k, np.zeros((1, 3)))[0] for k in range(spec.n_modules)])[None]
+    shift = space.place(env, slots, moved) - space.place(env, slots, start)
+    expected = np.zeros_like(shift)
+    expected[0, [above, stack], 0] = 0.1
+    np.testing.assert_allclose(shift, expected, atol=1e-6)
+    # Slots whose placed goals are exactly the moved outcome: met there, not where cube 2 was.
+    slots = slots + space.hindsight(moved) - space.place(env, slots, moved)
+    assert space.distance(moved, space.place(env, slots, moved))[0] < 1e-5
+
+    def final(achieved):
+        return EpisodeData(
+            states=np.zeros((1, 2, spec.state_dim), np.float32),
+            achieved=np.repeat(achieved[:, None], 2, axis=1),
+            actions=np.zeros((1, 1, spec.action_dim), np.float32),
+            final_success=np.zeros((1, spec.n_modules), bool),
+        )
+
+    modules = np.array([above])
+    assert her.success(env, final(moved), modules, slots).tolist() == [True]
+    # The same outcome with cube 2 where it started (cube 1 and the gripper unchanged).
+    assert her.success(env, final(start), modules, slots).tolist() == [False]

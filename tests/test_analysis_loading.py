@@ -218,6 +218,11 @@ def test_test_rollouts_that_disagree_with_config_or_are_missing_are_named(tmp_pa
     tests.drop(columns=["epoch"]).to_parquet(folder / "tests.parquet")
     with pytest.raises(AnalysisError, match=r"lacks column\(s\) epoch"):
         load_tests(folder)
+    # written before each condition scored its tests by its own rule: her's success was not
+    # the paper's, so the table is refused rather than misread
+    tests.drop(columns=["module_success"]).to_parquet(folder / "tests.parquet")
+    with pytest.raises(AnalysisError, match=r"lacks column module_success.*retrain"):
+        load_tests(folder)
     (folder / "tests.parquet").unlink()
     with pytest.raises(AnalysisError, match=r"has no test rollouts \(no tests\.parquet\)"):
         load_tests(folder)

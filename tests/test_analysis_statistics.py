@@ -419,6 +419,7 @@ def _tests_table(root, rows):
     frame = pd.DataFrame(rows, columns=["epoch", "episode", "module", "success"])
     frame = frame.assign(worker=np.arange(len(frame), dtype=np.int32), g0=0.0, g1=0.0, g2=0.0)
     frame = frame.astype({"epoch": np.int64, "episode": np.int64, "success": bool})
+    frame["module_success"] = frame["success"]
     frame["wall_time"] = frame["episode"] * 0.1
     for g in ("g0", "g1", "g2"):
         frame[g] = frame[g].astype(np.float32)
@@ -469,6 +470,7 @@ def test_final_test_success_is_read_at_the_common_budget(tmp_path):
                 "g1": np.zeros(2 * last, np.float32),
                 "g2": np.zeros(2 * last, np.float32),
                 "success": np.tile([True, False], last) | (epochs >= 2),
+                "module_success": np.tile([True, False], last) | (epochs >= 2),
                 "wall_time": np.zeros(2 * last),
             }
         ).to_parquet(folder / "tests.parquet", index=False)

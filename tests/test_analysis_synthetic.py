@@ -173,6 +173,7 @@ def write_tests(
             "wall_time": episode * 0.05,
         }
     )
+    tests.insert(len(tests.columns) - 1, "module_success", tests["success"])
     tests.to_parquet(folder / "tests.parquet", index=False)
     return folder
 

@@ -35,6 +35,7 @@ class ToyGoalEnv:
         goal_dim=3,
         outcome_slices=(slice(0, 3), slice(3, 6), slice(6, 9)),
         episode_length=10,
+        success_distance=THRESHOLD,
     )
 
     def __init__(self, seed: int = 0) -> None:

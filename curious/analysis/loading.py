@@ -426,6 +426,12 @@ def _read_tests(info: RunInfo) -> pd.DataFrame:
     except Exception as exc:  # pyarrow raises several types for unreadable files
         raise AnalysisError(f"{path} is not a readable parquet file: {exc}") from exc
     missing = [c for c in TEST_COLUMNS if c not in tests.columns]
+    if missing == ["module_success"]:
+        raise AnalysisError(
+            f"{path} lacks column module_success: it was written before the test rollouts "
+            "were scored by each condition's own rule (her's holistic goal, as the paper's), so "
+            "its success may not be the paper's: retrain the run"
+        )
     if missing:
         raise AnalysisError(f"{path} lacks column(s) {', '.join(missing)}")
     if tests.empty:
@@ -446,7 +452,10 @@ def load_tests(paths_or_root: PathsOrRoot) -> pd.DataFrame:
 
     Identity columns as in `load_runs`, then the columns of ``tests.parquet``: ``epoch``,
     ``episode`` (training episodes done when the test ran), ``worker``, ``module``, ``g0..g2``,
-    ``success`` and ``wall_time``. Rows are ordered by run folder path, then episode and worker.
+    ``success`` (the condition's score, the paper's: in ``her``, its holistic goal met),
+    ``module_success`` (``module`` met its own goal slot: a per-module view, the same as
+    ``success`` but in ``her``) and ``wall_time``. Rows are ordered by run folder path, then
+    episode and worker.
     Raises `AnalysisError` naming the folder for a run without test rollouts: there is no
     fallback to the competence of ``metrics.parquet``, which measures something else.
     """

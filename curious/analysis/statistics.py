@@ -11,7 +11,9 @@ pooled rate estimates the mean of the per-module rates without bias; and it is d
 epoch, where a per-module rate is not (with 20 test rollouts an epoch over 7 modules, the
 `quick` preset's, a module gets none in about one epoch in twenty, and a module with one test
 would weigh as much as one with six). An epoch without any test on an achievable module has NaN
-success and is left out rather than guessed.
+success and is left out rather than guessed. In ``her`` a row's ``success`` is its holistic goal
+met (the paper's score, whichever module the row names), so its rows on achievable modules are a
+uniform subsample of that one measure.
 
 Competence (`achievable_competence`, Fig. 2b/2c, the distractors figure, recovery). For each run
 and each episode, the mean, over the modules the run's config marks as achievable, of the

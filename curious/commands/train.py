@@ -118,6 +118,9 @@ def run(args: argparse.Namespace) -> int:
         where = f": {exc.filename}" if exc.filename else ""
         print(f"curious train: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 2
+    if not trainer.condition.self_evaluates:  # her: no competence; its score is in the tables
+        print(f"{trainer.episodes} episodes in {args.out}; no self-evaluations (her)")
+        return 0
     competence = trainer.tracker.competence()
     summary = ", ".join(
         f"{name} {c:.2f}" for name, c in zip(trainer.spec.module_names, competence, strict=True)

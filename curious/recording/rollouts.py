@@ -11,7 +11,8 @@ comparison per episode.
 
 Evaluation episodes are those with `episode % eval_every == eval_every - 1`, so an episode's
 evaluation count is `episode // eval_every`: it is the same in a resumed run as in one that was
-never interrupted.
+never interrupted. (The `her` condition has no self-evaluations; its episodes at those places,
+which explore, are captured instead, so that its runs have rollouts to look at too.)
 
 The observer hands every call on to `inner` (another observer), so observers chain.
 
@@ -107,10 +108,14 @@ class RolloutObserver:
         return slot
 
     def _due(self, episodes: np.ndarray, evaluation: np.ndarray) -> list[int]:
-        """Positions in the round of the evaluation episodes due for a 3-D capture."""
+        """Positions in the round of the evaluation episodes due for a 3-D capture. The
+        episodes are those of the evaluation schedule, which are the self-evaluations, except
+        in `her`, which has none: its exploring episodes in their places are captured."""
+        episodes = np.asarray(episodes)
+        scheduled = episodes % self.eval_every == self.eval_every - 1
         return [
             int(i)
-            for i in np.flatnonzero(evaluation)
+            for i in np.flatnonzero(scheduled)
             if self.recorder.rollout_due(int(episodes[i]) // self.eval_every)
         ]
 

@@ -141,10 +141,20 @@ def fig2a(
             "epoch, noise-free test rollouts on modules drawn uniformly, their success rate "
             f"pooled over those on the {n_achievable} achievable modules "
             f"({points['n_tests'].mean():,.0f} per run and point on average); {where}."
-            f"{test_text}",
+            f"{_her_text(conditions)}{test_text}",
             note,
         )
     return finish(fig, out_dir, name)
+
+
+def _her_text(conditions: Sequence[str]) -> str:
+    """What HER's success is, where its curve is drawn."""
+    if "her" not in conditions:
+        return ""
+    return (
+        f" {palette.condition_label('her')}'s success is its holistic goal met (one distance over"
+        " every module's goal at once, as the paper's)."
+    )
 
 
 # ----------------------------------------------------------------------------- Fig. 2b / 2c
