@@ -11,14 +11,17 @@ one before, saying so.
 
 from __future__ import annotations
 
+import errno
+import functools
 import os
 import pickle
 import re
 import shutil
 import warnings
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 import torch
@@ -57,16 +60,54 @@ def save(
     directory: Path, episodes: int, state: dict[str, Any], replay: dict[str, Any], keep: int = KEEP
 ) -> Path:
     """Write a checkpoint for `episodes` episodes into `directory`; return its path. A failed
-    write (a full disk, a read-only folder) is a `CheckpointError` naming the cause, and leaves
-    the earlier checkpoints as they were."""
+    write (a full disk, a read-only folder) is a `CheckpointError` naming the cause and the file,
+    and leaves the earlier checkpoints as they were."""
+    tmp = directory / f".tmp-{PREFIX}{episodes:012d}"
     try:
         return _save(directory, episodes, state, replay, keep)
     except (OSError, RuntimeError) as exc:
-        shutil.rmtree(directory / f".tmp-{PREFIX}{episodes:012d}", ignore_errors=True)
-        cause = "the disk is full" if getattr(exc, "errno", None) == 28 else str(exc).strip()
-        if "enforce fail" in cause or "inline_container" in cause:
-            cause = f"torch could not write state.pt ({cause.splitlines()[0]}); is the disk full?"
-        raise CheckpointError(f"cannot write a checkpoint in {directory}: {cause}") from exc
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise CheckpointError(_write_failure(exc, directory, tmp)) from exc
+
+
+def _write_failure(exc: OSError | RuntimeError, directory: Path, tmp: Path) -> str:
+    """One line on why a checkpoint could not be written, naming the file as the checkpoint
+    would have it (its temporary folder is removed)."""
+    final = directory / tmp.name.removeprefix(".tmp-")
+    if isinstance(exc, OSError):
+        target = Path(exc.filename) if exc.filename else final
+        if target == tmp or target.parent == tmp:
+            target = final if target == tmp else final / target.name
+        if exc.errno == errno.ENOSPC:
+            return (
+                f"No space left on device: cannot write {target}; the checkpoints before it are "
+                "kept (free some space, then resume)"
+            )
+        return f"cannot write {target}: {exc.strerror or exc}"
+    return f"cannot write checkpoint {final}: {str(exc).strip().splitlines()[0]}"
+
+
+def _os_error(exc: BaseException) -> OSError | None:
+    """The OSError behind `exc` (torch raises "enforce fail at inline_container.cc ...
+    unexpected pos" when its file stops growing, with the OSError in the context)."""
+    seen: BaseException | None = exc
+    while seen is not None and not isinstance(seen, OSError):
+        seen = seen.__cause__ or seen.__context__
+    return seen
+
+
+def _write_file(path: Path, write: Callable[[BinaryIO], object]) -> None:
+    """Writes `path` with `write(handle)`, synced to disk; a failure is an OSError naming it."""
+    try:
+        with open(path, "wb") as handle:
+            write(handle)
+            handle.flush()
+            os.fsync(handle.fileno())
+    except (OSError, RuntimeError) as exc:
+        cause = _os_error(exc)
+        if cause is None or cause.filename:
+            raise
+        raise OSError(cause.errno, cause.strerror, str(path)) from exc
 
 
 def _save(
@@ -78,19 +119,25 @@ def _save(
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir()
-    torch.save({"format": FORMAT_VERSION, "episodes": episodes, **state}, tmp / "state.pt")
-    with open(tmp / "replay.npz", "wb") as handle:
-        np.savez(handle, **replay)
-        handle.flush()
-        os.fsync(handle.fileno())
+    state = {"format": FORMAT_VERSION, "episodes": episodes, **state}
+    _write_file(tmp / "state.pt", functools.partial(torch.save, state))
+    _write_file(tmp / "replay.npz", lambda handle: np.savez(handle, **replay))
     _fsync_dir(tmp)
     if final.exists():
         shutil.rmtree(final)
     os.replace(tmp, final)
     _fsync_dir(directory)
-    for old in list_checkpoints(directory)[:-keep]:
-        shutil.rmtree(old, ignore_errors=True)
+    prune(directory, keep)
     return final
+
+
+def prune(directory: Path, keep: int = KEEP, spare: Path | None = None) -> None:
+    """Remove all but the `keep` newest checkpoints, and never `spare` (the one a run resumed
+    from). A kill between a checkpoint's rename and this leaves one too many, which the
+    resumed run removes."""
+    for old in list_checkpoints(directory)[:-keep]:
+        if spare is None or old.resolve() != spare.resolve():
+            shutil.rmtree(old, ignore_errors=True)
 
 
 def list_checkpoints(directory: Path) -> list[Path]:

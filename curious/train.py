@@ -823,6 +823,7 @@ def _run(
 
     folder.write_config(config, trainer.spec)
     checkpoint.remove_partial(folder.checkpoints)
+    checkpoint.prune(folder.checkpoints, spare=latest[0] if latest is not None else None)
     if not tables:
         tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
         tables.append(TestsLog(folder.tests_path))

@@ -518,7 +518,7 @@ def test_a_checkpoint_that_cannot_be_written_is_a_clear_error(tmp_path, monkeypa
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(checkpoint.np, "savez", full)
-    with pytest.raises(CheckpointError, match="the disk is full"):
+    with pytest.raises(CheckpointError, match=r"No space left on device: cannot write .*\.npz"):
         run(tmp_path / "r")
     assert not [p for p in (tmp_path / "r" / "checkpoints").iterdir() if p.name.startswith(".")]
 

@@ -423,7 +423,7 @@ def test_resume_keeps_the_id_and_drops_episodes_after_the_checkpoint(tmp_path: P
         MODULES,
         settings=RecorderSettings(stats_on_change=False),
         resume=True,
-        resume_after_episode=149,
+        resume_from_episode=150,
     )
     assert resumed.recording_id == run_id
     _log_in_batches(resumed, {k: v[150:] for k, v in data.items()}, batch=50)

@@ -13,9 +13,10 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-from rerun.chunk import RrdReader
 
-__all__ = ["RecordingSummary", "read_component", "read_scalars", "summarize"]
+from curious.recording.rrd_files import open_rrd
+
+__all__ = ["RecordingSummary", "read_component", "read_points", "read_scalars", "summarize"]
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,7 @@ def _strip(path: str) -> str:
 
 def summarize(path: str | os.PathLike[str]) -> RecordingSummary:
     """Lists the recording's stores, entity paths (static and temporal) and timelines."""
-    reader = RrdReader(path)
+    reader = open_rrd(path)
     stores = reader.recordings()
     if not stores:
         raise ValueError(f"{path} holds no recording")
@@ -83,7 +84,7 @@ def read_component(
     target = "/" + _strip(entity)
     times: list[np.ndarray] = []
     values: list[object] = []
-    for chunk in RrdReader(path).stream().filter(content=target):
+    for chunk in open_rrd(path).stream().filter(content=target):
         if chunk.entity_path != target or chunk.is_static != (timeline is None):
             continue
         batch = chunk.to_record_batch()
@@ -114,3 +115,43 @@ def read_scalars(
     times, rows = read_component(path, entity, "Scalars:scalars", timeline)
     values = np.array([r[0] if r else np.nan for r in rows], dtype=np.float64)
     return times, values
+
+
+Point = tuple[int | None, int | None, str]
+"""One row of a component: (episode, rollout_frame, the value's repr); None off a timeline."""
+
+
+def read_points(
+    path: str | os.PathLike[str],
+) -> tuple[dict[tuple[str, str], list[Point]], dict[tuple[str, str], str]]:
+    """Everything a recording holds, entity by entity and component by component, without
+    its timing: for checking that two recordings of the same run hold the same points.
+
+    Returns (temporal, static): temporal maps (entity, component) to its rows, sorted, on the
+    `episode` and `rollout_frame` timelines (`wall_time` is left out: it differs between two
+    runs of the same seed); static maps (entity, component) to the repr of its value (the last
+    one logged, the one a viewer shows). Values are compared by repr, so NaN equals NaN.
+    """
+    temporal: dict[tuple[str, str], list[Point]] = {}
+    static: dict[tuple[str, str], str] = {}
+    for chunk in open_rrd(path).stream():
+        entity = _strip(chunk.entity_path)
+        if entity.startswith("__"):
+            continue  # recording properties
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        n = batch.num_rows
+        episode = batch.column("episode").to_pylist() if "episode" in names else [None] * n
+        frame = (
+            batch.column("rollout_frame").to_pylist() if "rollout_frame" in names else [None] * n
+        )
+        for component in (c for c in names if ":" in c and not c.startswith("rerun.")):
+            values = [repr(v) for v in batch.column(component).to_pylist()]
+            if chunk.is_static:
+                static[(entity, component)] = values[-1]
+            else:
+                rows = temporal.setdefault((entity, component), [])
+                rows.extend(zip(episode, frame, values, strict=True))
+    for rows in temporal.values():
+        rows.sort(key=lambda r: (r[0] is None, r[0] or 0, r[1] is None, r[1] or 0, r[2]))
+    return temporal, static

@@ -30,8 +30,10 @@ Durability: the recorder writes to a working file beside the recording
 it and copies it over `recording.rrd` atomically, and `close()` writes the final, compacted
 `recording.rrd` (the file helpers are in `curious.recording.rrd_files`). So `recording.rrd`
 always holds a whole recording, up to the last checkpoint of a run killed at any moment, and a
-resumed run starts from it, cut at the checkpoint's episode (a recording that cannot be read is
-set aside with a warning, never a reason a run cannot resume).
+resumed run starts from it, cut at the checkpoint (`curious.recording.resume`): after any kills and
+resumes the recording holds the points of an uninterrupted run, no more, no fewer. A write that
+fails (a full disk) never replaces `recording.rrd` (`curious.recording.rrd_files.end_file`). A
+recording that cannot be read is set aside with a warning, never a reason a run cannot resume.
 
 Module colours and labels come from `curious.analysis.palette`, shared with the figures.
 A rollout's frames go on a third timeline, `rollout_frame` (dense: the recorded rollouts follow
@@ -57,9 +59,11 @@ import rerun as rr
 
 from curious.analysis.palette import module_entity, module_label, module_rgb
 from curious.recording.blueprint import default_blueprint
+from curious.recording.resume import last_episode_kept, take_held_values
 from curious.recording.rrd_files import (
     PreviousRecording,
     compact_recording,
+    end_file,
     flush_to_file,
     has_room_for,
     load_previous,
@@ -209,8 +213,9 @@ class RunRecorder:
             e.g. `rerun+http://127.0.0.1:9876/proxy`.
         resume: continue an existing `recording.rrd` (same recording id, its data kept) instead
             of starting a new one.
-        resume_after_episode: with `resume`, drop what the old recording holds after this
-            episode (the episodes after the checkpoint, which the resumed run logs again).
+        resume_from_episode: with `resume`, the episodes done at the checkpoint the run resumes
+            from: the old recording is cut to what was logged up to that checkpoint (what came
+            after it, the resumed run logs again; see `curious.recording.resume`).
     """
 
     def __init__(
@@ -225,7 +230,7 @@ class RunRecorder:
         connect: str | None = None,
         viewer_port: int = DEFAULT_VIEWER_PORT,
         resume: bool = False,
-        resume_after_episode: int | None = None,
+        resume_from_episode: int | None = None,
     ) -> None:
         self.module_names: tuple[str, ...] = tuple(module_names)
         if not self.module_names:
@@ -245,7 +250,10 @@ class RunRecorder:
         previous: PreviousRecording | None = None
         if resume and self.path.exists():
             try:
-                previous, old_id = load_previous(self.path, resume_after_episode)
+                cut = (
+                    None if resume_from_episode is None else last_episode_kept(resume_from_episode)
+                )
+                previous, old_id = load_previous(self.path, cut)
                 recording_id = recording_id or old_id
             except Exception as exc:  # whatever a damaged file raises, the run goes on
                 aside = self.path.with_name(f"{self.path.name}.unreadable")
@@ -293,10 +301,34 @@ class RunRecorder:
         self._scene: SceneLayout | None = None
         self._closed = False
 
+        self._scene_logged: frozenset[str] = frozenset()
+        """Static entities of the recording resumed (its scene geometry is not logged again)."""
         if previous is not None:
+            self._take_over(previous)
             self.stream.send_chunks(previous.chunks)
-            self._next_frame = previous.next_frame
         self._log_styles()
+
+    def _take_over(self, previous: PreviousRecording) -> None:
+        """Continue from a resumed recording: the next rollout frame, the clock, the series
+        already styled, the scene already logged, and each statistic's held value."""
+        self._next_frame = previous.next_frame
+        self._t0 -= previous.last_wall  # wall times go on from where the recording ends
+        self._last_wall = previous.last_wall
+        self._scene_logged = previous.static_entities
+        self._styled = {e for e in previous.static_entities if e.startswith(("losses/", "q/"))}
+        episodes = [e for path, e in previous.max_episode.items() if path.startswith("module/")]
+        if episodes:
+            self._latest_episode = max(episodes)
+        if not self.settings.stats_on_change:
+            return
+        paths = [f"{kind}/{name}" for kind in _STATS for name in self._entities]
+        held = take_held_values(previous, paths, self.settings.stats_keyframe_every)
+        for kind in _STATS:
+            for m, name in enumerate(self._entities):
+                if f"{kind}/{name}" in held:
+                    episode, value = held[f"{kind}/{name}"]
+                    self._logged_until[kind][m] = episode
+                    self._last[kind][m] = value
 
     # ------------------------------------------------------------------ set-up
 
@@ -560,6 +592,11 @@ class RunRecorder:
         (every `settings.rollout_every`-th, starting with the first)."""
         return self.settings.rollout_due(eval_index)
 
+    def _logged_before(self, layout: SceneLayout) -> bool:
+        """Whether the recording resumed holds this layout's geometry already."""
+        drawn = {layout.geom_paths[g] for g in layout.drawn_geoms}
+        return bool(drawn) and drawn <= self._scene_logged
+
     def log_scene(self, capture: RolloutCapture) -> None:
         """Logs the static geometry of the capture's model (done by the first `log_rollout`)."""
         self._check_open()
@@ -605,6 +642,8 @@ class RunRecorder:
             path = capture.gripper[:n]
         else:
             path = None
+        if self._scene is None and self._logged_before(capture.layout):
+            self._scene = capture.layout  # the recording resumed holds it
         if self._scene is None or not _same_layout(self._scene, capture.layout):
             self.log_scene(capture)
 
@@ -645,7 +684,12 @@ class RunRecorder:
 
     def close(self) -> None:
         """Extends each module's series to the last episode, writes everything, closes the file,
-        then (with `compact_on_close`) rewrites it with its chunks merged."""
+        then (with `compact_on_close`) rewrites it with its chunks merged.
+
+        A write that fails (a full disk) raises `RecordingWriteError` and leaves `recording.rrd`
+        as at the last checkpoint; compacting, which needs room for a second copy, falls back to
+        the recording as written, with a warning.
+        """
         if self._closed:
             return
         if self.settings.stats_on_change and self._latest_episode != _NO_EPISODE:
@@ -655,35 +699,52 @@ class RunRecorder:
                 for m, name in enumerate(self._entities):
                     if self._logged_until[kind][m] < self._latest_episode:
                         self._send_scalars(f"{kind}/{name}", ep, wall, self._last[kind][m : m + 1])
-        self._send_buffer()
-        flush_to_file(self.stream, self.working)
-        self.stream.disconnect()
         self._closed = True
+        try:
+            self._send_buffer()
+            end_file(self.stream, self.working)
+        except BaseException:
+            self._abandon_working_file()
+            raise
         size = self.working.stat().st_size
         if self.settings.compact_on_close and has_room_for(self.working, size):
-            compact_recording(self.working, self.path, self.blueprint)
-            self.working.unlink()
-        else:  # compacting needs room for a second copy; the recording is whole without it
-            os.replace(self.working, self.path)
+            try:
+                compact_recording(self.working, self.path, self.blueprint)
+            except (OSError, RuntimeError) as exc:  # the recording is whole without it
+                warnings.warn(
+                    f"{self.path} was not compacted ({exc}); it holds the whole recording, "
+                    "uncompacted",
+                    RuntimeWarning,
+                    stacklevel=2,
+                )
+            else:
+                self.working.unlink()
+                return
+        os.replace(self.working, self.path)
 
     def close_after_error(self) -> None:
         """Ends the recording when an error stopped training, never raising over that error.
 
         What was logged is flushed and becomes `recording.rrd`, uncompacted (a rename needs no
         room on a full disk; the next resume compacts it). If even that cannot be written, the
-        recording stays as at the last checkpoint, where a resume starts anyway.
+        recording stays as at the last checkpoint, where a resume starts anyway: a file that was
+        not written in full never replaces it.
         """
         if self._closed:
             return
         self._closed = True
         try:
             self._send_buffer()
-            flush_to_file(self.stream, self.working, timeout=60.0)
-            self.stream.disconnect()
+            end_file(self.stream, self.working, timeout=60.0)
             os.replace(self.working, self.path)
         except Exception:
-            with contextlib.suppress(Exception):
-                self.stream.disconnect()
+            self._abandon_working_file()
+
+    def _abandon_working_file(self) -> None:
+        """Disconnects the sink and removes the working file (not whole: a write failed)."""
+        with contextlib.suppress(Exception):
+            self.stream.disconnect()
+        with contextlib.suppress(OSError):
             self.working.unlink(missing_ok=True)
 
     def __enter__(self) -> RunRecorder:

@@ -214,7 +214,7 @@ def recorder_factory(
             run_name=run_name,
             spawn=spawn,
             resume=resumed,
-            resume_after_episode=trainer.episodes - 1 if resumed else None,
+            resume_from_episode=trainer.episodes if resumed else None,
         )
         if settings.rollout_every > 0:
             attach_rollout_recording(trainer, recorder)

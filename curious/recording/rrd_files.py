@@ -1,10 +1,17 @@
-"""The recording file on disk: reading one back to resume it, copying it, compacting it.
+"""The recording file on disk: reading one back to resume it, copying it, ending it, compacting it.
 
 `RunRecorder` writes through Rerun's file sink; these helpers work on whole `.rrd` files: a resumed
 run reads the recording of its last checkpoint into memory, cut at the checkpoint's episode
 (`load_previous`); the working file is copied over `recording.rrd` atomically at every checkpoint
-(`replace_with_copy`); and a finished recording is rewritten with its chunks merged
-(`compact_recording`).
+(`replace_with_copy`); a file sink is ended so that the file is whole even when the disk fills
+(`end_file`); and a finished recording is rewritten with its chunks merged (`compact_recording`).
+
+Rerun writes a footer (a manifest of the file's chunks) when a file sink is disconnected, and
+reports no failure to write it: on a full disk the footer is cut short and the whole file becomes
+unreadable, although every chunk before it was written. `end_file` checks the footer and, where
+it is broken, cuts the file back to what the last successful flush wrote. A file without a
+footer (the copy made at a checkpoint of a recording still being written) is read in full by
+Rerun's reader; the reader's warning that it is in a "legacy format" is silenced here.
 """
 
 from __future__ import annotations
@@ -12,7 +19,9 @@ from __future__ import annotations
 import errno
 import os
 import shutil
-from dataclasses import dataclass
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pyarrow as pa
@@ -27,8 +36,11 @@ __all__ = [
     "PreviousRecording",
     "RecordingWriteError",
     "compact_recording",
+    "end_file",
     "flush_to_file",
+    "has_footer",
     "load_previous",
+    "open_rrd",
     "replace_with_copy",
 ]
 
@@ -57,6 +69,39 @@ def flush_to_file(
         raise _write_error(path, exc) from exc
 
 
+def open_rrd(path: str | os.PathLike[str]) -> RrdReader:
+    """`RrdReader(path)` without the warning Rerun gives for a file without a footer (a
+    checkpoint's copy of a recording still being written is one, and is read in full)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r".*no footer")
+        return RrdReader(path)
+
+
+def has_footer(path: str | os.PathLike[str]) -> bool:
+    """Whether the file ends with a whole footer (what Rerun writes when a sink is disconnected)."""
+    try:
+        open_rrd(path).store()
+    except Exception:  # no footer, a footer cut short, or no file: Rerun raises RuntimeError
+        return False
+    return True
+
+
+def end_file(
+    stream: rr.RecordingStream, path: Path, timeout: float = FLUSH_TIMEOUT_SECONDS
+) -> None:
+    """Flushes `stream` into `path` and disconnects it, leaving a whole file.
+
+    A failed flush raises `RecordingWriteError` (the file is then not whole). A footer that could
+    not be written in full (Rerun only logs that) is cut off: the file is then what the flush
+    wrote, every chunk whole, without a footer, rather than a file Rerun cannot read at all.
+    """
+    flush_to_file(stream, path, timeout)
+    flushed = path.stat().st_size
+    stream.disconnect()
+    if path.stat().st_size != flushed and not has_footer(path):
+        os.truncate(path, flushed)
+
+
 def has_room_for(path: Path, size: int) -> bool:
     """Whether the disk holding `path` has `size` bytes free, and a margin."""
     return shutil.disk_usage(path.parent).free >= size + _NEARLY_FULL
@@ -78,10 +123,20 @@ def _write_error(path: Path, cause: BaseException) -> RecordingWriteError:
 
 @dataclass
 class PreviousRecording:
-    """The chunks of a recording being resumed, and the next free rollout frame."""
+    """The chunks of a recording being resumed, cut at its checkpoint, and what they end with.
+
+    chunks: the chunks kept, in the file's order.
+    next_frame: the next free rollout frame (the rollout_frame timeline is dense).
+    static_entities: entity paths with static data (styles, the scene's geometry).
+    last_wall: the latest wall_time kept, in seconds (0.0 when none).
+    """
 
     chunks: list[Chunk]
     next_frame: int
+    static_entities: frozenset[str] = frozenset()
+    last_wall: float = 0.0
+    max_episode: dict[str, int] = field(default_factory=dict)
+    """The last episode each temporal entity holds a row at (entity path without the "/")."""
 
 
 def replace_with_copy(source: Path, target: Path) -> None:
@@ -114,7 +169,7 @@ def compact_recording(
     """
     path = Path(path)
     target = Path(out) if out is not None else path
-    reader = RrdReader(path)
+    reader = open_rrd(path)
     stores = reader.recordings()
     if not stores:
         raise ValueError(f"{path} holds no recording")
@@ -127,25 +182,36 @@ def compact_recording(
     try:
         stream.set_sinks(rr.FileSink(str(tmp)), default_blueprint=layout)
         stream.send_chunks(store)
-        flush_to_file(stream, tmp)
-        stream.disconnect()
+        end_file(stream, tmp)
         os.replace(tmp, target)
     finally:
         tmp.unlink(missing_ok=True)
 
 
-def load_previous(path: Path, after_episode: int | None) -> tuple[PreviousRecording, str]:
-    """The recording at `path` in memory (chunks cut after `after_episode`), and its id."""
-    reader = RrdReader(path)
+def load_previous(
+    path: Path, last_episode: Callable[[str], int] | None
+) -> tuple[PreviousRecording, str]:
+    """The recording at `path` in memory, and its id. With `last_episode`, each entity's rows
+    after `last_episode(entity path)` (on the episode timeline) are dropped."""
+    reader = open_rrd(path)
     stores = reader.recordings()
     if not stores:
         raise ValueError(f"{path} holds no recording to resume")
     kept: list[Chunk] = []
+    static: set[str] = set()
+    max_episode: dict[str, int] = {}
     next_frame = 1
+    last_wall = 0.0
     for chunk in reader.stream().to_chunks():
+        entity = chunk.entity_path.lstrip("/")
+        if chunk.is_static:
+            static.add(entity)
+            kept.append(chunk)
+            continue
         batch = chunk.to_record_batch()
-        if after_episode is not None and "episode" in batch.schema.names:
-            keep = pc.less_equal(batch.column("episode"), pa.scalar(after_episode, pa.int64()))
+        if last_episode is not None and "episode" in batch.schema.names:
+            limit = pa.scalar(last_episode(entity), pa.int64())
+            keep = pc.less_equal(batch.column("episode"), limit)
             if not pc.all(keep).as_py():
                 batch = batch.filter(keep)
                 if batch.num_rows == 0:
@@ -155,7 +221,14 @@ def load_previous(path: Path, after_episode: int | None) -> tuple[PreviousRecord
                 kept.append(chunk)
         else:
             kept.append(chunk)
-        if "rollout_frame" in batch.schema.names:
-            last = pc.max(batch.column("rollout_frame")).as_py()
-            next_frame = max(next_frame, int(last) + 1)
-    return PreviousRecording(kept, next_frame), stores[0].recording_id
+        names = batch.schema.names
+        if "episode" in names:
+            top = int(pc.max(batch.column("episode")).as_py())
+            max_episode[entity] = max(max_episode.get(entity, top), top)
+        if "rollout_frame" in names:
+            next_frame = max(next_frame, int(pc.max(batch.column("rollout_frame")).as_py()) + 1)
+        if "wall_time" in names:
+            wall = pc.max(batch.column("wall_time").cast(pa.int64())).as_py()
+            last_wall = max(last_wall, wall / 1e9)
+    previous = PreviousRecording(kept, next_frame, frozenset(static), last_wall, max_episode)
+    return previous, stores[0].recording_id
