@@ -301,9 +301,9 @@ class Config:
         for name in ("actor_lr", "critic_lr"):
             if not 0.0 < getattr(self, name) <= MAX_LEARNING_RATE:
                 raise ConfigError(
-                    f"{name} must be in (0, {MAX_LEARNING_RATE}], got {getattr(self, name)}: Adam "
-                    "moves every weight by about the learning rate at each step, so a rate "
-                    "above 1 cannot learn (the authors' is 1e-3)"
+                    f"{name} must be in (0, {MAX_LEARNING_RATE:g}], got {getattr(self, name)}: "
+                    "Adam moves every weight by about the learning rate at each step, so a "
+                    "rate above 1 cannot learn (the authors' is 1e-3)"
                 )
         for name in ("action_l2", "moved_threshold"):
             if getattr(self, name) < 0:
@@ -311,7 +311,7 @@ class Config:
         for name in ("noise_eps", "td3_target_noise", "td3_noise_clip"):
             if not 0.0 <= getattr(self, name) <= MAX_NOISE:
                 raise ConfigError(
-                    f"{name} must be in [0, {MAX_NOISE}], got {getattr(self, name)}: a fraction "
+                    f"{name} must be in [0, {MAX_NOISE:g}], got {getattr(self, name)}: a fraction "
                     "of the largest action, 1, beyond which every noisy action is clipped to "
                     "the bounds (the authors' noise_eps is 0.2)"
                 )
@@ -345,7 +345,8 @@ class Config:
                 "str": isinstance(value, str),
             }[kind]
             if not fits:
-                raise ConfigError(f"{f.name} must be a {kind}, got {value!r}")
+                article = "an" if kind == "int" else "a"
+                raise ConfigError(f"{f.name} must be {article} {kind}, got {value!r}")
             values[f.name] = float(value) if kind == "float" else value
         return cls(**values).validate()
 

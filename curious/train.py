@@ -194,9 +194,9 @@ def diverged(config: Config, episode: int, what: str) -> TrainingDiverged:
     """The error for a run whose `what` stopped being finite at `episode`."""
     return TrainingDiverged(
         f"training diverged at episode {episode:,}: {what} (actor_lr={config.actor_lr:g}, "
-        f"critic_lr={config.critic_lr:g}); nothing after the run's last checkpoint was written, "
-        "so its folder holds the run up to there; train again with lower --set actor_lr=... "
-        "--set critic_lr=... (the authors': 1e-3), in a new --out"
+        f"critic_lr={config.critic_lr:g}); nothing after the run's last checkpoint was written; "
+        "start the run over with lower rates: --restart --set actor_lr=... --set critic_lr=... "
+        "(the authors': 1e-3)"
     )
 
 
@@ -581,7 +581,10 @@ class Trainer:
             losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
             bad = sorted(k for k, v in losses.items() if not math.isfinite(v))
             if bad:
-                raise diverged(cfg, self.episodes, f"{', '.join(bad)} of the updates not finite")
+                verb = "is" if len(bad) == 1 else "are"
+                raise diverged(
+                    cfg, self.episodes, f"the updates' {', '.join(bad)} {verb} not finite"
+                )
             losses["reward_mean"] = float(np.mean(rewards))
             timings["update"] += time.perf_counter() - tic
         if drain and self._pending is not None:

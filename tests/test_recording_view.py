@@ -11,7 +11,6 @@ from curious.cli import main
 from curious.commands import view
 from curious.recording import RECORDING_FILENAME
 
-
 RRD_HEADER = b"RRF2\x00\x29\x00\x00\x01\x02\x00\x00"
 """The first 12 bytes of a recording that rerun-sdk 0.41 wrote: magic, version, options."""
 
