@@ -574,6 +574,23 @@ def test_a_folder_that_is_not_a_reproduction_is_refused(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
 
 
+def test_a_damaged_manifest_or_run_config_is_a_one_line_error(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "reproduce.json").write_text("[1, 2]")
+    code, err = run_cli(["--budget", "smoke", "--out", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and "reproduce.json is unreadable" in err
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "smoke"}))
+    folder = run_folder(SMOKE.experiments["main"].runs()[0], out / "runs")
+    folder.mkdir(parents=True)
+    for text in ('{"config": 5}', "[1, 2, 3]", "", "{{"):
+        (folder / "config.json").write_text(text)
+        code, err = run_cli(["--budget", "smoke", "--out", str(out)], capsys)
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"{folder / 'config.json'} is damaged" in err and "Traceback" not in err
+    assert sorted(p.name for p in out.iterdir()) == ["reproduce.json", "runs"]
+
+
 def test_a_run_being_trained_elsewhere_is_not_touched(smoke, capsys):
     from pipelines.training import training_lock
 
