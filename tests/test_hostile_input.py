@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import ctypes.util
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -68,6 +70,24 @@ def test_mujoco_gl_osmesa_without_its_library_is_refused_by_render_alone(tmp_pat
     line = one_line(done.stderr)
     assert done.returncode == 2 and "MUJOCO_GL=osmesa cannot be used here" in line
     assert "libosmesa6" in line
+
+
+def test_ctrl_c_while_the_command_line_starts_is_one_line(tmp_path):
+    """The parser imports torch and MuJoCo (seconds): a Ctrl-C then, as later, is one line."""
+    env = {**os.environ, "MUJOCO_GL": "disable", "OMP_NUM_THREADS": "1"}
+    command = [sys.executable, "-m", "curious.cli", "train", "--preset", "smoke"]
+    proc = subprocess.Popen(
+        [*command, "--out", str(tmp_path / "run"), "--no-record", "--no-progress"],
+        env=env,
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    time.sleep(1.5)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and one_line(err) == "curious train: interrupted"
 
 
 # ------------------------------------------------------------------------------ small ones
