@@ -710,12 +710,16 @@ class Trainer:
         nets = [net for e in self.agent.experts for net in (e.actor, e.critics)]
         return all(bool(torch.isfinite(p).all()) for net in nets for p in net.parameters())
 
-    def save_checkpoint(self, directory: Path) -> Path:
-        """Checkpoint the run (`curious.checkpoint.save`); `TrainingDiverged`, with nothing
-        written, when a weight is no longer finite (the last step of a cycle may make it so
-        with every loss of the cycle finite)."""
+    def ensure_finite(self) -> None:
+        """`TrainingDiverged` when a weight is no longer finite (the last step of a cycle may
+        make it so with every loss of the cycle finite): checked before anything of a
+        checkpoint is written."""
         if not self.finite():
             raise diverged(self.config, self.episodes, "the networks' weights are not finite")
+
+    def save_checkpoint(self, directory: Path) -> Path:
+        """Checkpoint the run (`curious.checkpoint.save`), never a diverged one."""
+        self.ensure_finite()
         state, replay = self.state_dict()
         return checkpoint.save(directory, self.episodes, state, replay)
 
@@ -945,6 +949,7 @@ def _run(
             bar.set_postfix(_progress_text(trainer), refresh=False)
             stop_now = stop_after_cycles is not None and cycles_here >= stop_after_cycles
             if trainer.done or stop_now or trainer.cycles % config.checkpoint_every_cycles == 0:
+                trainer.ensure_finite()  # a diverged run writes none of this checkpoint
                 metrics.flush()
                 if config.test_rollouts_per_worker:
                     tests.flush()

@@ -191,6 +191,17 @@ def test_a_run_that_diverges_stops_in_one_line_and_keeps_its_last_checkpoint(
     assert "\n" not in str(error.value)
     assert snapshot(out, but=("config.json",)) == before
     monkeypatch.undo()
+
+    def diverging_targets(self, expert):  # the losses of the cycle stay finite
+        with torch.no_grad():
+            for p in self.experts[expert].critics.parameters():
+                p.fill_(float("nan"))
+
+    monkeypatch.setattr(Agent, "update_targets", diverging_targets)
+    with pytest.raises(TrainingDiverged, match="episode 16: the networks' weights are not"):
+        run(out, stop=1, resume=True, total_episodes=24)  # a checkpoint after this cycle
+    assert snapshot(out, but=("config.json",)) == before
+    monkeypatch.undo()
     trainer = run(out, resume=True, total_episodes=24)
     assert trainer.episodes == 24 and trainer.finite()
     np.testing.assert_array_equal(episodes(out / "metrics.parquet"), np.arange(24))
