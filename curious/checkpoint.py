@@ -188,7 +188,12 @@ def load_latest(
 ) -> tuple[Path, dict[str, Any], dict[str, np.ndarray]] | None:
     """(path, state, replay) of the newest readable checkpoint in `directory`, None when there is
     none. An unreadable newest one is passed over for the one before, with a warning naming
-    it; an error when none can be read."""
+    it; an error when none can be read.
+
+    A checkpoint is taken by its state's own episode counter, which must be the episode its
+    folder's name says: one renamed or copied under another name (`ep-000000000999` holding
+    episode 24) is passed over like a damaged one, so that a name never sends a run back to an
+    older state."""
     found = list_checkpoints(directory)
     errors = []
     for path in reversed(found):
@@ -196,6 +201,13 @@ def load_latest(
             state, replay = load(path, map_location)
         except CheckpointError as exc:
             errors.append(str(exc))
+            continue
+        named = int(path.name[len(PREFIX) :])
+        if state.get("episodes") != named:
+            errors.append(
+                f"checkpoint {path} holds the state of episode {state.get('episodes')}, not of "
+                f"episode {named} as its name says (renamed or copied?)"
+            )
             continue
         if errors:
             warnings.warn(f"{errors[0]}; resuming from the one before, {path.name}", stacklevel=2)

@@ -102,28 +102,37 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _no_gl_without_a_display(command: str | None) -> None:
-    """Without a display and with no `MUJOCO_GL` chosen, commands that do not render run the
-    physics with GL off: dm_control would otherwise try GLFW and warn that DISPLAY is missing."""
-    from curious.commands.view import has_display
-
-    if command != "render" and "MUJOCO_GL" not in os.environ and not has_display():
-        os.environ["MUJOCO_GL"] = "disable"
-
-
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `curious` console script."""
+    """Entry point of the `curious` console script. Bad input is one line on stderr (exit
+    status 2), and so is a Ctrl-C, whenever it comes (exit status 130)."""
+    words = list(sys.argv[1:] if argv is None else argv)
+    command = next((w for w in words if w[:1] != "-"), None)
+    try:
+        return _main(argv, words)
+    except KeyboardInterrupt:
+        print(
+            f"curious {command}: interrupted" if command else "curious: interrupted",
+            file=sys.stderr,
+        )
+        return 130
+
+
+def _main(argv: list[str] | None, words: list[str]) -> int:
+    from curious.gl import gl_for_command, rendering_problem, renders
+
+    gl_for_command(words)  # before anything imports MuJoCo (the parser does)
+    if renders(words):
+        problem = rendering_problem()
+        if problem:
+            print(f"curious render: error: {problem}", file=sys.stderr)
+            return 2
     parser = build_parser()
-    _no_gl_without_a_display(next((a for a in (argv or sys.argv[1:]) if a[:1] != "-"), None))
     args = parser.parse_args(argv)
     if getattr(args, "func", None) is None:
         parser.print_help()
         return 2
     try:
         result = args.func(args)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
     except (ValueError, RuntimeError, FileNotFoundError, FileExistsError) as exc:
         # Bad input and unusable folders are reported in one line; CURIOUS_DEBUG=1 shows the
         # traceback.

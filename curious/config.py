@@ -42,6 +42,16 @@ PLACEMENT_FIELDS: frozenset[str] = RESUMABLE_FIELDS - {"total_episodes", "progre
 rounding aside): those `curious reproduce --set` may change for every run of a budget."""
 
 
+MAX_SEED = 2**32 - 1
+"""Seeds go from 0 to this: the suite seeds an episode with numpy's 32-bit `RandomState`
+(`curious render --seed`), and the learners' torch seeds, derived from the run's, must fit 64
+bits."""
+MAX_LEARNING_RATE = 1.0
+"""Upper bound of `actor_lr` and `critic_lr` (see `Config.validate`)."""
+MAX_NOISE = 1.0
+"""Upper bound of the action noises, which are fractions of the largest action (1)."""
+
+
 class ConfigError(ValueError):
     """A configuration that cannot run: unknown preset, condition, key or a bad value."""
 
@@ -114,8 +124,8 @@ class Config:
     or any random draw of training. Their success (`tests.parquet`) is what Fig. 2a plots, as
     the paper's. 0 runs none."""
     noise_eps: float = 0.2
-    """Std of the Gaussian action noise, as a fraction of the maximal action (1). Authors: 0.2
-    (experiment/config.py)."""
+    """Std of the Gaussian action noise, as a fraction of the maximal action (1), in [0, 1].
+    Authors: 0.2 (experiment/config.py)."""
     random_eps: float = 0.3
     """Probability that an exploring step takes a uniform random action instead. Authors: 0.3
     (experiment/config.py)."""
@@ -133,9 +143,11 @@ class Config:
     layers: int = 3
     """Hidden layers of actor and critic. Authors: 3."""
     actor_lr: float = 1e-3
-    """Adam learning rate of the actor. Authors: pi_lr 1e-3."""
+    """Adam learning rate of the actor, in (0, 1]. Authors: pi_lr 1e-3."""
     critic_lr: float = 1e-3
-    """Adam learning rate of the critic. Authors: Q_lr 1e-3."""
+    """Adam learning rate of the critic, in (0, 1]. Authors: Q_lr 1e-3. A rate within the range
+    may still make training diverge: the first non-finite loss or action stops the run with an
+    error naming both rates, its last checkpoint intact (`curious.train.TrainingDiverged`)."""
     gamma: float = 0.98
     """Discount; targets are clipped to [-1/(1-gamma), 0] (rewards are -1 or 0). Authors:
     1 - 1/T = 0.98 with clip_return."""
@@ -159,7 +171,9 @@ class Config:
     norm_eps: float = 0.01
     """Lower bound of the state normaliser's std. Authors: 0.01."""
     td3_target_noise: float = 0.2
+    """TD3's target smoothing noise (std), in [0, 1] of the largest action."""
     td3_noise_clip: float = 0.5
+    """TD3's clip of that noise, in [0, 1]."""
     td3_policy_delay: int = 2
 
     # --- replay ------------------------------------------------------------------------------
@@ -248,6 +262,8 @@ class Config:
 
     def validate(self) -> Config:
         """Raise `ConfigError` naming the first field with a value that cannot run."""
+        if not 0 <= self.seed <= MAX_SEED:
+            raise ConfigError(f"seed (--seed) must be from 0 to {MAX_SEED:,}, got {self.seed}")
         if self.condition not in CONDITIONS:
             raise ConfigError(
                 f"unknown condition {self.condition!r}; choose one of {', '.join(CONDITIONS)}"
@@ -308,18 +324,26 @@ class Config:
             value = getattr(self, f.name)
             if isinstance(value, float) and not math.isfinite(value):
                 raise ConfigError(f"{f.name} must be a finite number, got {value}")
-        for name in ("actor_lr", "critic_lr", "norm_eps", "norm_clip"):
+        for name in ("norm_eps", "norm_clip"):
             if getattr(self, name) <= 0:
                 raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in (
-            "noise_eps",
-            "action_l2",
-            "moved_threshold",
-            "td3_target_noise",
-            "td3_noise_clip",
-        ):
+        for name in ("actor_lr", "critic_lr"):
+            if not 0.0 < getattr(self, name) <= MAX_LEARNING_RATE:
+                raise ConfigError(
+                    f"{name} must be in (0, {MAX_LEARNING_RATE:g}], got {getattr(self, name)}: "
+                    "Adam moves every weight by about the learning rate at each step, so a "
+                    "rate above 1 cannot learn (the authors' is 1e-3)"
+                )
+        for name in ("action_l2", "moved_threshold"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"{name} must be >= 0, got {getattr(self, name)}")
+        for name in ("noise_eps", "td3_target_noise", "td3_noise_clip"):
+            if not 0.0 <= getattr(self, name) <= MAX_NOISE:
+                raise ConfigError(
+                    f"{name} must be in [0, {MAX_NOISE:g}], got {getattr(self, name)}: a fraction "
+                    "of the largest action, 1, beyond which every noisy action is clipped to "
+                    "the bounds (the authors' noise_eps is 0.2)"
+                )
         for name in ("her_p", "lp_eps", "random_eps", "polyak"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"{name} must be in [0, 1], got {getattr(self, name)}")
@@ -333,11 +357,27 @@ class Config:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Config:
-        """Inverse of `to_dict`; unknown keys are an error."""
+        """Inverse of `to_dict`; unknown keys and values of the wrong type are errors (an int
+        is taken for a float, nothing else is converted)."""
         unknown = sorted(set(data) - set(setting_names()))
         if unknown:
             raise ConfigError(f"unknown config keys: {', '.join(unknown)}")
-        return cls(**data).validate()
+        values = {}
+        for f in fields(cls):
+            if f.name not in data:
+                continue
+            kind, value = str(f.type), data[f.name]
+            fits = {
+                "int": isinstance(value, int) and not isinstance(value, bool),
+                "float": isinstance(value, int | float) and not isinstance(value, bool),
+                "bool": isinstance(value, bool),
+                "str": isinstance(value, str),
+            }[kind]
+            if not fits:
+                article = "an" if kind == "int" else "a"
+                raise ConfigError(f"{f.name} must be {article} {kind}, got {value!r}")
+            values[f.name] = float(value) if kind == "float" else value
+        return cls(**values).validate()
 
 
 def setting_names() -> tuple[str, ...]:

@@ -7,8 +7,11 @@
     checkpoints/      resumable checkpoints (`curious.checkpoint`)
 
 `prepare` checks a folder before anything is written: a non-empty folder is only accepted with
-`resume=True`, and then only for the same config (fields in `RESUMABLE_FIELDS` may change).
-`folder_lock` keeps a second process out of a folder while one trains in it.
+`resume=True`, and then only for the same config (fields in `RESUMABLE_FIELDS` may change), or
+with `restart=True` when it holds a run's files and nothing else (`clear` removes them once
+every check has passed). A config.json that is not a run's (damaged, hand-edited into another
+shape, a setting of the wrong type) is a `RunFolderError` naming the file. `folder_lock` keeps a
+second process out of a folder while one trains in it, and leaves nothing behind.
 """
 
 from __future__ import annotations
@@ -19,15 +22,25 @@ import fcntl
 import json
 import os
 import platform
+import shutil
 import socket
 import subprocess
 from collections.abc import Iterator
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
-from curious.config import RESUMABLE_FIELDS, Config, setting_names
+from curious.config import RESUMABLE_FIELDS, Config, ConfigError, setting_names
 from curious.envs import EnvSpec
+
+RUN_ENTRIES: tuple[str, ...] = (
+    "config.json",
+    "metrics.parquet",
+    "tests.parquet",
+    "recording.rrd",
+    "checkpoints",
+)
+"""What a run writes in its folder (with temporaries named after them, a leading dot aside)."""
 
 
 class RunFolderError(RuntimeError):
@@ -45,37 +58,67 @@ def lock_path(folder: str | os.PathLike) -> Path:
 
 
 @contextlib.contextmanager
-def folder_lock(folder: str | os.PathLike, claim: bool = True) -> Iterator[None]:
+def folder_lock(
+    folder: str | os.PathLike, claim: bool = True, activity: str = "trained"
+) -> Iterator[None]:
     """Hold the run folder's lock; `RunFolderBusy` if another process holds it.
 
     An advisory `flock` on a file beside the folder: the system drops it when its process dies,
     however it dies, so a killed run never leaves a stale lock, and two processes never train
-    one folder. With `claim`, the file names the holder (host and pid) for the error others get.
+    one folder. With `claim`, the file names the holder (host and pid) for the error others get;
+    `activity` says what the holder does there ("being trained by ...").
+
+    The lock file is removed when the lock is given back, and so are the folders made to hold
+    it when they stayed empty: a refused command leaves nothing behind. The file is removed
+    while still locked, and a process that locked a file that is no longer the one at the path
+    tries again, so that two processes never both hold "the" lock.
     """
     path = lock_path(folder)
     existing = next(p for p in path.parents if p.exists())
     if not existing.is_dir():
         raise RunFolderError(f"cannot make {Path(folder)}: {existing} is a file, not a folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "a+") as handle:
+    made = [p for p in path.parents if not p.exists()]  # innermost first
+    try:
+        handle = _acquire(path, Path(folder), activity)
+        try:
+            if claim:
+                handle.seek(0)
+                handle.truncate()
+                handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
+                handle.flush()
+            yield
+        finally:
+            path.unlink(missing_ok=True)  # before the unlock: nobody can hold it meanwhile
+            fcntl.flock(handle, fcntl.LOCK_UN)
+            handle.close()
+    finally:
+        for parent in made:  # only those this call made, and only while empty
+            with contextlib.suppress(OSError):
+                parent.rmdir()
+
+
+def _acquire(path: Path, folder: Path, activity: str) -> IO[str]:
+    """The open, locked lock file at `path` (see `folder_lock`)."""
+    while True:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(path, "a+")
         try:
             fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             handle.seek(0)
             holder = handle.read().strip() or "another process"
+            handle.close()
             raise RunFolderBusy(
-                f"{Path(folder)} is being trained by {holder}; wait for it, or stop it, before "
-                "training this run again"
+                f"{folder} is being {activity} by {holder}; wait for it to end, or stop it, "
+                "before starting it again"
             ) from None
-        if claim:
-            handle.seek(0)
-            handle.truncate()
-            handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
-            handle.flush()
-        try:
-            yield
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
+        try:  # the holder before may have removed the file between our open and our lock
+            current = os.stat(path).st_ino == os.fstat(handle.fileno()).st_ino
+        except FileNotFoundError:
+            current = False
+        if current:
+            return handle
+        handle.close()
 
 
 def library_versions() -> dict[str, str | None]:
@@ -152,29 +195,96 @@ class RunFolder:
     def checkpoints(self) -> Path:
         return self.path / "checkpoints"
 
+    def read_stored(self) -> dict[str, Any]:
+        """config.json's content, checked to be a run's description: a JSON object whose
+        `config` is an object. Anything else is a `RunFolderError` naming the file."""
+        path = self.config_path
+        try:
+            text = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            cause = getattr(exc, "strerror", None) or exc
+            raise RunFolderError(f"cannot read {path}: {cause}") from None
+        damaged = f"{path} is damaged"
+        remedy = "restore it, or start a new run in another --out"
+        if not text.strip():
+            raise RunFolderError(f"{damaged}: it is empty; {remedy}")
+        try:
+            data = json.loads(text)
+        except ValueError as exc:
+            raise RunFolderError(f"{damaged}: it is not JSON ({exc}); {remedy}") from None
+        if not isinstance(data, dict) or not isinstance(data.get("config"), dict):
+            raise RunFolderError(
+                f"{damaged}: it holds no run's settings (a JSON object with a `config` object); "
+                f"{remedy}"
+            )
+        return data
+
     def read_config(self) -> Config:
-        """The config stored in config.json."""
-        data = json.loads(self.config_path.read_text())
-        return Config.from_dict(data["config"])
+        """The config stored in config.json; a `RunFolderError` naming the file when it is not
+        one this curious can run (a damaged file, a setting of the wrong type or value)."""
+        raw = self.read_stored()["config"]
+        try:
+            return Config.from_dict(raw)
+        except ConfigError as exc:
+            raise RunFolderError(
+                f"{self.config_path} holds settings this curious cannot run ({exc}); restore "
+                "it, or start a new run in another --out"
+            ) from None
+
+    def foreign_entries(self) -> list[str]:
+        """Names in the folder that no run writes (what `--restart` would not remove)."""
+        if not self.path.is_dir():
+            return []
+        return sorted(
+            entry.name
+            for entry in self.path.iterdir()
+            if not entry.name.lstrip(".").startswith(RUN_ENTRIES)
+        )
+
+    def clear(self) -> None:
+        """Remove what a run wrote in the folder (`--restart`), after `prepare` checked that it
+        holds nothing else."""
+        for entry in self.path.iterdir():
+            if entry.name.lstrip(".").startswith(RUN_ENTRIES):
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry)
+                else:
+                    entry.unlink()
 
     @classmethod
-    def prepare(cls, path: str | os.PathLike, config: Config, resume: bool) -> RunFolder:
-        """Check that `path` can hold (or go on with) a run of `config`; writes nothing."""
+    def prepare(
+        cls, path: str | os.PathLike, config: Config, resume: bool, restart: bool = False
+    ) -> RunFolder:
+        """Check that `path` can hold (or go on with) a run of `config`; writes nothing. With
+        `restart`, a folder holding a run (and nothing else) is accepted for a new run: `clear`
+        then removes the old one."""
         folder = cls(path)
         exists = folder.path.exists()
         if exists and not folder.path.is_dir():
             raise RunFolderError(f"{folder.path} exists and is not a folder")
+        if resume and restart:
+            raise RunFolderError(
+                "--resume goes on with a run and --restart starts it over: pass one of them"
+            )
         non_empty = exists and any(folder.path.iterdir())
+        if restart:
+            foreign = folder.foreign_entries()
+            if foreign:
+                raise RunFolderError(
+                    f"{folder.path} holds files that are not a run's ({', '.join(foreign[:5])}); "
+                    "--restart removes only a run's files: move them away, or choose another --out"
+                )
+            return folder
         if not resume:
             if non_empty:
                 raise RunFolderError(
                     f"{folder.path} is not empty; pass --resume to continue the run in it, "
-                    "or choose another --out"
+                    "--restart to start it over, or choose another --out"
                 )
             return folder
         if not folder.config_path.exists():
             raise RunFolderError(f"nothing to resume: {folder.config_path} does not exist")
-        raw = json.loads(folder.config_path.read_text())["config"]
+        raw = folder.read_stored()["config"]
         lacking = sorted(set(setting_names()) - set(raw))
         if lacking:
             raise RunFolderError(
@@ -182,7 +292,7 @@ class RunFolder:
                 f"(its config.json lacks {', '.join(lacking)}); start a new run, or resume "
                 "with the version that wrote it"
             )
-        stored = Config.from_dict(raw)
+        stored = folder.read_config()
         diff = config_differences(stored.to_dict(), config.to_dict())
         if diff:
             detail = ", ".join(

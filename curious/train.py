@@ -54,7 +54,7 @@ from __future__ import annotations
 import concurrent.futures
 import contextlib
 import functools
-import os
+import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -62,6 +62,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
+import pyarrow.compute as pc
 import torch
 
 from curious import checkpoint
@@ -69,11 +70,12 @@ from curious.agent import Agent
 from curious.conditions import make_condition
 from curious.config import Config, ConfigError
 from curious.env_batch import EnvBatch, LocalEnvs, ProcessEnvs
-from curious.envs import EnvSpec, GoalEnv
+from curious.envs import GoalEnv
 from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
 from curious.metrics import MetricsLog, TableLog, TestsLog
 from curious.replay import EpisodeReplay, Transitions
+from curious.resources import SUITE_COPY_BYTES, check_memory
 from curious.rollouts import EpisodeData, run_episodes
 from curious.run_folder import RunFolder, RunFolderError, config_differences, folder_lock
 
@@ -184,30 +186,19 @@ def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
     return LocalEnvs(envs) if isinstance(envs, Sequence) else envs
 
 
-def available_memory() -> int:
-    """Bytes of memory this machine can still give (MemAvailable where Linux reports it)."""
-    try:
-        with open("/proc/meminfo") as handle:
-            for line in handle:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+class TrainingDiverged(RuntimeError):
+    """The networks stopped giving finite numbers (a loss, an action or a weight): the learning
+    rates are too high for this run. Nothing of the diverged state is written."""
 
 
-def _check_replay_fits(config: Config, spec: EnvSpec) -> None:
-    """A `ConfigError` before training when the replay would not fit in memory once filled
-    (numpy allocates it lazily, so without this a run would fail hours in)."""
-    need = EpisodeReplay.bytes_for(spec, config.replay_capacity)
-    have = available_memory()
-    if need > 0.9 * have:
-        raise ConfigError(
-            f"the replay keeps {config.replay_capacity:,} episodes, {need / 2**30:.2f} GiB once "
-            f"filled, but this machine has {have / 2**30:.2f} GiB available: lower "
-            "buffer_episodes (--set buffer_episodes=N keeps the newest N episodes) or "
-            "total_episodes"
-        )
+def diverged(config: Config, episode: int, what: str) -> TrainingDiverged:
+    """The error for a run whose `what` stopped being finite at `episode`."""
+    return TrainingDiverged(
+        f"training diverged at episode {episode:,}: {what} (actor_lr={config.actor_lr:g}, "
+        f"critic_lr={config.critic_lr:g}); nothing after the run's last checkpoint was written; "
+        "start the run over with lower rates: --restart --set actor_lr=... --set critic_lr=... "
+        "(the authors': 1e-3)"
+    )
 
 
 class Trainer:
@@ -243,8 +234,8 @@ class Trainer:
             raise ConfigError("device 'cuda' was asked for but torch sees no CUDA device")
         n = self.spec.n_modules
         self.condition = make_condition(config, self.spec)
+        check_memory(config, self.spec, self.condition.n_experts)  # before the big allocations
         self.agent = Agent(self.spec, config, GoalBox.of(self.env), self.condition.n_experts)
-        _check_replay_fits(config, self.spec)
         self.replay = EpisodeReplay(
             self.spec,
             config.replay_capacity,
@@ -310,13 +301,18 @@ class Trainer:
         experts: np.ndarray,
         explore: np.ndarray,
         rng: np.random.Generator,
+        episode: int,
     ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
         """`act(states, achieved, t)` for a round of episodes with these goal slots, experts
-        and noise: the policy sees each slot's goal at step t (`_goals_now`)."""
+        and noise, from episode `episode` on: the policy sees each slot's goal at step t
+        (`_goals_now`); `TrainingDiverged` when it gives a non-finite action."""
 
         def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
             now = self._goals_now(goals, mask, achieved)
-            return agent.act(states, now, mask, task, experts, explore, rng)
+            actions = agent.act(states, now, mask, task, experts, explore, rng)
+            if not np.isfinite(actions).all():
+                raise diverged(self.config, episode, "the policy's actions are not finite")
+            return actions
 
         return act
 
@@ -373,7 +369,7 @@ class Trainer:
         goals, mask, task = condition.goals(self.env, modules, raw, self.rng)
         experts = self.condition.acting_experts(modules, epoch)
         explore = ~evaluation
-        act = self._policy(agent, goals, mask, task, experts, explore, self.rng)
+        act = self._policy(agent, goals, mask, task, experts, explore, self.rng, start)
 
         failing = self.failure_on(episodes)
         self._apply_failure(self.envs, failing)
@@ -458,7 +454,9 @@ class Trainer:
             goals, mask, task = condition.goals(env, modules, raw, self.test_rng)
             experts = condition.acting_experts(modules, self.epoch)
 
-            act = self._policy(self.agent, goals, mask, task, experts, explore, self.test_rng)
+            act = self._policy(
+                self.agent, goals, mask, task, experts, explore, self.test_rng, self.episodes
+            )
             data = run_episodes(envs, modules, raw, act)
             parts["worker"].append(np.arange(n, dtype=np.int32))
             parts["module"].append(modules)
@@ -565,6 +563,12 @@ class Trainer:
             tic = time.perf_counter()
             self.agent.update_targets(expert)
             losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
+            bad = sorted(k for k, v in losses.items() if not math.isfinite(v))
+            if bad:
+                verb = "is" if len(bad) == 1 else "are"
+                raise diverged(
+                    cfg, self.episodes, f"the updates' {', '.join(bad)} {verb} not finite"
+                )
             losses["reward_mean"] = float(np.mean(rewards))
             timings["update"] += time.perf_counter() - tic
         if drain and self._pending is not None:
@@ -685,7 +689,21 @@ class Trainer:
         self.envs.close()
         self.test_envs.close()
 
+    def finite(self) -> bool:
+        """Whether every weight of every network is a finite number."""
+        nets = [net for e in self.agent.experts for net in (e.actor, e.critics)]
+        return all(bool(torch.isfinite(p).all()) for net in nets for p in net.parameters())
+
+    def ensure_finite(self) -> None:
+        """`TrainingDiverged` when a weight is no longer finite (the last step of a cycle may
+        make it so with every loss of the cycle finite): checked before anything of a
+        checkpoint is written."""
+        if not self.finite():
+            raise diverged(self.config, self.episodes, "the networks' weights are not finite")
+
     def save_checkpoint(self, directory: Path) -> Path:
+        """Checkpoint the run (`curious.checkpoint.save`), never a diverged one."""
+        self.ensure_finite()
         state, replay = self.state_dict()
         return checkpoint.save(directory, self.episodes, state, replay)
 
@@ -744,8 +762,10 @@ def train(
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
     stop_after_cycles: int | None = None,
+    restart: bool = False,
 ) -> Trainer:
-    """Train `config` in the run folder `out` (created, or continued with `resume=True`).
+    """Train `config` in the run folder `out` (created, continued with `resume=True`, or started
+    over with `restart=True`, which removes the run the folder held once every check passed).
 
     `make_envs(config)` builds the `n_workers` environment copies (default: the suite variant
     `config.variant`); it is called a second time for the test rollouts' copies (the default
@@ -753,26 +773,27 @@ def train(
     folder is ready (and a resumed trainer is at its checkpoint's episode), returns the recorder
     the loop logs to.
     `stop_after_cycles` ends this call early (after a checkpoint), which is how tests interrupt
-    a run. Errors about the folder or the checkpoint are raised before anything in the folder
-    is written; while it trains, the folder is locked against a second process
-    (`RunFolderBusy`).
+    a run. Errors about the folder, the checkpoint or what the run needs (memory) are raised
+    before anything in the folder is written (`resume_checks` says what a resume refuses);
+    while it trains, the folder is locked against a second process (`RunFolderBusy`).
     """
     with folder_lock(out):
-        return _train(config, out, resume, make_envs, make_recorder, stop_after_cycles)
+        return _train(config, out, resume, restart, make_envs, make_recorder, stop_after_cycles)
 
 
 def _train(
     config: Config,
     out: str | Path,
     resume: bool,
+    restart: bool,
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     stop_after_cycles: int | None,
 ) -> Trainer:
-    folder = RunFolder.prepare(out, config, resume)
+    folder = RunFolder.prepare(out, config, resume, restart)
     trainer = Trainer(config, *_environments(config, make_envs))
     with contextlib.closing(trainer):  # the environment workers stop with the run
-        return _run(trainer, folder, resume, make_recorder, stop_after_cycles)
+        return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles)
 
 
 def _environments(
@@ -791,16 +812,72 @@ def _environments(
 
     train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
     test_fns = suite_env_fns(config.variant, config.seed, config.n_workers, stream=1)
-    tests = [fn() for fn in test_fns] if tests_wanted else None  # stepped once an epoch
+    # One copy first: its spec sizes the run, checked before the others are built.
+    first = (test_fns if tests_wanted else train_fns)[0]()
+    condition = make_condition(config.condition, first.spec.n_modules, config.lp_eps)
+    check_memory(config, first.spec, condition.n_experts, SUITE_COPY_BYTES)
+    tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
     if config.processes > 1:
         return ProcessEnvs(train_fns, config.processes), tests
-    return [fn() for fn in train_fns], tests
+    if tests_wanted:
+        return [fn() for fn in train_fns], tests
+    return [first, *(fn() for fn in train_fns[1:])], None
+
+
+def resume_checks(
+    trainer: Trainer,
+    folder: RunFolder,
+    metrics: TableLog,
+    tests: TableLog,
+    from_checkpoint: bool,
+) -> None:
+    """Refuse (`RunFolderError`) a resume that would lose or leave out part of the run.
+
+    Without a checkpoint, a run starts over from episode 0: right for a run stopped before its
+    first checkpoint was written (its rows, at most one checkpoint interval, are redone as rows
+    after any checkpoint are), but a folder holding more rows than that had checkpoints, which
+    were removed, and starting over would replace the whole run. With one, the tables must hold
+    every row the checkpoint's own counters say the run wrote (a deleted or older
+    metrics.parquet or tests.parquet would leave a gap)."""
+    config, episodes = trainer.config, trainer.episodes
+    if not from_checkpoint:
+        interval = config.checkpoint_every_cycles * config.episodes_per_cycle
+        if metrics.n_rows > interval:
+            kept = [f"{metrics.n_rows:,} episodes in {metrics.path.name}"]
+            kept += [f"{tests.n_rows:,} test rollouts in {tests.path.name}"] if tests.n_rows else []
+            kept += [folder.recording_path.name] if folder.recording_path.exists() else []
+            raise RunFolderError(
+                f"cannot resume {folder.path}: no checkpoint is left in {folder.checkpoints}, so "
+                f"the run would start over from episode 0 and replace {', '.join(kept)}; "
+                "restore the checkpoints, or pass --restart instead of --resume to start the "
+                "run over"
+            )
+        return
+    if metrics.n_rows < episodes:
+        raise RunFolderError(
+            f"{folder.metrics_path} holds {metrics.n_rows:,} rows but the checkpoint is at "
+            f"episode {episodes:,}: the run's rows are missing, so going on would leave a gap; "
+            "restore metrics.parquet, or start the run over with --restart"
+        )
+    # Test rollouts ran after every finished epoch, n_workers x test_rollouts_per_worker each.
+    epochs = trainer.cycles // config.n_cycles
+    expected = epochs * config.n_workers * config.test_rollouts_per_worker
+    table = tests.table()
+    have = int(pc.sum(pc.less_equal(table["episode"], episodes)).as_py() or 0)
+    if have < expected:
+        raise RunFolderError(
+            f"{folder.tests_path} holds {have:,} test rollouts up to episode {episodes:,}, but the "
+            f"run had run {expected:,} by its checkpoint ({epochs:,} epochs): they are missing, "
+            "so going on would leave the run without them; restore tests.parquet, or start the "
+            "run over with --restart"
+        )
 
 
 def _run(
     trainer: Trainer,
     folder: RunFolder,
     resume: bool,
+    restart: bool,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     stop_after_cycles: int | None,
 ) -> Trainer:
@@ -814,13 +891,10 @@ def _run(
     if resume:  # read before anything is written: a bad table is an error with nothing changed
         tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
         tables.append(TestsLog(folder.tests_path))
-        if tables[0].n_rows < trainer.episodes:
-            raise RunFolderError(
-                f"{folder.metrics_path} holds {tables[0].n_rows:,} rows but the checkpoint is at "
-                f"episode {trainer.episodes:,}: the run's rows are missing, so going on would "
-                "leave a gap; restore metrics.parquet, or start a new run"
-            )
+        resume_checks(trainer, folder, *tables, from_checkpoint=latest is not None)
 
+    if restart:
+        folder.clear()
     folder.write_config(config, trainer.spec)
     checkpoint.remove_partial(folder.checkpoints)
     checkpoint.prune(folder.checkpoints, spare=latest[0] if latest is not None else None)
@@ -862,6 +936,7 @@ def _run(
             bar.set_postfix(_progress_text(trainer), refresh=False)
             stop_now = stop_after_cycles is not None and cycles_here >= stop_after_cycles
             if trainer.done or stop_now or trainer.cycles % config.checkpoint_every_cycles == 0:
+                trainer.ensure_finite()  # a diverged run writes none of this checkpoint
                 metrics.flush()
                 if config.test_rollouts_per_worker:
                     tests.flush()

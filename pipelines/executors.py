@@ -12,20 +12,23 @@ Both take the same jobs (a `RunSpec` and the runs root) and write the same run f
 
 `run_all` submits jobs, shows one progress bar over every run's episodes (read from the run
 folders' metrics, which the runs flush at each checkpoint) and returns the results in order.
-The first failing run stops the others' submission and raises `PartitionFailed`.
+The first failing run stops the others' submission and raises `PartitionFailed`; a Ctrl-C
+stops every run at once (`Pool.stop`).
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import json
 import logging
 import multiprocessing
 import os
+import signal
 import socket
 import subprocess
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -54,9 +57,32 @@ class Job:
     record: bool = True
 
 
+class _WorkerState:
+    """A local worker's answer to Ctrl-C (see `_on_interrupt`)."""
+
+    running = False  # a run is training in this process
+    interrupted = False  # a Ctrl-C came: no run starts here any more
+
+
+def _on_interrupt(signum: int, frame: object) -> None:
+    """SIGINT in a local worker: the run training here stops (a `KeyboardInterrupt` in it, once:
+    a second signal would cut its clean-up short) and no other run starts here; a worker waiting
+    for work only takes note, instead of dying with a traceback."""
+    first = not _WorkerState.interrupted
+    _WorkerState.interrupted = True
+    if first and _WorkerState.running:
+        raise KeyboardInterrupt
+
+
 def run_job(job: Job) -> PartitionResult:
     """Entry point in a worker process or a Ray task."""
-    return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
+    if _WorkerState.interrupted:  # a run queued before the Ctrl-C reached this worker
+        raise KeyboardInterrupt
+    _WorkerState.running = True
+    try:
+        return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
+    finally:
+        _WorkerState.running = False
 
 
 class Pool(Protocol):
@@ -71,6 +97,9 @@ class Pool(Protocol):
     def result(self, handle: Any) -> PartitionResult: ...
 
     def cancel(self, handles: Sequence[Any]) -> None: ...
+
+    def stop(self) -> None:
+        """Stop every run now (after a Ctrl-C), queued ones included."""
 
     def close(self) -> None: ...
 
@@ -95,7 +124,8 @@ class LocalPool:
         return self._pool
 
     def submit(self, job: Job) -> cf.Future:
-        return self._executor().submit(run_job, job)
+        with _interrupts_ignored():  # the workers, started here, begin with SIGINT ignored
+            return self._executor().submit(run_job, job)
 
     def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]:
         done, pending = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
@@ -108,23 +138,54 @@ class LocalPool:
         for handle in handles:
             handle.cancel()
 
+    def stop(self) -> None:
+        """Stop every run now: queued runs are dropped, and every worker gets the Ctrl-C (a
+        terminal sends it to them too, `kill -INT` to this process alone does not), so that its
+        run stops at once, as `curious train` does, and it starts no other (`_on_interrupt`)."""
+        if self._pool is None:
+            return
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())  # no API < 3.14
+        for process in processes:
+            if process.is_alive() and process.pid is not None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, signal.SIGINT)
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool = None
+
     def close(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
 
-def _set_environment(env: dict[str, str]) -> None:
-    """Worker start-up: the environment, and on Linux, death with the parent process.
+@contextlib.contextmanager
+def _interrupts_ignored() -> Iterator[None]:
+    """SIGINT ignored in this process for a moment (the main thread's handler is put back): the
+    worker processes started meanwhile inherit it, so that a Ctrl-C while they import their
+    modules does not print their tracebacks; `_set_environment` then installs their handler."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: the workers start as they would
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
-    Without the second, a worker whose `curious reproduce` was killed (SIGKILL reaches only the
+
+def _set_environment(env: dict[str, str]) -> None:
+    """Worker start-up: the environment, the answer to Ctrl-C (`_on_interrupt`), and on Linux,
+    death with the parent process.
+
+    Without the last, a worker whose `curious reproduce` was killed (SIGKILL reaches only the
     parent) would go on training alone.
     """
     for key, value in env.items():
         os.environ.setdefault(key, value)
+    signal.signal(signal.SIGINT, _on_interrupt)
     if sys.platform.startswith("linux"):
         import ctypes
-        import signal
 
         libc = ctypes.CDLL(None, use_errno=True)
         pr_set_pdeathsig = 1
@@ -318,6 +379,9 @@ class RayPool:
         for handle in handles:
             ray.cancel(handle, force=True)
 
+    def stop(self) -> None:
+        """Nothing more to do: `cancel` already ended the tasks (`force=True`)."""
+
     def close(self) -> None:
         """Disconnect (if this pool connected); the cluster keeps running, it is not ours."""
         import ray
@@ -363,8 +427,10 @@ def run_all(
                     for i in range(len(jobs))
                 )
                 on_progress(min(seen, total), total)
-    except BaseException:
+    except BaseException as exc:
         pool.cancel(pending)
+        if not isinstance(exc, Exception):  # a Ctrl-C (Dagster's interrupt is one too)
+            pool.stop()
         raise
     return [results[i] for i in range(len(jobs))]
 

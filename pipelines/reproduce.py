@@ -2,8 +2,10 @@
 
 `reproduce(...)` is what `curious reproduce` runs:
 
-1. checks everything it can before writing anything: the budget and experiments exist; the
-   output folder is new, empty, or was made by the same budget (`reproduce.json`); every run
+1. takes the output folder's lock (a second reproduction of the same folder is refused at once
+   while this one goes on), then checks everything it can before writing anything: the budget
+   and experiments exist; the output folder is new, empty, or was made by the same budget
+   (`reproduce.json`); every run
    folder is empty, or holds (part of) the very run its partition should hold; the Ray cluster,
    if one is named, answers;
 2. for each experiment, one Dagster run materialises its `runs` asset over all its partitions
@@ -22,7 +24,7 @@ import logging
 import os
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -31,8 +33,21 @@ from pipelines.resources import OutputLayout, Reproduction
 from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy, folder_state
 
 MANIFEST_VERSION = 1
-_DAGSTER_YAML = "telemetry:\n  enabled: false\n"
-_QUIET_LOGS = {"loggers": {"console": {"config": {"log_level": "WARNING"}}}}
+_DAGSTER_YAML = (
+    "telemetry:\n"
+    "  enabled: false\n"
+    "compute_logs:\n"
+    "  module: dagster._core.storage.noop_compute_log_manager\n"
+    "  class: NoOpComputeLogManager\n"
+)
+"""The instance's settings: no telemetry, and no capture of the steps' output, which Dagster
+makes with `tail` and watcher processes that a Ctrl-C reaches too (each printing a traceback);
+the runs' own files and the materialisations keep what a step did."""
+_OLD_DAGSTER_YAML = "telemetry:\n  enabled: false\n"
+"""What earlier versions wrote (replaced by `open_instance`)."""
+_QUIET_LOGS = {"loggers": {"console": {"config": {"log_level": "CRITICAL"}}}}
+"""Dagster's console logger stays silent: a failure reaches the user as one line from
+`curious reproduce` (the event log in OUT/.dagster keeps Dagster's account of it)."""
 
 
 class ReproduceError(RuntimeError):
@@ -119,7 +134,7 @@ def open_instance(layout: OutputLayout):
     home = layout.dagster_home
     home.mkdir(parents=True, exist_ok=True)
     config = home / "dagster.yaml"
-    if not config.exists():
+    if not config.exists() or config.read_text() == _OLD_DAGSTER_YAML:
         config.write_text(_DAGSTER_YAML)
     return DagsterInstance.from_ref(InstanceRef.from_dir(str(home)))
 
@@ -150,19 +165,26 @@ def _logging_handlers_kept() -> Any:
 
 
 def _materialize(defs, instance, selection, tags: dict[str, str] | None = None) -> None:
+    """Materialise `selection` in this process; a Ctrl-C, which Dagster turns into its own
+    `DagsterExecutionInterruptedError` (not a `KeyboardInterrupt`), comes out as the
+    `KeyboardInterrupt` it was."""
     import dagster as dg
+    from dagster._core.errors import DagsterExecutionInterruptedError
 
     assets = list(defs.assets or [])
     with _logging_handlers_kept():
-        result = dg.materialize(
-            assets,
-            instance=instance,
-            resources=dict(defs.resources or {}),
-            selection=selection,
-            tags=tags,
-            run_config=_QUIET_LOGS,
-            raise_on_error=True,
-        )
+        try:
+            result = dg.materialize(
+                assets,
+                instance=instance,
+                resources=dict(defs.resources or {}),
+                selection=selection,
+                tags=tags,
+                run_config=_QUIET_LOGS,
+                raise_on_error=True,
+            )
+        except DagsterExecutionInterruptedError:
+            raise KeyboardInterrupt from None
     if not result.success:  # pragma: no cover - raise_on_error raises first
         raise RuntimeError("a Dagster run failed")
 
@@ -183,17 +205,52 @@ def reproduce(
     `make_pool` builds the training pool (`pipelines.executors.make_pool`); it is called before
     anything is written, so that a Ray cluster that does not answer fails first. `overrides`
     change single training settings of every run (`--device`); `say` prints progress lines.
+    While it runs, OUT is locked against a second reproduction (`ReproduceError`).
     """
+    tic = time.perf_counter()
+    chosen = get_budget(budget)
+    selected = chosen.select(experiments)
+    layout = OutputLayout.at(out or chosen.default_out, runs_dir)
+    with _reproduction_lock(layout):
+        return _reproduce(
+            chosen, selected, layout, make_pool, overrides, record, progress, say, tic
+        )
+
+
+@contextlib.contextmanager
+def _reproduction_lock(layout: OutputLayout) -> Iterator[None]:
+    """Hold OUT's lock for the whole reproduction: a second `curious reproduce` of the same
+    folder is refused at once (`ReproduceError`) while the first goes on; nothing is left
+    behind (`curious.run_folder.folder_lock`)."""
+    from curious.run_folder import RunFolderBusy, RunFolderError, folder_lock
+
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(folder_lock(layout.out, activity="reproduced"))
+        except RunFolderBusy as exc:
+            raise ReproduceError(str(exc)) from None
+        except RunFolderError as exc:
+            raise ReproduceError(f"--out {layout.out}: {exc}") from None
+        yield
+
+
+def _reproduce(
+    chosen: ReproduceBudget,
+    selected: Sequence[Experiment],
+    layout: OutputLayout,
+    make_pool: Callable[[], Any] | None,
+    overrides: dict[str, Any] | None,
+    record: bool,
+    progress: bool,
+    say: Callable[[str], None] | None,
+    tic: float,
+) -> ReproduceResult:
     import dagster as dg
 
     from pipelines.assets import FIGURES, figure_key, metrics_key, partitions_of, runs_key
     from pipelines.definitions import build_definitions
     from pipelines.executors import make_pool as default_pool
 
-    tic = time.perf_counter()
-    chosen = get_budget(budget)
-    selected = chosen.select(experiments)
-    layout = OutputLayout.at(out or chosen.default_out, runs_dir)
     check_output_folder(layout, chosen)
     repro = Reproduction(
         budget=chosen,

@@ -86,7 +86,12 @@ class OutputLayout:
         if not self.manifest.is_file():
             return None
         manifest = json.loads(self.manifest.read_text())
-        return manifest.get("budget", manifest.get("preset"))
+        name = (
+            manifest.get("budget", manifest.get("preset")) if isinstance(manifest, dict) else None
+        )
+        if not isinstance(name, str):
+            raise ValueError("it names no budget")
+        return name
 
     @property
     def figures(self) -> Path:

@@ -29,7 +29,6 @@ Nothing here imports Dagster: worker processes and Ray tasks only need `curious`
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
 import time
@@ -100,7 +99,7 @@ def _checkpoint_episodes(folder: Path) -> int:
 def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | None = None) -> str:
     """`new`, `partial` or `finished` (see the module docstring); raises `RunFolderMismatch`."""
     from curious.config import ConfigError
-    from curious.run_folder import config_differences
+    from curious.run_folder import RunFolder, RunFolderError, config_differences
 
     folder = run_folder(spec, runs_root)
     if folder.exists() and not folder.is_dir():
@@ -114,12 +113,10 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
             "pipeline; move it away or choose another --out"
         )
     try:
-        stored = json.loads(config_path.read_text())
-        stored_config = stored["config"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise RunFolderMismatch(
-            f"{config_path} is unreadable ({exc}); move the folder away"
-        ) from None
+        stored = RunFolder(folder).read_stored()
+    except RunFolderError as exc:
+        raise RunFolderMismatch(f"{exc}; or move the folder away") from None
+    stored_config = stored["config"]
     try:
         expected = spec.config(overrides)
     except ConfigError as exc:

@@ -107,9 +107,9 @@ def test_a_goal_map_that_is_not_affine_is_refused():
 
 
 def test_a_replay_that_cannot_fit_is_refused_before_anything_is_written(tmp_path, monkeypatch):
-    import curious.train
+    import curious.resources
 
-    monkeypatch.setattr(curious.train, "available_memory", lambda: 2**20)
+    monkeypatch.setattr(curious.resources, "available_memory", lambda: 2**20)
     config = resolve("smoke", overrides={"progress": False, "total_episodes": 100_000})
     with pytest.raises(ConfigError, match="buffer_episodes"):
         train(config, tmp_path / "run", make_envs=lambda c: [ToyGoalEnv(i) for i in range(2)])

@@ -10,6 +10,7 @@ import base64
 import hashlib
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -359,6 +360,108 @@ def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
     assert json.loads((out / "reproduce.json").read_text()) == {"version": 1, "budget": "smoke"}
 
 
+def group_ends(pgid: int, within: float) -> bool:
+    """Whether every process of the group `pgid` is gone within `within` seconds (an exited
+    child of a dead parent lingers until the system's init collects it)."""
+    deadline = time.time() + within
+    while time.time() < deadline:
+        try:
+            os.killpg(pgid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.2)
+    return False
+
+
+def test_ctrl_c_stops_a_reproduction_in_one_line_and_every_worker_with_it(tmp_path):
+    """Ctrl-C reaches the whole process group (Dagster, the workers): one line, exit status
+    130, no process left, no lock left, and the runs keep what they had."""
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "curious.cli", "reproduce", "--budget", "smoke"]
+    command += ["--experiments", "main", "--out", str(out), "--no-progress"]
+    env = {**os.environ, "MUJOCO_GL": "disable", "OMP_NUM_THREADS": "1"}
+    proc = subprocess.Popen(
+        command,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # a group of its own, as a terminal's foreground job
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        deadline = time.time() + 240
+        while not list(out.glob("runs/*/*/*/checkpoints/ep-*")):
+            assert proc.poll() is None, proc.communicate()
+            assert time.time() < deadline, "no checkpoint within 240 s"
+            time.sleep(0.2)
+        os.killpg(proc.pid, signal.SIGINT)
+        tic = time.time()
+        _, err = proc.communicate(timeout=120)
+        stopped = time.time() - tic
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, err[-3000:]
+    *progress, last = err.strip().splitlines()
+    assert last == (
+        "curious reproduce: interrupted; the runs keep what they had at their last checkpoint, "
+        "and the same command goes on from there"
+    ), err[-3000:]
+    assert "Traceback" not in err and "dagster" not in err.lower(), err[-3000:]
+    assert all(line.startswith(("curious reproduce --budget", "  main: ")) for line in progress)
+    assert stopped < 60  # no worker trains a queued run to its end first
+    assert group_ends(proc.pid, within=15)  # no worker goes on alone
+    assert not list(tmp_path.rglob("*.lock"))
+    started = [
+        spec for spec in SMOKE.experiments["main"].runs() if run_folder(spec, out / "runs").exists()
+    ]
+    assert started and {folder_state(s, out / "runs") for s in started} <= {"partial", FINISHED}
+
+
+def test_a_second_reproduction_of_a_folder_is_refused_at_once(tmp_path, capsys):
+    from curious.run_folder import folder_lock
+
+    out = tmp_path / "out"
+    with folder_lock(out, activity="reproduced"):  # as the first `curious reproduce` holds it
+        tic = time.perf_counter()
+        code, err = run_cli(["--budget", "smoke", "--out", str(out)], capsys)
+        assert time.perf_counter() - tic < 30
+    assert code == 2 and err.count("\n") == 1
+    assert f"{out} is being reproduced by {socket.gethostname()} pid {os.getpid()}" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no folder, no lock file
+
+
+class FailingPool(InterruptingPool):
+    """Every run fails as a worker's run would (another process training its folder...)."""
+
+    description = "this process (failing every run)"
+
+    def submit(self, job):
+        return job.spec.label
+
+    def result(self, handle):
+        raise RuntimeError(f"{handle} cannot be trained here")
+
+
+def test_a_failed_run_reaches_the_user_as_one_line_without_dagster_logs(tmp_path, capfd):
+    from pipelines.executors import PartitionFailed
+
+    with pytest.raises(PartitionFailed, match="cannot be trained here"):
+        reproduce(
+            "smoke",
+            ["sensor_failure"],
+            out=tmp_path / "out",
+            make_pool=FailingPool,
+            progress=False,
+            say=lambda _: None,
+        )
+    captured = capfd.readouterr()
+    assert "Traceback" not in captured.err and "ERROR" not in captured.err, captured.err[-3000:]
+    assert "Stack Trace" not in captured.out + captured.err
+
+
 # ------------------------------------------------------------------------------ bad input
 
 
@@ -469,6 +572,23 @@ def test_a_folder_that_is_not_a_reproduction_is_refused(tmp_path, capsys):
     code, err = run_cli(["--budget", "smoke", "--out", str(tmp_path)], capsys)
     assert code == 2 and "not made by `curious reproduce`" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+def test_a_damaged_manifest_or_run_config_is_a_one_line_error(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "reproduce.json").write_text("[1, 2]")
+    code, err = run_cli(["--budget", "smoke", "--out", str(out)], capsys)
+    assert code == 2 and err.count("\n") == 1 and "reproduce.json is unreadable" in err
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "smoke"}))
+    folder = run_folder(SMOKE.experiments["main"].runs()[0], out / "runs")
+    folder.mkdir(parents=True)
+    for text in ('{"config": 5}', "[1, 2, 3]", "", "{{"):
+        (folder / "config.json").write_text(text)
+        code, err = run_cli(["--budget", "smoke", "--out", str(out)], capsys)
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"{folder / 'config.json'} is damaged" in err and "Traceback" not in err
+    assert sorted(p.name for p in out.iterdir()) == ["reproduce.json", "runs"]
 
 
 def test_a_run_being_trained_elsewhere_is_not_touched(smoke, capsys):

@@ -11,11 +11,14 @@ from curious.cli import main
 from curious.commands import view
 from curious.recording import RECORDING_FILENAME
 
+RRD_HEADER = b"RRF2\x00\x29\x00\x00\x01\x02\x00\x00"
+"""The first 12 bytes of a recording that rerun-sdk 0.41 wrote: magic, version, options."""
+
 
 def _run_folder(root: Path, name: str) -> Path:
     folder = root / name
     folder.mkdir()
-    (folder / RECORDING_FILENAME).write_bytes(b"")
+    (folder / RECORDING_FILENAME).write_bytes(RRD_HEADER)
     return folder
 
 
@@ -41,6 +44,23 @@ def test_folder_without_recording_is_an_error_naming_it(
     assert str(empty) in err and "no recording.rrd" in err
     assert main(["view", str(tmp_path / "missing")]) == 2
     assert "no such run folder" in capsys.readouterr().err
+
+
+def test_a_file_that_is_not_a_recording_is_refused_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(view, "run_viewer", _no_viewer)
+    empty, garbage = tmp_path / "empty.rrd", tmp_path / "garbage.rrd"
+    empty.write_bytes(b"")
+    garbage.write_bytes(b"PK\x03\x04 not a recording at all")
+    for path, message in ((empty, "the file is empty"), (garbage, "not a Rerun recording")):
+        assert main(["view", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(path) in err and message in err
+    run = _run_folder(tmp_path, "run")
+    (run / RECORDING_FILENAME).write_text("hello")
+    assert main(["view", str(run)]) == 2
+    assert "not a Rerun recording" in capsys.readouterr().err
 
 
 def test_without_display_prints_how_to_open_elsewhere(

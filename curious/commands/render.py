@@ -18,7 +18,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Render frames of one episode of a suite variant to PNG files. Needs a headless "
             "GL backend: run with MUJOCO_GL=egl (Mesa EGL: apt-get install libegl1 "
-            "libegl-mesa0) or MUJOCO_GL=osmesa (apt-get install libosmesa6)."
+            "libegl-mesa0) or MUJOCO_GL=osmesa (apt-get install libosmesa6). A backend that "
+            "cannot load is refused in one line before anything is drawn."
         ),
     )
     parser.add_argument("--variant", default="default", help="suite variant (default: default)")
@@ -50,15 +51,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--width", type=int, default=640, help="pixels (default 640)")
     parser.add_argument("--height", type=int, default=480, help="pixels (default 480)")
-    parser.add_argument(
-        "--out", type=Path, default=Path("frames"), help="output folder (default frames)"
-    )
+    parser.add_argument("--out", default="frames", help="output folder (default frames)")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     """Render the episode and print where the frames went."""
     import numpy as np
+
+    from curious.config import MAX_SEED
+
+    if not args.out.strip():
+        raise ValueError("--out is empty: name the folder for the frames")
+    if not 0 <= args.seed <= MAX_SEED:
+        raise ValueError(f"--seed must be from 0 to {MAX_SEED:,}, got {args.seed}")
 
     import suite
     from suite.render import check_gl_backend, render_episode, save_frames
@@ -85,6 +91,6 @@ def run(args: argparse.Namespace) -> int:
         height=args.height,
         width=args.width,
     )
-    paths = save_frames(frames, args.out, prefix=f"{args.variant}_{args.module}")
+    paths = save_frames(frames, Path(args.out), prefix=f"{args.variant}_{args.module}")
     print(f"wrote {len(paths)} frames to {args.out}/ ({paths[0].name} .. {paths[-1].name})")
     return 0

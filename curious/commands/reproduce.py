@@ -13,8 +13,10 @@ OUT/.dagster: no server to start. Training runs go to worker processes (one per 
 budget and --out retrains nothing that is finished and resumes what was interrupted.
 
 Errors about the input (unknown budget or experiment, an output folder made by another budget,
-a run folder holding another run, a Ray address that does not answer) are reported in one line,
-exit status 2, before anything is written.
+a run folder holding another run, a Ray address that does not answer, an output folder that
+another `curious reproduce` is working in) are reported in one line, exit status 2, before
+anything is written. Ctrl-C stops every run at once with one line, exit status 130; the same
+command then goes on where they stopped.
 """
 
 from __future__ import annotations
@@ -143,6 +145,10 @@ def run(args: argparse.Namespace) -> int:
     from curious.config import ConfigError
     from curious.experiments import ExperimentError
 
+    for option, value in (("--out", args.out), ("--runs-dir", args.runs_dir)):
+        if value is not None and not value.strip():
+            print(f"curious reproduce: error: {option} is empty: name a folder", file=sys.stderr)
+            return 2
     if args.workers is not None and args.workers < 1:
         print("curious reproduce: error: --workers must be >= 1", file=sys.stderr)
         return 2
@@ -191,6 +197,13 @@ def run(args: argparse.Namespace) -> int:
     except PartitionFailed as exc:
         print(f"curious reproduce: a training run failed: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print(
+            "curious reproduce: interrupted; the runs keep what they had at their last "
+            "checkpoint, and the same command goes on from there",
+            file=sys.stderr,
+        )
+        return 130
 
     layout = result.layout
     minutes, seconds = divmod(round(result.seconds), 60)

@@ -3,11 +3,14 @@
     curious train --condition curious --seed 0 --preset quick --out runs/curious-0
     curious train ... --set n_workers=8 --set algorithm=td3      # override single settings
     curious train ... --resume                                    # go on from the last checkpoint
+    curious train ... --restart                                   # start the run in --out over
     curious train ... --spawn-viewer --rollout-every 10           # watch it live in Rerun
 
 Errors about the input (unknown condition, preset or setting, a bad value, a non-empty folder
-without --resume, a checkpoint from another config) are reported in one line, exit status 2, and
-nothing in the folder is written.
+without --resume, a checkpoint from another config, a run that would not fit in memory) are
+reported in one line, exit status 2, and nothing in the folder is written. A run whose training
+diverges (a learning rate too high) stops with one line, exit status 1, its folder as it was at
+its last checkpoint; Ctrl-C stops it with exit status 130.
 """
 
 from __future__ import annotations
@@ -51,6 +54,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_set_option(parser, "override one setting (repeatable), e.g. --set n_workers=8")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out")
     parser.add_argument(
+        "--restart",
+        action="store_true",
+        help="start the run in --out over from episode 0, deleting what it holds (its metrics, "
+        "test rollouts, recording and checkpoints)",
+    )
+    parser.add_argument(
         "--device", choices=("cpu", "cuda"), default=None, help="where networks train (default cpu)"
     )
     parser.add_argument(
@@ -80,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
     from curious.run_folder import RunFolderError
 
     try:
+        if not args.out.strip():
+            raise ConfigError("--out is empty: name the run folder")
         overrides = parse_overrides(args.overrides)
         if args.device is not None:
             overrides["device"] = args.device
@@ -98,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 2
 
-    from curious.train import train
+    from curious.train import TrainingDiverged, train
 
     make_recorder = None
     if not args.no_record:
@@ -110,7 +121,16 @@ def run(args: argparse.Namespace) -> int:
             settings = RecorderSettings(rollout_every=args.rollout_every)
         make_recorder = recorder_factory(args.resume, settings, args.spawn_viewer)
     try:
-        trainer = train(config, args.out, resume=args.resume, make_recorder=make_recorder)
+        trainer = train(
+            config,
+            args.out,
+            resume=args.resume,
+            restart=args.restart,
+            make_recorder=make_recorder,
+        )
+    except TrainingDiverged as exc:
+        print(f"curious train: error: {exc}", file=sys.stderr)
+        return 1
     except (ConfigError, RunFolderError, CheckpointError) as exc:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 2

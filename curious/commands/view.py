@@ -22,6 +22,10 @@ import sys
 from pathlib import Path
 
 RECORDING_FILENAME = "recording.rrd"  # the run folder's contract (docs/architecture.md)
+RRD_MAGIC = b"RRF"
+"""How every Rerun recording file begins (`RRF2` today, with the format's version after it)."""
+RRD_HEADER_BYTES = 12
+"""The file header: the magic and version (4 bytes), Rerun's version (4), options (4)."""
 DEFAULT_WEB_PORT = 9090
 DEFAULT_GRPC_PORT = 9876
 
@@ -57,8 +61,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
+def check_recording(path: Path) -> None:
+    """A `FileNotFoundError` (reported like a missing one) for a file that is not a Rerun
+    recording: empty, or not beginning as every `.rrd` does; the viewer would open it and show
+    nothing, or an error of its own far from the file's name."""
+    with open(path, "rb") as handle:
+        head = handle.read(RRD_HEADER_BYTES)
+    if not head:
+        raise FileNotFoundError(f"{path}: the file is empty, not a Rerun recording")
+    if not head.startswith(RRD_MAGIC) or len(head) < RRD_HEADER_BYTES:
+        raise FileNotFoundError(
+            f"{path}: not a Rerun recording (an .rrd file begins with {RRD_MAGIC.decode()}); "
+            "a run folder's recording.rrd is written by `curious train`"
+        )
+
+
 def recording_paths(runs: list[str]) -> list[Path]:
-    """The `.rrd` file of each run; a clear error for a folder without one."""
+    """The `.rrd` file of each run; a clear error for a folder without one, or for a file that
+    is not a recording."""
     paths: list[Path] = []
     for run in runs:
         path = Path(run)
@@ -77,6 +97,8 @@ def recording_paths(runs: list[str]) -> list[Path]:
             raise FileNotFoundError(f"{path}: not a run folder or an .rrd file")
         else:
             raise FileNotFoundError(f"{path}: no such run folder")
+    for path in paths:
+        check_recording(path)
     return paths
 
 

@@ -1,0 +1,179 @@
+"""Bad input to the command line: one line on stderr, a non-zero exit, nothing written.
+
+`MUJOCO_GL` set to what MuJoCo cannot load (only `render` needs GL), seeds out of range, an
+empty `--out`, settings that would exhaust the machine or cannot learn, and the lock files of
+refused commands.
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from curious.cli import main
+from curious.config import MAX_SEED, ConfigError, resolve
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def cli(args: list[str], mujoco_gl: str, timeout: float = 240) -> subprocess.CompletedProcess:
+    """`python -m curious.cli ARGS` in a fresh process with this `MUJOCO_GL`."""
+    env = {**os.environ, "MUJOCO_GL": mujoco_gl, "OMP_NUM_THREADS": "1"}
+    command = [sys.executable, "-m", "curious.cli", *args]
+    return subprocess.run(
+        command, env=env, cwd=ROOT, capture_output=True, text=True, timeout=timeout
+    )
+
+
+def one_line(stderr: str) -> str:
+    """The single line of an error report (asserting there is one, without a traceback)."""
+    assert "Traceback" not in stderr, stderr[-2000:]
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr[-2000:]
+    return lines[0]
+
+
+# ------------------------------------------------------------------------------ MUJOCO_GL
+
+
+def test_a_mujoco_gl_that_cannot_load_breaks_no_command_but_render(tmp_path):
+    out = tmp_path / "run"
+    done = cli(["--help"], "nonsense")
+    assert done.returncode == 0 and done.stdout.startswith("usage: curious"), done.stderr[-2000:]
+    done = cli(["render", "--help"], "nonsense")  # the help needs no GL either
+    assert done.returncode == 0 and "variants: default" in done.stdout, done.stderr[-2000:]
+    train = ["train", "--preset", "smoke", "--out", str(out), "--no-record", "--no-progress"]
+    done = cli([*train, "--set", "total_episodes=4"], "nonsense")
+    assert done.returncode == 0 and "4 episodes in" in done.stdout, done.stderr[-2000:]
+    frames = tmp_path / "frames"
+    done = cli(["render", "--out", str(frames)], "nonsense")
+    line = one_line(done.stderr)
+    assert done.returncode == 2 and line.startswith("curious render: error: MUJOCO_GL=nonsense")
+    assert "export MUJOCO_GL=egl" in line and not frames.exists()
+
+
+@pytest.mark.skipif(
+    ctypes.util.find_library("OSMesa") is not None, reason="libOSMesa is installed here"
+)
+def test_mujoco_gl_osmesa_without_its_library_is_refused_by_render_alone(tmp_path):
+    """The README suggests osmesa; without libOSMesa, PyOpenGL fails at MuJoCo's import."""
+    done = cli(["train", "--help"], "osmesa")
+    assert done.returncode == 0, done.stderr[-2000:]
+    done = cli(["render", "--out", str(tmp_path / "frames")], "osmesa")
+    line = one_line(done.stderr)
+    assert done.returncode == 2 and "MUJOCO_GL=osmesa cannot be used here" in line
+    assert "libosmesa6" in line
+
+
+def test_ctrl_c_while_the_command_line_starts_is_one_line(tmp_path):
+    """The parser imports torch and MuJoCo (seconds): a Ctrl-C then, as later, is one line."""
+    env = {**os.environ, "MUJOCO_GL": "disable", "OMP_NUM_THREADS": "1"}
+    command = [sys.executable, "-m", "curious.cli", "train", "--preset", "smoke"]
+    proc = subprocess.Popen(
+        [*command, "--out", str(tmp_path / "run"), "--no-record", "--no-progress"],
+        env=env,
+        cwd=ROOT,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    time.sleep(1.5)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and one_line(err) == "curious train: interrupted"
+
+
+# ------------------------------------------------------------------------------ small ones
+
+
+def test_a_seed_out_of_range_is_refused_naming_the_option(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "run"
+    for seed in ("-1", str(2**70), str(MAX_SEED + 1)):
+        assert main(["train", "--preset", "smoke", "--seed", seed, "--out", str(out)]) == 2
+        line = one_line(capsys.readouterr().err)
+        assert "seed (--seed) must be from 0 to 4,294,967,295" in line and seed in line
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    assert main(["render", "--seed", "-1", "--out", str(tmp_path / "frames")]) == 2
+    assert "--seed must be from 0 to" in one_line(capsys.readouterr().err)
+    assert sorted(tmp_path.iterdir()) == []
+    assert resolve("smoke", seed=MAX_SEED).seed == MAX_SEED  # the range's top is a seed
+
+
+def test_an_empty_out_is_refused_instead_of_meaning_here(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "--preset", "smoke", "--out", ""]) == 2
+    assert "--out is empty" in one_line(capsys.readouterr().err)
+    assert main(["reproduce", "--budget", "smoke", "--out", ""]) == 2
+    assert "--out is empty" in one_line(capsys.readouterr().err)
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    assert main(["render", "--out", ""]) == 2
+    assert "--out is empty" in one_line(capsys.readouterr().err)
+    assert sorted(tmp_path.iterdir()) == []
+
+
+def test_refused_commands_leave_no_lock_file_and_no_folder(tmp_path, capsys):
+    """The lock beside --out is taken before the folder's checks; a refusal must not leave it,
+    nor the parent folders made to hold it."""
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "notes.txt").write_text("mine")
+    refused = [
+        ["--out", str(tmp_path / "full")],  # not empty
+        ["--out", str(tmp_path / "a" / "b" / "run"), "--resume"],  # nothing to resume
+        ["--out", str(tmp_path / "c" / "run"), "--set", "batch_per_worker=1000000000"],  # no memory
+        ["--out", str(tmp_path / "full"), "--resume", "--restart"],
+    ]
+    for args in refused:
+        assert main(["train", "--preset", "smoke", "--no-record", *args]) == 2
+        one_line(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["full"]
+    assert [p.name for p in (tmp_path / "full").iterdir()] == ["notes.txt"]
+
+
+# ------------------------------------------------------------------------------ settings
+
+
+@pytest.mark.parametrize(
+    ("setting", "named"),
+    [
+        ("batch_per_worker=1000000000", "lower batch_per_worker"),
+        ("n_workers=100000", "lower n_workers"),
+        ("hidden=10000000", "lower hidden or layers"),
+        ("lp_window=100000000000", "lower lp_window"),
+        ("total_episodes=10000000000", "lower buffer_episodes"),
+    ],
+)
+def test_a_run_that_would_exhaust_the_memory_is_refused_before_writing(
+    setting, named, tmp_path, capsys
+):
+    out = tmp_path / "run"
+    args = ["train", "--preset", "smoke", "--out", str(out), "--no-record", "--set", setting]
+    assert main(args) == 2
+    line = one_line(capsys.readouterr().err)
+    assert "this run needs at least" in line and named in line
+    assert sorted(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("setting", "message"),
+    [
+        ("noise_eps=1e300", "noise_eps must be in [0, 1]"),
+        ("td3_noise_clip=7", "td3_noise_clip must be in [0, 1]"),
+        ("actor_lr=1e30", "actor_lr must be in (0, 1]"),
+        ("critic_lr=2", "critic_lr must be in (0, 1]"),
+    ],
+)
+def test_settings_outside_their_documented_range_are_refused(setting, message, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", "--preset", "smoke", "--out", str(out), "--set", setting]) == 2
+    assert message in one_line(capsys.readouterr().err)
+    assert not out.exists()
+    key, value = setting.split("=")
+    with pytest.raises(ConfigError, match=key):
+        resolve("smoke", overrides={key: float(value)})
