@@ -814,7 +814,7 @@ def _environments(
     test_fns = suite_env_fns(config.variant, config.seed, config.n_workers, stream=1)
     # One copy first: its spec sizes the run, checked before the others are built.
     first = (test_fns if tests_wanted else train_fns)[0]()
-    condition = make_condition(config.condition, first.spec.n_modules, config.lp_eps)
+    condition = make_condition(config, first.spec)
     check_memory(config, first.spec, condition.n_experts, SUITE_COPY_BYTES)
     tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
     if config.processes > 1:
