@@ -59,7 +59,9 @@ def test_rows_come_from_the_folders(campaign):
 def test_markdown_names_runs_below_the_root(campaign):
     text = progress_markdown(progress_table(campaign), campaign)
     assert "| main/curious-0 | curious | default | 0 | 24 | 24 | 100% |" in text
-    assert "| main/mg-te-1 | mg-te | default | 1 | 0 | 24 | 0% | none |" in text
+    assert (
+        "| main/mg-te-1 | mg-te | default | 1 | 0 | 24 | 0% | none | 0.00 | - | none yet |" in text
+    )
     assert text.count("\n") == 2 + 3
 
 

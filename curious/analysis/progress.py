@@ -183,7 +183,7 @@ def progress_markdown(
     )
     lines = []
     for r in rows:
-        rate = r.episodes / (r.run_hours * 3600) if r.run_hours > 0 else float("nan")
+        rate = f"{r.episodes / (r.run_hours * 3600):.1f}" if r.run_hours > 0 else "-"
         success = (
             f"{r.test_success:.2f} ({r.test_count}, at {r.test_episode:,})"
             if r.test_success is not None and r.test_episode is not None
@@ -194,6 +194,6 @@ def progress_markdown(
         lines.append(
             f"| {_name(r.run, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
             f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "
-            f"| {rate:.1f} | {success} | {modules} | {' '.join(r.commits) or '?'} |"
+            f"| {rate} | {success} | {modules} | {' '.join(r.commits) or '?'} |"
         )
     return header + "\n".join(lines) + "\n"
