@@ -100,3 +100,18 @@ def test_a_copied_run_is_listed_once(campaign, tmp_path):
     shutil.copytree(campaign / "main" / "curious-0", tmp_path / "curious-0")
     rows = progress_table([tmp_path, tmp_path / "curious-0"])
     assert len(rows) == 1
+
+
+def test_a_reproduction_lists_the_runs_its_budget_has_not_started(campaign, tmp_path):
+    from curious.experiments import get_budget
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "smoke"}))
+    assert [r.episodes for r in progress_table(out)] == [0] * len(get_budget("smoke").runs())
+    shutil.copytree(campaign / "main" / "curious-0", out / "runs" / "main" / "curious" / "seed-0")
+    rows = progress_table(out)
+    assert len(rows) == len(get_budget("smoke").runs())
+    started = [r for r in rows if r.episodes]
+    assert [(r.condition, r.seed, r.episodes) for r in started] == [("curious", 0, 24)]
+    assert all(r.commits == () and r.checkpoint is None for r in rows if not r.episodes)

@@ -144,18 +144,67 @@ def _progress(folder: Path, epochs: int) -> RunProgress:
     )
 
 
+def _planned(root: Path) -> list[RunProgress]:
+    """The runs a reproduction output folder (one with `reproduce.json`) plans under
+    `runs/` that have not written their config yet: 0 episodes, so the table shows the whole
+    budget."""
+    from curious.experiments import ExperimentError, get_budget
+
+    manifest = root / "reproduce.json"
+    if not manifest.is_file():
+        return []
+    try:
+        data = json.loads(manifest.read_text(encoding="utf-8"))
+        budget = get_budget(str(data.get("budget", data.get("preset"))))
+    except (json.JSONDecodeError, AttributeError, ExperimentError) as exc:
+        raise AnalysisError(f"{manifest} is damaged: {exc}") from exc
+    rows = []
+    for spec in budget.runs():
+        folder = root / "runs" / spec.relative_path
+        if not (folder / CONFIG_FILE).is_file():
+            rows.append(
+                RunProgress(
+                    run=str(folder.resolve()),
+                    condition=spec.condition,
+                    variant=spec.variant,
+                    seed=spec.seed,
+                    episodes=0,
+                    total_episodes=spec.total_episodes,
+                    checkpoint=None,
+                    run_hours=0.0,
+                    commits=(),
+                    test_episode=None,
+                    test_success=None,
+                    test_count=0,
+                    module_success={},
+                )
+            )
+    return rows
+
+
 def progress_table(
     roots: str | PathLike[str] | Iterable[str | PathLike[str]],
     epochs: int = DEFAULT_TEST_EPOCHS,
 ) -> list[RunProgress]:
-    """Progress of every run folder below `roots` (one path or several), sorted by path."""
+    """Progress of every run folder below `roots` (one path or several), sorted by path; a
+    root that is a reproduction's output folder also lists the runs its budget has not started."""
     if epochs < 1:
         raise AnalysisError(f"epochs must be at least 1, got {epochs}")
     paths = [Path(roots)] if isinstance(roots, (str, PathLike)) else [Path(r) for r in roots]
     if not paths:
         raise AnalysisError("no folder given")
-    folders = sorted({f.resolve() for root in paths for f in _run_folders(root)})
-    return [_progress(folder, epochs) for folder in folders]
+    planned: dict[str, RunProgress] = {}
+    found: set[Path] = set()
+    for root in paths:
+        mine = _planned(root)
+        planned.update((r.run, r) for r in mine)
+        try:
+            found.update(f.resolve() for f in _run_folders(root))
+        except AnalysisError:
+            if not mine:  # a reproduction that has started no run yet is not an error
+                raise
+    rows = {**planned, **{str(f): _progress(f, epochs) for f in found}}
+    return [rows[k] for k in sorted(rows)]
 
 
 def _name(run: str, base: Path | None) -> str:
@@ -194,6 +243,6 @@ def progress_markdown(
         lines.append(
             f"| {_name(r.run, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
             f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "
-            f"| {rate} | {success} | {modules} | {' '.join(r.commits) or '?'} |"
+            f"| {rate} | {success} | {modules} | {' '.join(r.commits) or '-'} |"
         )
     return header + "\n".join(lines) + "\n"

@@ -31,7 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         + "\n\nOne row per run folder: episodes logged against the run's total, the newest "
         "checkpoint, the run's own clock, test success on the achievable modules pooled over "
         "the last epochs (HER scored on its holistic goal, as the paper's Fig. 2a), and the "
-        "commits the run was trained from (a '+' marks local changes).",
+        "commits the run was trained from (a '+' marks local changes). In a reproduction's "
+        "output folder (one holding reproduce.json) the budget's runs that have not started "
+        "are listed too, with 0 episodes.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("roots", nargs="+", metavar="ROOT", help="run folder, or a folder of them")
