@@ -21,6 +21,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.bench",
     "curious.commands.reproduce",
     "curious.commands.progress",
+    "curious.commands.evaluate",
 )
 
 

@@ -186,6 +186,19 @@ def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
     return LocalEnvs(envs) if isinstance(envs, Sequence) else envs
 
 
+def goals_now(
+    env: GoalEnv, slots: np.ndarray, mask: np.ndarray, achieved: np.ndarray
+) -> np.ndarray:
+    """(n, N, G) the goals that the slots (n, N, G) stand for given the outcomes (n, .) of one
+    step (`GoalEnv.goal`: the suite's `cube1_above_cube2` and `stack` goals follow cube 2, as
+    the authors' env moves them); zero where `mask` (n, N) is not set."""
+    goals = np.zeros_like(slots)
+    for k in np.flatnonzero(mask.any(axis=0)):
+        rows = np.flatnonzero(mask[:, k])
+        goals[rows, k] = env.goal(int(k), slots[rows, k], achieved[rows])
+    return goals
+
+
 class TrainingDiverged(RuntimeError):
     """The networks stopped giving finite numbers (a loss, an action or a weight): the learning
     rates are too high for this run. Nothing of the diverged state is written."""
@@ -317,14 +330,7 @@ class Trainer:
         return act
 
     def _goals_now(self, slots: np.ndarray, mask: np.ndarray, achieved: np.ndarray) -> np.ndarray:
-        """(n, N, G) the goals that the slots (n, N, G) stand for given the outcomes (n, .) of
-        one step (`GoalEnv.goal`: the suite's `cube1_above_cube2` and `stack` goals follow cube
-        2, as the authors' env moves them); zero where `mask` (n, N) is."""
-        goals = np.zeros_like(slots)
-        for k in np.flatnonzero(mask.any(axis=0)):
-            rows = np.flatnonzero(mask[:, k])
-            goals[rows, k] = self.env.goal(int(k), slots[rows, k], achieved[rows])
-        return goals
+        return goals_now(self.env, slots, mask, achieved)
 
     def _start_failure_if_due(self, episode: int) -> None:
         """Start the failure now if the perturbed module's competence reached the threshold,
