@@ -7,6 +7,12 @@ Plays noise-free episodes per module with goals drawn uniformly in each module's
 on environment copies seeded apart from training and from the run's test rollouts, and prints
 one row per module: success with its 95 % (Wilson) interval, the mean final distance between
 the module's outcome and its goal, and the episodes played. Nothing in the run folder changes.
+
+The checkpoint is the newest readable one (as --resume picks it). MG-TE plays module m with its
+expert m. HER is scored as the paper, on its holistic goal (`success`); `module_success`
+(whether the named module met its own goal) and the distance to the holistic goal are columns
+of their own. A folder without a checkpoint, a checkpoint of another format, or a variant
+whose modules differ from the run's is a one-line error.
 """
 
 from __future__ import annotations
@@ -23,17 +29,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser = sub.add_parser(
         "evaluate",
         help="success per module of a trained run's newest checkpoint (noise-free episodes)",
-        description=__doc__.split("\n\n")[0]
-        + "\n\n"
-        + __doc__.split("\n\n", 2)[2].strip()
-        + "\n\nThe checkpoint is the newest readable one (as --resume picks it). MG-TE plays "
-        "module m with its expert m. HER is scored as the paper, on its holistic goal "
-        "(`success`); `module_success`, whether the named module met its own goal, and the "
-        "distance to the holistic goal are separate columns.",
+        description=__doc__,
         formatter_class=HelpFormatter,
     )
     parser.add_argument("run", metavar="RUN", help="run folder (as `curious train --out`)")
-    parser.add_argument("--episodes", type=int, default=100, help="episodes per module")
+    parser.add_argument(
+        "--episodes", type=int, default=100, help="episodes per module (default: %(default)s)"
+    )
     parser.add_argument(
         "--modules",
         nargs="+",
@@ -46,7 +48,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "one of {variants})",
     )
     parser.add_argument(
-        "--seed", type=int, default=0, help="the evaluation's seed (goals, environment copies)"
+        "--seed",
+        type=int,
+        default=0,
+        help="the evaluation's own seed: its goals and environment copies (default: %(default)s)",
     )
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
