@@ -12,6 +12,7 @@ folder is written.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -106,6 +107,7 @@ def evaluate(
     played at once (default: the run's `n_workers`, at most `episodes`). `policy`, for tests:
     `policy(goals, mask, task, experts)` returns the `act` of a batch instead of the agent's.
     Errors (`ValueError`, `RuntimeError`) name what is wrong in one line."""
+    import torch
     from tqdm.auto import tqdm
 
     from curious import checkpoint
@@ -124,8 +126,10 @@ def evaluate(
     if not folder.config_path.is_file():
         raise ValueError(f"{folder.path} is not a run folder (no config.json)")
     config = folder.read_config()
+    if config.device != "cpu" and not torch.cuda.is_available():
+        config = dataclasses.replace(config, device="cpu")  # a GPU run evaluates on a laptop
     run_modules = list(folder.read_stored().get("modules", []))
-    latest = checkpoint.load_latest(folder.checkpoints)
+    latest = checkpoint.load_latest(folder.checkpoints, config.device)
     if latest is None:
         raise ValueError(f"{folder.path} holds no checkpoint to evaluate (in {folder.checkpoints})")
     path, state, _ = latest
