@@ -96,6 +96,7 @@ def evaluate(
     variant: str | None = None,
     seed: int = 0,
     copies: int | None = None,
+    processes: int | None = None,
     policy: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Policy] | None = None,
     progress: bool = False,
 ) -> Evaluation:
@@ -104,7 +105,9 @@ def evaluate(
     `modules`: names to play (default: all the run's); `variant`: the suite variant to play
     on (default: the run's; its modules must be the run's); `seed`: the evaluation's own seed
     (goals and environment copies; the same seed gives the same numbers); `copies`: episodes
-    played at once (default: the run's `n_workers`, at most `episodes`). `policy`, for tests:
+    played at once (default: the run's `n_workers`, at most `episodes`); `processes`: worker
+    processes stepping them (default: the run's `env_processes`; the numbers do not depend on
+    it). `policy`, for tests:
     `policy(goals, mask, task, experts)` returns the `act` of a batch instead of the agent's.
     Errors (`ValueError`, `RuntimeError`) name what is wrong in one line."""
     import torch
@@ -113,7 +116,7 @@ def evaluate(
     from curious import checkpoint
     from curious.agent import Agent
     from curious.conditions import make_condition
-    from curious.env_batch import LocalEnvs
+    from curious.env_batch import LocalEnvs, ProcessEnvs
     from curious.envs import suite_env_fns
     from curious.inputs import GoalBox
     from curious.rollouts import run_episodes
@@ -135,7 +138,13 @@ def evaluate(
     path, state, _ = latest
     variant = variant or config.variant
     n = max(1, min(episodes, copies or config.n_workers))
-    envs = LocalEnvs([fn() for fn in suite_env_fns(variant, seed, n, stream=EVAL_STREAM)])
+    fns = suite_env_fns(variant, seed, n, stream=EVAL_STREAM)
+    workers = min(n, config.processes if processes is None else processes)
+    if workers < 1:
+        raise ValueError(f"--processes must be at least 1, got {processes}")
+    envs: LocalEnvs | ProcessEnvs = (
+        ProcessEnvs(fns, workers) if workers > 1 else LocalEnvs([fn() for fn in fns])
+    )
     env, spec = envs.reference, envs.spec
     if run_modules and list(spec.module_names) != run_modules:
         raise ValueError(

@@ -70,6 +70,12 @@ def test_same_seed_same_numbers(runs):
     for key in a:
         np.testing.assert_array_equal(a[key], b[key])
     assert not np.array_equal(a["goal"], other.modules[0].per_episode["goal"])
+    # Copies stepped in two worker processes give the same episodes.
+    spread = evaluate(
+        runs / "curious", episodes=3, modules=["push_cube1"], copies=2, seed=5, processes=2
+    )
+    for key in a:
+        np.testing.assert_array_equal(a[key], spread.modules[0].per_episode[key])
 
 
 def test_still_arm_reach_scored_by_the_env(runs):

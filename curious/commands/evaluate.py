@@ -53,6 +53,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=0,
         help="the evaluation's own seed: its goals and environment copies (default: %(default)s)",
     )
+    parser.add_argument(
+        "--processes",
+        type=int,
+        help="worker processes stepping the environment copies (default: the run's "
+        "env_processes); the numbers do not depend on it",
+    )
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
@@ -67,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
         modules=args.modules,
         variant=args.variant,
         seed=args.seed,
+        processes=args.processes,
         progress=not args.no_progress,
     )
     if args.json:
