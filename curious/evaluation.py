@@ -121,7 +121,7 @@ def evaluate(
     from curious.inputs import GoalBox
     from curious.rollouts import run_episodes
     from curious.run_folder import RunFolder
-    from curious.train import goals_now
+    from curious.train import goal_policy
 
     if episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {episodes}")
@@ -192,19 +192,7 @@ def evaluate(
                 if policy is not None:
                     act = policy(goals, mask, task, experts)
                 else:
-
-                    def act(
-                        states: np.ndarray,
-                        achieved: np.ndarray,
-                        t: int,
-                        goals: np.ndarray = goals,
-                        mask: np.ndarray = mask,
-                        task: np.ndarray = task,
-                        experts: np.ndarray = experts,
-                    ) -> np.ndarray:
-                        now = goals_now(env, goals, mask, achieved)
-                        k = len(states)
-                        return agent.act(states, now, mask, task, experts, explore[:k], rng)
+                    act = goal_policy(env, agent, goals, mask, task, experts, explore[:size], rng)
 
                 data = run_episodes(envs, mods, raw, act)
                 final = data.achieved[:, -1]

@@ -199,6 +199,26 @@ def goals_now(
     return goals
 
 
+def goal_policy(
+    env: GoalEnv,
+    agent: Agent,
+    goals: np.ndarray,
+    mask: np.ndarray,
+    task: np.ndarray,
+    experts: np.ndarray,
+    explore: np.ndarray,
+    rng: np.random.Generator,
+) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
+    """`act(states, achieved, t)` of a round of episodes with these goal slots, experts and
+    noise: the agent sees each slot's goal where it is at step t (`goals_now`)."""
+
+    def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
+        now = goals_now(env, goals, mask, achieved)
+        return agent.act(states, now, mask, task, experts, explore, rng)
+
+    return act
+
+
 class TrainingDiverged(RuntimeError):
     """The networks stopped giving finite numbers (a loss, an action or a weight): the learning
     rates are too high for this run. Nothing of the diverged state is written."""
@@ -316,21 +336,17 @@ class Trainer:
         rng: np.random.Generator,
         episode: int,
     ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
-        """`act(states, achieved, t)` for a round of episodes with these goal slots, experts
-        and noise, from episode `episode` on: the policy sees each slot's goal at step t
-        (`_goals_now`); `TrainingDiverged` when it gives a non-finite action."""
+        """`goal_policy` for a round of episodes from episode `episode` on, which raises
+        `TrainingDiverged` when it gives a non-finite action."""
+        policy = goal_policy(self.env, agent, goals, mask, task, experts, explore, rng)
 
         def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
-            now = self._goals_now(goals, mask, achieved)
-            actions = agent.act(states, now, mask, task, experts, explore, rng)
+            actions = policy(states, achieved, t)
             if not np.isfinite(actions).all():
                 raise diverged(self.config, episode, "the policy's actions are not finite")
             return actions
 
         return act
-
-    def _goals_now(self, slots: np.ndarray, mask: np.ndarray, achieved: np.ndarray) -> np.ndarray:
-        return goals_now(self.env, slots, mask, achieved)
 
     def _start_failure_if_due(self, episode: int) -> None:
         """Start the failure now if the perturbed module's competence reached the threshold,
