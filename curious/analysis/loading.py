@@ -68,6 +68,7 @@ __all__ = [
     "read_run_info",
     "run_modules",
     "runs_table",
+    "search_run_folders",
 ]
 
 CONFIG_FILE = "config.json"
@@ -171,7 +172,7 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
         if (path / CONFIG_FILE).is_file():
             found.append(_checked_run_folder(path))
             continue
-        below = _search(path)
+        below = search_run_folders(path)
         if not below:
             raise AnalysisError(
                 f"{path} is not a run folder and holds none: no directory below it has both "
@@ -197,8 +198,10 @@ def _checked_run_folder(path: Path) -> Path:
     return path
 
 
-def _search(root: Path) -> list[Path]:
-    """Run folders below ``root``; hidden folders (``.dagster``, ``.git``) are not searched."""
+def search_run_folders(root: Path, started_only: bool = True) -> list[Path]:
+    """Run folders below ``root``; hidden folders (``.dagster``, ``.git``) are not searched.
+    With ``started_only``, a folder with ``config.json`` but no ``metrics.parquet`` is an
+    `AnalysisError`; without, it is listed (a run that has not logged an episode yet)."""
     runs: list[Path] = []
     seen: set[Path] = set()
     stack = [root]
@@ -210,7 +213,7 @@ def _search(root: Path) -> list[Path]:
         children = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith("."))
         for child in children:
             if (child / CONFIG_FILE).is_file():
-                runs.append(_checked_run_folder(child))
+                runs.append(_checked_run_folder(child) if started_only else child)
             else:
                 stack.append(child)
     return runs

@@ -28,6 +28,7 @@ from curious.analysis.loading import (
     TESTS_FILE,
     AnalysisError,
     read_run_info,
+    search_run_folders,
 )
 
 __all__ = ["DEFAULT_TEST_EPOCHS", "RunProgress", "progress_markdown", "progress_table"]
@@ -69,12 +70,7 @@ def _run_folders(root: Path) -> list[Path]:
         raise AnalysisError(f"{root} does not exist")
     if (root / CONFIG_FILE).is_file():
         return [root]
-    found = sorted(
-        p.parent
-        for p in root.rglob(CONFIG_FILE)
-        if not any(part.startswith(".") for part in p.relative_to(root).parts)
-        and "checkpoints" not in p.relative_to(root).parts
-    )
+    found = search_run_folders(root, started_only=False)
     if not found:
         raise AnalysisError(f"{root} holds no run folder (no {CONFIG_FILE} below it)")
     return found
