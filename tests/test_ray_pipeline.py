@@ -25,6 +25,8 @@ from pipelines.training import FINISHED, folder_state, run_folder
 
 pytest.importorskip("ray")
 
+HEAD_START_SECONDS = 180
+
 
 def free_port() -> int:
     with socket.socket() as s:
@@ -53,18 +55,30 @@ def ray_cluster(tmp_path_factory):
         "--disable-usage-stats",
         f"--temp-dir={temp}",
     ]
-    process = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
-    )
+    log = temp / "ray-start.log"
+    with open(log, "wb") as output:
+        process = subprocess.Popen(
+            command, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
+        )
     try:
-        deadline = time.monotonic() + 60
+        # A loaded 2-core machine (CI beside other jobs) has taken over a minute to start Ray.
+        deadline = time.monotonic() + HEAD_START_SECONDS
         while True:
             try:
                 socket.create_connection(("127.0.0.1", port), timeout=1).close()
                 break
             except OSError:
-                if process.poll() is not None or time.monotonic() > deadline:
-                    raise RuntimeError("the test's Ray head node did not start") from None
+                exited = process.poll()
+                if exited is not None or time.monotonic() > deadline:
+                    why = (
+                        f"exited with code {exited}"
+                        if exited is not None
+                        else f"did not listen on port {port} within {HEAD_START_SECONDS} s"
+                    )
+                    tail = log.read_text(errors="replace")[-2000:]
+                    raise RuntimeError(
+                        f"the test's Ray head node {why}; its output:\n{tail}"
+                    ) from None
                 time.sleep(0.2)
         yield f"127.0.0.1:{port}"
     finally:
