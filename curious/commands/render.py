@@ -163,10 +163,11 @@ def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tup
     return every, fps, hold
 
 
-def _bar(total: int, args: argparse.Namespace, desc: str) -> Any:
+def _bar(total: int, args: argparse.Namespace, desc: str, unit: str = "frame") -> Any:
+    """A progress bar (none with --no-progress)."""
     from tqdm.auto import tqdm
 
-    return tqdm(total=total, unit="frame", disable=args.no_progress, dynamic_ncols=True, desc=desc)
+    return tqdm(total=total, unit=unit, disable=args.no_progress, dynamic_ncols=True, desc=desc)
 
 
 def run(args: argparse.Namespace) -> int:
