@@ -80,25 +80,38 @@ def real_time_fps(control_timestep: float, every: int = 1, speed: float = 1.0) -
 
 
 def _font(size: int) -> Any:
+    """DejaVu Sans at `size` pixels (matplotlib, a dependency, ships it), else Pillow's own."""
     from PIL import ImageFont
 
     try:
-        return ImageFont.load_default(size=size)
-    except TypeError:  # Pillow < 10.1: one fixed-size bitmap font
-        return ImageFont.load_default()
+        import matplotlib
+
+        path = Path(matplotlib.get_data_path()) / "fonts" / "ttf" / "DejaVuSans.ttf"
+        return ImageFont.truetype(str(path), size)
+    except (ImportError, OSError):
+        try:
+            return ImageFont.load_default(size=size)
+        except TypeError:  # Pillow < 10.1: one fixed-size bitmap font
+            return ImageFont.load_default()
 
 
 def burn_caption(frame: np.ndarray, lines: Caption) -> np.ndarray:
-    """`frame` (H, W, 3 uint8) with `lines` written on a darkened band across its top."""
+    """`frame` (H, W, 3 uint8) with `lines` written on a darkened band across its top, in a
+    font of about a 22nd of the frame's height, smaller where a line would not fit its width."""
     from PIL import Image, ImageDraw
 
     if not lines:
         return frame
-    height = frame.shape[0]
-    size = max(9, round(height / 22))
+    height, width = frame.shape[:2]
+    size = max(8, round(height / 22))
     font = _font(size)
+    widest = max(font.getlength(text) for text, _ in lines) if hasattr(font, "getlength") else 0
+    room = width - 2 * max(2, size // 4) - 2
+    if widest > room and size > 8:
+        size = max(8, int(size * room / widest))
+        font = _font(size)
     pad = max(2, size // 4)
-    band = pad + len(lines) * (size + pad)
+    band = pad + len(lines) * (size + pad) + pad
     out = frame.copy()
     out[:band] = (out[:band].astype(np.uint16) * 2 // 7).astype(np.uint8)
     image = Image.fromarray(out)
