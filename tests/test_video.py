@@ -16,6 +16,7 @@ import sys
 
 import numpy as np
 import pytest
+import torch
 
 from curious.cli import main as curious_cli
 from curious.evaluation import evaluate
@@ -153,7 +154,14 @@ def test_refusals_are_one_line_and_write_nothing(smoke_run, tmp_path, capsys, mo
     shutil.copy(smoke_run / "config.json", bare / "config.json")
     assert "no checkpoint" in _refused(capsys, "--run", str(bare), "--out", out)
     assert "not a run folder" in _refused(capsys, "--run", str(tmp_path), "--out", out)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bare"]
+    old = tmp_path / "old"
+    shutil.copytree(smoke_run, old)
+    for state_path in (old / "checkpoints").glob("*/state.pt"):
+        state = torch.load(state_path, weights_only=False)
+        state["format"] = 1
+        torch.save(state, state_path)
+    assert "has format 1" in _refused(capsys, "--run", str(old), "--out", out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bare", "old"]
 
 
 def test_render_without_gl_names_the_fix(smoke_run, tmp_path):
