@@ -157,13 +157,16 @@ def remove_partial(directory: Path) -> None:
 
 
 def load(
-    path: Path, map_location: str | torch.device = "cpu"
+    path: Path, map_location: str | torch.device = "cpu", replay: bool = True
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """(state, replay arrays) of the checkpoint at `path`."""
+    """(state, replay arrays) of the checkpoint at `path`. With `replay=False` the replay's
+    arrays are not read (an evaluation needs only the networks: the replay is most of a
+    checkpoint's size): its archive is opened and listed, so that a truncated one is still
+    refused, and the arrays come back empty."""
     try:
         state = torch.load(path / "state.pt", map_location=map_location, weights_only=False)
         with np.load(path / "replay.npz") as data:
-            replay = {k: data[k] for k in data.files}
+            arrays = {k: data[k] for k in data.files} if replay else {}
     except (
         OSError,
         RuntimeError,
@@ -180,11 +183,11 @@ def load(
             f"{FORMAT_VERSION}: it was written by another version of the agent, so the run "
             "cannot go on here; start a new run (or use the curious version that wrote it)"
         )
-    return state, replay
+    return state, arrays
 
 
 def load_latest(
-    directory: Path, map_location: str | torch.device = "cpu"
+    directory: Path, map_location: str | torch.device = "cpu", replay: bool = True
 ) -> tuple[Path, dict[str, Any], dict[str, np.ndarray]] | None:
     """(path, state, replay) of the newest readable checkpoint in `directory`, None when there is
     none. An unreadable newest one is passed over for the one before, with a warning naming
@@ -193,12 +196,12 @@ def load_latest(
     A checkpoint is taken by its state's own episode counter, which must be the episode its
     folder's name says: one renamed or copied under another name (`ep-000000000999` holding
     episode 24) is passed over like a damaged one, so that a name never sends a run back to an
-    older state."""
+    older state. `replay=False`: as `load`'s."""
     found = list_checkpoints(directory)
     errors = []
     for path in reversed(found):
         try:
-            state, replay = load(path, map_location)
+            state, arrays = load(path, map_location, replay)
         except CheckpointError as exc:
             errors.append(str(exc))
             continue
@@ -211,7 +214,7 @@ def load_latest(
             continue
         if errors:
             warnings.warn(f"{errors[0]}; resuming from the one before, {path.name}", stacklevel=2)
-        return path, state, replay
+        return path, state, arrays
     if errors:
         raise CheckpointError("; ".join(errors))
     return None

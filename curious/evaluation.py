@@ -8,6 +8,12 @@ test rollouts (stream 1). Scores are the test rollouts' (`Trainer.test_rollouts`
 is the condition's score (for `her` its holistic goal, as the paper), `module_success` whether
 the module met its own goal slot; MG-TE plays module m with its expert m. Nothing of the run
 folder is written.
+
+`open_run` is the loading half (checkpoint, agent, condition, copies) and
+`EvaluationSession.evaluate` the playing half, which takes a round observer as training does:
+`curious evaluate --record` records its episodes in 3-D with it (`curious.recording.evaluation`)
+and `curious render --run` films them (`curious.video`), so that a video or a recording shows
+the very episodes `curious evaluate` scores with the same seed.
 """
 
 from __future__ import annotations
@@ -89,29 +95,175 @@ def _distances(spec: Any, module: int, final: np.ndarray, goal: np.ndarray) -> n
     return np.linalg.norm(final[:, cols].astype(np.float64) - goal, axis=1)
 
 
-def evaluate(
+@dataclass
+class EvaluationSession:
+    """A run's newest checkpoint with its agent and condition, and the environment copies that
+    play it: what `evaluate` and the videos of `curious render --run` share (`open_run`)."""
+
+    folder: Any
+    """The run's `RunFolder`."""
+    config: Any
+    checkpoint: Path
+    episode: int
+    """The training episode of the checkpoint."""
+    epoch: int
+    variant: str
+    seed: int
+    envs: Any
+    """The `EnvBatch` of `copies` evaluation copies (stream `EVAL_STREAM`)."""
+    condition: Any
+    agent: Any
+
+    @property
+    def spec(self) -> Any:
+        return self.envs.spec
+
+    @property
+    def copies(self) -> int:
+        return len(self.envs)
+
+    def modules(self, names: Sequence[str] | None) -> list[str]:
+        """The modules to play: `names` (checked against the run's) or all of them."""
+        known = list(self.spec.module_names)
+        chosen = list(names) if names else known
+        unknown = [m for m in chosen if m not in known]
+        if unknown:
+            raise ValueError(
+                f"unknown module {', '.join(unknown)}; the run's are {', '.join(known)}"
+            )
+        return chosen
+
+    def close(self) -> None:
+        self.envs.close()
+
+    def __enter__(self) -> EvaluationSession:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def evaluate(
+        self,
+        episodes: int,
+        modules: Sequence[str] | None = None,
+        policy: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Policy] | None = None,
+        observer: Any = None,
+        progress: bool = False,
+    ) -> Evaluation:
+        """Play `episodes` noise-free episodes of each of `modules` (default: all), in the
+        order given, with goals drawn uniformly from the session's seed.
+
+        `observer`: a round observer (`curious.train.RoundObserver`: the 3-D rollout recorder,
+        the video's frame grabber) called around every batch as in training; the episodes it
+        sees are numbered 0, 1, ... through the evaluation, module after module (module k's
+        j-th episode is k * episodes + j), and all are evaluation episodes. `policy`: as
+        `evaluate`'s."""
+        from tqdm.auto import tqdm
+
+        from curious.rollouts import run_episodes
+        from curious.train import RolloutInfo, goal_policy
+
+        if episodes < 1:
+            raise ValueError(f"--episodes must be at least 1, got {episodes}")
+        chosen = self.modules(modules)
+        env, spec, condition, n = self.envs.reference, self.spec, self.condition, self.copies
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0xE7A1]))
+        explore = np.zeros(n, bool)
+        bar = tqdm(
+            total=episodes * len(chosen),
+            unit="ep",
+            disable=not progress,
+            dynamic_ncols=True,
+            desc=f"evaluate {self.config.condition}",
+        )
+        results = []
+        try:
+            for position, name in enumerate(chosen):
+                m = spec.module_index(name)
+                parts: dict[str, list[np.ndarray]] = {
+                    key: []
+                    for key in ("success", "module_success", "distance", "expert", "goal", "hol")
+                }
+                for start in range(0, episodes, n):
+                    size = min(n, episodes - start)
+                    mods = np.full(size, m, np.int64)
+                    raw = rng.uniform(-1.0, 1.0, (size, spec.goal_dim))
+                    goals, mask, task = condition.goals(env, mods, raw, rng)
+                    experts = condition.acting_experts(mods, self.epoch)
+                    if policy is not None:
+                        act = policy(goals, mask, task, experts)
+                    else:
+                        act = goal_policy(
+                            env, self.agent, goals, mask, task, experts, explore[:size], rng
+                        )
+                    numbers = position * episodes + start + np.arange(size)
+                    evaluation = np.ones(size, bool)
+                    if observer is not None:
+                        views = self.envs.observed(observer.watched(numbers, evaluation))
+                        observer.begin_round(numbers, mods, goals, evaluation, views[:size])
+                    step_hook = observer.after_step if observer is not None else None
+                    data = run_episodes(self.envs, mods, raw, act, step_hook)
+                    final = data.achieved[:, -1]
+                    success = condition.success(env, data, mods, goals)
+                    if observer is not None:
+                        info = RolloutInfo(
+                            numbers, mods, raw, goals, evaluation, success, data,
+                            np.zeros(size, bool),
+                        )  # fmt: skip
+                        observer.end_round(info)
+                    parts["success"].append(success)
+                    parts["module_success"].append(condition.module_success(env, data, mods, goals))
+                    parts["distance"].append(
+                        _distances(spec, m, final, env.goal(m, goals[:, m], final))
+                    )
+                    parts["expert"].append(np.asarray(experts, np.int64))
+                    parts["goal"].append(raw)
+                    if condition.goal_space is not None:
+                        space = condition.goal_space
+                        parts["hol"].append(space.distance(final, space.place(env, goals, final)))
+                    bar.update(size)
+                per = {k: np.concatenate(v) for k, v in parts.items() if v}
+                hol = per.pop("hol", None)
+                ok = int(per["success"].sum())
+                low, high = wilson_interval(ok, episodes)
+                results.append(
+                    ModuleEvaluation(
+                        module=name,
+                        episodes=episodes,
+                        success=ok / episodes,
+                        low=low,
+                        high=high,
+                        module_success=float(per["module_success"].mean()),
+                        distance=float(per["distance"].mean()),
+                        holistic_distance=float(hol.mean()) if hol is not None else None,
+                        per_episode=per,
+                    )
+                )
+        finally:
+            bar.close()
+        return Evaluation(
+            run=str(self.folder.path),
+            checkpoint=self.checkpoint.name,
+            condition=self.config.condition,
+            variant=self.variant,
+            episode=self.episode,
+            modules=results,
+        )
+
+
+def open_run(
     run: str | Path,
     episodes: int = 100,
-    modules: Sequence[str] | None = None,
     variant: str | None = None,
     seed: int = 0,
     copies: int | None = None,
     processes: int | None = None,
-    policy: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Policy] | None = None,
-    progress: bool = False,
-) -> Evaluation:
-    """Play `episodes` noise-free episodes per module of the run in folder `run`.
-
-    `modules`: names to play (default: all the run's); `variant`: the suite variant to play
-    on (default: the run's; its modules must be the run's); `seed`: the evaluation's own seed
-    (goals and environment copies; the same seed gives the same numbers); `copies`: episodes
-    played at once (default: the run's `n_workers`, at most `episodes`); `processes`: worker
-    processes stepping them (default: the run's `env_processes`; the numbers do not depend on
-    it). `policy`, for tests:
-    `policy(goals, mask, task, experts)` returns the `act` of a batch instead of the agent's.
-    Errors (`ValueError`, `RuntimeError`) name what is wrong in one line."""
+) -> EvaluationSession:
+    """Load the newest readable checkpoint of the run in folder `run` (the falling-back rule of
+    `--resume`; its replay is not read) and build its agent, its condition and the copies that
+    will play `episodes` episodes per module. Close the session (or use it in `with`) to stop
+    the copies' worker processes. Arguments and errors: as `evaluate`'s."""
     import torch
-    from tqdm.auto import tqdm
 
     from curious import checkpoint
     from curious.agent import Agent
@@ -119,9 +271,7 @@ def evaluate(
     from curious.env_batch import LocalEnvs, ProcessEnvs
     from curious.envs import suite_env_fns
     from curious.inputs import GoalBox
-    from curious.rollouts import run_episodes
     from curious.run_folder import RunFolder
-    from curious.train import goal_policy
 
     if episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {episodes}")
@@ -132,7 +282,7 @@ def evaluate(
     if config.device != "cpu" and not torch.cuda.is_available():
         config = dataclasses.replace(config, device="cpu")  # a GPU run evaluates on a laptop
     run_modules = list(folder.read_stored().get("modules", []))
-    latest = checkpoint.load_latest(folder.checkpoints, config.device)
+    latest = checkpoint.load_latest(folder.checkpoints, config.device, replay=False)
     if latest is None:
         raise ValueError(f"{folder.path} holds no checkpoint to evaluate (in {folder.checkpoints})")
     path, state, _ = latest
@@ -145,96 +295,62 @@ def evaluate(
     envs: LocalEnvs | ProcessEnvs = (
         ProcessEnvs(fns, workers) if workers > 1 else LocalEnvs([fn() for fn in fns])
     )
-    env, spec = envs.reference, envs.spec
-    if run_modules and list(spec.module_names) != run_modules:
-        raise ValueError(
-            f"variant {variant!r} has modules {', '.join(spec.module_names)}; the run was "
-            f"trained on {', '.join(run_modules)}"
-        )
-    chosen = list(modules) if modules else list(spec.module_names)
-    unknown = [m for m in chosen if m not in spec.module_names]
-    if unknown:
-        raise ValueError(
-            f"unknown module {', '.join(unknown)}; the run's are {', '.join(spec.module_names)}"
-        )
-    if config.sensor_failure:
-        envs.set_sensor_failure(np.zeros(n, bool))  # evaluate the unperturbed agent
-    condition = make_condition(config, spec)
-    agent = Agent(spec, config, GoalBox.of(env), condition.n_experts)
     try:
-        agent.load_state_dict(state["agent"])
-    except (KeyError, RuntimeError) as exc:
-        raise ValueError(f"checkpoint {path} does not fit the run's agent ({exc})") from None
-    epoch = int(state["cycles"]) // config.n_cycles
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 0xE7A1]))
-    explore = np.zeros(n, bool)
-
-    bar = tqdm(
-        total=episodes * len(chosen),
-        unit="ep",
-        disable=not progress,
-        dynamic_ncols=True,
-        desc=f"evaluate {config.condition}",
-    )
-    results = []
-    try:
-        for name in chosen:
-            m = spec.module_index(name)
-            parts: dict[str, list[np.ndarray]] = {
-                k: [] for k in ("success", "module_success", "distance", "expert", "goal", "hol")
-            }
-            for start in range(0, episodes, n):
-                size = min(n, episodes - start)
-                mods = np.full(size, m, np.int64)
-                raw = rng.uniform(-1.0, 1.0, (size, spec.goal_dim))
-                goals, mask, task = condition.goals(env, mods, raw, rng)
-                experts = condition.acting_experts(mods, epoch)
-                if policy is not None:
-                    act = policy(goals, mask, task, experts)
-                else:
-                    act = goal_policy(env, agent, goals, mask, task, experts, explore[:size], rng)
-
-                data = run_episodes(envs, mods, raw, act)
-                final = data.achieved[:, -1]
-                parts["success"].append(condition.success(env, data, mods, goals))
-                parts["module_success"].append(condition.module_success(env, data, mods, goals))
-                parts["distance"].append(
-                    _distances(spec, m, final, env.goal(m, goals[:, m], final))
-                )
-                parts["expert"].append(np.asarray(experts, np.int64))
-                parts["goal"].append(raw)
-                if condition.goal_space is not None:
-                    space = condition.goal_space
-                    parts["hol"].append(space.distance(final, space.place(env, goals, final)))
-                bar.update(size)
-            per = {k: np.concatenate(v) for k, v in parts.items() if v}
-            hol = per.pop("hol", None)
-            ok = int(per["success"].sum())
-            low, high = wilson_interval(ok, episodes)
-            results.append(
-                ModuleEvaluation(
-                    module=name,
-                    episodes=episodes,
-                    success=ok / episodes,
-                    low=low,
-                    high=high,
-                    module_success=float(per["module_success"].mean()),
-                    distance=float(per["distance"].mean()),
-                    holistic_distance=float(hol.mean()) if hol is not None else None,
-                    per_episode=per,
-                )
+        env, spec = envs.reference, envs.spec
+        if run_modules and list(spec.module_names) != run_modules:
+            raise ValueError(
+                f"variant {variant!r} has modules {', '.join(spec.module_names)}; the run was "
+                f"trained on {', '.join(run_modules)}"
             )
-    finally:
-        bar.close()
+        if config.sensor_failure:
+            envs.set_sensor_failure(np.zeros(n, bool))  # evaluate the unperturbed agent
+        condition = make_condition(config, spec)
+        agent = Agent(spec, config, GoalBox.of(env), condition.n_experts)
+        try:
+            agent.load_state_dict(state["agent"])
+        except (KeyError, RuntimeError) as exc:
+            raise ValueError(f"checkpoint {path} does not fit the run's agent ({exc})") from None
+    except BaseException:
         envs.close()
-    return Evaluation(
-        run=str(folder.path),
-        checkpoint=path.name,
-        condition=config.condition,
-        variant=variant,
+        raise
+    return EvaluationSession(
+        folder=folder,
+        config=config,
+        checkpoint=path,
         episode=int(state["episodes"]),
-        modules=results,
+        epoch=int(state["cycles"]) // config.n_cycles,
+        variant=variant,
+        seed=seed,
+        envs=envs,
+        condition=condition,
+        agent=agent,
     )
+
+
+def evaluate(
+    run: str | Path,
+    episodes: int = 100,
+    modules: Sequence[str] | None = None,
+    variant: str | None = None,
+    seed: int = 0,
+    copies: int | None = None,
+    processes: int | None = None,
+    policy: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Policy] | None = None,
+    progress: bool = False,
+    observer: Any = None,
+) -> Evaluation:
+    """Play `episodes` noise-free episodes per module of the run in folder `run`.
+
+    `modules`: names to play (default: all the run's); `variant`: the suite variant to play
+    on (default: the run's; its modules must be the run's); `seed`: the evaluation's own seed
+    (goals and environment copies; the same seed gives the same numbers); `copies`: episodes
+    played at once (default: the run's `n_workers`, at most `episodes`); `processes`: worker
+    processes stepping them (default: the run's `env_processes`; the numbers do not depend on
+    it). `observer`: as `EvaluationSession.evaluate`'s. `policy`, for tests:
+    `policy(goals, mask, task, experts)` returns the `act` of a batch instead of the agent's.
+    Errors (`ValueError`, `RuntimeError`) name what is wrong in one line."""
+    with open_run(run, episodes, variant, seed, copies, processes) as session:
+        return session.evaluate(episodes, modules, policy, observer, progress)
 
 
 def evaluation_table(result: Evaluation) -> str:

@@ -17,6 +17,10 @@ from suite import layout
 
 Policy = Callable[[dict[str, np.ndarray]], np.ndarray]
 
+CAMERAS = ("front", "top", "close")
+"""Views of the scene: the model's `front` and `top` cameras, and `close`, a free camera on the
+reachable workspace (the gripper's start and the cubes around it), for small frames."""
+
 GL_HELP = (
     "Choose a headless GL backend before running: "
     "`export MUJOCO_GL=egl` (Debian/Ubuntu: apt-get install libegl1 libegl-mesa0) or "
@@ -47,7 +51,7 @@ def render_episode(
         policy: maps the observation dict to an action in [-1, 1]^4.
         steps: control steps to run (at most the episode's 50).
         every: keep one frame every `every` steps (the first and last frames are always kept).
-        camera: a camera of the scene (`front` or `top`).
+        camera: a view of the scene (`CAMERAS`).
         height, width: frame size in pixels.
     """
     import mujoco
@@ -65,14 +69,14 @@ def render_episode(
             f"MuJoCo could not make an off-screen GL context ({type(exc).__name__}: {exc}). "
             f"{GL_HELP}"
         ) from exc
-    camera_id = physics.model.name2id(camera, "camera")
+    view = scene_camera(physics, camera)
     frames = []
     try:
         timestep = env.reset()
         for t in range(steps + 1):
             if t % every == 0 or t == steps:
-                renderer.update_scene(physics.data.ptr, camera=camera_id)
-                _add_goal_marker(renderer.scene, env.task)
+                renderer.update_scene(physics.data.ptr, camera=view)
+                add_goal_marker(renderer.scene, env.task)
                 frames.append(renderer.render().copy())
             if t < steps:
                 timestep = env.step(policy(timestep.observation))
@@ -95,7 +99,23 @@ def save_frames(frames: list[np.ndarray], out_dir: str | Path, prefix: str = "fr
     return paths
 
 
-def _add_goal_marker(scene, task) -> None:
+def scene_camera(physics, camera: str):
+    """What `mujoco.Renderer.update_scene` takes for the view `camera` (one of `CAMERAS`): a
+    camera id of the model, or the free camera of `close`."""
+    import mujoco
+
+    if camera not in CAMERAS:
+        raise ValueError(f"unknown camera {camera!r}; cameras: {', '.join(CAMERAS)}")
+    if camera != "close":
+        return physics.model.name2id(camera, "camera")
+    view = mujoco.MjvCamera()
+    view.type = mujoco.mjtCamera.mjCAMERA_FREE
+    view.lookat[:] = (layout.GRIP0[0], layout.GRIP0[1], 0.5)
+    view.distance, view.azimuth, view.elevation = 1.4, 160.0, -35.0
+    return view
+
+
+def add_goal_marker(scene, task) -> None:
     """Draw the active module's goal as a sphere of the success radius, in the module's colour."""
     import mujoco
 

@@ -149,3 +149,57 @@ def test_errors_are_one_line(runs, tmp_path, capsys):
     assert "modules" in err
     assert "unknown module" in _one_line_error(capsys, [str(runs / "curious"), "--modules", "x"])
     assert "no config.json" in _one_line_error(capsys, [str(tmp_path)])
+
+
+def _files(folder):
+    return {p.relative_to(folder): p.stat().st_mtime_ns for p in folder.rglob("*")}
+
+
+def test_record_writes_the_episodes_in_3d_beside_not_into_the_run(runs, tmp_path, monkeypatch):
+    from curious.commands.evaluate import DEFAULT_FILE
+    from curious.recording import evaluation as recording
+    from curious.recording.reader import read_component, read_scalars, summarize
+
+    assert DEFAULT_FILE == recording.DEFAULT_FILE == "evaluation.rrd"
+    run = runs / "curious"
+    before = _files(run)
+    monkeypatch.chdir(tmp_path)
+    args = ["evaluate", str(run), "--episodes", "3", "--modules", "reach", "stack"]
+    assert curious_cli([*args, "--record", "--record-episodes", "2", "--no-progress"]) == 0
+    path = tmp_path / "evaluation.rrd"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["evaluation.rrd"]  # no temporaries
+    assert _files(run) == before  # the run folder is left as it was
+
+    summary = summarize(path)
+    assert {"scene/goal", "scene/goal_region", "scene/gripper_path"} <= summary.entities
+    assert any(e.startswith("scene/bodies/") for e in summary.static_entities)  # the geometry
+    assert {"episode", "rollout_frame"} <= summary.timelines
+    # Two episodes of each module in 3-D, 51 frames each, labelled with their module.
+    _, labels = read_component(path, "scene/goal", "Points3D:labels", "rollout_frame")
+    assert len(labels) == 4
+    assert [lab[0].split(",")[0] for lab in labels] == ["T1 reach"] * 2 + [
+        "T4 stack cube 1 on 2"
+    ] * 2
+    frames, _ = read_component(path, "scene/goal", "Points3D:positions", "rollout_frame")
+    assert len(frames) == 4 * 51
+    # Every episode's success is the evaluation's (same seed, same episodes): reach's are
+    # episodes 0-2, stack's 3-5.
+    result = evaluate(run, episodes=3, modules=["reach", "stack"])
+    for row, entity, first in zip(result.modules, ("T1-reach", "T4-stack"), (0, 3), strict=True):
+        times, values = read_scalars(path, f"success/eval/{entity}")
+        np.testing.assert_array_equal(times, first + np.arange(3))
+        np.testing.assert_array_equal(values, row.per_episode["success"])
+        _, rate = read_scalars(path, f"competence/{entity}")
+        assert rate[-1] == pytest.approx(row.success)
+
+
+def test_record_never_replaces_a_runs_recording(runs, tmp_path, capsys):
+    run = runs / "curious"
+    before = (run / "recording.rrd").read_bytes()
+    err = _one_line_error(
+        capsys, [str(run), "--episodes", "1", "--record", str(run / "recording.rrd")]
+    )
+    assert "training recording" in err
+    assert (run / "recording.rrd").read_bytes() == before
+    assert ".rrd" in _one_line_error(capsys, [str(run), "--record", str(tmp_path / "x.txt")])
+    assert not list(tmp_path.iterdir())

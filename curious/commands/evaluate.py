@@ -2,6 +2,7 @@
 
     curious evaluate ~/curious-runs/curious-s0 --episodes 200
     curious evaluate RUN --modules reach push_cube1 --json
+    curious evaluate RUN --episodes 20 --record       # and ./evaluation.rrd: `curious view` it
 
 Plays noise-free episodes per module with goals drawn uniformly in each module's goal space,
 on environment copies seeded apart from training and from the run's test rollouts, and prints
@@ -13,6 +14,13 @@ expert m. HER is scored as the paper, on its holistic goal (`success`); `module_
 (whether the named module met its own goal) and the distance to the holistic goal are columns
 of their own. A folder without a checkpoint, a checkpoint of another format, or a variant
 whose modules differ from the run's is a one-line error.
+
+--record [FILE] also writes a Rerun recording of the evaluation (default: evaluation.rrd in the
+current folder; never in the run folder unless FILE says so, and never over a run's
+recording.rrd): the first --record-episodes episodes of each module in 3-D, as the training
+recording shows its rollouts, and every episode's success, under the training recording's
+layout. Its `episode` timeline counts the evaluation's episodes. Open it with `curious view
+FILE` or `rerun FILE`. To watch the agent as a video instead: `curious render --run RUN`.
 """
 
 from __future__ import annotations
@@ -20,6 +28,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+
+DEFAULT_FILE = "evaluation.rrd"
+"""`--record` without FILE (`curious.recording.evaluation.DEFAULT_FILE`; named here too so that
+the help needs no import of Rerun)."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -59,6 +71,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="worker processes stepping the environment copies (default: the run's "
         "env_processes); the numbers do not depend on it",
     )
+    parser.add_argument(
+        "--record",
+        nargs="?",
+        const=DEFAULT_FILE,
+        metavar="FILE",
+        help=f"also write a Rerun recording of the evaluation to FILE (.rrd; without FILE: "
+        f"./{DEFAULT_FILE}, not in the run folder)",
+    )
+    parser.add_argument(
+        "--record-episodes",
+        type=int,
+        default=2,
+        metavar="N",
+        help="with --record: episodes of each module recorded in 3-D (default: %(default)s)",
+    )
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=run)
@@ -67,18 +94,54 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from curious.evaluation import evaluate, evaluation_table
 
-    result = evaluate(
-        args.run,
-        episodes=args.episodes,
-        modules=args.modules,
-        variant=args.variant,
-        seed=args.seed,
-        processes=args.processes,
-        progress=not args.no_progress,
-    )
+    if args.record is None:
+        result = evaluate(
+            args.run,
+            episodes=args.episodes,
+            modules=args.modules,
+            variant=args.variant,
+            seed=args.seed,
+            processes=args.processes,
+            progress=not args.no_progress,
+        )
+    else:
+        result = _evaluate_and_record(args)
+        print(f"wrote {args.record}: open it with `curious view {args.record}`", file=sys.stderr)
     if args.json:
         json.dump(result.to_dict(), sys.stdout, indent=2)
         sys.stdout.write("\n")
     else:
         sys.stdout.write(evaluation_table(result))
     return 0
+
+
+def _evaluate_and_record(args: argparse.Namespace):
+    """`evaluate` with its episodes recorded in 3-D (`curious.recording.evaluation`)."""
+    from curious.evaluation import open_run
+    from curious.recording.evaluation import EvaluationRecording, check_target
+
+    target = check_target(args.record, args.run)
+    if args.record_episodes < 0:
+        raise ValueError(f"--record-episodes must be >= 0, got {args.record_episodes}")
+    with open_run(
+        args.run, args.episodes, args.variant, args.seed, None, args.processes
+    ) as session:
+        modules = session.modules(args.modules)
+        name = f"evaluation of {session.folder.path.name} at episode {session.episode:,}"
+        recording = EvaluationRecording(
+            target,
+            session.spec.module_names,
+            args.episodes,
+            min(args.record_episodes, args.episodes),
+            session.spec.episode_length,
+            name,
+        )
+        try:
+            result = session.evaluate(
+                args.episodes, modules, observer=recording.observer, progress=not args.no_progress
+            )
+        except BaseException:
+            recording.abandon()
+            raise
+        recording.finish(result)
+    return result

@@ -1,9 +1,32 @@
-"""`curious render`: a few frames of an episode of the suite as PNG files, to see the scene."""
+"""`curious render`: episodes of the suite rendered headless, as a video or PNG frames.
+
+    curious render --run RUN --module stack --episodes 3 --out stack.mp4
+    curious render --run RUN --module reach push_cube1 --out clip.webp --width 320 --height 240
+    curious render --module push_cube1 --policy random --out frames
+
+With --run, the run's trained agent plays: its newest readable checkpoint (as --resume and
+`curious evaluate` pick it) plays noise-free episodes of each module with goals drawn uniformly
+in the module's goal space (MG-TE: the module's expert; HER: its holistic goal, scored as
+`curious evaluate` scores it). The episodes are those `curious evaluate RUN --episodes N
+--modules ... --seed S` plays and scores with the same N and seed. Without --run, the arm acts
+at random or holds still (--policy).
+
+The format follows the suffix of --out: .mp4 (H.264 through imageio-ffmpeg: pip install
+'curious[video]'), .gif or .webp (looping, through Pillow), or a folder for PNG frames. Videos
+play at the simulation's pace by default (one frame per control step, 25 fps), carry a caption
+per episode (module, goal and, for the trained agent, whether it succeeded) and hold each
+episode's last frame for --hold seconds; PNG frames are the bare pictures. The goal is drawn as a
+translucent sphere of the success radius.
+
+Needs a headless GL backend: run with MUJOCO_GL=egl (Mesa EGL: apt-get install libegl1
+libegl-mesa0) or MUJOCO_GL=osmesa (apt-get install libosmesa6). A backend that cannot load is
+refused in one line before anything is drawn.
+"""
 
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+from typing import Any
 
 from curious.cli import HelpFormatter
 
@@ -12,85 +35,280 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious render`."""
     parser = sub.add_parser(
         "render",
-        help="render frames of an episode to PNG (headless)",
+        help="render episodes headless: a trained run's agent (--run) or a random arm, to "
+        "MP4/GIF/WebP or PNG frames",
         formatter_class=HelpFormatter,
         epilog="variants: {variants}\nmodules: {modules}",
-        description=(
-            "Render frames of one episode of a suite variant to PNG files. Needs a headless "
-            "GL backend: run with MUJOCO_GL=egl (Mesa EGL: apt-get install libegl1 "
-            "libegl-mesa0) or MUJOCO_GL=osmesa (apt-get install libosmesa6). A backend that "
-            "cannot load is refused in one line before anything is drawn."
-        ),
+        description=__doc__,
     )
-    parser.add_argument("--variant", default="default", help="suite variant (default: default)")
     parser.add_argument(
-        "--module", default="push_cube1", help="module to practise (default push_cube1)"
+        "--run",
+        metavar="RUN",
+        help="run folder whose trained agent plays (its newest checkpoint); without it the arm "
+        "acts as --policy says",
+    )
+    parser.add_argument(
+        "--module",
+        nargs="+",
+        metavar="MODULE",
+        help="modules to play, one after the other (default: every module of the run with "
+        "--run, else push_cube1)",
+    )
+    parser.add_argument(
+        "--episodes", type=int, default=1, help="episodes per module (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--variant", help="suite variant (default: the run's with --run, else default)"
     )
     parser.add_argument(
         "--goal",
         type=float,
         nargs=3,
         metavar=("G0", "G1", "G2"),
-        help="goal g in [-1, 1]^3 (default: drawn uniformly)",
+        help="goal g in [-1, 1]^3 (random/still policies; default: drawn uniformly)",
     )
-    parser.add_argument("--seed", type=int, default=0, help="seed of the episode (default 0)")
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the episodes: with --run, the goals and copies of `curious evaluate "
+        "--seed` (default: %(default)s)",
+    )
     parser.add_argument(
         "--policy",
         choices=("random", "still"),
-        default="random",
-        help="actions: uniform random, or still (the arm holds its pose) (default random)",
+        help="without --run: uniform random actions, or still (the arm holds its pose) "
+        "(default: random)",
     )
     parser.add_argument(
-        "--steps", type=int, default=50, help="control steps, at most 50 (default 50)"
+        "--steps",
+        type=int,
+        help="random/still policies: control steps, at most 50 (default: 50)",
     )
     parser.add_argument(
-        "--every", type=int, default=10, help="keep one frame every N steps (default 10)"
+        "--every",
+        type=int,
+        help="keep one frame every N control steps (default: 1 for a video, 10 for PNG frames)",
     )
     parser.add_argument(
-        "--camera", default="front", choices=("front", "top"), help="(default front)"
+        "--camera",
+        default="front",
+        choices=("front", "top", "close"),
+        help="the scene's front or top camera, or close: the reachable workspace, for small "
+        "frames (default: %(default)s)",
     )
-    parser.add_argument("--width", type=int, default=640, help="pixels (default 640)")
-    parser.add_argument("--height", type=int, default=480, help="pixels (default 480)")
-    parser.add_argument("--out", default="frames", help="output folder (default frames)")
+    parser.add_argument("--width", type=int, default=640, help="pixels (default: %(default)s)")
+    parser.add_argument("--height", type=int, default=480, help="pixels (default: %(default)s)")
+    parser.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="video playback speed against the simulation's time (default: %(default)s, real "
+        "time: 1 / (control timestep x every) frames per second)",
+    )
+    parser.add_argument("--fps", type=float, help="video frames per second (overrides --speed)")
+    parser.add_argument(
+        "--hold",
+        type=float,
+        default=1.0,
+        help="video: seconds each episode's last frame stays on screen (default: %(default)s)",
+    )
+    parser.add_argument("--no-caption", action="store_true", help="video: no caption")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--out",
+        default="frames",
+        help="a .mp4, .gif or .webp file, or a folder for PNG frames (default: %(default)s)",
+    )
     parser.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Render the episode and print where the frames went."""
-    import numpy as np
-
+def _check(args: argparse.Namespace) -> str:
+    """Refuses bad arguments before anything loads; returns the output format."""
     from curious.config import MAX_SEED
+    from curious.video import check_writer, output_kind
 
-    if not args.out.strip():
-        raise ValueError("--out is empty: name the folder for the frames")
+    kind = output_kind(args.out)
+    check_writer(kind, args.width, args.height)
     if not 0 <= args.seed <= MAX_SEED:
         raise ValueError(f"--seed must be from 0 to {MAX_SEED:,}, got {args.seed}")
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
+    if args.every is not None and args.every < 1:
+        raise ValueError(f"--every must be at least 1, got {args.every}")
+    if args.speed <= 0 or (args.fps is not None and args.fps <= 0):
+        raise ValueError("--speed and --fps must be positive")
+    if args.hold < 0:
+        raise ValueError(f"--hold must be >= 0 seconds, got {args.hold}")
+    if args.run is not None:
+        for name, given in (("--policy", args.policy), ("--goal", args.goal)):
+            if given is not None:
+                raise ValueError(
+                    f"{name} is for the random and still arm: with --run the trained agent "
+                    "plays, with goals drawn uniformly (choose them with --seed)"
+                )
+        if args.steps is not None:
+            raise ValueError("--steps is for the random and still arm: with --run episodes run "
+                             "their full length")  # fmt: skip
+    return kind
+
+
+def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tuple[int, float, int]:
+    """(every, fps, hold frames) of the output."""
+    from curious.video import real_time_fps
+
+    every = args.every if args.every is not None else (10 if kind == "png" else 1)
+    fps = args.fps if args.fps is not None else real_time_fps(control_timestep, every, args.speed)
+    hold = 0 if kind == "png" else round(args.hold * fps)
+    return every, fps, hold
+
+
+def _bar(total: int, args: argparse.Namespace, desc: str, unit: str = "frame") -> Any:
+    """A progress bar (none with --no-progress)."""
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, unit=unit, disable=args.no_progress, dynamic_ncols=True, desc=desc)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Render the episodes and print where they went."""
+    kind = _check(args)
+    if args.run is not None:
+        return _render_run(args, kind)
+    return _render_policy(args, kind)
+
+
+def _render_run(args: argparse.Namespace, kind: str) -> int:
+    """The run's trained agent, through `curious evaluate`'s episodes."""
+    from curious.analysis.palette import module_label
+    from curious.evaluation import open_run
+    from curious.video import GREEN, RED, WHITE, EpisodeFilm, goal_text, open_writer
+
+    with open_run(args.run, args.episodes, args.variant, args.seed, processes=1) as session:
+        modules = session.modules(args.module)
+        names = session.spec.module_names
+        every, fps, hold = _timing(args, kind, session.envs.reference.dm_env.control_timestep())
+        total = len(modules) * args.episodes
+
+        def caption(episode: int, module: int, raw: Any, success: bool):
+            name = names[module]
+            head = f"{module_label(name)} | {goal_text(raw)}"
+            where = f"episode {episode % args.episodes + 1}/{args.episodes}"
+            verdict = "success" if success else "failure"
+            tail = f"{verdict} | {where} | agent at training episode {session.episode:,}"
+            return [(head, WHITE), (tail, GREEN if success else RED)]
+
+        def prefix(episode: int, module: int) -> str:
+            return f"{session.variant}_{names[module]}_ep{episode % args.episodes}"
+
+        writer = open_writer(kind, args.out, fps)
+        film = EpisodeFilm(
+            writer,
+            session.spec.episode_length,
+            camera=args.camera,
+            width=args.width,
+            height=args.height,
+            every=every,
+            hold=hold,
+            caption=None if args.no_caption or kind == "png" else caption,
+            prefix=prefix,
+        )
+        film.bar = _bar(total * (film.frames_per_episode - hold), args, f"render {args.run}")
+        try:
+            result = session.evaluate(args.episodes, modules, observer=film)
+            writer.close()
+        except BaseException:
+            writer.abort()
+            raise
+        finally:
+            film.close()
+            film.bar.close()
+    scores = ", ".join(
+        f"{r.module} {round(r.success * r.episodes)}/{r.episodes}" for r in result.modules
+    )
+    print(
+        f"wrote {writer.frames} frames to {args.out} ({_length(kind, writer.frames, fps)}): "
+        f"{result.condition} at episode {result.episode:,} ({result.checkpoint}); success: "
+        f"{scores}"
+    )
+    return 0
+
+
+def _length(kind: str, frames: int, fps: float) -> str:
+    return "PNG frames" if kind == "png" else f"{fps:g} fps, {frames / fps:.1f} s"
+
+
+def _render_policy(args: argparse.Namespace, kind: str) -> int:
+    """The random or still arm, one episode after another."""
+    import numpy as np
 
     import suite
-    from suite.render import check_gl_backend, render_episode, save_frames
+    from curious.analysis.palette import module_label
+    from curious.video import burn_caption, open_writer
+    from suite.render import check_gl_backend, render_episode
 
     check_gl_backend()
-    env = suite.load(args.variant, seed=args.seed)
-    env.task.set_next_episode(module=args.module, goal=args.goal)
+    variant = args.variant or "default"
+    modules = args.module or ["push_cube1"]
+    env = suite.load(variant, seed=args.seed)
+    known = list(env.task.module_names)
+    unknown = [m for m in modules if m not in known]
+    if unknown:
+        raise ValueError(
+            f"unknown module {', '.join(unknown)}; variant {variant!r} has {', '.join(known)}"
+        )
+    steps = args.steps if args.steps is not None else suite.layout.EPISODE_STEPS
+    every, fps, hold = _timing(args, kind, env.control_timestep())
+    policy_name = args.policy or "random"
     rng = np.random.default_rng(args.seed)
-    if args.policy == "random":
 
-        def policy(_obs):
-            return rng.uniform(-1.0, 1.0, size=4)
+    def policy(_obs):
+        return rng.uniform(-1.0, 1.0, size=4) if policy_name == "random" else np.zeros(4)
+
+    writer = open_writer(kind, args.out, fps)
+    bar = _bar(len(modules) * args.episodes, args, f"render {policy_name}", unit="ep")
+    single = len(modules) == 1 and args.episodes == 1
+    try:
+        for name in modules:
+            for j in range(args.episodes):
+                env.task.set_next_episode(module=name, goal=args.goal)
+                frames = render_episode(
+                    env,
+                    policy,
+                    steps=steps,
+                    every=every,
+                    camera=args.camera,
+                    height=args.height,
+                    width=args.width,
+                )
+                if kind == "png":
+                    writer.start(f"{variant}_{name}" if single else f"{variant}_{name}_ep{j}")
+                else:
+                    raw = env.task.goals[env.task.active_module]
+                    lines = _policy_caption(module_label(name), raw, policy_name, j, args.episodes)
+                    lines = [] if args.no_caption else lines
+                    frames = [burn_caption(f, lines) for f in frames]
+                    frames += [frames[-1]] * hold
+                for frame in frames:
+                    writer.add(frame)
+                bar.update(1)
+        writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    finally:
+        bar.close()
+    if kind == "png":
+        paths = writer.written
+        print(f"wrote {len(paths)} frames to {args.out}/ ({paths[0].name} .. {paths[-1].name})")
     else:
-
-        def policy(_obs):
-            return np.zeros(4)
-
-    frames = render_episode(
-        env,
-        policy,
-        steps=args.steps,
-        every=args.every,
-        camera=args.camera,
-        height=args.height,
-        width=args.width,
-    )
-    paths = save_frames(frames, Path(args.out), prefix=f"{args.variant}_{args.module}")
-    print(f"wrote {len(paths)} frames to {args.out}/ ({paths[0].name} .. {paths[-1].name})")
+        print(f"wrote {writer.frames} frames to {args.out} ({_length(kind, writer.frames, fps)})")
     return 0
+
+
+def _policy_caption(label: str, raw: Any, policy: str, j: int, episodes: int) -> Any:
+    """The caption of an episode of the random or still arm."""
+    from curious.video import WHITE, goal_text
+
+    where = f"episode {j + 1}/{episodes}"
+    return [(f"{label} | {goal_text(raw)}", WHITE), (f"{policy} arm | {where}", WHITE)]
