@@ -24,7 +24,7 @@ import sys
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious evaluate`."""
-    from curious.cli import HelpFormatter
+    from curious.commands import HelpFormatter
 
     parser = sub.add_parser(
         "evaluate",

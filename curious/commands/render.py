@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from curious.cli import HelpFormatter
+from curious.commands import HelpFormatter
 
 
 def register(sub: argparse._SubParsersAction) -> None:
