@@ -240,9 +240,9 @@ class WorkspaceUpdate:
     written out through `MLPWorkspace` buffers (one set per batch size).
 
     It is given the networks it reads and steps, their optimisers, the settings of the update
-    and the generator of TD3's target noise; it keeps nothing else. The networks' parameters must
-    be laid out by `fold_parameters`. Which steps run is the caller's: `update` steps the actor
-    only when told to (TD3's delay), and keeps no count.
+    and the generator of TD3's target noise; besides its buffers it keeps no state. The networks'
+    parameters must be laid out by `fold_parameters`. Which steps run is the caller's: `update`
+    steps the actor only when told to (TD3's delay), and keeps no count.
     """
 
     def __init__(
