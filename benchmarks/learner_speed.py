@@ -216,11 +216,11 @@ def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
     probs = np.full(TASKS, 1 / TASKS)
 
     def full_step() -> None:
-        agent.update(0, replay.sample(args.batch, rng, env, probs, 0.8))
+        agent.update(0, replay.sample(args.batch, rng, env, probs, config.her_p))
 
     tic = time.perf_counter()
     for _ in range(50):
-        replay.sample(args.batch, rng, env, probs, 0.8)
+        replay.sample(args.batch, rng, env, probs, config.her_p)
     sample_ms = (time.perf_counter() - tic) / 50 * 1e3
     steps = {"ours": lambda: learner.update(x, a, r, x2), "ours_with_replay": full_step}
     for name, other in backends.items():

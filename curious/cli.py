@@ -2,7 +2,8 @@
 
 Each sub-command module exposes `register(subparsers)`, which adds its parser and sets
 `func` on it; heavy imports (torch, MuJoCo, Dagster, Ray) happen inside the command, so that
-`curious --help` answers at once.
+`curious --help` answers at once. The dependency runs one way: this module loads the
+sub-commands; they import nothing from it (what they share is in `curious.commands`).
 """
 
 from __future__ import annotations
@@ -12,7 +13,6 @@ import importlib
 import importlib.metadata
 import os
 import sys
-from collections.abc import Callable
 
 COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.train",
@@ -23,53 +23,6 @@ COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.progress",
     "curious.commands.evaluate",
 )
-
-
-def _suite_variants() -> str:
-    import suite
-
-    return ", ".join(suite.ALL_VARIANTS)
-
-
-def _suite_modules() -> str:
-    import suite
-
-    names: dict[str, None] = {}
-    for variant in suite.ALL_VARIANTS:
-        names.update(dict.fromkeys(suite.load(variant).task.module_names))
-    return ", ".join(names)
-
-
-def _rollout_every() -> str:
-    from curious.recording import RecorderSettings
-
-    return str(RecorderSettings().rollout_every)
-
-
-HELP_FIELDS: dict[str, Callable[[], str]] = {
-    "variants": _suite_variants,
-    "modules": _suite_modules,
-    "rollout_every": _rollout_every,
-}
-"""Values that help texts name as `{field}`: filled in only when a help text is printed, so
-that `curious` starts without importing MuJoCo or Rerun."""
-
-
-class HelpFormatter(argparse.RawDescriptionHelpFormatter):
-    """Shows defaults, and fills `{variants}`, `{modules}` and `{rollout_every}` in help texts
-    (the suite's registered names, the recorder's default) when the help is printed."""
-
-    def _fill(self, text: str) -> str:
-        for field, value in HELP_FIELDS.items():
-            if "{" + field + "}" in text:
-                text = text.replace("{" + field + "}", value())
-        return text
-
-    def add_text(self, text: str | None) -> None:
-        super().add_text(self._fill(text) if text else text)
-
-    def _expand_help(self, action: argparse.Action) -> str:
-        return self._fill(super()._expand_help(action))
 
 
 def version() -> str:

@@ -138,7 +138,7 @@ class Condition:
     def __init__(
         self,
         spec: EnvSpec,
-        lp_eps: float = 0.4,
+        lp_eps: float,
         eval_modules: str = "uniform",
         eval_every: int = 10,
     ) -> None:
@@ -326,7 +326,7 @@ class HER(Condition):
     def __init__(
         self,
         spec: EnvSpec,
-        lp_eps: float = 0.4,
+        lp_eps: float,
         eval_modules: str = "uniform",
         eval_every: int = 10,
     ) -> None:

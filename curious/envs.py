@@ -88,14 +88,11 @@ class EnvSpec:
         return cols
 
     def module_index(self, module: int | str) -> int:
-        """Index of a module given by index or name (clear error otherwise)."""
-        if isinstance(module, str):
-            if module not in self.module_names:
-                raise KeyError(f"unknown module {module!r}; modules: {self.module_names}")
-            return self.module_names.index(module)
-        if not 0 <= int(module) < self.n_modules:
-            raise IndexError(f"module index {module} out of range 0..{self.n_modules - 1}")
-        return int(module)
+        """Index of a module given by index or name: the suite's rule (`suite.module_index`),
+        a ValueError listing the modules otherwise."""
+        import suite  # imported here: MuJoCo is only needed when the real suite is used
+
+        return suite.module_index(self.module_names, module)
 
 
 @runtime_checkable

@@ -1,19 +1,28 @@
 """DDPG (the authors') and TD3 (an option) on E-UVFA inputs: one actor-critic and its update.
 
-The update follows the authors' settings (DESIGN §3): Adam 1e-3 for actor and critic, targets
-y = r + gamma * Q'(x', pi'(x')) clipped to [-1/(1-gamma), 0] (rewards are -1 or 0 and episodes
-never terminate, so there is no done mask), actor loss -Q(x, pi(x)) + action_l2 * mean(pi(x)^2),
-target networks moved by Polyak averaging once per cycle (`update_targets`).
+The update, with the authors' settings (DESIGN §3), on a minibatch (x, a, r, x'):
+
+* TD target: y = r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0] (rewards are -1 or 0
+  and episodes never terminate, so there is no done mask) (`td_target`);
+* critic loss: mean (Q(x, a) - y)^2 (`critic_loss`);
+* actor loss: -mean Q(x, pi(x)) + action_l2 * mean pi(x)^2, through the critic held fixed
+  (`actor_loss`);
+* Adam 1e-3 for actor and critic; DDPG takes both gradients from the current networks, then
+  steps both, as the authors' baselines code did;
+* targets: theta' <- polyak * theta' + (1 - polyak) * theta, once per cycle (`update_targets`).
 
 TD3 (Fujimoto et al. 2018) changes three things: two critics and the minimum of their targets,
 clipped Gaussian smoothing noise on the target action, and an actor step every
-`td3_policy_delay` critic steps. The target schedule stays the cycle's.
+`td3_policy_delay` critic steps, through the stepped critics. The target schedule stays the
+cycle's.
 
-`Learner.update` is written with autograd and is the reference. `Config.learner_backend` picks
-how it runs: `autograd` (the default), `compiled` (each step, losses, backward and Adam, through
-`torch.compile`; on CUDA in `reduce-overhead` mode, CUDA graphs with a capturable Adam) or
-`workspace` (both passes written out into preallocated buffers, `curious.mlp_workspace`; the
-fastest on a CPU, tested against the reference). docs/benchmarks.md has the speed of each.
+`Learner.update` is the one place that says which steps an update takes; the steps themselves
+run on one of the backends `Config.learner_backend` picks. `autograd` (the default) is the
+reference, written with autograd below; `compiled` runs the same functions through
+`torch.compile` (on CUDA in `reduce-overhead` mode: CUDA graphs with a capturable Adam);
+`workspace` is `curious.mlp_workspace.WorkspaceUpdate`, the same update with both passes written
+out into preallocated buffers, the fastest on a CPU, which is handed the networks and optimisers
+and is tested against the reference. docs/benchmarks.md has the speed of each.
 
 Inputs arrive normalised (`curious.inputs.InputEncoder`); the learner only does arithmetic on
 tensors of its device.
@@ -22,6 +31,7 @@ tensors of its device.
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from typing import Any
 
 import torch
@@ -31,6 +41,10 @@ from torch.func import functional_call
 from curious.config import Config
 from curious.mlp_workspace import WorkspaceUpdate, fold_parameters
 from curious.networks import Actor, Critic
+
+StepLosses = tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]
+"""What one backend's step returns, detached: the critic loss, the actor loss (None where the
+actor was not stepped) and the mean TD target."""
 
 
 def flatten_parameters(module: nn.Module, grads: bool) -> torch.Tensor:
@@ -98,7 +112,19 @@ class Learner:
         self.n_updates = 0
         self.input_dim = input_dim
         self._last_actor_loss = torch.zeros((), device=self.device)
-        self._workspace = WorkspaceUpdate(self) if config.learner_backend == "workspace" else None
+        # the backend's step: (x, a, r, x', step_actor) -> StepLosses
+        self._backend: Callable[..., StepLosses] = self._autograd_step
+        if config.learner_backend == "workspace":
+            self._backend = WorkspaceUpdate(
+                actor=self.actor,
+                critics=self.critics,
+                actor_target=self.actor_target,
+                critics_target=self.critics_target,
+                actor_opt=self.actor_opt,
+                critic_opt=self.critic_opt,
+                config=config,
+                generator=self.generator,
+            ).update
         steps = (self._ddpg_step, self._critic_step, self._actor_step)
         if compiled:  # losses, backward and Adam in one compiled function each
             mode = "reduce-overhead" if graphs else None
@@ -147,28 +173,40 @@ class Learner:
     ) -> dict[str, torch.Tensor]:
         """One gradient step on a minibatch; returns detached losses (no device sync).
 
-        DDPG takes both gradients from the current networks, then steps both (as the authors'
-        baselines code did); TD3 steps the critics first and the actor, every
-        `td3_policy_delay` steps, through the updated critic.
+        DDPG steps the critic and the actor every time; TD3 steps the critics every time and the
+        actor every `td3_policy_delay`-th time. The actor loss reported is that of the actor's
+        last step.
         """
-        if self._workspace is not None:
-            return self._workspace.update(x, action, reward, x_next)
         self.n_updates += 1
-        ddpg_step, critic_step, actor_step = self._steps
-        if self._graphs:  # a new replay of the captured graphs begins
-            torch.compiler.cudagraph_mark_step_begin()
-        if not self.td3:
-            critic_loss, actor_loss, q_target = self._kept(ddpg_step(x, action, reward, x_next))
+        step_actor = not self.td3 or self.n_updates % self.config.td3_policy_delay == 0
+        critic_loss, actor_loss, q_target = self._backend(x, action, reward, x_next, step_actor)
+        if actor_loss is not None:
             self._last_actor_loss = actor_loss
-        else:
-            critic_loss, q_target = self._kept(critic_step(x, action, reward, x_next))
-            if self.n_updates % self.config.td3_policy_delay == 0:
-                (self._last_actor_loss,) = self._kept((actor_step(x),))
         return {
             "critic_loss": critic_loss,
             "actor_loss": self._last_actor_loss,
             "q_target_mean": q_target,
         }
+
+    def _autograd_step(
+        self,
+        x: torch.Tensor,
+        action: torch.Tensor,
+        reward: torch.Tensor,
+        x_next: torch.Tensor,
+        step_actor: bool,
+    ) -> StepLosses:
+        """The reference backend (and the compiled one): DDPG's step, or TD3's critic step and,
+        when `step_actor`, its actor step through the stepped critics."""
+        ddpg_step, critic_step, actor_step = self._steps
+        if self._graphs:  # a new replay of the captured graphs begins
+            torch.compiler.cudagraph_mark_step_begin()
+        if not self.td3:
+            critic_loss, actor_loss, q_target = self._kept(ddpg_step(x, action, reward, x_next))
+            return critic_loss, actor_loss, q_target
+        critic_loss, q_target = self._kept(critic_step(x, action, reward, x_next))
+        actor_loss = self._kept((actor_step(x),))[0] if step_actor else None
+        return critic_loss, actor_loss, q_target
 
     def _kept(self, outputs: tuple[torch.Tensor, ...]) -> tuple[torch.Tensor, ...]:
         """A step's outputs, copied out of the CUDA graph's buffers (its next replay

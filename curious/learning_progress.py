@@ -22,8 +22,9 @@ MIN_RESULTS_FOR_LP = 3
 """A module's LP is 0 until it has this many evaluation results (the authors' queue: size > 2)."""
 
 
-def lp_probabilities(lp: np.ndarray, eps: float = 0.4) -> np.ndarray:
-    """p_LP from absolute learning progress: eps-uniform mixed with LP-proportional."""
+def lp_probabilities(lp: np.ndarray, eps: float) -> np.ndarray:
+    """p_LP from absolute learning progress: eps-uniform mixed with LP-proportional (eps is
+    `Config.lp_eps`)."""
     lp = np.asarray(lp, dtype=np.float64)
     if np.any(lp < 0):
         raise ValueError("absolute learning progress cannot be negative")
@@ -81,8 +82,8 @@ class CompetenceTracker:
         """(N,) absolute learning progress of every module."""
         return self._lp.copy()
 
-    def p_lp(self, eps: float = 0.4) -> np.ndarray:
-        """(N,) module selection probabilities."""
+    def p_lp(self, eps: float) -> np.ndarray:
+        """(N,) module selection probabilities (eps is `Config.lp_eps`)."""
         return lp_probabilities(self._lp, eps)
 
     def state_dict(self) -> dict[str, np.ndarray]:

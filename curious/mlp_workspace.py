@@ -1,7 +1,9 @@
-"""The learner's update with explicit forward and backward passes into preallocated buffers.
+"""The DDPG / TD3 update with explicit forward and backward passes into preallocated buffers.
 
 `Config.learner_backend = "workspace"`: the fastest update on a CPU, and an option beside the
-autograd reference (`curious.learner.Learner.update`), which a test compares it with.
+autograd reference (`curious.learner.Learner.update`), which a test compares it with. The
+`Learner` picks this backend and hands `WorkspaceUpdate` its networks, optimisers and settings;
+this module knows nothing of the `Learner` (the dependency runs one way).
 
 The DDPG update is a dozen small matrix products per network; on a CPU, autograd's bookkeeping
 and the fresh tensors it allocates for every activation and gradient cost a good part of what
@@ -22,13 +24,13 @@ An MLP here is what `curious.networks.mlp` builds: Linear, ReLU, ..., Linear.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
 
 import torch
 from torch import nn
 
-if TYPE_CHECKING:
-    from curious.learner import Learner
+from curious.config import Config
+from curious.networks import Actor, Critic
 
 _relu_backward = torch.ops.aten.threshold_backward.grad_input
 
@@ -216,91 +218,126 @@ def _adam_step(optimizer: torch.optim.Adam) -> None:
 class _Buffers:
     """Buffers of one batch size: a workspace per network (each holds its own input buffer)."""
 
-    def __init__(self, learner: Learner, batch: int) -> None:
-        self.actor = MLPWorkspace(learner.actor.net, batch)
-        self.critics = [MLPWorkspace(c.net, batch) for c in learner.critics]
-        self.actor_target = MLPWorkspace(learner.actor_target.net, batch, with_grads=False)
-        self.critics_target = [
-            MLPWorkspace(c.net, batch, with_grads=False) for c in learner.critics_target
-        ]
+    def __init__(
+        self,
+        actor: Actor,
+        critics: Sequence[Critic],
+        actor_target: Actor,
+        critics_target: Sequence[Critic],
+        batch: int,
+    ) -> None:
+        self.actor = MLPWorkspace(actor.net, batch)
+        self.critics = [MLPWorkspace(c.net, batch) for c in critics]
+        self.actor_target = MLPWorkspace(actor_target.net, batch, with_grads=False)
+        self.critics_target = [MLPWorkspace(c.net, batch, with_grads=False) for c in critics_target]
         # d(-mean q)/dq, the actor loss's gradient at the critic's output
-        self.minus_mean = torch.full((batch, 1), -1.0 / batch, device=learner.device)
+        device = self.actor.blocks[0].device
+        self.minus_mean = torch.full((batch, 1), -1.0 / batch, device=device)
 
 
 class WorkspaceUpdate:
-    """`Learner.update` and `Learner.td_target` on the learner's own networks and optimisers,
-    through `MLPWorkspace` buffers (one set per batch size)."""
+    """The DDPG / TD3 update of `curious.learner` (its losses, gradients and order of steps),
+    written out through `MLPWorkspace` buffers (one set per batch size).
 
-    def __init__(self, learner: Learner) -> None:
-        self.learner = learner
+    It is given the networks it reads and steps, their optimisers, the settings of the update
+    and the generator of TD3's target noise; besides its buffers it keeps no state. The networks'
+    parameters must be laid out by `fold_parameters`. Which steps run is the caller's: `update`
+    steps the actor only when told to (TD3's delay), and keeps no count.
+    """
+
+    def __init__(
+        self,
+        *,
+        actor: Actor,
+        critics: Sequence[Critic],
+        actor_target: Actor,
+        critics_target: Sequence[Critic],
+        actor_opt: torch.optim.Adam,
+        critic_opt: torch.optim.Adam,
+        config: Config,
+        generator: torch.Generator,
+    ) -> None:
+        self.actor, self.critics = actor, list(critics)
+        self.actor_target, self.critics_target = actor_target, list(critics_target)
+        self.actor_opt, self.critic_opt = actor_opt, critic_opt
+        self.config = config
+        self.generator = generator
+        self.td3 = config.algorithm == "td3"
+        self.clip_return = 1.0 / (1.0 - config.gamma)
+        self.input_dim = actor.net[0].in_features
+        self.device = actor.net[0].weight.device
         self._by_batch: dict[int, _Buffers] = {}
 
     def _buffers(self, batch: int) -> _Buffers:
         if batch not in self._by_batch:
-            self._by_batch[batch] = _Buffers(self.learner, batch)
+            nets = (self.actor, self.critics, self.actor_target, self.critics_target)
+            self._by_batch[batch] = _Buffers(*nets, batch)
         return self._by_batch[batch]
 
     @torch.no_grad()
     def td_target(self, reward: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
         """r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0]; TD3 smooths the target
         action and takes the smaller of its two target critics."""
-        lrn = self.learner
-        cfg = lrn.config
+        cfg = self.config
         ws = self._buffers(x_next.shape[0])
         next_action = ws.actor_target.forward(x_next).tanh_()
-        if lrn.td3:
-            noise = torch.randn(next_action.shape, generator=lrn.generator, device=lrn.device)
+        if self.td3:
+            noise = torch.randn(next_action.shape, generator=self.generator, device=self.device)
             noise.mul_(cfg.td3_target_noise).clamp_(-cfg.td3_noise_clip, cfg.td3_noise_clip)
             next_action.add_(noise).clamp_(-1.0, 1.0)
         inputs = ws.critics_target[0].input
-        inputs[:, : lrn.input_dim].copy_(x_next)
-        inputs[:, lrn.input_dim :].copy_(next_action)
+        inputs[:, : self.input_dim].copy_(x_next)
+        inputs[:, self.input_dim :].copy_(next_action)
         q_next = ws.critics_target[0].forward(inputs)[:, 0]
-        if lrn.td3:
+        if self.td3:
             q_next = torch.minimum(q_next, ws.critics_target[1].forward(inputs)[:, 0])
-        return (reward + cfg.gamma * q_next).clamp_(-lrn.clip_return, 0.0)
+        return (reward + cfg.gamma * q_next).clamp_(-self.clip_return, 0.0)
 
     @torch.no_grad()
     def update(
-        self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
-    ) -> dict[str, torch.Tensor]:
-        """`Learner.update`, with both passes written out (`MLPWorkspace`): the same losses,
-        gradients and order of steps."""
-        lrn = self.learner
-        cfg = lrn.config
-        batch, d = x.shape[0], lrn.input_dim
+        self,
+        x: torch.Tensor,
+        action: torch.Tensor,
+        reward: torch.Tensor,
+        x_next: torch.Tensor,
+        step_actor: bool,
+    ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]:
+        """One step on a minibatch: (critic loss, actor loss or None where the actor was not
+        stepped, mean TD target), detached.
+
+        DDPG (the critics stepped after the actor's gradient) and TD3 (the critics stepped
+        first) as the reference, `curious.learner.Learner.update`.
+        """
+        cfg = self.config
+        batch, d = x.shape[0], self.input_dim
         ws = self._buffers(batch)
         target = self.td_target(reward, x_next)
 
         inputs = ws.critics[0].input
         inputs[:, :d].copy_(x)
         inputs[:, d:].copy_(action)
-        critic_loss = torch.zeros((), device=lrn.device)
+        critic_loss = torch.zeros((), device=self.device)
         for critic_ws in ws.critics:
             diff = critic_ws.forward(inputs)[:, 0] - target
             critic_loss += diff.square().mean()
             critic_ws.backward(diff.mul_(2.0 / batch).unsqueeze(1))
-        if lrn.td3:
-            _adam_step(lrn.critic_opt)
+        if self.td3:
+            _adam_step(self.critic_opt)
 
-        lrn.n_updates += 1
-        if not lrn.td3 or lrn.n_updates % cfg.td3_policy_delay == 0:
+        actor_loss = None
+        if step_actor:
             pi = ws.actor.forward(x).tanh_()
             inputs[:, d:].copy_(pi)
             q_pi = ws.critics[0].forward(inputs)
             pi_sq = pi.square()
-            lrn._last_actor_loss = cfg.action_l2 * pi_sq.mean() - q_pi.mean()
+            actor_loss = cfg.action_l2 * pi_sq.mean() - q_pi.mean()
             grad_pi = ws.critics[0].backward(
                 ws.minus_mean, weight_grads=False, input_grad=True, input_columns=slice(d, None)
             )
             grad_pi.add_(pi, alpha=2.0 * cfg.action_l2 / pi.numel())
             grad_pi.mul_(pi_sq.neg_().add_(1.0))  # through tanh: d tanh(z)/dz = 1 - tanh^2
             ws.actor.backward(grad_pi)
-            _adam_step(lrn.actor_opt)
-        if not lrn.td3:
-            _adam_step(lrn.critic_opt)
-        return {
-            "critic_loss": critic_loss,
-            "actor_loss": lrn._last_actor_loss,
-            "q_target_mean": target.mean(),
-        }
+            _adam_step(self.actor_opt)
+        if not self.td3:
+            _adam_step(self.critic_opt)
+        return critic_loss, actor_loss, target.mean()

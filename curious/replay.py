@@ -156,10 +156,11 @@ class EpisodeReplay:
         batch_size: int,
         rng: np.random.Generator,
         env: GoalEnv,
-        module_probs: np.ndarray | None = None,
-        her_p: float = 0.8,
+        module_probs: np.ndarray | None,
+        her_p: float,
     ) -> Transitions:
-        """A relabelled minibatch; `module_probs` (N,) is required unless holistic."""
+        """A relabelled minibatch; `module_probs` (N,) is required unless holistic (None), and
+        `her_p` is `Config.her_p`."""
         if self.size == 0:
             raise RuntimeError("cannot sample from an empty replay")
         if self.goal_space is not None:

@@ -31,7 +31,7 @@ are evaluated through their functions.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -380,6 +380,23 @@ def stack() -> TaskModule:
         goal_follow=((0, 6), (1, 7)),
         goal_anchor=(_GX, _GY, 0.0),
     )
+
+
+def module_index(names: Sequence[str], module: int | str) -> int:
+    """Slot index of a module given by name or index among `names`, the modules in slot order;
+    a ValueError that lists them otherwise (an unknown name, an index out of range, or neither)."""
+    if isinstance(module, str):
+        if module not in names:
+            raise ValueError(f"unknown module {module!r}; known modules: {', '.join(names)}")
+        return list(names).index(module)
+    if isinstance(module, (int, np.integer)) and not isinstance(module, bool):
+        if not 0 <= module < len(names):
+            raise ValueError(
+                f"module index {module} out of range: there are {len(names)} modules "
+                f"({', '.join(names)})"
+            )
+        return int(module)
+    raise ValueError(f"module must be a name or an index, got {module!r}")
 
 
 def standard_modules(n_distractors: int) -> tuple[TaskModule, ...]:

@@ -36,7 +36,7 @@ from suite.distractors import DistractorWalk, start_positions
 from suite.evaluation import ModuleEvaluator
 from suite.features import StateLayout, StateReader
 from suite.fetch import FetchArm
-from suite.modules import TaskModule
+from suite.modules import TaskModule, module_index
 
 N_REACHABLE = 2
 """Reachable cubes of the paper's env (cube 1 manipulated, cube 2 the base): the default."""
@@ -319,20 +319,9 @@ class MultiTaskFetch(composer.Task):
         self._tick += 1
 
     def module_index(self, module: int | str) -> int:
-        """Slot index of a module given by name or index (a clear error for unknown ones)."""
-        names = self.module_names
-        if isinstance(module, str):
-            if module not in names:
-                raise ValueError(f"unknown module {module!r}; known modules: {', '.join(names)}")
-            return names.index(module)
-        if isinstance(module, (int, np.integer)) and not isinstance(module, bool):
-            if not 0 <= module < len(names):
-                raise ValueError(
-                    f"module index {module} out of range: this task has {len(names)} modules "
-                    f"({', '.join(names)})"
-                )
-            return int(module)
-        raise ValueError(f"module must be a name or an index, got {module!r}")
+        """Slot index of a module given by name or index (`suite.modules.module_index`: a
+        ValueError listing the modules for unknown ones)."""
+        return module_index(self.module_names, module)
 
     # -- read-only views --------------------------------------------------------------------------
 

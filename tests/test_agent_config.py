@@ -13,6 +13,24 @@ def test_every_preset_and_condition_resolves(preset, condition):
     assert Config.from_dict(config.to_dict()) == config
 
 
+def test_lp_eps_and_her_p_are_stated_once_in_the_config():
+    """The authors' eps_task 0.4 and replay_k 4 (her_p 0.8) live in `Config` only (pinned by the
+    test below): the replay, the conditions and the LP rule take them from their caller, so a
+    changed value in `Config` cannot be shadowed by a second default that drifted."""
+    import inspect
+
+    from curious.conditions import CONDITION_CLASSES
+    from curious.learning_progress import CompetenceTracker, lp_probabilities
+    from curious.replay import EpisodeReplay
+
+    uses = [(EpisodeReplay.sample, "her_p"), (lp_probabilities, "eps")]
+    uses += [(CompetenceTracker.p_lp, "eps")]
+    uses += [(cls.__init__, "lp_eps") for cls in CONDITION_CLASSES.values()]
+    for function, name in uses:
+        default = inspect.signature(function).parameters[name].default
+        assert default is inspect.Parameter.empty, (function.__qualname__, name, default)
+
+
 def test_paper_preset_is_the_authors_protocol():
     """flowersteam/curious, baselines/her/experiment/config.py (MULTI_TASK_PARAMS) and
     train.py: 19 workers x 2 episodes x 25 cycles, 100 batches of 256 per worker, 3 x 256

@@ -241,6 +241,64 @@ def test_every_backend_gives_the_reference_update(backend, algorithm):
             torch.testing.assert_close(q, p, rtol=1e-4, atol=1e-5)
 
 
+@pytest.mark.parametrize("algorithm", ["ddpg", "td3"])
+def test_the_workspace_backend_steps_the_networks_and_optimisers_it_is_given(algorithm):
+    """`WorkspaceUpdate` needs no `Learner`: handed networks laid out by `fold_parameters`,
+    their Adam optimisers and the settings, it takes the reference's steps, the actor's only when
+    told to (TD3's delay is the caller's), and reports no actor loss when it did not step it."""
+    from curious.learner import _adam
+    from curious.mlp_workspace import WorkspaceUpdate, fold_parameters
+
+    config = small_config(algorithm=algorithm, td3_policy_delay=2)
+    reference = Learner(10, 4, config, seed=5)
+    nets = {}
+    for name in ("actor", "critics", "actor_target", "critics_target"):
+        nets[name] = copy.deepcopy(getattr(reference, name))
+    actor_flat = fold_parameters(nets["actor"], grads=True)
+    critic_flat = fold_parameters(nets["critics"], grads=True)
+    targets = [fold_parameters(nets[n], grads=False) for n in ("actor_target", "critics_target")]
+    backend = WorkspaceUpdate(
+        **nets,
+        actor_opt=_adam([actor_flat], config.actor_lr),
+        critic_opt=_adam([critic_flat], config.critic_lr),
+        config=config,
+        generator=torch.Generator().manual_seed(6),  # the Learner's: seed + 1
+    )
+    for step in range(1, 6):
+        x, a, r, x2 = batch(seed=step)
+        want = reference.update(x, a, r, x2)
+        step_actor = algorithm == "ddpg" or step % 2 == 0
+        critic_loss, actor_loss, q_target = backend.update(x, a, r, x2, step_actor)
+        torch.testing.assert_close(critic_loss, want["critic_loss"], rtol=1e-4, atol=1e-5)
+        torch.testing.assert_close(q_target, want["q_target_mean"], rtol=1e-4, atol=1e-5)
+        if step_actor:
+            torch.testing.assert_close(actor_loss, want["actor_loss"], rtol=1e-4, atol=1e-5)
+        else:
+            assert actor_loss is None
+        reference.update_targets()
+        with torch.no_grad():
+            for target, online in zip(targets, (actor_flat, critic_flat), strict=True):
+                target.lerp_(online, 1.0 - config.polyak)
+    for name, net in nets.items():
+        mine = getattr(reference, name).parameters()
+        for p, q in zip(mine, net.parameters(), strict=True):
+            torch.testing.assert_close(q, p, rtol=1e-4, atol=1e-5)
+
+
+def test_the_workspace_backend_does_not_depend_on_the_learner():
+    """One-way dependency: `curious.learner` picks and drives the written-out backend; the
+    backend's module imports nothing of the learner (not even for type checking)."""
+    import ast
+    import inspect
+
+    import curious.mlp_workspace
+
+    tree = ast.parse(inspect.getsource(curious.mlp_workspace))
+    imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+    assert "curious.learner" not in imported
+
+
 def test_encode_pair_equals_two_encodes():
     spec = ToyGoalEnv.spec
     encoder = InputEncoder(spec, GoalBox.of(ToyGoalEnv()))

@@ -36,7 +36,7 @@ def test_p_lp_hand_computed():
 
 
 def test_p_lp_uniform_while_no_progress():
-    np.testing.assert_allclose(lp_probabilities(np.zeros(7)), np.full(7, 1 / 7))
+    np.testing.assert_allclose(lp_probabilities(np.zeros(7), 0.4), np.full(7, 1 / 7))
     tracker = CompetenceTracker(n_modules=4, window=300)
     np.testing.assert_allclose(tracker.p_lp(0.4), np.full(4, 0.25))
     # constant results give no progress either
@@ -77,12 +77,12 @@ def test_state_round_trip():
     np.testing.assert_array_equal(a.learning_progress(), b.learning_progress())
     a.add(1, True)
     b.add(1, True)
-    np.testing.assert_array_equal(a.p_lp(), b.p_lp())
+    np.testing.assert_array_equal(a.p_lp(0.4), b.p_lp(0.4))
 
 
 def test_negative_lp_rejected():
     with pytest.raises(ValueError, match="negative"):
-        lp_probabilities(np.array([0.1, -0.2]))
+        lp_probabilities(np.array([0.1, -0.2]), 0.4)
 
 
 def test_lp_needs_three_results_as_the_authors_queue():

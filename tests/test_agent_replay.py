@@ -66,11 +66,12 @@ def test_her_goals_come_only_from_later_steps_of_the_same_episode():
     np.testing.assert_array_equal(batch.action, replay.actions[batch.episode, batch.step])
 
 
-def test_her_probability_is_respected():
+@pytest.mark.parametrize("her_p", [0.8, 0.3])
+def test_her_probability_is_respected(her_p):
     replay, _ = filled_replay()
-    batch = replay.sample(20000, np.random.default_rng(2), ToyGoalEnv(), np.full(3, 1 / 3))
+    batch = replay.sample(20000, np.random.default_rng(2), ToyGoalEnv(), np.full(3, 1 / 3), her_p)
     her = batch.goal_step >= 0
-    assert abs(her.mean() - 0.8) < 0.015
+    assert abs(her.mean() - her_p) < 0.015
 
 
 @pytest.mark.parametrize("probs", [[0.6, 0.3, 0.1], [0.1333, 0.7334, 0.1333], [0, 0, 1]])
@@ -90,7 +91,7 @@ def test_substituted_modules_follow_the_given_probabilities(probs):
 def test_recomputed_rewards_equal_the_envs():
     replay, _ = filled_replay()
     env = ToyGoalEnv()
-    batch = replay.sample(3000, np.random.default_rng(4), env, np.full(3, 1 / 3))
+    batch = replay.sample(3000, np.random.default_rng(4), env, np.full(3, 1 / 3), her_p=0.8)
     nxt = replay.achieved[batch.episode, batch.step + 1]
     expected = [env.reward(m, nxt[i], batch.goals[i, m]) for i, m in enumerate(batch.module)]
     np.testing.assert_array_equal(batch.reward, expected)
@@ -137,12 +138,12 @@ def test_modules_replay_only_episodes_where_their_outcome_moved():
     replay = EpisodeReplay(SPEC, capacity=50, active_only=True)
     replay.store(states, achieved, actions, modules, goals)
     np.testing.assert_array_equal(replay.moved[:20, 1], np.arange(20) % 2 == 1)
-    batch = replay.sample(2000, np.random.default_rng(10), ToyGoalEnv(), [0.5, 0.5, 0])
+    batch = replay.sample(2000, np.random.default_rng(10), ToyGoalEnv(), [0.5, 0.5, 0], 0.8)
     assert np.all(batch.episode[batch.module == 1] % 2 == 1)
     assert set(batch.episode[batch.module == 0] % 2) == {0, 1}
     everything = EpisodeReplay(SPEC, capacity=50, active_only=False)
     everything.store(states, achieved, actions, modules, goals)
-    batch = everything.sample(2000, np.random.default_rng(10), ToyGoalEnv(), [0, 1, 0])
+    batch = everything.sample(2000, np.random.default_rng(10), ToyGoalEnv(), [0, 1, 0], 0.8)
     assert set(batch.episode % 2) == {0, 1}
 
 
@@ -155,7 +156,7 @@ def test_a_module_with_nothing_to_replay_gets_no_share_of_the_minibatch():
     replay = EpisodeReplay(SPEC, capacity=50, active_only=True)
     replay.store(states, achieved, actions, modules, goals)
     np.testing.assert_array_equal(replay.replayable(), [True, False, True])
-    probs = MUVFA(SPEC).replay_probs(None, 0, replay.replayable())
+    probs = MUVFA(SPEC, 0.4).replay_probs(None, 0, replay.replayable())
     batch = replay.sample(3000, np.random.default_rng(3), ToyGoalEnv(), probs, her_p=1.0)
     assert not np.any(batch.module == 1)
     assert np.bincount(batch.module, minlength=3)[[0, 2]].min() > 1300
@@ -221,10 +222,10 @@ def test_a_resumed_run_with_more_episodes_keeps_its_replay_and_grows_it():
 def test_sampling_errors_are_clear():
     replay = EpisodeReplay(SPEC, capacity=5)
     with pytest.raises(RuntimeError, match="empty"):
-        replay.sample(8, np.random.default_rng(0), ToyGoalEnv(), np.full(3, 1 / 3))
+        replay.sample(8, np.random.default_rng(0), ToyGoalEnv(), np.full(3, 1 / 3), her_p=0.8)
     filled, _ = filled_replay()
     with pytest.raises(ValueError, match="module_probs"):
-        filled.sample(8, np.random.default_rng(0), ToyGoalEnv(), None)
+        filled.sample(8, np.random.default_rng(0), ToyGoalEnv(), None, her_p=0.8)
 
 
 @pytest.fixture(scope="module")

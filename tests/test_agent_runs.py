@@ -285,6 +285,22 @@ def test_every_command_and_benchmark_prints_its_help(capsys):
         assert capsys.readouterr().out.startswith("usage: curious"), command
 
 
+def test_the_sub_commands_import_nothing_from_the_command_line_that_loads_them():
+    """One-way dependency: `curious.cli` (the `curious` console script) loads the sub-command
+    modules; none of them imports `curious.cli` back (what they share is `curious.commands`)."""
+    import ast
+    import importlib
+    import inspect
+
+    from curious.cli import COMMAND_MODULES
+
+    for name in ("curious.commands", *COMMAND_MODULES):
+        tree = ast.parse(inspect.getsource(importlib.import_module(name)))
+        imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+        imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        assert "curious.cli" not in imported, name
+
+
 def test_without_a_display_the_commands_that_do_not_render_say_nothing_of_gl():
     """dm_control tries GLFW when MUJOCO_GL is unset and warns that DISPLAY is missing."""
     import os

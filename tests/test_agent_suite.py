@@ -51,7 +51,7 @@ def test_recomputed_suite_rewards_match_reported_success(env):
     # the replay's batched rewards equal the suite's reward row by row
     replay = EpisodeReplay(spec, capacity=n)
     replay.store(states, achieved, actions, np.arange(n), goals)
-    batch = replay.sample(700, rng, env, np.full(n, 1 / n))
+    batch = replay.sample(700, rng, env, np.full(n, 1 / n), her_p=0.8)
     nxt = achieved[batch.episode, batch.step + 1]
     expected = [env.reward(m, nxt[i], batch.goals[i, m]) for i, m in enumerate(batch.module)]
     np.testing.assert_array_equal(batch.reward, np.asarray(expected).reshape(-1))
@@ -145,7 +145,7 @@ def test_her_places_its_goals_above_cube2_where_cube2_is(env):
     from curious.rollouts import EpisodeData
 
     spec = env.spec
-    her = HER(spec)
+    her = HER(spec, 0.4)
     space = her.goal_space
     names = spec.module_names
     above, stack = names.index("cube1_above_cube2"), names.index("stack")

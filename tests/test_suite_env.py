@@ -211,6 +211,24 @@ def test_bad_input_raises_a_clear_error_and_the_env_stays_usable(kind, value, me
     assert env.task.active_module == 3
 
 
+@pytest.mark.parametrize(
+    ("module", "message"),
+    [(value, message) for kind, value, message in BAD_INPUTS if kind == "module"],
+)
+def test_the_agent_names_modules_by_the_suites_rule(module, message):
+    """The agent's `EnvSpec.module_index` is the suite's: the same index for a name, and the
+    same one-line ValueError (the command line's kind) for what names no module."""
+    from curious.envs import EnvSpec
+
+    task = suite.load("default", seed=0).task
+    names = task.module_names
+    spec = EnvSpec(names, (True,) * len(names), 49, 4, 3, (slice(0, 3),) * len(names), 50)
+    assert [spec.module_index(n) for n in names] == [task.module_index(n) for n in names]
+    assert spec.module_index(np.int64(2)) == 2
+    with pytest.raises(ValueError, match=message):
+        spec.module_index(module)
+
+
 def test_out_of_range_actions_are_clipped():
     a, b = suite.load("default", seed=1), suite.load("default", seed=1)
     a.reset(), b.reset()

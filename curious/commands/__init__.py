@@ -1,8 +1,10 @@
-"""Sub-commands of the `curious` command line, one module each."""
+"""Sub-commands of the `curious` command line, one module each, and what they share: the help
+formatter and the `--set` option. `curious.cli` loads them; they import nothing from it."""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 
 def add_set_option(parser: argparse.ArgumentParser, help_text: str) -> None:
@@ -10,3 +12,50 @@ def add_set_option(parser: argparse.ArgumentParser, help_text: str) -> None:
     parser.add_argument(
         "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=help_text
     )
+
+
+def _suite_variants() -> str:
+    import suite
+
+    return ", ".join(suite.ALL_VARIANTS)
+
+
+def _suite_modules() -> str:
+    import suite
+
+    names: dict[str, None] = {}
+    for variant in suite.ALL_VARIANTS:
+        names.update(dict.fromkeys(suite.load(variant).task.module_names))
+    return ", ".join(names)
+
+
+def _rollout_every() -> str:
+    from curious.recording import RecorderSettings
+
+    return str(RecorderSettings().rollout_every)
+
+
+HELP_FIELDS: dict[str, Callable[[], str]] = {
+    "variants": _suite_variants,
+    "modules": _suite_modules,
+    "rollout_every": _rollout_every,
+}
+"""Values that help texts name as `{field}`: filled in only when a help text is printed, so
+that `curious` starts without importing MuJoCo or Rerun."""
+
+
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Shows defaults, and fills `{variants}`, `{modules}` and `{rollout_every}` in help texts
+    (the suite's registered names, the recorder's default) when the help is printed."""
+
+    def _fill(self, text: str) -> str:
+        for field, value in HELP_FIELDS.items():
+            if "{" + field + "}" in text:
+                text = text.replace("{" + field + "}", value())
+        return text
+
+    def add_text(self, text: str | None) -> None:
+        super().add_text(self._fill(text) if text else text)
+
+    def _expand_help(self, action: argparse.Action) -> str:
+        return self._fill(super()._expand_help(action))

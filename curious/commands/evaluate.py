@@ -36,7 +36,7 @@ the help needs no import of Rerun)."""
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious evaluate`."""
-    from curious.cli import HelpFormatter
+    from curious.commands import HelpFormatter
 
     parser = sub.add_parser(
         "evaluate",

@@ -28,7 +28,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from curious.cli import HelpFormatter
+from curious.commands import HelpFormatter
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -18,8 +18,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from curious.cli import HelpFormatter
-from curious.commands import add_set_option
+from curious.commands import HelpFormatter, add_set_option
 from curious.config import CONDITIONS, PRESETS, ConfigError, parse_overrides, resolve
 
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from curious.config import Config
 from curious.learning_progress import CompetenceTracker, lp_probabilities
 from curious.recording.recorder import RecorderSettings, RunRecorder
 from curious.recording.scene import RolloutCapture
@@ -52,7 +53,8 @@ def synthetic_episodes(
     Module i's success probability rises along a logistic curve starting at a module-dependent
     episode (the last modules never rise, like distractors); every tenth episode is an
     evaluation; competence, absolute LP and p_LP come from the agent's own
-    `curious.learning_progress` (last `window` results against the `window` before, eps = 0.4).
+    `curious.learning_progress` (last `window` results against the `window` before, the run's
+    default `lp_eps`).
     """
     rng = np.random.default_rng(seed)
     episodes = np.arange(n_episodes, dtype=np.int64)
@@ -72,7 +74,7 @@ def synthetic_episodes(
         tracker.add(int(modules[e]), bool(success[e]))
         after[0, i] = tracker.competence()
         after[1, i] = tracker.learning_progress()
-        after[2, i] = lp_probabilities(after[1, i])
+        after[2, i] = lp_probabilities(after[1, i], Config.lp_eps)
     competence, lp, p_lp = after[:, np.searchsorted(evals, episodes, side="right")]
     return {
         "episode": episodes,
