@@ -56,9 +56,11 @@ import pandas as pd
 from scipy import stats
 
 from curious.analysis.loading import AnalysisError, _require_identity, _require_tests
+from curious.config import LEARNED_COMPETENCE
 
 __all__ = [
     "ALPHA",
+    "LEARNED_COMPETENCE",
     "achievable_competence",
     "across_seeds",
     "bin_runs",
@@ -80,12 +82,6 @@ PERTURBED_MODULES: dict[str, str] = {"sensor_failure": "push_cube3"}
 """Per suite variant with a sensory failure, the module it perturbs (the env's
 `sensor_failure_module`): cube 3's observed x reads 5 cm too far, in the state and in
 push_cube3's outcome (gym_flowers `MultiTaskFetchArm4-v3`, the authors' perturbation study)."""
-
-LEARNED_COMPETENCE = 0.5
-"""Competence the perturbed module must have just before the failure for a recovery to be
-measured, in runs that do not set their own (`sensor_failure_competence`). Half the evaluations
-succeeding: well above the floor of chance successes of push modules (a goal can lie within
-reach of where the cube already is), so that a fall means something was lost."""
 
 _FLOAT32_SLACK = 1e-6
 """Competences are stored as float32 (0.7 reads 0.69999999): comparisons allow this much."""
