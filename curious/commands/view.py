@@ -12,7 +12,6 @@ on another machine) instead.
 from __future__ import annotations
 
 import argparse
-import os
 import shlex
 import shutil
 import signal
@@ -20,6 +19,8 @@ import socket
 import subprocess
 import sys
 from pathlib import Path
+
+from curious.display import has_display
 
 RECORDING_FILENAME = "recording.rrd"  # the run folder's contract (docs/architecture.md)
 RRD_MAGIC = b"RRF"
@@ -100,13 +101,6 @@ def recording_paths(runs: list[str]) -> list[Path]:
     for path in paths:
         check_recording(path)
     return paths
-
-
-def has_display() -> bool:
-    """False on Linux without X11 or Wayland, where a native viewer cannot open a window."""
-    if not sys.platform.startswith("linux"):
-        return True
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def viewer_command() -> list[str]:
