@@ -315,6 +315,7 @@ PAPER_FAILURE_EPISODE = 250 * 950
 """The authors' onset: the start of epoch 250 (of 316) at 950 episodes an epoch, 237,500
 (their train.py switches the bias on when `epoch == 250` in the perturbation study)."""
 
+
 def _sensor_failure(
     train_preset: str,
     seeds: Sequence[int],
