@@ -53,7 +53,6 @@ _EXPORTS: dict[str, str] = {
         (
             "ALPHA",
             "LEARNED_COMPETENCE",
-            "PERTURBED_MODULES",
             "achievable_competence",
             "across_seeds",
             "bin_runs",
@@ -76,7 +75,6 @@ _EXPORTS: dict[str, str] = {
 __all__ = [
     "ALPHA",
     "LEARNED_COMPETENCE",
-    "PERTURBED_MODULES",
     "AnalysisError",
     "RunInfo",
     "achievable_competence",
@@ -124,7 +122,6 @@ if TYPE_CHECKING:
     from curious.analysis.statistics import (
         ALPHA,
         LEARNED_COMPETENCE,
-        PERTURBED_MODULES,
         achievable_competence,
         across_seeds,
         bin_runs,

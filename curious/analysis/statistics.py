@@ -41,10 +41,10 @@ alternative being that the first condition's mean is greater), significant where
 Recovery after the sensory failure (`recovery`). The failure's onset is read from the data (the
 first episode whose ``sensor_failure`` flag is True; runs logged before that column existed fall
 back to the config's ``sensor_failure_episode``), the module followed is the one the variant's
-failure perturbs (`PERTURBED_MODULES`), and a recovery is measured only where the failure started
-and that module was learned before it: its competence just before the onset at least the run's
-own ``sensor_failure_competence``, else `LEARNED_COMPETENCE`. Other runs get no number, only a
-sentence saying why (never started, or nothing to forget).
+failure perturbs, as the run folder records it (`perturbed_module`), and a recovery is measured
+only where the failure started and that module was learned before it: its competence just before
+the onset at least the run's own ``sensor_failure_competence``, else `LEARNED_COMPETENCE`. Other
+runs get no number, only a sentence saying why (never started, or nothing to forget).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from curious.analysis.loading import AnalysisError, _require_identity, _require_tests
+from curious.analysis.loading import AnalysisError, require_runs, require_tests
 from curious.config import LEARNED_COMPETENCE
 
 __all__ = [
@@ -78,11 +78,6 @@ __all__ = [
 
 ALPHA = 0.01
 
-PERTURBED_MODULES: dict[str, str] = {"sensor_failure": "push_cube3"}
-"""Per suite variant with a sensory failure, the module it perturbs (the env's
-`sensor_failure_module`): cube 3's observed x reads 5 cm too far, in the state and in
-push_cube3's outcome (gym_flowers `MultiTaskFetchArm4-v3`, the authors' perturbation study)."""
-
 _FLOAT32_SLACK = 1e-6
 """Competences are stored as float32 (0.7 reads 0.69999999): comparisons allow this much."""
 
@@ -99,7 +94,7 @@ _RUN_COLUMNS = (
 
 def achievable_competence(df: pd.DataFrame) -> pd.Series:
     """Per row: mean of ``competence/<m>`` over the run's achievable modules (see module doc)."""
-    _require_identity(df)
+    require_runs(df)
     out = np.full(len(df), np.nan)
     for achievable, rows in df.groupby("achievable_modules", observed=True).indices.items():
         modules = [m for m in str(achievable).split(",") if m]
@@ -160,7 +155,7 @@ def bin_runs(
     Returns one row per (run, bin): the run's identity columns, ``bin`` (k), ``episodes`` (the bin
     end, ``(k + 1) * bin_size``) and ``value``.
     """
-    _require_identity(df)
+    require_runs(df)
     data = _values(df, values)
     if bin_size is None:
         bin_size = nice_bin_size(int(df["episode"].max()) + 1)
@@ -296,7 +291,7 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
     that longer runs are not favoured. Returns one row per run: identity columns, ``episodes``
     (``at_episode + 1``) and ``value``.
     """
-    _require_identity(df)
+    require_runs(df)
     last_per_run = df.groupby("run", observed=True)["episode"].max()
     if at_episode is None:
         at_episode = int(last_per_run.min())
@@ -335,7 +330,7 @@ def epoch_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     (test rollouts on achievable modules pooled) and ``value`` (their success rate; NaN where
     ``n_tests`` is 0).
     """
-    _require_tests(tests)
+    require_tests(tests)
     if bin_size is not None and bin_size < 1:
         raise ValueError(f"bin_size must be >= 1, got {bin_size}")
     hit = _on_achievable(tests)
@@ -379,17 +374,23 @@ def final_success(points: pd.DataFrame) -> pd.DataFrame:
 
 
 def perturbed_module(df: pd.DataFrame) -> str:
-    """The module the runs' sensory failure perturbs, from their variant (`PERTURBED_MODULES`)."""
-    variants = sorted(set(df["variant"].astype(str)))
-    unknown = [v for v in variants if v not in PERTURBED_MODULES]
-    if unknown:
+    """The module the runs' sensory failure perturbs, as their run folders record it (the
+    ``perturbed_modules`` column): one module, the same in every run."""
+    require_runs(df)
+    per_run = df.groupby("run", observed=True)[["variant", "perturbed_modules"]].first()
+    none = per_run[per_run["perturbed_modules"].astype(str) == ""]
+    if not none.empty:
+        variants = ", ".join(sorted(set(none["variant"].astype(str))))
         raise AnalysisError(
-            f"variant(s) {', '.join(unknown)} have no known sensory failure (known: "
-            f"{', '.join(f'{v}: {m}' for v, m in PERTURBED_MODULES.items())}): pass module="
+            f"variant(s) {variants} have no sensory failure (run {none.index[0]} records no "
+            "perturbed module): pass module="
         )
-    modules = sorted({PERTURBED_MODULES[v] for v in variants})
-    if len(modules) > 1:
-        raise AnalysisError(f"these runs perturb different modules ({', '.join(modules)})")
+    modules = sorted(set(per_run["perturbed_modules"].astype(str)))
+    if len(modules) > 1 or "," in modules[0]:
+        raise AnalysisError(
+            f"these runs' sensory failures perturb {' / '.join(modules)}, not one module: "
+            "pass module="
+        )
     return modules[0]
 
 
@@ -402,7 +403,7 @@ def failure_onsets(df: pd.DataFrame) -> pd.DataFrame:
     configured, none logged). Returns one row per run, indexed by ``run``: ``onset`` (nullable
     int), ``source`` and ``n_episodes`` (last episode + 1).
     """
-    _require_identity(df)
+    require_runs(df)
     run = df["run"]
     grouped = df.groupby("run", observed=True, sort=True)
     last = grouped["episode"].max()
@@ -587,7 +588,7 @@ def recovery(
     Only ``measured`` runs have numbers; every run has a ``note``, one sentence on its outcome.
     Returns one row per run with `RECOVERY_COLUMNS`.
     """
-    _require_identity(df)
+    require_runs(df)
     _check_recovery_arguments(fraction, pre_window, learned)
     module = module if module is not None else perturbed_module(df)
     column = f"competence/{module}"

@@ -21,8 +21,8 @@ import sys
 from pathlib import Path
 
 from curious.display import has_display
+from curious.run_folder import RunFolder
 
-RECORDING_FILENAME = "recording.rrd"  # the run folder's contract (docs/architecture.md)
 RRD_MAGIC = b"RRF"
 """How every Rerun recording file begins (`RRF2` today, with the format's version after it)."""
 RRD_HEADER_BYTES = 12
@@ -84,10 +84,10 @@ def recording_paths(runs: list[str]) -> list[Path]:
     for run in runs:
         path = Path(run)
         if path.is_dir():
-            rrd = path / RECORDING_FILENAME
+            rrd = RunFolder(path).recording_path
             if not rrd.is_file():
                 raise FileNotFoundError(
-                    f"{path}: no {RECORDING_FILENAME} in this folder. A run folder gets one when "
+                    f"{path}: no {rrd.name} in this folder. A run folder gets one when "
                     "`curious train` runs with recording on; check the path, or that the run "
                     "has started."
                 )

@@ -75,18 +75,17 @@ from curious.recording.scene import (
     log_scene_geometry,
     send_rollout,
 )
+from curious.run_folder import RECORDING_FILE
 
 __all__ = [
     "APPLICATION_ID",
-    "RECORDING_FILENAME",
     "RecorderSettings",
     "RunRecorder",
     "compact_recording",
 ]
 
 APPLICATION_ID = "curious"
-RECORDING_FILENAME = "recording.rrd"
-WORKING_FILENAME = ".recording.rrd.part"
+WORKING_FILENAME = f".{RECORDING_FILE}.part"
 """The file a running recorder writes; `recording.rrd` is its copy at the last checkpoint."""
 DEFAULT_VIEWER_PORT = 9876
 
@@ -233,7 +232,7 @@ class RunRecorder:
         self.settings = settings or RecorderSettings()
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        self.path = self.run_dir / RECORDING_FILENAME
+        self.path = self.run_dir / RECORDING_FILE
         self.working = self.run_dir / WORKING_FILENAME
         self._module_index = {name: i for i, name in enumerate(self.module_names)}
         self._rgb = np.array([module_rgb(n) for n in self.module_names], dtype=np.uint8)
