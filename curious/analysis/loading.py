@@ -20,7 +20,7 @@ ones, comma-joined), ``n_distractors`` (how many modules are not achievable),
 ``perturbed_modules`` (the modules the variant's sensory failure perturbs, comma-joined; empty
 for a variant without one). Where the failure actually started is in the ``sensor_failure``
 column of ``metrics.parquet`` (runs trained before that column existed lack it);
-`curious.analysis.recovery.failure_onsets` reads it.
+`curious.analysis.perturbation.failure_onsets` reads it.
 String columns (these and ``module``) are categorical.
 Runs with different module sets load into one table
 (their per-module columns are NaN where a run has no such module); the statistics and figures
