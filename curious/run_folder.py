@@ -329,7 +329,7 @@ def _parse_info(data: dict[str, Any], folder: Path, config_path: Path) -> RunInf
             f"{recorded!r}"
         )
     settings = data["config"]
-    resumed = data.get("resumed", [])
+    resumed = data.get("resumed")
     return RunInfo(
         path=folder.resolve(),
         condition=condition,
@@ -342,12 +342,16 @@ def _parse_info(data: dict[str, Any], folder: Path, config_path: Path) -> RunInf
         failure_competence=_failure_competence(settings, config_path),
         recorded_failure_modules=None if recorded is None else tuple(recorded),
         settings=settings,
-        versions=data.get("versions") if isinstance(data.get("versions"), dict) else {},
-        git=data.get("git") if isinstance(data.get("git"), dict) else {},
-        resumed=tuple(r for r in resumed if isinstance(r, dict))
-        if isinstance(resumed, list)
-        else (),
+        versions=_mapping(data.get("versions")),
+        git=_mapping(data.get("git")),
+        resumed=tuple(_mapping(r) for r in resumed) if isinstance(resumed, list) else (),
     )
+
+
+def _mapping(value: Any) -> Mapping[str, Any]:
+    """A provenance entry of config.json, or an empty one where it is not an object (provenance
+    is for reading; a hand-edited entry does not make the run unreadable)."""
+    return value if isinstance(value, dict) else {}
 
 
 def _failure_episode(settings: Mapping[str, Any], config_path: Path) -> int | None:
