@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from curious.config import resolve
+from curious.run_folder import RunFolder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -107,7 +108,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                 out = root / f"round{r}-{'rec' if record else 'plain'}"
                 times[record].append(_timed_run(config, out, record, settings))
                 if record:
-                    sizes.append((out / "recording.rrd").stat().st_size)
+                    sizes.append(RunFolder(out).recording_path.stat().st_size)
         fixed = _fixed_bytes(config.variant, settings, root / "scene-only")
     plain, recorded = min(times[False]), min(times[True])
     paired = [100.0 * (w / o - 1.0) for o, w in zip(times[False], times[True], strict=True)]

@@ -1,6 +1,7 @@
 """Resumable checkpoints, written atomically.
 
-A checkpoint is a folder `checkpoints/ep-<episodes>/` holding `state.pt` (networks, optimisers,
+A checkpoint is a folder `checkpoints/ep-<episodes>/` (its name and the listing of the complete
+ones are the run folder's format, `curious.run_folder`) holding `state.pt` (networks, optimisers,
 normalisers, competence queues, RNG states, counters, the config) and `replay.npz` (the replay
 buffer's filled part, uncompressed). It is written under a temporary name and renamed when
 complete, so a crash leaves either the previous checkpoint or the new one, never half of one.
@@ -15,7 +16,6 @@ import errno
 import functools
 import os
 import pickle
-import re
 import shutil
 import warnings
 import zipfile
@@ -26,8 +26,8 @@ from typing import Any, BinaryIO
 import numpy as np
 import torch
 
-PREFIX = "ep-"
-_NAME = re.compile(r"ep-(\d{12})")
+from curious.run_folder import checkpoint_episodes, checkpoint_name, list_checkpoints
+
 KEEP = 2
 """Checkpoints kept in a run folder: the newest and the one before."""
 FORMAT_VERSION = 4
@@ -62,7 +62,7 @@ def save(
     """Write a checkpoint for `episodes` episodes into `directory`; return its path. A failed
     write (a full disk, a read-only folder) is a `CheckpointError` naming the cause and the file,
     and leaves the earlier checkpoints as they were."""
-    tmp = directory / f".tmp-{PREFIX}{episodes:012d}"
+    tmp = directory / f".tmp-{checkpoint_name(episodes)}"
     try:
         return _save(directory, episodes, state, replay, keep)
     except (OSError, RuntimeError) as exc:
@@ -114,8 +114,8 @@ def _save(
     directory: Path, episodes: int, state: dict[str, Any], replay: dict[str, Any], keep: int
 ) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
-    final = directory / f"{PREFIX}{episodes:012d}"
-    tmp = directory / f".tmp-{PREFIX}{episodes:012d}"
+    final = directory / checkpoint_name(episodes)
+    tmp = directory / f".tmp-{final.name}"
     if tmp.exists():
         shutil.rmtree(tmp)
     tmp.mkdir()
@@ -138,14 +138,6 @@ def prune(directory: Path, keep: int = KEEP, spare: Path | None = None) -> None:
     for old in list_checkpoints(directory)[:-keep]:
         if spare is None or old.resolve() != spare.resolve():
             shutil.rmtree(old, ignore_errors=True)
-
-
-def list_checkpoints(directory: Path) -> list[Path]:
-    """Complete checkpoints, oldest first."""
-    if not directory.exists():
-        return []
-    found = [p for p in directory.iterdir() if p.is_dir() and _NAME.fullmatch(p.name)]
-    return sorted(found, key=lambda p: int(p.name[len(PREFIX) :]))
 
 
 def remove_partial(directory: Path) -> None:
@@ -205,7 +197,7 @@ def load_latest(
         except CheckpointError as exc:
             errors.append(str(exc))
             continue
-        named = int(path.name[len(PREFIX) :])
+        named = checkpoint_episodes(path)
         if state.get("episodes") != named:
             errors.append(
                 f"checkpoint {path} holds the state of episode {state.get('episodes')}, not of "

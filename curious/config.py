@@ -50,6 +50,13 @@ MAX_LEARNING_RATE = 1.0
 """Upper bound of `actor_lr` and `critic_lr` (see `Config.validate`)."""
 MAX_NOISE = 1.0
 """Upper bound of the action noises, which are fractions of the largest action (1)."""
+LEARNED_COMPETENCE = 0.5
+"""Competence at which a module counts as learned, for the sensory failure: the `laptop` budget
+starts the failure once push_cube3 reaches it (`sensor_failure_competence`), and the recovery
+analysis asks it of the perturbed module just before the failure, in runs that set no
+`sensor_failure_competence` of their own, before it counts a fall as forgetting. Half the
+evaluations succeeding: well above the floor of chance successes of push modules (a goal can lie
+within reach of where the cube already is), so that a fall means something was lost."""
 
 
 class ConfigError(ValueError):

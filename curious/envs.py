@@ -62,6 +62,10 @@ class EnvSpec:
     success_distance: float = 0.05
     """Distance within which an outcome meets its goal (0.05 m in the suite); the holistic goal
     space of the `her` condition measures its one distance against it."""
+    sensor_failure_modules: tuple[str, ...] = ()
+    """Modules whose outcome the env's sensory failure perturbs (`push_cube3` in the suite's
+    `sensor_failure` variant); empty for an env without one. Recorded in the run folder, where
+    the recovery analysis reads which module to follow."""
 
     @property
     def n_modules(self) -> int:
@@ -158,6 +162,7 @@ class SuiteEnv:
             outcome_slices=tuple(slices),
             episode_length=self.EPISODE_LENGTH,
             success_distance=float(layout.SUCCESS_DISTANCE),
+            sensor_failure_modules=tuple(self._task.sensor_failure_modules),
         )
         self._t = 0
 
@@ -221,6 +226,22 @@ class SuiteEnv:
 
     def set_rng_state(self, state: Any) -> None:
         self._env.random_state.set_state(state)
+
+
+@functools.cache
+def suite_sensor_failure_modules(variant: str) -> tuple[str, ...]:
+    """The modules the sensory failure of a suite variant perturbs, from the variant's own
+    definition (the task it builds); empty for a variant without one, or one the suite does not
+    know. For run folders written before config.json recorded them (`EnvSpec`)."""
+    import warnings
+
+    with warnings.catch_warnings():  # MuJoCo's GL probing warns where nothing renders
+        warnings.simplefilter("ignore")
+        import suite
+
+        if variant not in suite.ALL_VARIANTS:
+            return ()
+        return tuple(suite.load(variant, seed=0).task.sensor_failure_modules)
 
 
 def suite_env_fns(variant: str, seed: int, n: int, stream: int = 0) -> list[Callable[[], SuiteEnv]]:

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 from pathlib import PurePosixPath
 from typing import Any
 
-from curious.config import CONDITIONS, PRESETS, Config, resolve
+from curious.config import CONDITIONS, LEARNED_COMPETENCE, PRESETS, Config, resolve
 
 EXPERIMENTS: tuple[str, ...] = ("main", "distractors", "sensor_failure")
 """Experiment names, in the order they are trained and reported."""
@@ -315,11 +315,6 @@ PAPER_FAILURE_EPISODE = 250 * 950
 """The authors' onset: the start of epoch 250 (of 316) at 950 episodes an epoch, 237,500
 (their train.py switches the bias on when `epoch == 250` in the perturbation study)."""
 
-LEARNED_FAILURE_COMPETENCE = 0.5
-"""The competence of push_cube3 that starts the failure in the `laptop` budget: the competence
-the analysis asks of a module before it counts a fall as forgetting
-(`curious.analysis.LEARNED_COMPETENCE`)."""
-
 
 def _sensor_failure(
     train_preset: str,
@@ -361,7 +356,7 @@ def _budget(
 
 
 QUICK_WITHOUT_FAILURE = (
-    f"the failure starts once push_cube3's competence reaches {LEARNED_FAILURE_COMPETENCE:g}, "
+    f"the failure starts once push_cube3's competence reaches {LEARNED_COMPETENCE:g}, "
     "and with 1,000 episodes a run it reached that in none of the 4 runs of a quick "
     "reproduction on 2026-11-23: no failure started, so no recovery could be measured; "
     "`curious reproduce --budget laptop --experiments sensor_failure` trains it on longer runs"
@@ -416,7 +411,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             "Budget laptop (reduced): a third of the paper's episodes per run and fewer seeds.",
             _main("laptop", (0, 1, 2), 100_000),
             _distractors("laptop", (0, 1), 50_000),
-            _sensor_failure("laptop", (0, 1), 60_000, competence=LEARNED_FAILURE_COMPETENCE),
+            _sensor_failure("laptop", (0, 1), 60_000, competence=LEARNED_COMPETENCE),
         ),
         _budget(
             "paper",

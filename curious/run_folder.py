@@ -1,17 +1,36 @@
-"""A run folder: where one training run (one condition, one seed) keeps everything.
+"""A run folder: where one training run (one condition, one seed) keeps everything, and the one
+module that knows its format: the names of its files, what config.json holds (and how older ones
+read), writing it, and whether a config may go on with the run it holds.
 
-    config.json       the resolved config and what it ran on (see `RunFolder.describe`)
+    config.json       the run's description (`RunFolder.describe`), read back as a `RunInfo`
     metrics.parquet   one row per training episode (`curious.metrics`)
     tests.parquet     one row per test rollout (`curious.metrics`)
     recording.rrd     the Rerun recording (written by `curious.recording`)
-    checkpoints/      resumable checkpoints (`curious.checkpoint`)
+    checkpoints/      resumable checkpoints, `ep-<episodes, 12 digits>/` (`curious.checkpoint`)
+
+config.json's keys:
+
+    condition, seed, preset, variant  the run's identity (the same as in `config`)
+    modules, achievable               module names in slot order, and whether each is achievable
+    sensor_failure_modules            the modules the variant's sensory failure perturbs (empty:
+                                      none), from the env (`EnvSpec.sensor_failure_modules`);
+                                      config.json written before it was recorded lacks it, and
+                                      `RunInfo` derives it from the variant's definition
+    config                            the resolved settings (`Config.to_dict`)
+    versions, git, created            libraries, source commit and time of the first start
+    resumed                           one entry per resume: its time, libraries, commit, settings
+
+Who reads what: training (`prepare`, `write_config`, the paths), `curious evaluate`
+(`read_config`), `curious progress` and the analysis (`read_info`, `episodes_logged`,
+`newest_checkpoint`), the reproduction pipeline (`check_resumable`).
 
 `prepare` checks a folder before anything is written: a non-empty folder is only accepted with
-`resume=True`, and then only for the same config (fields in `RESUMABLE_FIELDS` may change), or
-with `restart=True` when it holds a run's files and nothing else (`clear` removes them once
-every check has passed). A config.json that is not a run's (damaged, hand-edited into another
-shape, a setting of the wrong type) is a `RunFolderError` naming the file. `folder_lock` keeps a
-second process out of a folder while one trains in it, and leaves nothing behind.
+`resume=True`, and then only for the same config (`check_resumable`: fields in
+`RESUMABLE_FIELDS` may change), or with `restart=True` when it holds a run's files and nothing
+else (`clear` removes them once every check has passed). A config.json that is not a run's
+(damaged, hand-edited into another shape, a setting of the wrong type) is a `RunFolderError`
+naming the file. `folder_lock` keeps a second process out of a folder while one trains in it, and
+leaves nothing behind.
 """
 
 from __future__ import annotations
@@ -19,28 +38,41 @@ from __future__ import annotations
 import contextlib
 import datetime
 import fcntl
+import functools
 import json
 import os
 import platform
+import re
 import shutil
 import socket
 import subprocess
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from curious.config import RESUMABLE_FIELDS, Config, ConfigError, setting_names
-from curious.envs import EnvSpec
 
+if TYPE_CHECKING:
+    from curious.envs import EnvSpec
+
+CONFIG_FILE = "config.json"
+METRICS_FILE = "metrics.parquet"
+TESTS_FILE = "tests.parquet"
+RECORDING_FILE = "recording.rrd"
+CHECKPOINTS_DIR = "checkpoints"
 RUN_ENTRIES: tuple[str, ...] = (
-    "config.json",
-    "metrics.parquet",
-    "tests.parquet",
-    "recording.rrd",
-    "checkpoints",
+    CONFIG_FILE,
+    METRICS_FILE,
+    TESTS_FILE,
+    RECORDING_FILE,
+    CHECKPOINTS_DIR,
 )
 """What a run writes in its folder (with temporaries named after them, a leading dot aside)."""
+
+CHECKPOINT_PREFIX = "ep-"
+_CHECKPOINT_NAME = re.compile(r"ep-(\d{12})")
 
 
 class RunFolderError(RuntimeError):
@@ -49,6 +81,15 @@ class RunFolderError(RuntimeError):
 
 class RunFolderBusy(RunFolderError):
     """Another process is training in the run folder right now."""
+
+
+class ConfigMismatch(RunFolderError):
+    """The folder holds another run than the config given (`RunFolder.check_resumable`)."""
+
+    def __init__(self, message: str, differences: dict[str, tuple[Any, Any]]) -> None:
+        super().__init__(message)
+        self.differences = differences
+        """Setting -> (value in config.json, value given); None for a side that lacks it."""
 
 
 def lock_path(folder: str | os.PathLike) -> Path:
@@ -121,6 +162,25 @@ def _acquire(path: Path, folder: Path, activity: str) -> IO[str]:
         handle.close()
 
 
+def checkpoint_name(episodes: int) -> str:
+    """The name of the checkpoint taken after `episodes` episodes, in `checkpoints/`."""
+    return f"{CHECKPOINT_PREFIX}{episodes:012d}"
+
+
+def checkpoint_episodes(path: str | os.PathLike) -> int | None:
+    """The episodes a checkpoint's name says it was taken after; None for another name."""
+    match = _CHECKPOINT_NAME.fullmatch(Path(path).name)
+    return int(match.group(1)) if match else None
+
+
+def list_checkpoints(directory: Path) -> list[Path]:
+    """Complete checkpoints, oldest first (temporaries, `.tmp-ep-...`, are not listed)."""
+    if not directory.exists():
+        return []
+    found = [p for p in directory.iterdir() if p.is_dir() and checkpoint_episodes(p) is not None]
+    return sorted(found, key=lambda p: checkpoint_episodes(p) or 0)
+
+
 def library_versions() -> dict[str, str | None]:
     """Installed versions of the libraries a run's results depend on."""
     versions: dict[str, str | None] = {"python": platform.python_version()}
@@ -169,38 +229,220 @@ def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
+@dataclass(frozen=True)
+class RunInfo:
+    """What a run folder's config.json says about its run (`RunFolder.read_info`)."""
+
+    path: Path
+    condition: str
+    seed: int
+    variant: str
+    preset: str
+    module_names: tuple[str, ...]
+    achievable: tuple[bool, ...]
+    perturbation_episode: int | None = None
+    """The setting `sensor_failure_episode` (None: never, or not set)."""
+    failure_competence: float | None = None
+    """The setting `sensor_failure_competence`: the perturbed module's competence at which the
+    failure was to start (None: not used)."""
+    recorded_failure_modules: tuple[str, ...] | None = None
+    """config.json's `sensor_failure_modules`; None where it predates that record."""
+    settings: Mapping[str, Any] | None = None
+    """The resolved settings (config.json's `config`)."""
+    versions: Mapping[str, Any] | None = None
+    """Library versions of the first start."""
+    git: Mapping[str, Any] | None = None
+    """Source commit of the first start: `commit` and `dirty` (local changes)."""
+    resumed: tuple[Mapping[str, Any], ...] = ()
+    """One entry per resume: `at`, `versions`, `git`, `config`."""
+
+    @property
+    def achievable_modules(self) -> tuple[str, ...]:
+        """The achievable modules, in slot order."""
+        return tuple(m for m, a in zip(self.module_names, self.achievable, strict=True) if a)
+
+    @functools.cached_property
+    def sensor_failure_modules(self) -> tuple[str, ...]:
+        """The modules the variant's sensory failure perturbs (empty: none): as config.json
+        records them, else (a run written before they were recorded) from the variant's own
+        definition, `curious.envs.suite_sensor_failure_modules`."""
+        if self.recorded_failure_modules is not None:
+            return self.recorded_failure_modules
+        from curious.envs import suite_sensor_failure_modules
+
+        found = suite_sensor_failure_modules(self.variant)
+        return tuple(m for m in found if m in self.module_names)
+
+    @property
+    def total_episodes(self) -> int:
+        """The run's budget in episodes (its latest `total_episodes`; 0 where not set)."""
+        return int((self.settings or {}).get("total_episodes", 0))
+
+    @property
+    def commits(self) -> tuple[str, ...]:
+        """Short commits the run was trained from, first start then resumes, without repeats; a
+        commit with local changes is marked with '+'."""
+        out: list[str] = []
+        for entry in [self.git or {}, *(r.get("git", {}) for r in self.resumed)]:
+            commit = entry.get("commit") if isinstance(entry, Mapping) else None
+            if commit:
+                text = commit[:7] + ("+" if entry.get("dirty") else "")
+                if text not in out:
+                    out.append(text)
+        return tuple(out)
+
+
+def _parse_info(data: dict[str, Any], folder: Path, config_path: Path) -> RunInfo:
+    """`RunInfo` from config.json's content, checked; a `RunFolderError` naming the file."""
+
+    def need(key: str, kind: type, what: str) -> Any:
+        if key not in data:
+            raise RunFolderError(f"{config_path} has no '{key}' ({what})")
+        value = data[key]
+        if not isinstance(value, kind) or (isinstance(value, bool) and kind is int):
+            raise RunFolderError(f"{config_path}: '{key}' must be {what}, got {value!r}")
+        return value
+
+    condition = need("condition", str, "a string")
+    seed = need("seed", int, "an integer")
+    variant = need("variant", str, "a string")
+    preset = need("preset", str, "a string")
+    names = need("modules", list, "a list of module names in slot order")
+    achievable = need("achievable", list, "a list of booleans, one per module")
+    if not names or not all(isinstance(n, str) and n for n in names):
+        raise RunFolderError(f"{config_path}: 'modules' must be non-empty strings: {names!r}")
+    if len(set(names)) != len(names):
+        raise RunFolderError(f"{config_path}: 'modules' repeats a name: {names!r}")
+    if any("," in n for n in names):
+        raise RunFolderError(f"{config_path}: module names may not contain commas: {names!r}")
+    if len(achievable) != len(names) or not all(isinstance(a, bool) for a in achievable):
+        raise RunFolderError(
+            f"{config_path}: 'achievable' must be {len(names)} booleans (one per module in "
+            f"'modules'), got {achievable!r}"
+        )
+    recorded = data.get("sensor_failure_modules")
+    if recorded is not None and (
+        not isinstance(recorded, list) or not all(m in names for m in recorded)
+    ):
+        raise RunFolderError(
+            f"{config_path}: 'sensor_failure_modules' must list modules of 'modules', got "
+            f"{recorded!r}"
+        )
+    settings = data["config"]
+    resumed = data.get("resumed")
+    return RunInfo(
+        path=folder.resolve(),
+        condition=condition,
+        seed=seed,
+        variant=variant,
+        preset=preset,
+        module_names=tuple(names),
+        achievable=tuple(achievable),
+        perturbation_episode=_failure_episode(settings, config_path),
+        failure_competence=_failure_competence(settings, config_path),
+        recorded_failure_modules=None if recorded is None else tuple(recorded),
+        settings=settings,
+        versions=_mapping(data.get("versions")),
+        git=_mapping(data.get("git")),
+        resumed=tuple(_mapping(r) for r in resumed) if isinstance(resumed, list) else (),
+    )
+
+
+def _mapping(value: Any) -> Mapping[str, Any]:
+    """A provenance entry of config.json, or an empty one where it is not an object (provenance
+    is for reading; a hand-edited entry does not make the run unreadable)."""
+    return value if isinstance(value, dict) else {}
+
+
+def _failure_episode(settings: Mapping[str, Any], config_path: Path) -> int | None:
+    """The setting `sensor_failure_episode` (None where absent, null or -1: never)."""
+    value = settings.get("sensor_failure_episode")
+    if value is None or value == -1:
+        return None
+    if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+        raise RunFolderError(
+            f"{config_path}: 'sensor_failure_episode' must be a non-negative integer, -1 or "
+            f"null, got {value!r}"
+        )
+    return value
+
+
+def _failure_competence(settings: Mapping[str, Any], config_path: Path) -> float | None:
+    """The setting `sensor_failure_competence` (None where absent, null or -1: not used)."""
+    value = settings.get("sensor_failure_competence")
+    if value is None or value == -1:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 1:
+        raise RunFolderError(
+            f"{config_path}: 'sensor_failure_competence' must be a number in (0, 1], -1 or "
+            f"null, got {value!r}"
+        )
+    return float(value)
+
+
 class RunFolder:
-    """Paths and checks of one run folder."""
+    """Paths, reading, writing and checks of one run folder."""
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
 
     @property
     def config_path(self) -> Path:
-        return self.path / "config.json"
+        return self.path / CONFIG_FILE
 
     @property
     def metrics_path(self) -> Path:
-        return self.path / "metrics.parquet"
+        return self.path / METRICS_FILE
 
     @property
     def tests_path(self) -> Path:
-        return self.path / "tests.parquet"
+        return self.path / TESTS_FILE
 
     @property
     def recording_path(self) -> Path:
-        return self.path / "recording.rrd"
+        return self.path / RECORDING_FILE
 
     @property
     def checkpoints(self) -> Path:
-        return self.path / "checkpoints"
+        return self.path / CHECKPOINTS_DIR
+
+    @property
+    def has_config(self) -> bool:
+        """Whether the folder holds a config.json: a run, started or not."""
+        return self.config_path.is_file()
+
+    @property
+    def started(self) -> bool:
+        """Whether the run has logged episodes: config.json and metrics.parquet are there."""
+        return self.has_config and self.metrics_path.is_file()
+
+    def episodes_logged(self) -> int:
+        """Rows of metrics.parquet, read from its footer (0 where there is none yet, or where it
+        cannot be read)."""
+        if not self.metrics_path.is_file():
+            return 0
+        import pyarrow.parquet as pq
+
+        try:
+            return int(pq.read_metadata(self.metrics_path).num_rows)
+        except (OSError, ValueError):
+            return 0
+
+    def newest_checkpoint(self) -> int | None:
+        """Episodes of the newest complete checkpoint, by its name (None: none)."""
+        found = list_checkpoints(self.checkpoints)
+        return checkpoint_episodes(found[-1]) if found else None
 
     def read_stored(self) -> dict[str, Any]:
         """config.json's content, checked to be a run's description: a JSON object whose
         `config` is an object. Anything else is a `RunFolderError` naming the file."""
         path = self.config_path
         try:
-            text = path.read_text()
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise RunFolderError(
+                f"{self.path} is not a run folder: it has no {CONFIG_FILE}"
+            ) from None
         except (OSError, UnicodeDecodeError) as exc:
             cause = getattr(exc, "strerror", None) or exc
             raise RunFolderError(f"cannot read {path}: {cause}") from None
@@ -211,7 +453,7 @@ class RunFolder:
         try:
             data = json.loads(text)
         except ValueError as exc:
-            raise RunFolderError(f"{damaged}: it is not JSON ({exc}); {remedy}") from None
+            raise RunFolderError(f"{damaged}: it is not valid JSON ({exc}); {remedy}") from None
         if not isinstance(data, dict) or not isinstance(data.get("config"), dict):
             raise RunFolderError(
                 f"{damaged}: it holds no run's settings (a JSON object with a `config` object); "
@@ -230,6 +472,38 @@ class RunFolder:
                 f"{self.config_path} holds settings this curious cannot run ({exc}); restore "
                 "it, or start a new run in another --out"
             ) from None
+
+    def read_info(self) -> RunInfo:
+        """What config.json says about the run (`RunInfo`), checked: its identity, modules,
+        sensory failure and provenance; a `RunFolderError` naming the file otherwise. Reads
+        every config.json curious has written (see the module docstring)."""
+        return _parse_info(self.read_stored(), self.path, self.config_path)
+
+    def check_resumable(self, config: Config) -> None:
+        """A `RunFolderError` unless `config` may go on with the run in this folder: config.json
+        is there and is a run's, written by a curious that had every setting this one has, with
+        settings this curious can run, equal to `config`'s but for `RESUMABLE_FIELDS` (a
+        `ConfigMismatch` naming the differences otherwise)."""
+        if not self.config_path.exists():
+            raise RunFolderError(f"nothing to resume: {self.config_path} does not exist")
+        raw = self.read_stored()["config"]
+        lacking = sorted(set(setting_names()) - set(raw))
+        if lacking:
+            raise RunFolderError(
+                f"cannot resume {self.path}: it was written by another version of curious "
+                f"(its config.json lacks {', '.join(lacking)}); start a new run, or resume "
+                "with the version that wrote it"
+            )
+        self.read_config()  # settings of the wrong type or value
+        given = config.to_dict()
+        differences = {k: (raw.get(k), given.get(k)) for k in config_differences(raw, given)}
+        if differences:
+            detail = ", ".join(f"{k}: {a!r} -> {b!r}" for k, (a, b) in differences.items())
+            raise ConfigMismatch(
+                f"cannot resume {self.path} with a different config ({detail}); "
+                f"only {', '.join(sorted(RESUMABLE_FIELDS))} may change",
+                differences,
+            )
 
     def foreign_entries(self) -> list[str]:
         """Names in the folder that no run writes (what `--restart` would not remove)."""
@@ -282,26 +556,7 @@ class RunFolder:
                     "--restart to start it over, or choose another --out"
                 )
             return folder
-        if not folder.config_path.exists():
-            raise RunFolderError(f"nothing to resume: {folder.config_path} does not exist")
-        raw = folder.read_stored()["config"]
-        lacking = sorted(set(setting_names()) - set(raw))
-        if lacking:
-            raise RunFolderError(
-                f"cannot resume {folder.path}: it was written by another version of curious "
-                f"(its config.json lacks {', '.join(lacking)}); start a new run, or resume "
-                "with the version that wrote it"
-            )
-        stored = folder.read_config()
-        diff = config_differences(stored.to_dict(), config.to_dict())
-        if diff:
-            detail = ", ".join(
-                f"{k}: {getattr(stored, k)!r} -> {getattr(config, k)!r}" for k in diff
-            )
-            raise RunFolderError(
-                f"cannot resume {folder.path} with a different config ({detail}); "
-                f"only {', '.join(sorted(RESUMABLE_FIELDS))} may change"
-            )
+        folder.check_resumable(config)
         return folder
 
     def describe(self, config: Config, spec: EnvSpec) -> dict[str, Any]:
@@ -313,6 +568,7 @@ class RunFolder:
             "variant": config.variant,
             "modules": list(spec.module_names),
             "achievable": list(spec.achievable),
+            "sensor_failure_modules": list(spec.sensor_failure_modules),
             "config": config.to_dict(),
             "versions": library_versions(),
             "git": git_commit(),

@@ -37,7 +37,7 @@ from pipelines.resources import OutputLayout
 out = "runs/quick"
 condition = "curious"
 seed = None
-learned_at = 0.5  # a module counts as learned once its competence reaches this
+learned_at = analysis.LEARNED_COMPETENCE  # a module counts as learned at this competence
 
 # %%
 layout = OutputLayout.open(out)

@@ -39,12 +39,13 @@ from IPython.display import display
 
 from curious import analysis
 from curious.experiments import get_budget
+from curious.run_folder import METRICS_FILE
 from pipelines.resources import OutputLayout
 
 # %% tags=["parameters"]
 out = "runs/quick"
 fraction = 0.9  # recovery: back at this fraction of the competence before the perturbation
-module = None  # the module to follow; None: the one the variant's failure perturbs
+module = None  # the module to follow; None: the one the runs' sensory failure perturbs
 
 # %% [markdown]
 # ## Part 1: the sensory failure
@@ -54,7 +55,7 @@ module = None  # the module to follow; None: the one the variant's failure pertu
 
 # %%
 layout = OutputLayout.open(out)
-has_failure = any(layout.experiment_runs("sensor_failure").rglob("metrics.parquet"))
+has_failure = any(layout.experiment_runs("sensor_failure").rglob(METRICS_FILE))
 if has_failure:
     df = analysis.load_runs(layout.experiment_runs("sensor_failure"))
     runs = analysis.runs_table(df).set_index("run")

@@ -13,7 +13,6 @@ output folder can be moved or shared as a whole.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -24,6 +23,7 @@ import pandas as pd
 from curious import analysis
 from curious.analysis.palette import condition_label
 from curious.experiments import Experiment
+from curious.run_folder import RunFolder, RunFolderError
 from pipelines.resources import Reproduction
 
 FIGURE_TEXT: dict[str, str] = {
@@ -351,14 +351,13 @@ SECTIONS = {"main": _main, "distractors": _distractors, "sensor_failure": _senso
 
 
 def _versions(table: pd.DataFrame) -> str:
-    run = str(table["run"].iat[0])
+    """The libraries and commit the table's first run started with (its config.json)."""
     try:
-        info = json.loads((Path(run) / "config.json").read_text())
-    except (OSError, ValueError):
+        info = RunFolder(str(table["run"].iat[0])).read_info()
+    except RunFolderError:
         return ""
-    versions = info.get("versions", {})
-    git = info.get("git", {}) or {}
-    text = ", ".join(f"{k} {v}" for k, v in versions.items() if v)
+    text = ", ".join(f"{k} {v}" for k, v in (info.versions or {}).items() if v)
+    git = info.git or {}
     if git.get("commit"):
         text += f"; git {git['commit'][:10]}{' (with local changes)' if git.get('dirty') else ''}"
     return text

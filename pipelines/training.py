@@ -74,67 +74,53 @@ def run_folder(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
     return Path(runs_root, *spec.relative_path.parts)
 
 
-def _metrics_rows(path: Path) -> int:
-    import pyarrow.parquet as pq
-
-    try:
-        return int(pq.read_metadata(path).num_rows)
-    except (OSError, ValueError):
-        return 0
-
-
 def episodes_logged(folder: Path) -> int:
     """Episodes in a run folder's metrics.parquet (0 when there is none yet)."""
-    metrics = folder / "metrics.parquet"
-    return _metrics_rows(metrics) if metrics.is_file() else 0
+    from curious.run_folder import RunFolder
 
-
-def _checkpoint_episodes(folder: Path) -> int:
-    from curious.checkpoint import PREFIX, list_checkpoints
-
-    found = list_checkpoints(folder / "checkpoints")
-    return int(found[-1].name[len(PREFIX) :]) if found else 0
+    return RunFolder(folder).episodes_logged()
 
 
 def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | None = None) -> str:
-    """`new`, `partial` or `finished` (see the module docstring); raises `RunFolderMismatch`."""
-    from curious.config import ConfigError
-    from curious.run_folder import RunFolder, RunFolderError, config_differences
+    """`new`, `partial` or `finished` (see the module docstring); raises `RunFolderMismatch`.
 
-    folder = run_folder(spec, runs_root)
-    if folder.exists() and not folder.is_dir():
-        raise RunFolderMismatch(f"{folder} exists and is not a folder")
-    if not folder.exists() or not any(folder.iterdir()):
+    Whether the folder holds (a part of) the run is the check a resume makes
+    (`curious.run_folder.RunFolder.check_resumable`)."""
+    from curious.config import ConfigError
+    from curious.run_folder import ConfigMismatch, RunFolder, RunFolderError
+
+    folder = RunFolder(run_folder(spec, runs_root))
+    if folder.path.exists() and not folder.path.is_dir():
+        raise RunFolderMismatch(f"{folder.path} exists and is not a folder")
+    if not folder.path.exists() or not any(folder.path.iterdir()):
         return NEW
-    config_path = folder / "config.json"
-    if not config_path.is_file():
+    if not folder.has_config:
         raise RunFolderMismatch(
-            f"{folder} is not empty but holds no config.json: it is not a run folder of this "
-            "pipeline; move it away or choose another --out"
+            f"{folder.path} is not empty but holds no {folder.config_path.name}: it is not a run "
+            "folder of this pipeline; move it away or choose another --out"
         )
-    try:
-        stored = RunFolder(folder).read_stored()
-    except RunFolderError as exc:
-        raise RunFolderMismatch(f"{exc}; or move the folder away") from None
-    stored_config = stored["config"]
     try:
         expected = spec.config(overrides)
     except ConfigError as exc:
         raise RunFolderMismatch(f"{spec.label}: {exc}") from None
-    if stored.get("preset") != expected.preset:
+    try:
+        folder.check_resumable(expected)
+    except ConfigMismatch as exc:
+        if "preset" in exc.differences:
+            stored, _ = exc.differences["preset"]
+            raise RunFolderMismatch(
+                f"{folder.path} holds a run of training preset {stored!r}, not "
+                f"{expected.preset!r}: this output folder was made by another budget; choose "
+                "another --out"
+            ) from None
+        detail = ", ".join(f"{k}: {a!r} != {b!r}" for k, (a, b) in exc.differences.items())
         raise RunFolderMismatch(
-            f"{folder} holds a run of training preset {stored.get('preset')!r}, not "
-            f"{expected.preset!r}: this output folder was made by another budget; choose another "
-            "--out"
-        )
-    diff = config_differences(stored_config, expected.to_dict())
-    if diff:
-        detail = ", ".join(
-            f"{k}: {stored_config.get(k)!r} != {getattr(expected, k, None)!r}" for k in diff
-        )
-        raise RunFolderMismatch(f"{folder} holds another run ({detail}); choose another --out")
+            f"{folder.path} holds another run ({detail}); choose another --out"
+        ) from None
+    except RunFolderError as exc:
+        raise RunFolderMismatch(f"{exc}; or move the folder away") from None
     total = expected.total_episodes
-    if _checkpoint_episodes(folder) >= total and episodes_logged(folder) >= total:
+    if (folder.newest_checkpoint() or 0) >= total and folder.episodes_logged() >= total:
         return FINISHED
     return PARTIAL
 

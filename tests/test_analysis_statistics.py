@@ -17,7 +17,6 @@ from test_analysis_synthetic import (
 from curious import analysis
 from curious.analysis import (
     LEARNED_COMPETENCE,
-    PERTURBED_MODULES,
     AnalysisError,
     achievable_competence,
     across_seeds,
@@ -279,14 +278,21 @@ def _failure_run(root, condition, seed, curves, **kw):
     )
 
 
-def test_the_perturbed_module_is_the_variants_as_the_suite_names_it(tmp_path, monkeypatch):
+def test_the_perturbed_module_is_the_one_the_run_folder_records(tmp_path, monkeypatch):
+    """Read from config.json, not from a table of variants in the analysis: a config.json that
+    records another module is followed, and one written before the module was recorded gets
+    the variant's, as the suite defines it (push_cube3)."""
     monkeypatch.setenv("MUJOCO_GL", "disable")  # no rendering here, and no display to find
-    from curious.envs import SuiteEnv
-
-    assert SuiteEnv("sensor_failure", seed=0).sensor_failure_module == "push_cube3"
-    assert PERTURBED_MODULES == {"sensor_failure": "push_cube3"}
-    _failure_run(tmp_path, "curious", 0, failure_curves(0, 60, None, 10.0))
-    assert perturbed_module(load_runs(tmp_path)) == "push_cube3"
+    curves = failure_curves(0, 60, None, 10.0)
+    _failure_run(tmp_path / "old", "curious", 0, curves)  # no sensor_failure_modules
+    assert perturbed_module(load_runs(tmp_path / "old")) == "push_cube3"
+    _failure_run(tmp_path / "new", "curious", 0, curves, sensor_failure_modules=["reach"])
+    table = load_runs(tmp_path / "new")
+    assert set(table["perturbed_modules"]) == {"reach"}
+    assert perturbed_module(table) == "reach"
+    assert recovery(table, perturbation_episode=30)["module"].iat[0] == "reach"
+    with pytest.raises(AnalysisError, match="perturb push_cube3 / reach, not one module"):
+        perturbed_module(load_runs(tmp_path))
 
 
 def test_two_chance_level_curves_make_no_recovery_claim(tmp_path):

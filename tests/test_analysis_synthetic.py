@@ -68,6 +68,7 @@ def write_run(
     preset: str = "synthetic",
     sensor_failure_episode: int | None = None,
     sensor_failure_competence: float | None = None,
+    sensor_failure_modules: Sequence[str] | None = None,
     failure_onset: int | None = None,
     log_failure: bool = False,
     lp_window: int = 50,
@@ -83,7 +84,9 @@ def write_run(
     competence of the practised module. ``episodes`` overrides the episode index column (to write
     gaps or repeats on purpose). ``log_failure`` writes the ``sensor_failure`` column, True from
     ``failure_onset`` on (never when None); without it the column is absent, as in runs logged
-    before it existed. ``tests_per_epoch`` > 0 also writes ``tests.parquet`` (`write_tests`).
+    before it existed. ``sensor_failure_modules`` is recorded in config.json as training
+    records it; None leaves it out, as config.json written before it was recorded.
+    ``tests_per_epoch`` > 0 also writes ``tests.parquet`` (`write_tests`).
     """
     names = list(competence)
     if len(achievable) != len(names):
@@ -137,6 +140,8 @@ def write_run(
             "sensor_failure_competence": sensor_failure_competence,
         },
     }
+    if sensor_failure_modules is not None:
+        config["sensor_failure_modules"] = list(sensor_failure_modules)
     (folder / "config.json").write_text(json.dumps(config, indent=2), encoding="utf-8")
     if tests_per_epoch:
         write_tests(folder, names, comp, tests_per_epoch, epoch_episodes, seed)

@@ -13,8 +13,8 @@ import pytest
 from curious.cli import main
 from curious.env_batch import LocalEnvs, ProcessEnvs
 from curious.envs import suite_env_fns
-from curious.recording import RECORDING_FILENAME
 from curious.recording.reader import read_component
+from curious.run_folder import RECORDING_FILE
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 
@@ -35,9 +35,7 @@ def test_worker_processes_give_the_same_run_as_one_process(tmp_path: Path) -> No
     # the recorded rollouts read shadow copies synced from the workers: the same poses
     entity, component = "scene/bodies/cube1", "Transform3D:translation"
     read = {
-        name: read_component(
-            tmp_path / name / RECORDING_FILENAME, entity, component, "rollout_frame"
-        )
+        name: read_component(tmp_path / name / RECORDING_FILE, entity, component, "rollout_frame")
         for name in ("one", "two")
     }
     (frames_a, poses_a), (frames_b, poses_b) = read["one"], read["two"]

@@ -24,7 +24,6 @@ from curious.analysis.palette import module_entity, module_label, module_rgb
 from curious.commands.view import viewer_command
 from curious.recording import (
     APPLICATION_ID,
-    RECORDING_FILENAME,
     RecorderSettings,
     RolloutCapture,
     RunRecorder,
@@ -33,6 +32,7 @@ from curious.recording import (
 )
 from curious.recording.cost import fetch_model, measure_logging_cost, synthetic_episodes
 from curious.recording.reader import read_component, read_scalars, summarize
+from curious.run_folder import RECORDING_FILE
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 
@@ -83,7 +83,7 @@ def test_scalars_read_back_equal_what_was_logged(tmp_path: Path, on_change: bool
     settings = RecorderSettings(stats_on_change=on_change)
     with RunRecorder(tmp_path, MODULES, settings=settings) as recorder:
         _log_in_batches(recorder, data, batch=37)
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     n = len(data["episode"])
     for m, name in enumerate(MODULES):
         for kind in ("competence", "lp", "p_lp"):
@@ -124,7 +124,7 @@ def test_a_value_that_holds_is_rewritten_so_live_lines_reach_the_present(tmp_pat
                 held[rows], held[rows] * 0.0, held[rows] / len(MODULES),
             )  # fmt: skip
     times, values = read_scalars(
-        tmp_path / RECORDING_FILENAME, f"competence/{module_entity(MODULES[0])}"
+        tmp_path / RECORDING_FILE, f"competence/{module_entity(MODULES[0])}"
     )
     assert times[0] == 0 and times[1] == 10 and times[-1] == n - 1
     assert np.diff(times).max() <= every + 64  # a point at least once per keyframe interval
@@ -141,14 +141,14 @@ def test_changes_only_keeps_the_file_smaller(tmp_path: Path) -> None:
             folder, MODULES, settings=RecorderSettings(stats_on_change=on_change)
         ) as r:
             _log_in_batches(r, data, batch=40)
-        sizes[on_change] = (folder / RECORDING_FILENAME).stat().st_size
+        sizes[on_change] = (folder / RECORDING_FILE).stat().st_size
     assert sizes[True] < 0.6 * sizes[False]
 
 
 def test_series_styles_use_the_shared_module_palette(tmp_path: Path) -> None:
     with RunRecorder(tmp_path, MODULES) as recorder:
         recorder.log_episodes(0, 1, True, True, np.zeros((1, 5)), np.zeros((1, 5)), np.ones((1, 5)))
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     for name in MODULES:
         _, names = read_component(
             path, f"competence/{module_entity(name)}", "SeriesLines:names", None
@@ -165,7 +165,7 @@ def test_replay_and_learner_statistics(tmp_path: Path) -> None:
     with RunRecorder(tmp_path, MODULES) as recorder:
         recorder.log_replay([10, 20], [[1, 1, 2, 0, 0], [0, 0, 0, 0, 5]])
         recorder.log_learner([10, 20], losses={"critic": [0.5, 0.25]}, q={"mean": [-3.0, -2.0]})
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     times, shares = read_scalars(path, "replay/T3-cube1_above_cube2")
     np.testing.assert_array_equal(times, [10, 20])
     np.testing.assert_allclose(shares, [0.5, 0.0])
@@ -178,7 +178,7 @@ def test_recording_has_ids_timelines_and_blueprint(tmp_path: Path) -> None:
         recorder.log_episodes(
             [0, 1], [0, 1], [0, 1], [1, 0], np.zeros((2, 5)), np.zeros((2, 5)), np.full((2, 5), 0.2)
         )
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     summary = summarize(path)
     assert summary.application_id == APPLICATION_ID
     assert summary.recording_ids == ("run-abc",)
@@ -271,7 +271,7 @@ def test_rollout_entities_read_back(tmp_path: Path, fetch: mujoco.MjModel) -> No
     with RunRecorder(tmp_path, MODULES) as recorder:
         recorder.log_rollout(40, "push_cube1", capture, goal=goal, success=True)
         recorder.log_rollout(90, 3, capture, goal=np.tile(goal, (13, 1)), success=False)
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     summary = summarize(path)
     layout = capture.layout
     cube = layout.body_paths[fetch.body("object0").id]
@@ -317,7 +317,7 @@ def test_rollout_stride_keeps_the_last_step(tmp_path: Path, fetch: mujoco.MjMode
         recorder.log_rollout(5, 0, capture, goal=np.zeros(3), success=False)
     cube = capture.layout.body_paths[fetch.body("object0").id]
     frames, trans = read_component(
-        tmp_path / RECORDING_FILENAME, cube, "Transform3D:translation", "rollout_frame"
+        tmp_path / RECORDING_FILE, cube, "Transform3D:translation", "rollout_frame"
     )
     j = int(np.flatnonzero(capture.layout.moving_bodies == fetch.body("object0").id)[0])
     np.testing.assert_allclose(np.array(trans)[1:, 0], capture.xpos[[0, 4, 8, 10], j], rtol=1e-6)
@@ -335,7 +335,7 @@ def test_every_moving_body_has_a_pose_from_the_start_of_every_timeline(
             [7], [0], [1], [1], np.zeros((1, 5)), np.zeros((1, 5)), np.zeros((1, 5)), [2.5]
         )
         recorder.log_rollout(7, 0, capture, goal=np.zeros(3), success=True)
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     timelines = summarize(path).timelines
     assert timelines == {"episode", "rollout_frame", "wall_time"}
     for body in capture.layout.moving_bodies:
@@ -370,7 +370,7 @@ def test_primitive_geoms_match_mujoco_sizes(tmp_path: Path) -> None:
     capture.record(mujoco.MjData(model))
     with RunRecorder(tmp_path, MODULES) as recorder:
         recorder.log_rollout(0, 0, capture, goal=np.zeros(3), success=False)
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     entities = summarize(path).entities
     assert "scene/bodies/b/ghost" not in entities  # transparent
     assert "scene/bodies/b/hidden" not in entities  # group 4 is hidden by default
@@ -405,10 +405,10 @@ def test_two_processes_write_two_recordings(tmp_path: Path) -> None:
     for p in procs:
         p.join(timeout=60)
         assert p.exitcode == 0
-    ids = [summarize(Path(f) / RECORDING_FILENAME).recording_ids for f in folders]
+    ids = [summarize(Path(f) / RECORDING_FILE).recording_ids for f in folders]
     assert len(ids[0]) == 1 and len(ids[1]) == 1 and ids[0] != ids[1]
     for folder, value in zip(folders, (0.25, 0.75), strict=True):
-        _, values = read_scalars(Path(folder) / RECORDING_FILENAME, "competence/T1-reach")
+        _, values = read_scalars(Path(folder) / RECORDING_FILE, "competence/T1-reach")
         assert values.tolist() == [value]
 
 
@@ -428,7 +428,7 @@ def test_resume_keeps_the_id_and_drops_episodes_after_the_checkpoint(tmp_path: P
     assert resumed.recording_id == run_id
     _log_in_batches(resumed, {k: v[150:] for k, v in data.items()}, batch=50)
     resumed.close()
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     times, values = read_scalars(path, "p_lp/T1-reach")
     np.testing.assert_array_equal(times, np.arange(300))
     np.testing.assert_array_equal(values, data["p_lp"][:, 0])
@@ -445,12 +445,12 @@ def test_spawn_without_display_warns_and_still_writes(
         recorder = RunRecorder(tmp_path, MODULES, spawn=True)
     recorder.log_episodes(0, 0, True, True, np.ones((1, 5)), np.ones((1, 5)), np.ones((1, 5)))
     recorder.close()
-    assert read_scalars(tmp_path / RECORDING_FILENAME, "competence/T1-reach")[1].tolist() == [1.0]
+    assert read_scalars(tmp_path / RECORDING_FILE, "competence/T1-reach")[1].tolist() == [1.0]
 
 
 def test_logging_cost_measurement_runs(tmp_path: Path, fetch: mujoco.MjModel) -> None:
     result = measure_logging_cost(tmp_path, n_episodes=200, batch=20, n_rollouts=2, model=fetch)
-    assert result["file_bytes"] == (tmp_path / RECORDING_FILENAME).stat().st_size
+    assert result["file_bytes"] == (tmp_path / RECORDING_FILE).stat().st_size
     assert result["scalar_us_per_episode"] > 0 and result["rollout_ms"] > 0
 
 
@@ -464,7 +464,7 @@ def test_bad_rollout_inputs_log_nothing(tmp_path: Path, fetch: mujoco.MjModel) -
         capture.reset()
         with pytest.raises(ValueError, match="holds no steps"):
             recorder.log_rollout(0, 0, capture, goal=np.zeros(3), success=False)
-    assert "rollout_frame" not in summarize(tmp_path / RECORDING_FILENAME).timelines
+    assert "rollout_frame" not in summarize(tmp_path / RECORDING_FILE).timelines
 
 
 def _free_port() -> int:
@@ -503,7 +503,7 @@ def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
     finally:
         os.killpg(server.pid, signal.SIGTERM)
         server.wait(timeout=10)
-    expected = read_scalars(tmp_path / "run" / RECORDING_FILENAME, "competence/T1-reach")
+    expected = read_scalars(tmp_path / "run" / RECORDING_FILE, "competence/T1-reach")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a streamed file has no footer
         got = read_scalars(live, "competence/T1-reach")
@@ -529,7 +529,7 @@ def test_recorded_transforms_put_every_geom_where_mujoco_has_it(
     # data.geom_xpos/xmat now come from the same kinematics pass as the last captured row
     with RunRecorder(tmp_path, MODULES) as recorder:
         recorder.log_rollout(3, 0, capture, goal=np.zeros(3), success=False)
-    path = tmp_path / RECORDING_FILENAME
+    path = tmp_path / RECORDING_FILE
     layout = capture.layout
     checked = 0
     for g in layout.drawn_geoms:
@@ -566,6 +566,6 @@ def test_capture_reads_dm_control_physics(tmp_path: Path) -> None:
     with RunRecorder(tmp_path, MODULES) as recorder:
         recorder.log_rollout(0, "reach", capture, goal=np.zeros(3), success=False)
     _, z = read_component(
-        tmp_path / RECORDING_FILENAME, "scene/bodies/b", "Transform3D:translation", "rollout_frame"
+        tmp_path / RECORDING_FILE, "scene/bodies/b", "Transform3D:translation", "rollout_frame"
     )
     assert z[-1][0] == pytest.approx(capture.xpos[3, 0].tolist())

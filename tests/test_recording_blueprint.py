@@ -13,8 +13,9 @@ import numpy as np
 import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
-from curious.recording import RECORDING_FILENAME, RunRecorder, default_blueprint
+from curious.recording import RunRecorder, default_blueprint
 from curious.recording.blueprint import LEGEND_CORNER, UNIT_RANGE
+from curious.run_folder import RECORDING_FILE
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 WITH_LEGEND = ("/competence", "/test", "/success/eval", "/success/train", "/module")
@@ -82,7 +83,7 @@ def test_the_compacted_recording_keeps_the_runs_module_range(tmp_path: Path) -> 
         recorder.log_episodes(
             [0, 1], [0, 1], [0, 1], [1, 0], np.zeros((2, n)), np.zeros((2, n)), np.zeros((2, n))
         )
-    reader = RrdReader(tmp_path / RECORDING_FILENAME)
+    reader = RrdReader(tmp_path / RECORDING_FILE)
     origins: dict[str, str] = {}
     ranges: dict[str, list[float]] = {}
     for chunk in reader.stream(store=reader.blueprints()[0]):

@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from curious.recording import RECORDING_FILENAME, RecorderSettings, RunRecorder
+from curious.recording import RecorderSettings, RunRecorder
 from curious.recording.cost import synthetic_episodes
 from curious.recording.reader import read_points
+from curious.run_folder import RECORDING_FILE
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 SETTINGS = RecorderSettings(rollout_every=0, stats_keyframe_every=50)
@@ -71,7 +72,7 @@ def uninterrupted(tmp_path_factory: pytest.TempPathFactory) -> Path:
     log_cycles(recorder, 0, TOTAL)
     recorder.checkpoint()
     recorder.close()
-    return folder / RECORDING_FILENAME
+    return folder / RECORDING_FILE
 
 
 @pytest.mark.parametrize(
@@ -107,7 +108,7 @@ def test_a_recording_resumed_after_any_stops_holds_what_an_uninterrupted_one_doe
     )
     log_cycles(recorder, start, TOTAL)
     recorder.close()
-    assert_same_points(tmp_path / RECORDING_FILENAME, uninterrupted)
+    assert_same_points(tmp_path / RECORDING_FILE, uninterrupted)
 
 
 # ------------------------------------------------------------------------------ real runs
@@ -157,7 +158,7 @@ def uninterrupted_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     out = tmp_path_factory.mktemp("run") / "full"
     assert main([*TRAIN, "--out", str(out)]) == 0
-    return out / RECORDING_FILENAME
+    return out / RECORDING_FILE
 
 
 def test_a_run_killed_three_times_records_what_an_uninterrupted_run_does(
@@ -173,7 +174,7 @@ def test_a_run_killed_three_times_records_what_an_uninterrupted_run_does(
     for i, episodes in enumerate([12, 24, 36]):
         train_killed_at(episodes, [*TRAIN, "--out", str(out)] + (["--resume"] if i else []))
     assert main([*TRAIN, "--out", str(out), "--resume"]) == 0
-    assert_same_points(out / RECORDING_FILENAME, uninterrupted_run)
+    assert_same_points(out / RECORDING_FILE, uninterrupted_run)
     assert not [w for w in recwarn if "footer" in str(w.message)]  # no "legacy format" warning
     assert len(list((out / "checkpoints").iterdir())) == 2
 
@@ -232,7 +233,7 @@ def test_a_full_disk_never_replaces_the_last_good_recording(
     monkeypatch.undo()
     run(out, resume=True)
     assert not (out / "recording.rrd.unreadable").exists()
-    assert_same_points(out / RECORDING_FILENAME, tmp_path / "reference" / RECORDING_FILENAME)
+    assert_same_points(out / RECORDING_FILE, tmp_path / "reference" / RECORDING_FILE)
 
 
 class _FullDisk:

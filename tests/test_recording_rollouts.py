@@ -16,9 +16,10 @@ import pytest
 from curious.analysis.palette import module_entity, module_label
 from curious.cli import main
 from curious.config import resolve
-from curious.recording import RECORDING_FILENAME, RecorderSettings, RunRecorder
+from curious.recording import RecorderSettings, RunRecorder
 from curious.recording.reader import read_component, summarize
 from curious.recording.rollouts import RolloutObserver, attach_rollout_recording
+from curious.run_folder import RECORDING_FILE
 from curious.train import train
 
 os.environ.setdefault("MUJOCO_GL", "disable")
@@ -31,7 +32,7 @@ def test_curious_train_records_every_kth_evaluation_in_3d(tmp_path: Path) -> Non
     out = tmp_path / "run"
     args = ["train", "--preset", "smoke", "--out", str(out), "--no-progress"]
     assert main([*args, "--rollout-every", "2", "--set", "torch_threads=1"]) == 0
-    path = out / RECORDING_FILENAME
+    path = out / RECORDING_FILE
     summary = summarize(path)
     cubes = {f"scene/bodies/cube{k}" for k in range(1, 6)}
     scene = {"scene/goal", "scene/goal_region", "scene/gripper_path", GRIPPER_LINK}
@@ -125,7 +126,7 @@ def test_rollout_observer_chains_and_logs_the_suites_goal_and_grip_site(tmp_path
     rounds = ["begin", *(f"step{t}" for t in range(STEPS)), "end"]
     assert probe.calls == rounds * 5  # 5 rounds of 2 parallel episodes, each handed on whole
 
-    path = tmp_path / "run" / RECORDING_FILENAME
+    path = tmp_path / "run" / RECORDING_FILE
     _, goal = read_component(path, "scene/goal", "Points3D:positions", "rollout_frame")
     expected = np.concatenate([probe.goals[4], probe.goals[9]])
     np.testing.assert_allclose(np.array([g[0] for g in goal]), expected, atol=1e-6)

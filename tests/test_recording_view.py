@@ -9,7 +9,7 @@ import pytest
 
 from curious.cli import main
 from curious.commands import view
-from curious.recording import RECORDING_FILENAME
+from curious.run_folder import RECORDING_FILE
 
 RRD_HEADER = b"RRF2\x00\x29\x00\x00\x01\x02\x00\x00"
 """The first 12 bytes of a recording that rerun-sdk 0.41 wrote: magic, version, options."""
@@ -18,7 +18,7 @@ RRD_HEADER = b"RRF2\x00\x29\x00\x00\x01\x02\x00\x00"
 def _run_folder(root: Path, name: str) -> Path:
     folder = root / name
     folder.mkdir()
-    (folder / RECORDING_FILENAME).write_bytes(RRD_HEADER)
+    (folder / RECORDING_FILE).write_bytes(RRD_HEADER)
     return folder
 
 
@@ -29,8 +29,14 @@ def no_display(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(view.sys, "platform", "linux")
 
 
-def test_the_view_command_and_the_recorder_agree_on_the_file_name() -> None:
-    assert view.RECORDING_FILENAME == RECORDING_FILENAME
+def test_the_view_command_opens_the_file_the_recorder_writes(tmp_path: Path) -> None:
+    from curious.recording import RunRecorder
+    from curious.run_folder import RunFolder
+
+    RunRecorder(tmp_path / "run", ("reach",)).close()
+    assert view.recording_paths([str(tmp_path / "run")]) == [
+        RunFolder(tmp_path / "run").recording_path
+    ]
 
 
 def test_folder_without_recording_is_an_error_naming_it(
@@ -58,7 +64,7 @@ def test_a_file_that_is_not_a_recording_is_refused_in_one_line(
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and str(path) in err and message in err
     run = _run_folder(tmp_path, "run")
-    (run / RECORDING_FILENAME).write_text("hello")
+    (run / RECORDING_FILE).write_text("hello")
     assert main(["view", str(run)]) == 2
     assert "not a Rerun recording" in capsys.readouterr().err
 
@@ -71,7 +77,7 @@ def test_without_display_prints_how_to_open_elsewhere(
     assert main(["view", str(a), str(b)]) == 0
     out = capsys.readouterr().out
     assert "No display" in out
-    files = f"{(a / RECORDING_FILENAME).resolve()} {(b / RECORDING_FILENAME).resolve()}"
+    files = f"{(a / RECORDING_FILE).resolve()} {(b / RECORDING_FILE).resolve()}"
     assert f"rerun {files}" in out
     assert f"curious view --web {a} {b}" in out
 
@@ -83,10 +89,10 @@ def test_with_display_opens_every_recording_in_one_viewer(
     calls: list[list[str]] = []
     monkeypatch.setattr(view, "run_viewer", lambda cmd: calls.append(cmd) or 0)
     a, b = _run_folder(tmp_path, "run_a"), _run_folder(tmp_path, "run_b")
-    rrd = b / RECORDING_FILENAME
+    rrd = b / RECORDING_FILE
     assert main(["view", str(a), str(rrd)]) == 0
     (command,) = calls
-    assert command[-2:] == [str(a / RECORDING_FILENAME), str(rrd)]
+    assert command[-2:] == [str(a / RECORDING_FILE), str(rrd)]
     assert "rerun" in " ".join(command[:-2])
     # a window of its own even when another viewer listens (it would get the files silently)
     assert "--new" in command
@@ -122,7 +128,7 @@ def test_web_serves_the_recordings(
     assert main(["view", "--web", "--web-port", "9191", "--grpc-port", "9292", str(a)]) == 0
     (command,) = calls
     assert "--serve-web" in command and "9191" in command and "9292" in command
-    assert command[-1] == str(a / RECORDING_FILENAME)
+    assert command[-1] == str(a / RECORDING_FILE)
 
 
 def test_the_printed_browser_address_loads_the_served_recordings(

@@ -21,135 +21,44 @@ Fig. 2a's "success" is, as in the paper, the success of the noise-free test roll
 every epoch, pooled over those on the run's achievable modules; Fig. 2b/2c, Table 1, the
 distractors figure and the recovery read the competence (the moving success rate of the agent's
 self-evaluations, which drives learning progress). `curious.analysis.statistics` defines both
-precisely. Module and condition colours live in `curious.analysis.palette`, shared with the
-Rerun recordings.
+precisely; `curious.analysis.perturbation` the recovery after the sensory failure. Module and
+condition colours live in `curious.analysis.palette`, shared with the Rerun recordings.
+
+The public names are those of `loading`, `statistics`, `perturbation` and `figures` (each
+module's ``__all__``), imported on first use, so that ``import curious.analysis.palette`` (the
+recording code does) does not pull in pandas, scipy and matplotlib.
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+import importlib.util
+from typing import Any
 
-# Public names and the submodule each lives in. They are imported on first use, so that
-# `import curious.analysis.palette` (the recording code does) does not pull in pandas, scipy
-# and matplotlib.
-_EXPORTS: dict[str, str] = {
-    **dict.fromkeys(("distractors", "fig2a", "fig2b", "fig2c", "forgetting", "table1"), "figures"),
-    **dict.fromkeys(
-        (
-            "AnalysisError",
-            "RunInfo",
-            "find_run_folders",
-            "load_run",
-            "load_runs",
-            "load_tests",
-            "read_run_info",
-            "run_modules",
-            "runs_table",
-        ),
-        "loading",
-    ),
-    **dict.fromkeys(
-        (
-            "ALPHA",
-            "LEARNED_COMPETENCE",
-            "PERTURBED_MODULES",
-            "achievable_competence",
-            "across_seeds",
-            "bin_runs",
-            "check_comparable",
-            "epoch_success",
-            "failure_onsets",
-            "final_competence",
-            "final_success",
-            "nice_bin_size",
-            "perturbed_module",
-            "recovery",
-            "recovery_summary",
-            "welch_per_bin",
-        ),
-        "statistics",
-    ),
-    "save_figure": "style",
-}
+_PUBLIC_MODULES = ("loading", "statistics", "perturbation", "figures")
+"""The submodules whose ``__all__`` make this package's names, looked up in this order."""
 
-__all__ = [
-    "ALPHA",
-    "LEARNED_COMPETENCE",
-    "PERTURBED_MODULES",
-    "AnalysisError",
-    "RunInfo",
-    "achievable_competence",
-    "across_seeds",
-    "bin_runs",
-    "check_comparable",
-    "distractors",
-    "epoch_success",
-    "failure_onsets",
-    "fig2a",
-    "fig2b",
-    "fig2c",
-    "final_competence",
-    "final_success",
-    "find_run_folders",
-    "forgetting",
-    "load_run",
-    "load_runs",
-    "load_tests",
-    "nice_bin_size",
-    "perturbed_module",
-    "read_run_info",
-    "recovery",
-    "recovery_summary",
-    "run_modules",
-    "runs_table",
-    "save_figure",
-    "table1",
-    "welch_per_bin",
-]
 
-if TYPE_CHECKING:
-    from curious.analysis.figures import distractors, fig2a, fig2b, fig2c, forgetting, table1
-    from curious.analysis.loading import (
-        AnalysisError,
-        RunInfo,
-        find_run_folders,
-        load_run,
-        load_runs,
-        load_tests,
-        read_run_info,
-        run_modules,
-        runs_table,
+def _public_names() -> list[str]:
+    return sorted(
+        {n for m in _PUBLIC_MODULES for n in importlib.import_module(f"{__name__}.{m}").__all__}
     )
-    from curious.analysis.statistics import (
-        ALPHA,
-        LEARNED_COMPETENCE,
-        PERTURBED_MODULES,
-        achievable_competence,
-        across_seeds,
-        bin_runs,
-        check_comparable,
-        epoch_success,
-        failure_onsets,
-        final_competence,
-        final_success,
-        nice_bin_size,
-        perturbed_module,
-        recovery,
-        recovery_summary,
-        welch_per_bin,
-    )
-    from curious.analysis.style import save_figure
 
 
 def __getattr__(name: str) -> Any:
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'curious.analysis' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"curious.analysis.{module}"), name)
-    globals()[name] = value
-    return value
+    if name == "__all__":
+        return _public_names()
+    if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        # a submodule not imported yet (`from curious.analysis import palette` imports it then)
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    for sub in _PUBLIC_MODULES:
+        module = importlib.import_module(f"{__name__}.{sub}")
+        if name in module.__all__:
+            value = getattr(module, name)
+            globals()[name] = value
+            return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+    return sorted(set(globals()) | set(_public_names()))

@@ -8,32 +8,19 @@ every column of ``metrics.parquet``. `load_tests` reads the same folders' ``test
 one row per (run, test rollout), with the same identity columns; a run without test rollouts (one
 trained before they were logged, or with ``test_rollouts_per_worker=0``) is an `AnalysisError`.
 
-Keys read from ``config.json`` (top level):
-
-=========================  ===================================================================
-``condition``              str, e.g. ``"curious"``, ``"mg-te"``, ``"her"``, ``"m-uvfa"``
-``seed``                   int
-``variant``                str, the suite variant, e.g. ``"default"``
-``preset``                 str, e.g. ``"smoke"``, ``"quick"``, ``"laptop"``, ``"paper"``
-``modules``                list of str, the modules in slot order
-``achievable``             list of bool, one per module (False for distractors)
-``sensor_failure_episode`` optional int or null: the first episode run with the sensory failure
-                           on (-1 or null: never); looked up at the top level, then anywhere
-                           inside nested objects (the resolved config, where `curious train`
-                           writes it)
-``sensor_failure_          optional float or null: the perturbed module's competence at which
-competence``               the failure was to start (-1 or null: not used); looked up like
-                           ``sensor_failure_episode``
-=========================  ===================================================================
+What ``config.json`` says about a run is read by `curious.run_folder.RunFolder.read_info`, which
+knows every version of the file (`read_run_info` here raises its errors as `AnalysisError`).
 
 Identity columns of the table (the same on every row of a run):
 ``run`` (the run folder's resolved path), ``condition``, ``seed``, ``variant``, ``preset``,
 ``modules`` (module names in slot order, comma-joined), ``achievable_modules`` (the achievable
 ones, comma-joined), ``n_distractors`` (how many modules are not achievable),
-``perturbation_episode`` (nullable int: the config's ``sensor_failure_episode``) and
-``failure_competence`` (nullable float: the config's ``sensor_failure_competence``). Where the
-failure actually started is in the ``sensor_failure`` column of ``metrics.parquet`` (runs trained
-before that column existed lack it); `curious.analysis.statistics.failure_onsets` reads it.
+``perturbation_episode`` (nullable int: the config's ``sensor_failure_episode``),
+``failure_competence`` (nullable float: the config's ``sensor_failure_competence``) and
+``perturbed_modules`` (the modules the variant's sensory failure perturbs, comma-joined; empty
+for a variant without one). Where the failure actually started is in the ``sensor_failure``
+column of ``metrics.parquet`` (runs trained before that column existed lack it);
+`curious.analysis.perturbation.failure_onsets` reads it.
 String columns (these and ``module``) are categorical.
 Runs with different module sets load into one table
 (their per-module columns are NaN where a run has no such module); the statistics and figures
@@ -42,22 +29,25 @@ check that the runs they compare agree where it matters.
 
 from __future__ import annotations
 
-import json
-from collections.abc import Iterable, Mapping
-from dataclasses import dataclass
+from collections.abc import Iterable
 from os import PathLike
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from curious.metrics import tests_schema
+from curious.run_folder import (
+    CONFIG_FILE,
+    METRICS_FILE,
+    TESTS_FILE,
+    RunFolder,
+    RunFolderError,
+    RunInfo,
+)
 
 __all__ = [
-    "CONFIG_FILE",
     "IDENTITY_COLUMNS",
-    "METRICS_FILE",
     "PER_MODULE_PREFIXES",
     "AnalysisError",
     "RunInfo",
@@ -66,14 +56,12 @@ __all__ = [
     "load_runs",
     "load_tests",
     "read_run_info",
+    "require_runs",
+    "require_tests",
     "run_modules",
     "runs_table",
     "search_run_folders",
 ]
-
-CONFIG_FILE = "config.json"
-METRICS_FILE = "metrics.parquet"
-TESTS_FILE = "tests.parquet"
 
 #: Columns of ``metrics.parquet`` that every run has, whatever its modules.
 BASE_COLUMNS: tuple[str, ...] = (
@@ -103,10 +91,8 @@ IDENTITY_COLUMNS: tuple[str, ...] = (
     "n_distractors",
     "perturbation_episode",
     "failure_competence",
+    "perturbed_modules",
 )
-
-PERTURBATION_KEY = "sensor_failure_episode"
-FAILURE_COMPETENCE_KEY = "sensor_failure_competence"
 
 PathsOrRoot = str | PathLike[str] | Iterable[str | PathLike[str]]
 
@@ -115,31 +101,6 @@ class AnalysisError(ValueError):
     """A folder is not a readable run folder, or a set of runs cannot be analysed together.
 
     (Training's own folder errors are `curious.run_folder.RunFolderError`.)"""
-
-
-@dataclass(frozen=True)
-class RunInfo:
-    """What ``config.json`` says about one run."""
-
-    path: Path
-    condition: str
-    seed: int
-    variant: str
-    preset: str
-    module_names: tuple[str, ...]
-    achievable: tuple[bool, ...]
-    perturbation_episode: int | None
-    failure_competence: float | None = None
-    """The perturbed module's competence at which the failure was to start (None: not used)."""
-
-    @property
-    def achievable_modules(self) -> tuple[str, ...]:
-        """The achievable modules, in slot order."""
-        return tuple(m for m, a in zip(self.module_names, self.achievable, strict=True) if a)
-
-
-def _is_run_folder(path: Path) -> bool:
-    return (path / CONFIG_FILE).is_file() and (path / METRICS_FILE).is_file()
 
 
 def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
@@ -169,7 +130,7 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
                 f"{path} is not a run folder: a run folder is a directory holding "
                 f"{CONFIG_FILE} and {METRICS_FILE}"
             )
-        if (path / CONFIG_FILE).is_file():
+        if RunFolder(path).has_config:
             found.append(_checked_run_folder(path))
             continue
         below = search_run_folders(path)
@@ -190,7 +151,7 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
 
 
 def _checked_run_folder(path: Path) -> Path:
-    if not (path / METRICS_FILE).is_file():
+    if not RunFolder(path).started:
         raise AnalysisError(
             f"{path} has {CONFIG_FILE} but no {METRICS_FILE}: it is not a run folder, or its run "
             "has not logged an episode yet"
@@ -212,104 +173,25 @@ def search_run_folders(root: Path, started_only: bool = True) -> list[Path]:
         seen.add(folder.resolve())
         children = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith("."))
         for child in children:
-            if (child / CONFIG_FILE).is_file():
+            if RunFolder(child).has_config:
                 runs.append(_checked_run_folder(child) if started_only else child)
             else:
                 stack.append(child)
     return runs
 
 
-def _find_key(obj: Any, key: str) -> tuple[bool, Any]:
-    """Depth-first search for ``key`` in nested mappings; the top level wins."""
-    if isinstance(obj, Mapping):
-        if key in obj:
-            return True, obj[key]
-        for value in obj.values():
-            hit, found = _find_key(value, key)
-            if hit:
-                return True, found
-    return False, None
-
-
 def read_run_info(path: str | PathLike[str]) -> RunInfo:
-    """Reads and checks the run identity and module set from a run folder's ``config.json``."""
-    folder = Path(path)
-    config_path = folder / CONFIG_FILE
-    if not config_path.is_file():
-        raise AnalysisError(
-            f"{folder} is not a run folder: no {CONFIG_FILE} (a run folder holds {CONFIG_FILE} "
-            f"and {METRICS_FILE}; see docs/architecture.md)"
-        )
+    """What a run folder's ``config.json`` says about its run (identity, modules, sensory
+    failure), checked (`curious.run_folder.RunFolder.read_info`); an `AnalysisError` naming the
+    file and the problem otherwise."""
     try:
-        config = json.loads(config_path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise AnalysisError(f"{config_path} is not valid JSON: {exc}") from exc
-    if not isinstance(config, dict):
-        raise AnalysisError(f"{config_path} must hold a JSON object, not {type(config).__name__}")
-
-    def need(key: str, kind: type | tuple[type, ...], what: str) -> Any:
-        if key not in config:
-            raise AnalysisError(f"{config_path} has no '{key}' ({what})")
-        value = config[key]
-        if not isinstance(value, kind) or (isinstance(value, bool) and kind is int):
-            raise AnalysisError(f"{config_path}: '{key}' must be {what}, got {value!r}")
-        return value
-
-    condition = need("condition", str, "a string")
-    seed = need("seed", int, "an integer")
-    variant = need("variant", str, "a string")
-    preset = need("preset", str, "a string")
-    names = need("modules", list, "a list of module names in slot order")
-    achievable = need("achievable", list, "a list of booleans, one per module")
-    if not names or not all(isinstance(n, str) and n for n in names):
-        raise AnalysisError(f"{config_path}: 'modules' must be non-empty strings: {names!r}")
-    if len(set(names)) != len(names):
-        raise AnalysisError(f"{config_path}: 'modules' repeats a name: {names!r}")
-    if any("," in n for n in names):
-        raise AnalysisError(f"{config_path}: module names may not contain commas: {names!r}")
-    if len(achievable) != len(names) or not all(isinstance(a, bool) for a in achievable):
-        raise AnalysisError(
-            f"{config_path}: 'achievable' must be {len(names)} booleans (one per module in "
-            f"'modules'), got {achievable!r}"
-        )
-    _, perturbation = _find_key(config, PERTURBATION_KEY)
-    if perturbation == -1:  # the training setting's "never"
-        perturbation = None
-    if perturbation is not None and (
-        not isinstance(perturbation, int) or isinstance(perturbation, bool) or perturbation < 0
-    ):
-        raise AnalysisError(
-            f"{config_path}: '{PERTURBATION_KEY}' must be a non-negative integer or null, "
-            f"got {perturbation!r}"
-        )
-    return RunInfo(
-        path=folder.resolve(),
-        condition=condition,
-        seed=seed,
-        variant=variant,
-        preset=preset,
-        module_names=tuple(names),
-        achievable=tuple(achievable),
-        perturbation_episode=perturbation,
-        failure_competence=_failure_competence(config, config_path),
-    )
-
-
-def _failure_competence(config: Mapping[str, Any], config_path: Path) -> float | None:
-    """The config's ``sensor_failure_competence`` (None where absent, null or -1)."""
-    _, value = _find_key(config, FAILURE_COMPETENCE_KEY)
-    if value is None or value == -1:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 1:
-        raise AnalysisError(
-            f"{config_path}: '{FAILURE_COMPETENCE_KEY}' must be a number in (0, 1], -1 or null, "
-            f"got {value!r}"
-        )
-    return float(value)
+        return RunFolder(path).read_info()
+    except RunFolderError as exc:
+        raise AnalysisError(str(exc)) from None
 
 
 def _read_metrics(info: RunInfo) -> pd.DataFrame:
-    metrics_path = info.path / METRICS_FILE
+    metrics_path = RunFolder(info.path).metrics_path
     if not metrics_path.is_file():
         raise AnalysisError(f"{info.path} is not a run folder: no {METRICS_FILE}")
     try:
@@ -371,6 +253,7 @@ def _identity(info: RunInfo, n: int) -> pd.DataFrame:
     front["n_distractors"] = front["n_distractors"].astype(np.int64)
     front["perturbation_episode"] = pd.array([info.perturbation_episode] * n, dtype=pd.Int64Dtype())
     front["failure_competence"] = pd.array([info.failure_competence] * n, dtype=pd.Float64Dtype())
+    front["perturbed_modules"] = ",".join(info.sensor_failure_modules)
     return front
 
 
@@ -381,7 +264,16 @@ def load_run(path: str | PathLike[str]) -> pd.DataFrame:
     return pd.concat([_identity(info, len(metrics)), metrics], axis=1)
 
 
-_CATEGORICAL = ("run", "condition", "variant", "preset", "modules", "achievable_modules", "module")
+_CATEGORICAL = (
+    "run",
+    "condition",
+    "variant",
+    "preset",
+    "modules",
+    "achievable_modules",
+    "perturbed_modules",
+    "module",
+)
 
 
 def load_runs(paths_or_root: PathsOrRoot) -> pd.DataFrame:
@@ -417,7 +309,7 @@ def _combined(tables: list[pd.DataFrame]) -> pd.DataFrame:
 
 def _read_tests(info: RunInfo) -> pd.DataFrame:
     """One run's ``tests.parquet``, checked; an `AnalysisError` where the run has none."""
-    path = info.path / TESTS_FILE
+    path = RunFolder(info.path).tests_path
     if not path.is_file():
         raise AnalysisError(
             f"{info.path} has no test rollouts (no {TESTS_FILE}): the run was trained before "
@@ -472,7 +364,7 @@ def load_tests(paths_or_root: PathsOrRoot) -> pd.DataFrame:
 
 def runs_table(df: pd.DataFrame) -> pd.DataFrame:
     """One row per run of a loaded table: identity columns plus first/last episode and count."""
-    _require_identity(df)
+    require_runs(df)
     grouped = df.groupby("run", observed=True, sort=True)
     first = grouped[list(IDENTITY_COLUMNS[1:])].first()
     first["first_episode"] = grouped["episode"].min()
@@ -483,7 +375,7 @@ def runs_table(df: pd.DataFrame) -> pd.DataFrame:
 
 def run_modules(df: pd.DataFrame, run: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(all modules in slot order, achievable modules) of one run of a loaded table."""
-    _require_identity(df)
+    require_runs(df)
     rows = df.loc[df["run"] == run, ["modules", "achievable_modules"]]
     if rows.empty:
         raise AnalysisError(f"no run {run!r} in this table")
@@ -491,7 +383,9 @@ def run_modules(df: pd.DataFrame, run: str) -> tuple[tuple[str, ...], tuple[str,
     return tuple(str(modules).split(",")), tuple(a for a in str(achievable).split(",") if a)
 
 
-def _require_identity(df: pd.DataFrame) -> None:
+def require_runs(df: pd.DataFrame) -> None:
+    """An `AnalysisError` unless ``df`` is a table of runs (`load_runs`): identity columns and
+    ``episode``."""
     missing = [c for c in (*IDENTITY_COLUMNS, "episode") if c not in df.columns]
     if missing:
         raise AnalysisError(
@@ -499,7 +393,7 @@ def _require_identity(df: pd.DataFrame) -> None:
         )
 
 
-def _require_tests(df: pd.DataFrame) -> None:
+def require_tests(df: pd.DataFrame) -> None:
     """An `AnalysisError` unless ``df`` is a table of test rollouts (`load_tests`)."""
     missing = [
         c for c in (*IDENTITY_COLUMNS, "epoch", "episode", "module", "success") if c not in df

@@ -12,7 +12,6 @@ is listed with 0 episodes.
 from __future__ import annotations
 
 import json
-import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 from os import PathLike
@@ -22,22 +21,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from curious.analysis.loading import (
-    CONFIG_FILE,
-    METRICS_FILE,
-    TESTS_FILE,
-    AnalysisError,
-    read_run_info,
-    search_run_folders,
-)
+from curious.analysis.loading import AnalysisError, read_run_info, search_run_folders
+from curious.run_folder import CONFIG_FILE, RunFolder
 
 __all__ = ["DEFAULT_TEST_EPOCHS", "RunProgress", "progress_markdown", "progress_table"]
 
 DEFAULT_TEST_EPOCHS = 5
 """Test success is pooled over this many of a run's last epochs: a `laptop` epoch tests each
 module about 40 / N times, too few alone to read."""
-
-_CHECKPOINT = re.compile(r"ep-(\d+)")
 
 
 @dataclass(frozen=True)
@@ -68,7 +59,7 @@ def _run_folders(root: Path) -> list[Path]:
     """Folders below (or at) `root` that hold a config.json: runs, started or not."""
     if not root.exists():
         raise AnalysisError(f"{root} does not exist")
-    if (root / CONFIG_FILE).is_file():
+    if RunFolder(root).has_config:
         return [root]
     found = search_run_folders(root, started_only=False)
     if not found:
@@ -76,30 +67,10 @@ def _run_folders(root: Path) -> list[Path]:
     return found
 
 
-def _commits(config: dict[str, Any]) -> tuple[str, ...]:
-    """Short commits the run was trained from, first run then resumes, without repeats; a
-    commit with local changes is marked with '+'."""
-    out: list[str] = []
-    for entry in [config.get("git", {}), *(r.get("git", {}) for r in config.get("resumed", []))]:
-        commit = entry.get("commit") if isinstance(entry, dict) else None
-        if commit:
-            text = commit[:7] + ("+" if entry.get("dirty") else "")
-            if text not in out:
-                out.append(text)
-    return tuple(out)
-
-
-def _newest_checkpoint(folder: Path) -> int | None:
-    names = [
-        m for p in (folder / "checkpoints").glob("ep-*") if (m := _CHECKPOINT.fullmatch(p.name))
-    ]
-    return max((int(m.group(1)) for m in names), default=None)
-
-
-def _tests(folder: Path, achievable: tuple[str, ...], epochs: int) -> tuple[Any, ...]:
+def _tests(folder: RunFolder, achievable: tuple[str, ...], epochs: int) -> tuple[Any, ...]:
     """(episode of the newest test, pooled success, count, per-module success) over the last
     `epochs` epochs of achievable-module tests; Nones where the run has none yet."""
-    path = folder / TESTS_FILE
+    path = folder.tests_path
     if not path.is_file():
         return None, None, 0, {}
     tests = pd.read_parquet(path, columns=["epoch", "episode", "module", "success"])
@@ -113,26 +84,25 @@ def _tests(folder: Path, achievable: tuple[str, ...], epochs: int) -> tuple[Any,
     return int(tests["episode"].max()), success, len(recent), modules
 
 
-def _progress(folder: Path, epochs: int) -> RunProgress:
-    info = read_run_info(folder)
-    config = json.loads((folder / CONFIG_FILE).read_text(encoding="utf-8"))
-    settings = config.get("config", {})
+def _progress(path: Path, epochs: int) -> RunProgress:
+    info = read_run_info(path)
+    folder = RunFolder(path)
     episodes, hours = 0, 0.0
-    if (folder / METRICS_FILE).is_file():
-        metrics = pd.read_parquet(folder / METRICS_FILE, columns=["episode", "wall_time"])
+    if folder.metrics_path.is_file():
+        metrics = pd.read_parquet(folder.metrics_path, columns=["episode", "wall_time"])
         episodes = len(metrics)
         hours = float(metrics["wall_time"].max()) / 3600 if episodes else 0.0
     test_episode, success, count, modules = _tests(folder, info.achievable_modules, epochs)
     return RunProgress(
-        run=str(folder),
+        run=str(path),
         condition=info.condition,
         variant=info.variant,
         seed=info.seed,
         episodes=episodes,
-        total_episodes=int(settings.get("total_episodes", 0)),
-        checkpoint=_newest_checkpoint(folder),
+        total_episodes=info.total_episodes,
+        checkpoint=folder.newest_checkpoint(),
         run_hours=hours,
-        commits=_commits(config),
+        commits=info.commits,
         test_episode=test_episode,
         test_success=success,
         test_count=count,
@@ -157,7 +127,7 @@ def _planned(root: Path) -> list[RunProgress]:
     rows = []
     for spec in budget.runs():
         folder = root / "runs" / spec.relative_path
-        if not (folder / CONFIG_FILE).is_file():
+        if not RunFolder(folder).has_config:
             rows.append(
                 RunProgress(
                     run=str(folder.resolve()),

@@ -1,5 +1,6 @@
-"""Statistics over loaded runs: success over achievable modules, episode bins, seeds, Welch
-tests, and recovery after the sensory failure.
+"""Statistics over loaded runs: success over achievable modules, episode bins, seeds, and Welch
+tests: the comparison of conditions (Fig. 2a, the distractors). Recovery after the sensory
+failure is `curious.analysis.perturbation`.
 
 Test success (the y axis of the paper's Fig. 2a, `epoch_success`). After every epoch the trainer
 runs noise-free test rollouts on separate environment copies, modules drawn uniformly and goals
@@ -37,14 +38,6 @@ bin, with the number of seeds ``n``. Between two conditions: Welch's t-test per 
 alternative being that the first condition's mean is greater), significant where ``p < alpha``
 (alpha = 0.01 as in the paper). A bin where either condition has fewer than two seeds gets
 ``p = NaN`` and is not significant.
-
-Recovery after the sensory failure (`recovery`). The failure's onset is read from the data (the
-first episode whose ``sensor_failure`` flag is True; runs logged before that column existed fall
-back to the config's ``sensor_failure_episode``), the module followed is the one the variant's
-failure perturbs (`PERTURBED_MODULES`), and a recovery is measured only where the failure started
-and that module was learned before it: its competence just before the onset at least the run's
-own ``sensor_failure_competence``, else `LEARNED_COMPETENCE`. Other runs get no number, only a
-sentence saying why (never started, or nothing to forget).
 """
 
 from __future__ import annotations
@@ -55,7 +48,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from curious.analysis.loading import AnalysisError, _require_identity, _require_tests
+from curious.analysis.loading import AnalysisError, require_runs, require_tests
 
 __all__ = [
     "ALPHA",
@@ -64,31 +57,14 @@ __all__ = [
     "bin_runs",
     "check_comparable",
     "epoch_success",
-    "failure_onsets",
     "final_competence",
     "final_success",
     "nice_bin_size",
-    "perturbed_module",
-    "recovery",
-    "recovery_summary",
+    "run_arrays",
     "welch_per_bin",
 ]
 
 ALPHA = 0.01
-
-PERTURBED_MODULES: dict[str, str] = {"sensor_failure": "push_cube3"}
-"""Per suite variant with a sensory failure, the module it perturbs (the env's
-`sensor_failure_module`): cube 3's observed x reads 5 cm too far, in the state and in
-push_cube3's outcome (gym_flowers `MultiTaskFetchArm4-v3`, the authors' perturbation study)."""
-
-LEARNED_COMPETENCE = 0.5
-"""Competence the perturbed module must have just before the failure for a recovery to be
-measured, in runs that do not set their own (`sensor_failure_competence`). Half the evaluations
-succeeding: well above the floor of chance successes of push modules (a goal can lie within
-reach of where the cube already is), so that a fall means something was lost."""
-
-_FLOAT32_SLACK = 1e-6
-"""Competences are stored as float32 (0.7 reads 0.69999999): comparisons allow this much."""
 
 _RUN_COLUMNS = (
     "run",
@@ -103,7 +79,7 @@ _RUN_COLUMNS = (
 
 def achievable_competence(df: pd.DataFrame) -> pd.Series:
     """Per row: mean of ``competence/<m>`` over the run's achievable modules (see module doc)."""
-    _require_identity(df)
+    require_runs(df)
     out = np.full(len(df), np.nan)
     for achievable, rows in df.groupby("achievable_modules", observed=True).indices.items():
         modules = [m for m in str(achievable).split(",") if m]
@@ -132,10 +108,11 @@ def nice_bin_size(n_episodes: int, target_bins: int = 50) -> int:
     return best
 
 
-def _run_arrays(
+def run_arrays(
     df: pd.DataFrame, values: np.ndarray
 ) -> Iterator[tuple[str, int, np.ndarray, np.ndarray]]:
-    """Yields (run, first row index, episodes, values) per run, episodes ascending."""
+    """Yields (run, first row index, episodes, values) per run of a loaded table, episodes
+    ascending; ``values`` is aligned with ``df``'s rows."""
     for run, rows in df.groupby("run", observed=True, sort=True).indices.items():
         episodes = df["episode"].to_numpy()[rows]
         order = np.argsort(episodes, kind="stable")
@@ -164,14 +141,14 @@ def bin_runs(
     Returns one row per (run, bin): the run's identity columns, ``bin`` (k), ``episodes`` (the bin
     end, ``(k + 1) * bin_size``) and ``value``.
     """
-    _require_identity(df)
+    require_runs(df)
     data = _values(df, values)
     if bin_size is None:
         bin_size = nice_bin_size(int(df["episode"].max()) + 1)
     if bin_size < 1:
         raise ValueError(f"bin_size must be >= 1, got {bin_size}")
     parts = []
-    for _run, first, episodes, run_values in _run_arrays(df, data):
+    for _run, first, episodes, run_values in run_arrays(df, data):
         n_bins = (int(episodes[-1]) + 1) // bin_size
         if n_bins == 0:
             continue
@@ -300,7 +277,7 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
     that longer runs are not favoured. Returns one row per run: identity columns, ``episodes``
     (``at_episode + 1``) and ``value``.
     """
-    _require_identity(df)
+    require_runs(df)
     last_per_run = df.groupby("run", observed=True)["episode"].max()
     if at_episode is None:
         at_episode = int(last_per_run.min())
@@ -311,7 +288,7 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
         )
     data = achievable_competence(df).to_numpy()
     rows = []
-    for _run, first, episodes, values in _run_arrays(df, data):
+    for _run, first, episodes, values in run_arrays(df, data):
         at = int(np.searchsorted(episodes, at_episode, side="right")) - 1
         row = {c: df[c].iat[first] for c in _RUN_COLUMNS}
         row.update(episodes=at_episode + 1, value=float(values[at]) if at >= 0 else np.nan)
@@ -339,7 +316,7 @@ def epoch_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     (test rollouts on achievable modules pooled) and ``value`` (their success rate; NaN where
     ``n_tests`` is 0).
     """
-    _require_tests(tests)
+    require_tests(tests)
     if bin_size is not None and bin_size < 1:
         raise ValueError(f"bin_size must be >= 1, got {bin_size}")
     hit = _on_achievable(tests)
@@ -380,286 +357,3 @@ def final_success(points: pd.DataFrame) -> pd.DataFrame:
     last = upto.loc[upto.groupby("run", observed=True)["episodes"].idxmax()]
     columns = [*_RUN_COLUMNS, "episodes", "n_tests", "value"]
     return last[columns].sort_values("run").reset_index(drop=True)
-
-
-def perturbed_module(df: pd.DataFrame) -> str:
-    """The module the runs' sensory failure perturbs, from their variant (`PERTURBED_MODULES`)."""
-    variants = sorted(set(df["variant"].astype(str)))
-    unknown = [v for v in variants if v not in PERTURBED_MODULES]
-    if unknown:
-        raise AnalysisError(
-            f"variant(s) {', '.join(unknown)} have no known sensory failure (known: "
-            f"{', '.join(f'{v}: {m}' for v, m in PERTURBED_MODULES.items())}): pass module="
-        )
-    modules = sorted({PERTURBED_MODULES[v] for v in variants})
-    if len(modules) > 1:
-        raise AnalysisError(f"these runs perturb different modules ({', '.join(modules)})")
-    return modules[0]
-
-
-def failure_onsets(df: pd.DataFrame) -> pd.DataFrame:
-    """Per run: the first episode run with the sensory failure, and where it was read.
-
-    ``source`` is ``metrics`` (the first row whose ``sensor_failure`` flag is True; none there:
-    the failure never started), ``config`` (a run logged before that column existed: its
-    config's ``sensor_failure_episode``, if the run reached it) or ``none`` (no failure
-    configured, none logged). Returns one row per run, indexed by ``run``: ``onset`` (nullable
-    int), ``source`` and ``n_episodes`` (last episode + 1).
-    """
-    _require_identity(df)
-    run = df["run"]
-    grouped = df.groupby("run", observed=True, sort=True)
-    last = grouped["episode"].max()
-    planned = grouped["perturbation_episode"].first().astype("Int64")
-    threshold = grouped["failure_competence"].first()
-    if "sensor_failure" in df.columns:
-        flag = df["sensor_failure"].astype("boolean")
-        logged = flag.notna().groupby(run, observed=True).any()
-        first_on = df["episode"].where(flag.fillna(False)).groupby(run, observed=True).min()
-    else:
-        logged = pd.Series(False, index=last.index)
-        first_on = pd.Series(np.nan, index=last.index)
-    first_on = first_on.astype("Int64")
-    reached = planned.where(planned <= last)
-    configured = planned.notna() | threshold.notna() | first_on.notna()
-    source = np.select([~configured, logged], ["none", "metrics"], "config")
-    onset = first_on.where(logged, reached)
-    out = pd.DataFrame({"onset": onset, "source": source, "n_episodes": last + 1})
-    out.index.name = "run"
-    return out
-
-
-def _check_recovery_arguments(
-    fraction: float, pre_window: int | None, learned: float | None
-) -> None:
-    if not 0 < fraction <= 1:
-        raise ValueError(f"fraction must be in (0, 1], got {fraction}")
-    if pre_window is not None and pre_window < 1:
-        raise ValueError(f"pre_window must be >= 1 episode, got {pre_window}")
-    if learned is not None and not 0 < learned <= 1:
-        raise ValueError(f"learned must be a competence in (0, 1], got {learned}")
-
-
-def _unmeasured(status: str, note: str, onset_competence: float = np.nan) -> dict:
-    """The measurement columns of a run whose recovery cannot be measured."""
-    return {
-        "status": status,
-        "onset_competence": onset_competence,
-        "pre_competence": np.nan,
-        "threshold": np.nan,
-        "min_competence": np.nan,
-        "trough_episode": pd.NA,
-        "dropped": False,
-        "recovered": False,
-        "recovery_episodes": np.nan,
-        "note": note,
-    }
-
-
-def _never_started(
-    module: str, values: np.ndarray, n_episodes: int, threshold: float, planned: int | None
-) -> dict:
-    if planned is not None and planned >= n_episodes:
-        note = f"the run ended after {n_episodes:,} episodes, before episode {planned:,}"
-    elif np.isfinite(threshold):
-        note = (
-            f"{module} never reached competence {threshold:.2f} over a full window of its "
-            f"evaluations within {n_episodes:,} episodes (highest {np.nanmax(values):.2f}, early "
-            "values over fewer evaluations included)"
-        )
-    else:
-        note = f"no episode of its {n_episodes:,} ran with it"
-    return _unmeasured("never_started", f"the failure never started: {note}")
-
-
-def _measure(
-    module: str,
-    episodes: np.ndarray,
-    values: np.ndarray,
-    p: int,
-    bar: float,
-    fraction: float,
-    pre_window: int | None,
-) -> dict:
-    """The recovery columns of a run whose failure started at episode ``p``."""
-    start = int(np.searchsorted(episodes, p, side="left"))
-    if start == 0:
-        note = "the failure started with the run's first episode: nothing was learned before it"
-        return _unmeasured("not_learned", note)
-    onset_competence = float(values[start - 1])
-    if onset_competence < bar - _FLOAT32_SLACK:
-        note = (
-            f"not learned before the failure: {module} had competence {onset_competence:.2f} "
-            f"< {bar:.2f} at episode {p:,}, so there was nothing to forget"
-        )
-        return _unmeasured("not_learned", note, onset_competence)
-    window = pre_window if pre_window is not None else max(1, p // 10)
-    pre = float(np.mean(values[:start][episodes[:start] >= p - window]))
-    threshold = fraction * pre
-    after = values[start:]
-    trough = int(np.nanargmin(after))
-    dropped = bool(after[trough] < threshold)
-    back = np.flatnonzero(after[trough:] >= threshold)
-    if not dropped:
-        recovered_at = 0.0
-        note = f"competence never fell below {fraction:.0%} of its level before ({pre:.2f})"
-    elif back.size:
-        recovered_at = float(episodes[start + trough + back[0]] - p + 1)
-        note = (
-            f"{fraction:.0%} of its competence before ({pre:.2f}) regained "
-            f"{recovered_at:,.0f} episodes after the failure"
-        )
-    else:
-        recovered_at = np.nan
-        note = (
-            f"{fraction:.0%} of its competence before ({pre:.2f}) not regained within the "
-            f"{int(episodes[-1]) - p + 1:,} episodes after the failure"
-        )
-    return {
-        "status": "measured",
-        "onset_competence": onset_competence,
-        "pre_competence": pre,
-        "threshold": threshold,
-        "min_competence": float(after[trough]),
-        "trough_episode": int(episodes[start + trough]),
-        "dropped": dropped,
-        "recovered": bool(np.isfinite(recovered_at)),
-        "recovery_episodes": recovered_at,
-        "note": note,
-    }
-
-
-def _learned_bar(learned: float | None, own: float) -> float:
-    """The competence the module must have had before the failure: ``learned`` if given, else
-    the run's own ``sensor_failure_competence`` (the one that started its failure), else
-    `LEARNED_COMPETENCE`."""
-    if learned is not None:
-        return float(learned)
-    return LEARNED_COMPETENCE if pd.isna(own) else float(own)
-
-
-RECOVERY_COLUMNS: tuple[str, ...] = (
-    "run",
-    "condition",
-    "seed",
-    "variant",
-    "module",
-    "status",
-    "perturbation_episode",
-    "onset_source",
-    "learned_threshold",
-    "onset_competence",
-    "pre_competence",
-    "threshold",
-    "min_competence",
-    "trough_episode",
-    "dropped",
-    "recovered",
-    "recovery_episodes",
-    "note",
-)
-
-
-def recovery(
-    df: pd.DataFrame,
-    module: str | None = None,
-    perturbation_episode: int | None = None,
-    fraction: float = 0.9,
-    pre_window: int | None = None,
-    learned: float | None = None,
-) -> pd.DataFrame:
-    """Episodes each run takes to regain ``fraction`` of a module's competence after the failure.
-
-    ``module`` defaults to the one the runs' variant perturbs (`perturbed_module`). The onset
-    ``p`` of each run is where its failure started (`failure_onsets`); ``perturbation_episode``
-    imposes one on every run instead (to study another moment). ``status`` says what could be
-    measured:
-
-    - ``never_started``: the failure never started (``note`` says why: the module never reached
-      the run's threshold, or the run ended before the planned episode);
-    - ``not_learned``: the module's competence just before ``p`` (``onset_competence``) was below
-      ``learned`` (default: the run's ``sensor_failure_competence``, else `LEARNED_COMPETENCE`),
-      or the failure started with the run: nothing to forget, so nothing to recover;
-    - ``measured``: ``pre_competence`` is the mean competence over the ``pre_window`` episodes
-      before ``p`` (default ``max(1, p // 10)``; one noisy reading does not set the bar),
-      ``threshold = fraction * pre_competence``; the *trough* is the lowest competence at or after
-      ``p``; the run *dropped* if the trough is below the threshold, and *recovered* at the first
-      episode ``e`` after the trough back at or above it: ``recovery_episodes = e - p + 1``
-      (counting from the trough keeps a noisy dip on the way down from passing for a recovery).
-      A run that never dropped has ``recovery_episodes = 0``; one not back by its end, NaN.
-
-    Only ``measured`` runs have numbers; every run has a ``note``, one sentence on its outcome.
-    Returns one row per run with `RECOVERY_COLUMNS`.
-    """
-    _require_identity(df)
-    _check_recovery_arguments(fraction, pre_window, learned)
-    module = module if module is not None else perturbed_module(df)
-    column = f"competence/{module}"
-    if column not in df.columns:
-        raise KeyError(f"no module {module!r} in these runs (no column {column!r})")
-    onsets = failure_onsets(df)
-    rows = []
-    for run, first, episodes, values in _run_arrays(df, df[column].to_numpy(np.float64)):
-        onset = onsets.loc[run]
-        if perturbation_episode is None and onset["source"] == "none":
-            raise AnalysisError(
-                f"run {run} has no sensory failure: its config.json sets neither "
-                "sensor_failure_episode nor sensor_failure_competence and no episode ran with "
-                "it (pass perturbation_episode to study another moment)"
-            )
-        own = df["failure_competence"].iat[first]  # the run's own threshold, or NA
-        bar = _learned_bar(learned, own)
-        given = perturbation_episode is not None
-        p = int(perturbation_episode) if given else onset["onset"]
-        if pd.isna(p) or p > episodes[-1]:
-            planned = p if given else df["perturbation_episode"].iat[first]
-            planned = None if pd.isna(planned) else int(planned)
-            threshold = np.nan if given or pd.isna(own) else float(own)
-            n_episodes = int(episodes[-1]) + 1
-            measured = _never_started(module, values, n_episodes, threshold, planned)
-            p = pd.NA
-        else:
-            measured = _measure(module, episodes, values, int(p), bar, fraction, pre_window)
-        row = {c: df[c].iat[first] for c in ("run", "condition", "seed", "variant")}
-        row.update(
-            module=module,
-            perturbation_episode=p,
-            onset_source="given" if given else onset["source"],
-            learned_threshold=bar,
-            **measured,
-        )
-        rows.append(row)
-    out = pd.DataFrame(rows, columns=list(RECOVERY_COLUMNS))
-    out["perturbation_episode"] = out["perturbation_episode"].astype("Int64")
-    out["trough_episode"] = out["trough_episode"].astype("Int64")
-    return out
-
-
-def recovery_summary(per_run: pd.DataFrame) -> pd.DataFrame:
-    """Per condition: runs, runs where the failure started, runs measured (started, module
-    learned before it), dropped and recovered among those, and the mean/std (ddof=1) of
-    ``recovery_episodes``, competence before and threshold over the measured runs."""
-    measured = per_run["status"] == "measured"
-    data = per_run.assign(
-        started=per_run["status"] != "never_started",
-        measured=measured,
-        dropped=per_run["dropped"].astype(bool) & measured,
-        recovered=per_run["recovered"].astype(bool) & measured,
-    )
-    grouped = data.groupby("condition", observed=True, sort=True)
-    out = pd.DataFrame(
-        {
-            "n_runs": grouped.size(),
-            "n_started": grouped["started"].sum(),
-            "n_measured": grouped["measured"].sum(),
-            "n_dropped": grouped["dropped"].sum(),
-            "n_recovered": grouped["recovered"].sum(),
-            "mean_recovery_episodes": grouped["recovery_episodes"].mean(),
-            "std_recovery_episodes": grouped["recovery_episodes"].std(ddof=1),
-            "pre_competence": grouped["pre_competence"].mean(),
-            "threshold": grouped["threshold"].mean(),
-        }
-    )
-    counts = ["n_runs", "n_started", "n_measured", "n_dropped", "n_recovered"]
-    out[counts] = out[counts].astype(np.int64)
-    return out.reset_index()

@@ -12,7 +12,6 @@ on another machine) instead.
 from __future__ import annotations
 
 import argparse
-import os
 import shlex
 import shutil
 import signal
@@ -21,7 +20,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-RECORDING_FILENAME = "recording.rrd"  # the run folder's contract (docs/architecture.md)
+from curious.display import has_display
+from curious.run_folder import RunFolder
+
 RRD_MAGIC = b"RRF"
 """How every Rerun recording file begins (`RRF2` today, with the format's version after it)."""
 RRD_HEADER_BYTES = 12
@@ -83,10 +84,10 @@ def recording_paths(runs: list[str]) -> list[Path]:
     for run in runs:
         path = Path(run)
         if path.is_dir():
-            rrd = path / RECORDING_FILENAME
+            rrd = RunFolder(path).recording_path
             if not rrd.is_file():
                 raise FileNotFoundError(
-                    f"{path}: no {RECORDING_FILENAME} in this folder. A run folder gets one when "
+                    f"{path}: no {rrd.name} in this folder. A run folder gets one when "
                     "`curious train` runs with recording on; check the path, or that the run "
                     "has started."
                 )
@@ -100,13 +101,6 @@ def recording_paths(runs: list[str]) -> list[Path]:
     for path in paths:
         check_recording(path)
     return paths
-
-
-def has_display() -> bool:
-    """False on Linux without X11 or Wayland, where a native viewer cannot open a window."""
-    if not sys.platform.startswith("linux"):
-        return True
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def viewer_command() -> list[str]:

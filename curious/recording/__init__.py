@@ -2,13 +2,13 @@
 
 The training loop makes one `RunRecorder` per run and calls its `log_*` methods with batches of
 arrays; rollout code fills a `RolloutCapture` from MuJoCo data each step. `curious view` opens
-the resulting `recording.rrd` files; `curious.recording.reader` reads them back.
+the resulting `recording.rrd` files (named by the run folder's format,
+`curious.run_folder.RECORDING_FILE`); `curious.recording.reader` reads them back.
 """
 
 from curious.recording.blueprint import default_blueprint
 from curious.recording.recorder import (
     APPLICATION_ID,
-    RECORDING_FILENAME,
     RecorderSettings,
     RunRecorder,
     compact_recording,
@@ -17,7 +17,6 @@ from curious.recording.scene import RolloutCapture, SceneLayout, wxyz_to_xyzw
 
 __all__ = [
     "APPLICATION_ID",
-    "RECORDING_FILENAME",
     "RecorderSettings",
     "RolloutCapture",
     "RunRecorder",

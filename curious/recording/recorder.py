@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import sys
 import time
 import uuid
 import warnings
@@ -58,6 +57,7 @@ import numpy as np
 import rerun as rr
 
 from curious.analysis.palette import module_entity, module_label, module_rgb
+from curious.display import has_display
 from curious.recording.blueprint import default_blueprint
 from curious.recording.resume import last_episode_kept, take_held_values
 from curious.recording.rrd_files import (
@@ -75,18 +75,17 @@ from curious.recording.scene import (
     log_scene_geometry,
     send_rollout,
 )
+from curious.run_folder import RECORDING_FILE
 
 __all__ = [
     "APPLICATION_ID",
-    "RECORDING_FILENAME",
     "RecorderSettings",
     "RunRecorder",
     "compact_recording",
 ]
 
 APPLICATION_ID = "curious"
-RECORDING_FILENAME = "recording.rrd"
-WORKING_FILENAME = ".recording.rrd.part"
+WORKING_FILENAME = f".{RECORDING_FILE}.part"
 """The file a running recorder writes; `recording.rrd` is its copy at the last checkpoint."""
 DEFAULT_VIEWER_PORT = 9876
 
@@ -180,13 +179,6 @@ def _same_layout(a: SceneLayout, b: SceneLayout) -> bool:
     return a.geom_paths == b.geom_paths and np.array_equal(a.drawn_geoms, b.drawn_geoms)
 
 
-def _has_display() -> bool:
-    """False on Linux without X11 or Wayland (a native viewer cannot open a window there)."""
-    if not sys.platform.startswith("linux"):
-        return True
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
 def _as_1d(name: str, values: Any, n: int | None = None, dtype: Any = None) -> np.ndarray:
     arr = np.atleast_1d(np.asarray(values, dtype=dtype))
     if arr.ndim != 1:
@@ -240,7 +232,7 @@ class RunRecorder:
         self.settings = settings or RecorderSettings()
         self.run_dir = Path(run_dir)
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        self.path = self.run_dir / RECORDING_FILENAME
+        self.path = self.run_dir / RECORDING_FILE
         self.working = self.run_dir / WORKING_FILENAME
         self._module_index = {name: i for i, name in enumerate(self.module_names)}
         self._rgb = np.array([module_rgb(n) for n in self.module_names], dtype=np.uint8)
@@ -269,7 +261,7 @@ class RunRecorder:
 
         sinks: list[Any] = [rr.FileSink(str(self.working))]
         if spawn:
-            if _has_display():
+            if has_display():
                 self.stream.spawn(port=viewer_port, connect=False)
                 sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{viewer_port}/proxy"))
             else:

@@ -29,6 +29,7 @@ from curious.analysis.figures.distracting import distractors
 from curious.analysis.figures.fig2 import fig2a, fig2b, fig2c, table1
 from curious.analysis.figures.parts import CONDITION_ORDER
 from curious.analysis.figures.sensor_failure import forgetting
+from curious.analysis.style import save_figure
 
 __all__ = [
     "CONDITION_ORDER",
@@ -37,5 +38,6 @@ __all__ = [
     "fig2b",
     "fig2c",
     "forgetting",
+    "save_figure",
     "table1",
 ]

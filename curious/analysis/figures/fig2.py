@@ -33,7 +33,7 @@ from curious.analysis.figures.parts import (
 )
 from curious.analysis.loading import (
     AnalysisError,
-    _require_tests,
+    require_tests,
 )
 from curious.analysis.statistics import (
     ALPHA,
@@ -73,7 +73,7 @@ def fig2a(
     ``compare = (better, worse)`` adds a dot above every point where a one-tailed Welch's t-test
     finds ``better`` greater at level ``alpha``; ``None`` draws no test.
     """
-    _require_tests(tests)
+    require_tests(tests)
     conditions = ordered_conditions(tests, conditions)
     if compare is not None:
         for c in compare:

@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from curious.analysis import palette
 from curious.analysis.loading import (
     AnalysisError,
-    _require_identity,
+    require_runs,
     run_modules,
 )
 from curious.analysis.statistics import (
@@ -48,7 +48,7 @@ def ordered_conditions(df: pd.DataFrame, conditions: Sequence[str] | None) -> li
 
 
 def restrict(df: pd.DataFrame, conditions: Sequence[str], variant: str | None) -> pd.DataFrame:
-    _require_identity(df)
+    require_runs(df)
     if variant is not None:
         variants = set(df["variant"].astype(str))
         if variant not in variants:

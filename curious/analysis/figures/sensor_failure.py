@@ -28,13 +28,12 @@ from curious.analysis.figures.parts import (
     runs_of,
     setting_text,
 )
+from curious.analysis.perturbation import perturbed_module, recovery
 from curious.analysis.statistics import (
-    _run_arrays,
     across_seeds,
     bin_runs,
     check_comparable,
-    perturbed_module,
-    recovery,
+    run_arrays,
 )
 from curious.analysis.style import (
     budget_text,
@@ -60,15 +59,16 @@ def forgetting(
 ) -> tuple[Figure, pd.DataFrame]:
     """Competence and LP of the perturbed module around the sensory failure, and recovery times.
 
-    ``module`` defaults to the module the runs' variant perturbs (`statistics.perturbed_module`);
-    each run's onset is where its failure started (`statistics.failure_onsets`), or
-    ``perturbation_episode`` for every run. The runs whose failure started are aligned on their
-    onset: the x axis counts episodes since the failure, from ``before`` episodes before it
-    (default: half of what every such run has after it) to the end that all of them reach.
+    ``module`` defaults to the module the runs' sensory failure perturbs
+    (`perturbation.perturbed_module`); each run's onset is where its failure started
+    (`perturbation.failure_onsets`), or ``perturbation_episode`` for every run. The runs whose
+    failure started are aligned on their onset: the x axis counts episodes since the failure,
+    from ``before`` episodes before it (default: half of what every such run has after it) to
+    the end that all of them reach.
     Where the failure started in no run, the figure shows the module's competence over the
     whole runs, with the competence the failure waited for, and says so. Returns the figure and
-    `statistics.recovery`'s table (one row per run, with its ``status`` and ``note``); the legend
-    states, per condition, the mean ± std recovery time over the seeds where it could be
+    `perturbation.recovery`'s table (one row per run, with its ``status`` and ``note``); the
+    legend states, per condition, the mean ± std recovery time over the seeds where it could be
     measured, or why it could not be.
     """
     conditions = ordered_conditions(df, conditions)
@@ -125,7 +125,7 @@ def _aligned(
     """``column`` of every run in ``onsets`` at episode ``onset + offset`` (the last row at or
     before it), as rows `across_seeds` takes (``episodes`` holds the offset)."""
     parts = []
-    for run, first, episodes, values in _run_arrays(rows, rows[column].to_numpy(np.float64)):
+    for run, first, episodes, values in run_arrays(rows, rows[column].to_numpy(np.float64)):
         if run not in onsets.index:
             continue
         wanted = int(onsets[run]) + offsets

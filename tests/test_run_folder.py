@@ -1,0 +1,177 @@
+"""The run folder's format (curious.run_folder): what config.json records, how every version of it
+reads, and the one check of whether a config goes on with the run in a folder."""
+
+from __future__ import annotations
+
+import ast
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+from toy_env import ToyGoalEnv
+
+from curious.config import resolve
+from curious.envs import SuiteEnv
+from curious.experiments import get_budget
+from curious.run_folder import (
+    RUN_ENTRIES,
+    ConfigMismatch,
+    RunFolder,
+    RunFolderError,
+    checkpoint_name,
+    list_checkpoints,
+)
+from pipelines.training import PARTIAL, RunFolderMismatch, folder_state, run_folder
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(autouse=True)
+def _no_gl(monkeypatch):
+    monkeypatch.setenv("MUJOCO_GL", "disable")  # the suite is built, never rendered
+
+
+def _written(folder: Path, variant: str) -> RunFolder:
+    """A run folder whose config.json training wrote, for a run of `variant`."""
+    config = resolve("smoke", "curious", 0, {"variant": variant})
+    run = RunFolder(folder)
+    run.write_config(config, SuiteEnv(variant, seed=0).spec)
+    return run
+
+
+def _as_main_wrote_it(run: RunFolder) -> None:
+    """config.json as curious wrote it before it recorded the perturbed modules (main at
+    abb0519, the campaign's runs): the same keys but `sensor_failure_modules`."""
+    data = json.loads(run.config_path.read_text())
+    del data["sensor_failure_modules"]
+    run.config_path.write_text(json.dumps(data, indent=2))
+
+
+def test_config_json_records_the_modules_the_sensory_failure_perturbs(tmp_path):
+    failure = _written(tmp_path / "failure", "sensor_failure")
+    assert json.loads(failure.config_path.read_text())["sensor_failure_modules"] == ["push_cube3"]
+    assert failure.read_info().sensor_failure_modules == ("push_cube3",)
+    default = _written(tmp_path / "default", "default")
+    assert json.loads(default.config_path.read_text())["sensor_failure_modules"] == []
+    assert default.read_info().sensor_failure_modules == ()
+
+
+def test_a_config_json_written_before_the_record_reads_the_variants_modules(tmp_path):
+    failure = _written(tmp_path / "failure", "sensor_failure")
+    default = _written(tmp_path / "default", "default")
+    for run in (failure, default):
+        _as_main_wrote_it(run)
+    info = failure.read_info()
+    assert info.recorded_failure_modules is None
+    assert info.sensor_failure_modules == ("push_cube3",)  # the suite variant's definition
+    assert default.read_info().sensor_failure_modules == ()
+    assert info.condition == "curious" and info.variant == "sensor_failure"
+    assert info.module_names == ("reach", "push_cube1", "cube1_above_cube2", "push_cube3")
+    assert info.total_episodes == resolve("smoke").total_episodes
+
+
+def test_run_info_carries_the_provenance_of_every_start(tmp_path):
+    run = _written(tmp_path / "run", "default")
+    data = json.loads(run.config_path.read_text())
+    data["git"] = {"commit": "a" * 40, "dirty": False}
+    data["resumed"] = [
+        {"at": "x", "git": {"commit": "b" * 40, "dirty": True}, "config": {}},
+        {"at": "y", "git": {"commit": "a" * 40, "dirty": False}, "config": {}},
+    ]
+    run.config_path.write_text(json.dumps(data))
+    info = run.read_info()
+    assert info.commits == ("aaaaaaa", "bbbbbbb+")
+    assert info.versions["curious"] is not None and len(info.resumed) == 2
+
+
+def test_a_bad_record_of_the_perturbed_modules_is_named(tmp_path):
+    run = _written(tmp_path / "run", "sensor_failure")
+    data = json.loads(run.config_path.read_text())
+    data["sensor_failure_modules"] = ["push_cube9"]
+    run.config_path.write_text(json.dumps(data))
+    with pytest.raises(RunFolderError, match=r"config\.json: 'sensor_failure_modules' must list"):
+        run.read_info()
+
+
+def _pipeline_run(root: Path):
+    """A smoke reproduction's first run, its config.json written as training writes it."""
+    spec = get_budget("smoke").experiments["main"].runs()[0]
+    run = RunFolder(run_folder(spec, root))
+    run.write_config(spec.config(), ToyGoalEnv.spec)
+    return spec, run
+
+
+@pytest.mark.parametrize(
+    ("what", "change", "accepted"),
+    [
+        ("nothing", {}, True),
+        ("a resumable setting", {"total_episodes": 10**6}, True),
+        ("a setting", {"hidden": 7}, False),
+        ("an int setting written as a float", {"hidden": "as float"}, False),
+        ("a setting this version lacks", {"lp_eps": None}, False),
+    ],
+)
+def test_the_pipeline_takes_a_folder_exactly_when_a_resume_would(tmp_path, what, change, accepted):
+    """One check (`RunFolder.check_resumable`) decides both: the pipeline never hands training
+    a folder that `train(resume=True)` refuses, nor refuses one it would go on with."""
+    spec, run = _pipeline_run(tmp_path)
+    data = json.loads(run.config_path.read_text())
+    for key, value in change.items():
+        if value is None:
+            del data["config"][key]
+        else:
+            data["config"][key] = float(data["config"][key]) if value == "as float" else value
+    run.config_path.write_text(json.dumps(data))
+    config = spec.config()
+    if accepted:
+        RunFolder.prepare(run.path, config, resume=True)
+        assert folder_state(spec, tmp_path) == PARTIAL, what
+    else:
+        with pytest.raises(RunFolderError):
+            RunFolder.prepare(run.path, config, resume=True)
+        with pytest.raises(RunFolderMismatch):
+            folder_state(spec, tmp_path)
+
+
+def test_a_changed_setting_is_named_on_both_sides(tmp_path):
+    spec, run = _pipeline_run(tmp_path)
+    hidden = spec.config().hidden
+    changed = dataclasses.replace(spec.config(), hidden=hidden + 1)
+    detail = rf"different config \(hidden: {hidden} -> {hidden + 1}\)"
+    with pytest.raises(ConfigMismatch, match=detail) as error:
+        run.check_resumable(changed)
+    assert error.value.differences == {"hidden": (hidden, hidden + 1)}
+    other = get_budget("quick").experiments["main"].runs()[0]
+    with pytest.raises(RunFolderMismatch, match="training preset 'smoke', not 'quick'"):
+        folder_state(other, tmp_path)
+
+
+def test_checkpoints_are_listed_by_their_names(tmp_path):
+    run = RunFolder(tmp_path)
+    assert run.newest_checkpoint() is None and run.episodes_logged() == 0
+    for name in (
+        checkpoint_name(40),
+        checkpoint_name(1200),
+        f".tmp-{checkpoint_name(2000)}",
+        "ep-7",
+    ):
+        (run.checkpoints / name).mkdir(parents=True)
+    assert [p.name for p in list_checkpoints(run.checkpoints)] == [
+        "ep-000000000040",
+        "ep-000000001200",
+    ]
+    assert run.newest_checkpoint() == 1200
+
+
+def test_only_the_run_folder_module_spells_the_file_names():
+    """Every reader and writer of a run folder takes the names from `curious.run_folder`."""
+    spelled = []
+    for top in ("curious", "pipelines", "notebooks", "benchmarks"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            if path == ROOT / "curious" / "run_folder.py":
+                continue
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Constant) and node.value in RUN_ENTRIES:
+                    spelled.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.value}")
+    assert spelled == []
