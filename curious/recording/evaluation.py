@@ -33,8 +33,9 @@ import numpy as np
 import rerun as rr
 
 from curious.analysis.palette import module_entity
-from curious.recording.recorder import RECORDING_FILENAME, RecorderSettings, RunRecorder
+from curious.recording.recorder import RecorderSettings, RunRecorder
 from curious.recording.rollouts import RolloutObserver
+from curious.run_folder import CONFIG_FILE, RECORDING_FILE
 
 __all__ = ["DEFAULT_FILE", "EvaluationRecording", "check_target"]
 
@@ -52,8 +53,8 @@ def check_target(path: str | os.PathLike[str], run: str | os.PathLike[str]) -> P
     if target.is_dir():
         raise ValueError(f"--record {path} is a folder; name an .rrd file")
     resolved = target.resolve()
-    run_recording = (Path(run) / RECORDING_FILENAME).resolve()
-    training = resolved.name == RECORDING_FILENAME and (resolved.parent / "config.json").exists()
+    run_recording = (Path(run) / RECORDING_FILE).resolve()
+    training = resolved.name == RECORDING_FILE and (resolved.parent / CONFIG_FILE).exists()
     if resolved == run_recording or training:
         raise ValueError(
             f"--record {path} is a run's training recording; name another file "
@@ -130,7 +131,7 @@ class EvaluationRecording:
         try:
             self._log_scores(result)
             self.recorder.close()
-            os.replace(self._folder / RECORDING_FILENAME, self.path)
+            os.replace(self._folder / RECORDING_FILE, self.path)
         except BaseException:
             self.abandon()
             raise
