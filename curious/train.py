@@ -25,127 +25,38 @@ copy of the policy from before the updates; its rounds are stored and scored at 
 next cycle. The environment copies step in this process or in worker processes
 (`curious.env_batch`, `env_processes`).
 
-`train()` runs a `Trainer` in a run folder: `metrics.parquet` and `tests.parquet` rows,
-checkpoints every `checkpoint_every_cycles` cycles (with no rounds in flight), `--resume`, a
-progress bar and an optional recorder.
-
-A recorder (`Recorder`, e.g. `curious.recording.RunRecorder`) is optional; after every cycle
-`train()` calls it, with B the cycle's episodes and N the modules:
-
-    recorder.log_episodes(episode=(B,), module=(B,) slot indices, success=(B,), eval=(B,),
-                          competence=(B, N), lp=(B, N), p_lp=(B, N), wall_time=(B,))
-    recorder.log_replay(episode, counts)     # (N,) modules of the cycle's replayed transitions
-    recorder.log_tests(episode, module=(K,), success=(K,), wall_time)   # an epoch's K tests
-    recorder.log_learner(episode, losses={"critic", "actor"}, q={"target_mean"})
-    recorder.checkpoint()                    # before every checkpoint: make it durable
-    recorder.close()                         # once, when training stops
-    recorder.close_after_error()             # instead, when an error stops it
-
-and a `Trainer.observer` (e.g. one that captures MuJoCo body poses for 3-D rollouts) is called
-around every round of parallel episodes:
-
-    observer.begin_round(episodes, modules, goals, evaluation, envs)   # before the resets
-    observer.after_step(t)                   # t = 0 after the resets, then 1..T after each step
-    observer.end_round(info)                 # RolloutInfo: states, outcomes, actions, success
+A `Trainer.observer` (`curious.hooks.RoundObserver`) is called around every round of training
+episodes. `curious.run.train` runs a `Trainer` in a run folder (tables, checkpoints, resume,
+recorder).
 """
 
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
 import functools
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
-import pyarrow.compute as pc
 import torch
 
 from curious import checkpoint
 from curious.agent import Agent
 from curious.conditions import make_condition
 from curious.config import Config, ConfigError
-from curious.env_batch import EnvBatch, LocalEnvs, ProcessEnvs
+from curious.env_batch import EnvBatch, LocalEnvs
 from curious.envs import GoalEnv
+from curious.hooks import RolloutInfo, RoundObserver
 from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
-from curious.metrics import MetricsLog, TableLog, TestsLog
 from curious.replay import EpisodeReplay, Transitions
-from curious.resources import SUITE_COPY_BYTES, check_memory
-from curious.rollouts import EpisodeData, run_episodes
-from curious.run_folder import RunFolder, RunFolderError, config_differences, folder_lock
-
-
-class Recorder(Protocol):
-    """What `train()` logs to after every cycle (see the module docstring);
-    `curious.recording.RunRecorder` is one."""
-
-    def log_episodes(
-        self,
-        episode: np.ndarray,
-        module: np.ndarray,
-        success: np.ndarray,
-        eval: np.ndarray,
-        competence: np.ndarray,
-        lp: np.ndarray,
-        p_lp: np.ndarray,
-        wall_time: np.ndarray,
-    ) -> None: ...
-
-    def log_tests(
-        self, episode: int, module: np.ndarray, success: np.ndarray, wall_time: float
-    ) -> None: ...
-
-    def log_replay(self, episode: int, counts: np.ndarray) -> None: ...
-
-    def log_learner(self, episode: int, losses: dict[str, float], q: dict[str, float]) -> None: ...
-
-    def checkpoint(self) -> None:
-        """Make what was logged so far durable (called before every training checkpoint)."""
-
-    def close(self) -> None: ...
-
-    def close_after_error(self) -> None:
-        """Close when an error stopped training, never raising over that error."""
-
-
-class RoundObserver(Protocol):
-    """Called around every round of parallel episodes (see the module docstring)."""
-
-    def watched(self, episodes: np.ndarray, evaluation: np.ndarray) -> Sequence[int]:
-        """The copies (positions in the round) whose simulators it will read this round."""
-        ...
-
-    def begin_round(
-        self,
-        episodes: np.ndarray,
-        modules: np.ndarray,
-        goals: np.ndarray,
-        evaluation: np.ndarray,
-        envs: Sequence[GoalEnv],
-    ) -> None: ...
-
-    def after_step(self, t: int) -> None: ...
-
-    def end_round(self, info: RolloutInfo) -> None: ...
-
-
-@dataclass
-class RolloutInfo:
-    """One round of parallel episodes, for recorders that show rollouts."""
-
-    episodes: np.ndarray  # (n,) global episode indices
-    modules: np.ndarray  # (n,) module index practised or evaluated
-    raw_goals: np.ndarray  # (n, 3) goals in [-1, 1]^3
-    goals: np.ndarray  # (n, N, G) goal slots given to the policy
-    evaluation: np.ndarray  # (n,) bool
-    success: np.ndarray  # (n,) bool, final success of the module
-    data: EpisodeData  # states, achieved outcomes, actions
-    sensor_failure: np.ndarray  # (n,) bool, episodes run with the sensory failure
+from curious.resources import check_memory
+from curious.rollouts import run_episodes
+from curious.run_folder import config_differences
 
 
 @dataclass
@@ -732,247 +643,3 @@ class Trainer:
     def load_checkpoint(self, path: Path) -> None:
         state, replay = checkpoint.load(path, map_location=self.agent.device)
         self.load_state_dict(state, replay)
-
-
-# ----------------------------------------------------------------------------------------------
-def _progress_text(trainer: Trainer) -> dict[str, str]:
-    spec = trainer.spec
-    if not trainer.condition.self_evaluates:
-        return {}  # no competence to show (her)
-    competence = trainer.tracker.competence()
-    achievable = np.array(spec.achievable, bool)
-    success = competence[achievable].mean() if achievable.any() else float("nan")
-    p = trainer.condition.practice_probs(trainer.tracker, trainer.epoch)
-    short = [name.replace("cube", "c").replace("_", "") for name in spec.module_names]
-    p_text = " ".join(f"{name}:{v:.2f}" for name, v in zip(short, p, strict=True))
-    return {"success": f"{success:.2f}", "p_LP": p_text}
-
-
-def _log_cycle(recorder: Recorder, trainer: Trainer, result: CycleResult) -> None:
-    """Hand one cycle to a recorder (see the module docstring for the calls)."""
-    rows = result.rows
-    recorder.log_episodes(
-        episode=rows["episode"],
-        module=result.module_index,
-        success=rows["success"],
-        eval=rows["eval"],
-        competence=result.competence,
-        lp=result.lp,
-        p_lp=result.p_lp,
-        wall_time=rows["wall_time"],
-    )
-    losses = result.losses
-    if result.tests is not None:
-        tests = result.tests
-        recorder.log_tests(
-            int(tests["episode"][0]), tests["module"], tests["success"], tests["wall_time"][0]
-        )
-    if result.replay_counts.sum() > 0:
-        recorder.log_replay(trainer.episodes, result.replay_counts)
-    if "critic_loss" in losses:
-        recorder.log_learner(
-            trainer.episodes,
-            losses={"critic": losses["critic_loss"], "actor": losses["actor_loss"]},
-            q={"target_mean": losses["q_target_mean"]},
-        )
-
-
-def train(
-    config: Config,
-    out: str | Path,
-    resume: bool = False,
-    make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
-    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
-    stop_after_cycles: int | None = None,
-    restart: bool = False,
-) -> Trainer:
-    """Train `config` in the run folder `out` (created, continued with `resume=True`, or started
-    over with `restart=True`, which removes the run the folder held once every check passed).
-
-    `make_envs(config)` builds the `n_workers` environment copies (default: the suite variant
-    `config.variant`); it is called a second time for the test rollouts' copies (the default
-    seeds those from a stream of their own). `make_recorder(trainer, folder)`, called once the
-    folder is ready (and a resumed trainer is at its checkpoint's episode), returns the recorder
-    the loop logs to.
-    `stop_after_cycles` ends this call early (after a checkpoint), which is how tests interrupt
-    a run. Errors about the folder, the checkpoint or what the run needs (memory) are raised
-    before anything in the folder is written (`resume_checks` says what a resume refuses);
-    while it trains, the folder is locked against a second process (`RunFolderBusy`).
-    """
-    with folder_lock(out):
-        return _train(config, out, resume, restart, make_envs, make_recorder, stop_after_cycles)
-
-
-def _train(
-    config: Config,
-    out: str | Path,
-    resume: bool,
-    restart: bool,
-    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
-    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
-    stop_after_cycles: int | None,
-) -> Trainer:
-    folder = RunFolder.prepare(out, config, resume, restart)
-    trainer = Trainer(config, *_environments(config, make_envs))
-    with contextlib.closing(trainer):  # the environment workers stop with the run
-        return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles)
-
-
-def _environments(
-    config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
-) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None]:
-    """The training copies and the test rollouts' copies of a run (see `train`)."""
-    tests_wanted = config.test_rollouts_per_worker > 0
-    if make_envs is not None:
-        if config.processes > 1:
-            raise ConfigError(
-                "env_processes > 1 builds the suite's environments in worker processes; a "
-                "custom make_envs runs in this process (env_processes=1)"
-            )
-        return make_envs(config), make_envs(config) if tests_wanted else None
-    from curious.envs import suite_env_fns
-
-    train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
-    test_fns = suite_env_fns(config.variant, config.seed, config.n_workers, stream=1)
-    # One copy first: its spec sizes the run, checked before the others are built.
-    first = (test_fns if tests_wanted else train_fns)[0]()
-    condition = make_condition(config, first.spec)
-    check_memory(config, first.spec, condition.n_experts, SUITE_COPY_BYTES)
-    tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
-    if config.processes > 1:
-        return ProcessEnvs(train_fns, config.processes), tests
-    if tests_wanted:
-        return [fn() for fn in train_fns], tests
-    return [first, *(fn() for fn in train_fns[1:])], None
-
-
-def resume_checks(
-    trainer: Trainer,
-    folder: RunFolder,
-    metrics: TableLog,
-    tests: TableLog,
-    from_checkpoint: bool,
-) -> None:
-    """Refuse (`RunFolderError`) a resume that would lose or leave out part of the run.
-
-    Without a checkpoint, a run starts over from episode 0: right for a run stopped before its
-    first checkpoint was written (its rows, at most one checkpoint interval, are redone as rows
-    after any checkpoint are), but a folder holding more rows than that had checkpoints, which
-    were removed, and starting over would replace the whole run. With one, the tables must hold
-    every row the checkpoint's own counters say the run wrote (a deleted or older
-    metrics.parquet or tests.parquet would leave a gap)."""
-    config, episodes = trainer.config, trainer.episodes
-    if not from_checkpoint:
-        interval = config.checkpoint_every_cycles * config.episodes_per_cycle
-        if metrics.n_rows > interval:
-            kept = [f"{metrics.n_rows:,} episodes in {metrics.path.name}"]
-            kept += [f"{tests.n_rows:,} test rollouts in {tests.path.name}"] if tests.n_rows else []
-            kept += [folder.recording_path.name] if folder.recording_path.exists() else []
-            raise RunFolderError(
-                f"cannot resume {folder.path}: no checkpoint is left in {folder.checkpoints}, so "
-                f"the run would start over from episode 0 and replace {', '.join(kept)}; "
-                "restore the checkpoints, or pass --restart instead of --resume to start the "
-                "run over"
-            )
-        return
-    if metrics.n_rows < episodes:
-        raise RunFolderError(
-            f"{folder.metrics_path} holds {metrics.n_rows:,} rows but the checkpoint is at "
-            f"episode {episodes:,}: the run's rows are missing, so going on would leave a gap; "
-            "restore metrics.parquet, or start the run over with --restart"
-        )
-    # Test rollouts ran after every finished epoch, n_workers x test_rollouts_per_worker each.
-    epochs = trainer.cycles // config.n_cycles
-    expected = epochs * config.n_workers * config.test_rollouts_per_worker
-    table = tests.table()
-    have = int(pc.sum(pc.less_equal(table["episode"], episodes)).as_py() or 0)
-    if have < expected:
-        raise RunFolderError(
-            f"{folder.tests_path} holds {have:,} test rollouts up to episode {episodes:,}, but the "
-            f"run had run {expected:,} by its checkpoint ({epochs:,} epochs): they are missing, "
-            "so going on would leave the run without them; restore tests.parquet, or start the "
-            "run over with --restart"
-        )
-
-
-def _run(
-    trainer: Trainer,
-    folder: RunFolder,
-    resume: bool,
-    restart: bool,
-    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
-    stop_after_cycles: int | None,
-) -> Trainer:
-    from tqdm.auto import tqdm
-
-    config = trainer.config
-    latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None
-    if latest is not None:
-        trainer.load_state_dict(*latest[1:])  # raises on another config, before any write
-    tables: list[TableLog] = []
-    if resume:  # read before anything is written: a bad table is an error with nothing changed
-        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
-        tables.append(TestsLog(folder.tests_path))
-        resume_checks(trainer, folder, *tables, from_checkpoint=latest is not None)
-
-    if restart:
-        folder.clear()
-    folder.write_config(config, trainer.spec)
-    checkpoint.remove_partial(folder.checkpoints)
-    checkpoint.prune(folder.checkpoints, spare=latest[0] if latest is not None else None)
-    if not tables:
-        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
-        tables.append(TestsLog(folder.tests_path))
-    metrics, tests = tables
-    for table in tables:
-        if table.n_rows:
-            rows_before = table.n_rows
-            table.truncate(trainer.episodes)  # rows logged after the checkpoint are redone
-            if table.n_rows != rows_before:
-                table.flush()
-
-    recorder = make_recorder(trainer, folder) if make_recorder is not None else None
-    bar = tqdm(
-        total=config.total_episodes,
-        initial=trainer.episodes,
-        unit="ep",
-        disable=not config.progress,
-        dynamic_ncols=True,
-        desc=f"{config.condition} seed {config.seed}",
-    )
-    cycles_here = 0
-    try:
-        while not trainer.done:
-            every = config.checkpoint_every_cycles
-            drain = (trainer.cycles + 1) % every == 0 or (
-                stop_after_cycles is not None and cycles_here + 1 >= stop_after_cycles
-            )
-            result = trainer.cycle(drain=drain)
-            cycles_here += 1
-            metrics.append(result.rows)
-            if result.tests is not None:
-                tests.append(result.tests)
-            if recorder is not None and len(result.module_index):
-                _log_cycle(recorder, trainer, result)
-            bar.update(len(result.rows.get("episode", ())))
-            bar.set_postfix(_progress_text(trainer), refresh=False)
-            stop_now = stop_after_cycles is not None and cycles_here >= stop_after_cycles
-            if trainer.done or stop_now or trainer.cycles % config.checkpoint_every_cycles == 0:
-                trainer.ensure_finite()  # a diverged run writes none of this checkpoint
-                metrics.flush()
-                if config.test_rollouts_per_worker:
-                    tests.flush()
-                if recorder is not None:
-                    recorder.checkpoint()
-                trainer.save_checkpoint(folder.checkpoints)
-            if stop_now:
-                break
-    except BaseException:
-        if recorder is not None:
-            recorder.close_after_error()  # never hides the error that stopped training
-        raise
-    finally:
-        bar.close()
-    if recorder is not None:
-        recorder.close()
-    return trainer

@@ -21,8 +21,8 @@ from curious.checkpoint import CheckpointError, list_checkpoints
 from curious.cli import main
 from curious.config import ConfigError, resolve
 from curious.learning_progress import CompetenceTracker
+from curious.run import train
 from curious.run_folder import RunFolderError
-from curious.train import train
 
 TESTS = Path(__file__).resolve().parent
 SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)
@@ -201,7 +201,7 @@ KILL_SCRIPT = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     from toy_env import make_toy_envs
     from curious.config import resolve
-    from curious.train import train
+    from curious.run import train
     config = resolve("smoke", "curious", 0, dict(
         total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
         buffer_episodes=64))
@@ -531,7 +531,7 @@ RECORDED_KILL_SCRIPT = textwrap.dedent(
     from curious.config import resolve
     from curious.recording import RecorderSettings
     from curious.recording.rollouts import recorder_factory
-    from curious.train import train
+    from curious.run import train
     config = resolve("smoke", "curious", 0, dict(
         total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
         buffer_episodes=64))

@@ -19,7 +19,7 @@ from curious.config import resolve
 from curious.recording import RECORDING_FILENAME, RecorderSettings, RunRecorder
 from curious.recording.reader import read_component, summarize
 from curious.recording.rollouts import RolloutObserver, attach_rollout_recording
-from curious.train import train
+from curious.run import train
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 
