@@ -10,8 +10,7 @@ call of `Trainer.cycle()`:
    episodes practise with exploration noise. The condition (`curious.conditions`) draws every
    module (p_LP for `curious`; the evaluations' follow `Config.eval_modules`, decided once per
    cycle) and the goals, uniform in [-1, 1]^3, and scores the episodes. Once the sensory
-   failure has started (at `sensor_failure_episode`, or when the perturbed module's competence
-   reaches `sensor_failure_competence`), every episode runs with it;
+   failure has started (`curious.sensor_failure`), every episode runs with it;
 2. stores the episodes in the replay and the state statistics;
 3. runs `n_updates` gradient steps on relabelled minibatches of `batch_per_worker * n_workers`
    transitions, then one Polyak update of the target networks;
@@ -57,6 +56,7 @@ from curious.replay import EpisodeReplay, Transitions
 from curious.resources import check_memory
 from curious.rollouts import run_episodes
 from curious.run_folder import config_differences
+from curious.sensor_failure import FailureSchedule
 
 
 @dataclass
@@ -201,40 +201,7 @@ class Trainer:
         self._pending: concurrent.futures.Future | None = None  # rounds in flight (overlap)
         self._executor: concurrent.futures.ThreadPoolExecutor | None = None
         self._sampler: concurrent.futures.ThreadPoolExecutor | None = None  # prefetching
-        self.failure_start: int | None = None
-        """First episode run with the sensory failure (None: not started)."""
-        self.failure_module = -1
-        if config.sensor_failure:
-            self.failure_module = self._check_sensor_failure()
-            if config.sensor_failure_episode >= 0:
-                self.failure_start = config.sensor_failure_episode
-
-    def _check_sensor_failure(self) -> int:
-        """Switch the failure off in every copy (a `ConfigError` where it cannot be); return the
-        index of the module it perturbs (-1 when the env does not say)."""
-        env = self.env
-        if not callable(getattr(env, "set_sensor_failure", None)):
-            raise ConfigError(
-                f"the sensory failure is set but {type(env).__name__} has no set_sensor_failure()"
-            )
-        env.set_sensor_failure(False)  # raises on a variant without the failure
-        for copies in (self.envs, self.test_envs):
-            copies.set_sensor_failure(np.zeros(len(copies), bool))
-        name = getattr(env, "sensor_failure_module", None)
-        if name is None:
-            if self.config.sensor_failure_competence != -1.0:
-                raise ConfigError(
-                    "sensor_failure_competence needs an env that names the module its "
-                    "failure perturbs (sensor_failure_module)"
-                )
-            return -1
-        return self.spec.module_index(name)
-
-    def failure_on(self, episodes: np.ndarray) -> np.ndarray:
-        """(n,) bool: which of these episodes run with the sensory failure."""
-        if self.failure_start is None:
-            return np.zeros(len(episodes), bool)
-        return np.asarray(episodes) >= self.failure_start
+        self.failure = FailureSchedule(config, self.spec, self.env, (self.envs, self.test_envs))
 
     def _policy(
         self,
@@ -258,21 +225,6 @@ class Trainer:
             return actions
 
         return act
-
-    def _start_failure_if_due(self, episode: int) -> None:
-        """Start the failure now if the perturbed module's competence reached the threshold,
-        measured over a full window of its evaluations (a few lucky results are not a learned
-        module)."""
-        threshold = self.config.sensor_failure_competence
-        if self.failure_start is None and threshold != -1.0:
-            m = self.failure_module
-            full = self.tracker.counts[m] >= self.config.lp_window
-            if full and self.tracker.competence()[m] >= threshold:
-                self.failure_start = episode
-
-    def _apply_failure(self, envs: EnvBatch, failing: np.ndarray) -> None:
-        if self.config.sensor_failure:
-            envs.set_sensor_failure(failing)
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -304,8 +256,7 @@ class Trainer:
         explore = ~evaluation
         act = self._policy(agent, goals, mask, task, experts, explore, self.rng, start)
 
-        failing = self.failure_on(episodes)
-        self._apply_failure(self.envs, failing)
+        failing = self.failure.apply(self.envs, episodes)
         observer = self.observer
         if observer is not None:
             views = self.envs.observed(observer.watched(episodes, evaluation))
@@ -375,8 +326,7 @@ class Trainer:
         """
         cfg, spec = self.config, self.spec
         envs, n = self.test_envs, len(self.test_envs)
-        failing = self.failure_on(np.full(n, self.episodes))
-        self._apply_failure(envs, failing)
+        self.failure.apply(envs, np.full(n, self.episodes))
         explore = np.zeros(n, bool)
         condition, env = self.condition, self.env
         names = ("worker", "module", "raw", "ok", "module_ok")
@@ -459,20 +409,20 @@ class Trainer:
                 n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
                 if n <= 0:
                     break
-                self._start_failure_if_due(self.episodes)
+                self.failure.start_if_due(self.episodes, self.tracker)
                 score(self._collect(n, self.episodes, epoch, acting, lead))
         else:
             if self._pending is not None:
                 collected, self._pending = self._pending.result(), None
             else:
-                self._start_failure_if_due(self.episodes)
+                self.failure.start_if_due(self.episodes, self.tracker)
                 collected = self._collect_cycle(epoch, self._acting_agent(frozen=False))
             for c in collected:
                 score(c)
             if not self.done:  # the next cycle's rounds, beside this cycle's updates
                 next_epoch = (self.cycles + 1) // cfg.n_cycles
                 acting = self._acting_agent(frozen=True)
-                self._start_failure_if_due(self.episodes)  # decided here, read in the thread
+                self.failure.start_if_due(self.episodes, self.tracker)  # read in the thread
                 self._pending = self._pool().submit(self._collect_cycle, next_epoch, acting)
 
         losses: dict[str, float] = {}
@@ -553,7 +503,7 @@ class Trainer:
             "rng": self.rng.bit_generator.state,
             "replay_rng": self.replay_rng.bit_generator.state,
             "test_rng": self.test_rng.bit_generator.state,
-            "failure_start": self.failure_start,
+            "failure_start": self.failure.start,
             "env_rng": self.envs.get_rng_states(),
             "test_env_rng": self.test_envs.get_rng_states(),
             "torch_rng": torch.get_rng_state(),
@@ -574,7 +524,7 @@ class Trainer:
         self.rng.bit_generator.state = state["rng"]
         self.replay_rng.bit_generator.state = state["replay_rng"]
         self.test_rng.bit_generator.state = state["test_rng"]
-        self.failure_start = state["failure_start"]
+        self.failure.start = state["failure_start"]
         self.envs.set_rng_states(state["env_rng"])
         if self.test_envs is not self.envs:
             self.test_envs.set_rng_states(state["test_env_rng"])

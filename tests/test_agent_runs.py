@@ -418,18 +418,18 @@ def sensor_failure_trainer(**changes):
 def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     trainer = sensor_failure_trainer(sensor_failure_competence=0.75)
     module = trainer.spec.module_index("push_cube3")
-    assert trainer.failure_module == module
+    assert trainer.failure.module == module
     rows = trainer.cycle().rows
-    assert trainer.failure_start is None and not rows["sensor_failure"].any()
+    assert trainer.failure.start is None and not rows["sensor_failure"].any()
     trainer.tracker = CompetenceTracker(trainer.spec.n_modules, trainer.config.lp_window)
     for _ in range(trainer.config.lp_window - 1):  # competence 1.0 over less than a window
         trainer.tracker.add(module, True)
-    trainer._start_failure_if_due(trainer.episodes)
-    assert trainer.failure_start is None
+    trainer.failure.start_if_due(trainer.episodes, trainer.tracker)
+    assert trainer.failure.start is None
     trainer.tracker.add(module, True)  # a full window at competence >= 0.75
     started_at = trainer.episodes
     result = trainer.cycle()
-    assert trainer.failure_start == started_at
+    assert trainer.failure.start == started_at
     assert result.rows["sensor_failure"].all()
     assert all(env._task.sensor_failure for env in trainer.envs.envs)
     assert all(env._task.sensor_failure for env in trainer.test_envs.envs)  # tests, after an epoch
@@ -437,7 +437,7 @@ def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     path = trainer.save_checkpoint(tmp_path / "checkpoints")
     again = sensor_failure_trainer(sensor_failure_competence=0.75)
     again.load_checkpoint(path)
-    assert again.failure_start == started_at
+    assert again.failure.start == started_at
 
 
 def test_sensory_failure_settings_are_checked(tmp_path):
