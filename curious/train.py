@@ -1,7 +1,7 @@
-"""The training loop (paper Algorithm 1, in cycles) and a run driver with resumable checkpoints.
+"""The training loop: paper Algorithm 1, in cycles, on one run's state (`Trainer`).
 
-`Trainer` owns the state of one run: agent, replay, competence queues, RNGs and counters. One
-call of `Trainer.cycle()`:
+`Trainer` owns the state of one run: agent, replay, competence queues, RNGs, counters and the
+sensory-failure schedule (`curious.sensor_failure`). One call of `Trainer.cycle()`:
 
 1. runs `episodes_per_worker` rounds of `n_workers` parallel episodes (fewer in the last round
    if `total_episodes` is reached, so episodes are counted exactly). Episode e (global, 0-based)
@@ -10,8 +10,9 @@ call of `Trainer.cycle()`:
    episodes practise with exploration noise. The condition (`curious.conditions`) draws every
    module (p_LP for `curious`; the evaluations' follow `Config.eval_modules`, decided once per
    cycle) and the goals, uniform in [-1, 1]^3, and scores the episodes. Once the sensory
-   failure has started (`curious.sensor_failure`), every episode runs with it;
-2. stores the episodes in the replay and the state statistics;
+   failure has started, every episode runs with it;
+2. stores the episodes in the replay and the state statistics, and adds the self-evaluations
+   to the competence queues;
 3. runs `n_updates` gradient steps on relabelled minibatches of `batch_per_worker * n_workers`
    transitions, then one Polyak update of the target networks;
 4. after the last cycle of an epoch, runs `test_rollouts_per_worker` rounds of noise-free test
@@ -20,22 +21,21 @@ call of `Trainer.cycle()`:
    goal's), as the authors' evaluator. They change nothing of training.
 
 With `overlap_rollouts`, step 1 for the next cycle runs in a thread during step 3, acting with a
-copy of the policy from before the updates; its rounds are stored and scored at the start of the
-next cycle. The environment copies step in this process or in worker processes
-(`curious.env_batch`, `env_processes`).
+copy of the policy from before the updates (`curious.overlap.RoundsAhead`); its rounds are stored
+and scored at the start of the next cycle. The environment copies step in this process or in
+worker processes (`curious.env_batch`, `env_processes`). A `Trainer.observer`
+(`curious.hooks.RoundObserver`) is called around every round of training episodes.
 
-A `Trainer.observer` (`curious.hooks.RoundObserver`) is called around every round of training
-episodes. `curious.run.train` runs a `Trainer` in a run folder (tables, checkpoints, resume,
-recorder).
+`curious.run.train` runs a `Trainer` in a run folder (tables, checkpoints, resume, recorder).
 """
 
 from __future__ import annotations
 
-import concurrent.futures
+import contextlib
 import functools
 import math
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,7 +52,8 @@ from curious.envs import GoalEnv
 from curious.hooks import RolloutInfo, RoundObserver
 from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
-from curious.replay import EpisodeReplay, Transitions
+from curious.overlap import Minibatches, RoundsAhead
+from curious.replay import EpisodeReplay
 from curious.resources import check_memory
 from curious.rollouts import run_episodes
 from curious.run_folder import config_differences
@@ -90,6 +91,23 @@ class CycleResult:
     losses: dict[str, float]  # means over the cycle's updates, and seconds/* timings
     replay_counts: np.ndarray  # (N,) modules of the cycle's replayed transitions
     tests: dict[str, np.ndarray] | None = None  # tests.parquet rows, after an epoch's last cycle
+
+
+class _Timings:
+    """Seconds spent in a cycle's named parts (`CycleResult.losses`' `seconds/<part>`)."""
+
+    def __init__(self, *parts: str) -> None:
+        self.seconds = dict.fromkeys(parts, 0.0)
+
+    def add(self, part: str, seconds: float) -> None:
+        self.seconds[part] = self.seconds.get(part, 0.0) + seconds
+
+    @contextlib.contextmanager
+    def __call__(self, part: str) -> Iterator[None]:
+        """Time the `with` block as `part`."""
+        tic = time.perf_counter()
+        yield
+        self.add(part, time.perf_counter() - tic)
 
 
 def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
@@ -198,33 +216,9 @@ class Trainer:
         self._started = time.perf_counter()
         self._names = np.array(self.spec.module_names, dtype=object)
         self.observer: RoundObserver | None = None
-        self._pending: concurrent.futures.Future | None = None  # rounds in flight (overlap)
-        self._executor: concurrent.futures.ThreadPoolExecutor | None = None
-        self._sampler: concurrent.futures.ThreadPoolExecutor | None = None  # prefetching
         self.failure = FailureSchedule(config, self.spec, self.env, (self.envs, self.test_envs))
-
-    def _policy(
-        self,
-        agent: Agent,
-        goals: np.ndarray,
-        mask: np.ndarray,
-        task: np.ndarray,
-        experts: np.ndarray,
-        explore: np.ndarray,
-        rng: np.random.Generator,
-        episode: int,
-    ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
-        """`goal_policy` for a round of episodes from episode `episode` on, which raises
-        `TrainingDiverged` when it gives a non-finite action."""
-        policy = goal_policy(self.env, agent, goals, mask, task, experts, explore, rng)
-
-        def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
-            actions = policy(states, achieved, t)
-            if not np.isfinite(actions).all():
-                raise diverged(self.config, episode, "the policy's actions are not finite")
-            return actions
-
-        return act
+        self._ahead: RoundsAhead[list[_Collected]] = RoundsAhead()  # overlap_rollouts
+        self._minibatches = Minibatches(config.prefetch_minibatches)
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -237,6 +231,61 @@ class Trainer:
 
     def wall_time(self) -> float:
         return self.elapsed + time.perf_counter() - self._started
+
+    def cycle(self, drain: bool = False) -> CycleResult:
+        """One cycle of Algorithm 1 (the steps of the module docstring).
+
+        With `overlap_rollouts`, the rounds scored now were collected during the previous
+        cycle's updates, and the next cycle's rounds are collected during this one's, with the
+        policy as it is before them; `drain` (before a checkpoint) scores those too, so that a
+        checkpoint holds no rounds in flight.
+        """
+        cfg = self.config
+        timings = _Timings("rollout_policy", "rollout_env", "store", "sample", "update")
+        # 1-2. roll out rounds of parallel episodes; store them, score the self-evaluations
+        rounds = [self._score(c, timings) for c in self._rounds_to_score()]
+        if cfg.overlap_rollouts and not self.done:
+            self._collect_ahead()  # the next cycle's rounds, beside this cycle's updates
+        # 3. gradient steps on relabelled minibatches, then the target networks
+        losses, replay_counts = self._update(timings)
+        if drain:
+            rounds += [self._score(c, timings) for c in self._ahead.take() or ()]
+        self.cycles += 1
+        # 4. after an epoch's last cycle (and the run's), the test rollouts
+        tests = None
+        if cfg.test_rollouts_per_worker and (self.cycles % cfg.n_cycles == 0 or self.done):
+            with timings("test"):
+                tests = self.test_rollouts()
+        losses.update({f"seconds/{k}": v for k, v in timings.seconds.items()})
+        return self._result(rounds, losses, replay_counts, tests)
+
+    def _rounds_to_score(self) -> Iterable[_Collected]:
+        """This cycle's rounds: those collected during the previous cycle's updates, else
+        collected now by the policy as it is. Serially, each round is scored before the next
+        one is collected; with `overlap_rollouts`, all are collected first, as a cycle's rounds
+        collected ahead are."""
+        ahead = self._ahead.take()
+        if ahead is not None:
+            return ahead
+        rounds = self._rounds(self.epoch, self._acting_agent(frozen=False))
+        return list(rounds) if self.config.overlap_rollouts else rounds
+
+    def _rounds(self, epoch: int, agent: Agent, ahead: bool = False) -> Iterator[_Collected]:
+        """The rounds of one cycle from episode `self.episodes` on, each collected when asked
+        for: its modules and the failure's start follow the competence queues as they are then
+        (a caller that scores each round before asking for the next updates them in between).
+        `ahead` (collected in a thread beside the updates): the failure's start is left to the
+        training thread, which decided it before."""
+        cfg, start = self.config, self.episodes
+        lead = self.condition.lead_draw(self.rng)
+        for _ in range(cfg.episodes_per_worker):
+            n = min(cfg.n_workers, cfg.total_episodes - start)
+            if n <= 0:
+                return
+            if not ahead:
+                self.failure.start_if_due(start, self.tracker)
+            yield self._collect(n, start, epoch, agent, lead)
+            start += n
 
     def _collect(
         self, n: int, start: int, epoch: int, agent: Agent, lead: bool | None
@@ -269,28 +318,54 @@ class Trainer:
             observer.end_round(info)
         return _Collected(info, epoch)
 
-    def _score(self, collected: _Collected) -> RoundResult:
+    def _policy(
+        self,
+        agent: Agent,
+        goals: np.ndarray,
+        mask: np.ndarray,
+        task: np.ndarray,
+        experts: np.ndarray,
+        explore: np.ndarray,
+        rng: np.random.Generator,
+        episode: int,
+    ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
+        """`goal_policy` for a round of episodes from episode `episode` on, which raises
+        `TrainingDiverged` when it gives a non-finite action."""
+        policy = goal_policy(self.env, agent, goals, mask, task, experts, explore, rng)
+
+        def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
+            actions = policy(states, achieved, t)
+            if not np.isfinite(actions).all():
+                raise diverged(self.config, episode, "the policy's actions are not finite")
+            return actions
+
+        return act
+
+    def _score(self, collected: _Collected, timings: _Timings) -> RoundResult:
         """Store a round's episodes, add its evaluations to the competence queues, and the
         measures after each of its episodes (the metrics rows)."""
-        info, n_mod = collected.info, self.spec.n_modules
-        data, modules, n = info.data, info.modules, len(info.episodes)
-        self.replay.store(data.states, data.achieved, data.actions, modules, info.goals)
-        self.agent.encoder.update_stats(data.states)
-        competence = np.empty((n, n_mod), np.float32)
-        lp = np.empty((n, n_mod), np.float32)
-        p_lp = np.empty((n, n_mod), np.float32)
-        wall = np.empty(n, np.float64)
-        for i in range(n):  # one episode at a time: rows hold the values after each episode
-            if info.evaluation[i]:
-                self.tracker.add(int(modules[i]), bool(info.success[i]))
-            competence[i] = self.tracker.competence()
-            lp[i] = self.tracker.learning_progress()
-            p_lp[i] = self.condition.practice_probs(self.tracker, collected.epoch)
-            wall[i] = self.wall_time()
-        if not self.condition.self_evaluates:  # never measured (her): no competence, no LP
-            competence[:] = np.nan
-            lp[:] = np.nan
-        self.episodes += n
+        timings.add("rollout_policy", collected.info.data.policy_seconds)
+        timings.add("rollout_env", collected.info.data.env_seconds)
+        with timings("store"):
+            info, n_mod = collected.info, self.spec.n_modules
+            data, modules, n = info.data, info.modules, len(info.episodes)
+            self.replay.store(data.states, data.achieved, data.actions, modules, info.goals)
+            self.agent.encoder.update_stats(data.states)
+            competence = np.empty((n, n_mod), np.float32)
+            lp = np.empty((n, n_mod), np.float32)
+            p_lp = np.empty((n, n_mod), np.float32)
+            wall = np.empty(n, np.float64)
+            for i in range(n):  # one episode at a time: rows hold the values after each episode
+                if info.evaluation[i]:
+                    self.tracker.add(int(modules[i]), bool(info.success[i]))
+                competence[i] = self.tracker.competence()
+                lp[i] = self.tracker.learning_progress()
+                p_lp[i] = self.condition.practice_probs(self.tracker, collected.epoch)
+                wall[i] = self.wall_time()
+            if not self.condition.self_evaluates:  # never measured (her): no competence, no LP
+                competence[:] = np.nan
+                lp[:] = np.nan
+            self.episodes += n
         return RoundResult(info, competence, lp, p_lp, wall)
 
     def _acting_agent(self, frozen: bool) -> Agent:
@@ -302,18 +377,48 @@ class Trainer:
             return self.agent.acting_copy("cpu" if on_cpu else None)
         return self.agent
 
-    def _collect_cycle(self, epoch: int, agent: Agent) -> list[_Collected]:
-        """The rounds of one cycle, collected one after the other without scoring between them
-        (module choices follow the competence queues as they were at the start)."""
-        cfg, out, start = self.config, [], self.episodes
-        lead = self.condition.lead_draw(self.rng)
-        for _ in range(cfg.episodes_per_worker):
-            n = min(cfg.n_workers, cfg.total_episodes - start)
-            if n <= 0:
-                break
-            out.append(self._collect(n, start, epoch, agent, lead))
-            start += n
-        return out
+    def _collect_ahead(self) -> None:
+        """Start collecting the next cycle's rounds in a thread, with a copy of the policy as it
+        is before this cycle's updates."""
+        next_epoch = (self.cycles + 1) // self.config.n_cycles
+        acting = self._acting_agent(frozen=True)
+        self.failure.start_if_due(self.episodes, self.tracker)  # decided here, read in the thread
+        self._ahead.start(lambda: list(self._rounds(next_epoch, acting, ahead=True)))
+
+    def _update(self, timings: _Timings) -> tuple[dict[str, float], np.ndarray]:
+        """`n_updates` gradient steps of the trained expert on relabelled minibatches, then one
+        Polyak update of its target networks: the losses' means over the cycle (none without
+        updates) and the (N,) modules of the replayed transitions. `TrainingDiverged` when a
+        mean loss is not finite."""
+        cfg, n_mod = self.config, self.spec.n_modules
+        replay_counts = np.zeros(n_mod, np.int64)
+        if not (cfg.n_updates and self.replay.size):
+            return {}, replay_counts
+        expert = self.condition.trained_expert(self.epoch)
+        probs = self.condition.replay_probs(self.tracker, self.epoch, self.replay.replayable())
+        stats: list[dict[str, torch.Tensor]] = []
+        rewards = []
+        draw = functools.partial(
+            self.replay.sample, cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
+        )
+        for batch, waited in self._minibatches(draw, cfg.n_updates):
+            timings.add("sample", waited)
+            with timings("update"):
+                if probs is not None:  # per-module replay (not the holistic condition)
+                    replay_counts += np.bincount(batch.module, minlength=n_mod)
+                rewards.append(float(batch.reward.mean()))
+                stats.append(self.agent.update(expert, batch))
+        with timings("update"):
+            self.agent.update_targets(expert)
+            losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
+            bad = sorted(k for k, v in losses.items() if not math.isfinite(v))
+            if bad:
+                verb = "is" if len(bad) == 1 else "are"
+                raise diverged(
+                    cfg, self.episodes, f"the updates' {', '.join(bad)} {verb} not finite"
+                )
+            losses["reward_mean"] = float(np.mean(rewards))
+        return losses, replay_counts
 
     def test_rollouts(self) -> dict[str, np.ndarray]:
         """`test_rollouts_per_worker` rounds of noise-free episodes on the test copies, modules
@@ -382,90 +487,15 @@ class Trainer:
         rows["wall_time"] = round_.wall
         return rows
 
-    def cycle(self, drain: bool = False) -> CycleResult:
-        """One cycle: rollouts, then updates, then the target update (see the module docstring).
-
-        With `overlap_rollouts`, the rounds scored now were collected during the previous
-        cycle's updates, and the next cycle's rounds are collected during this one's, with the
-        policy as it is before them; `drain` (before a checkpoint) collects and scores those
-        too, so that a checkpoint holds no rounds in flight.
-        """
-        cfg, n_mod = self.config, self.spec.n_modules
-        timings = dict.fromkeys(("rollout_policy", "rollout_env", "store", "sample", "update"), 0.0)
-        epoch = self.cycles // cfg.n_cycles
-        rounds: list[RoundResult] = []
-
-        def score(collected: _Collected) -> None:
-            tic = time.perf_counter()
-            rounds.append(self._score(collected))
-            timings["store"] += time.perf_counter() - tic
-            timings["rollout_policy"] += collected.info.data.policy_seconds
-            timings["rollout_env"] += collected.info.data.env_seconds
-
-        if not cfg.overlap_rollouts:
-            acting = self._acting_agent(frozen=False)
-            lead = self.condition.lead_draw(self.rng)
-            for _ in range(cfg.episodes_per_worker):
-                n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
-                if n <= 0:
-                    break
-                self.failure.start_if_due(self.episodes, self.tracker)
-                score(self._collect(n, self.episodes, epoch, acting, lead))
-        else:
-            if self._pending is not None:
-                collected, self._pending = self._pending.result(), None
-            else:
-                self.failure.start_if_due(self.episodes, self.tracker)
-                collected = self._collect_cycle(epoch, self._acting_agent(frozen=False))
-            for c in collected:
-                score(c)
-            if not self.done:  # the next cycle's rounds, beside this cycle's updates
-                next_epoch = (self.cycles + 1) // cfg.n_cycles
-                acting = self._acting_agent(frozen=True)
-                self.failure.start_if_due(self.episodes, self.tracker)  # read in the thread
-                self._pending = self._pool().submit(self._collect_cycle, next_epoch, acting)
-
-        losses: dict[str, float] = {}
-        replay_counts = np.zeros(n_mod, np.int64)
-        if cfg.n_updates and self.replay.size:
-            expert = self.condition.trained_expert(self.epoch)
-            probs = self.condition.replay_probs(self.tracker, self.epoch, self.replay.replayable())
-            stats: list[dict[str, torch.Tensor]] = []
-            rewards = []
-            draw = functools.partial(
-                self.replay.sample, cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
-            )
-            for batch, waited in self._minibatches(draw, cfg.n_updates):
-                tic = time.perf_counter()
-                if probs is not None:  # per-module replay (not the holistic condition)
-                    replay_counts += np.bincount(batch.module, minlength=n_mod)
-                rewards.append(float(batch.reward.mean()))
-                stats.append(self.agent.update(expert, batch))
-                timings["sample"] += waited
-                timings["update"] += time.perf_counter() - tic
-            tic = time.perf_counter()
-            self.agent.update_targets(expert)
-            losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
-            bad = sorted(k for k, v in losses.items() if not math.isfinite(v))
-            if bad:
-                verb = "is" if len(bad) == 1 else "are"
-                raise diverged(
-                    cfg, self.episodes, f"the updates' {', '.join(bad)} {verb} not finite"
-                )
-            losses["reward_mean"] = float(np.mean(rewards))
-            timings["update"] += time.perf_counter() - tic
-        if drain and self._pending is not None:
-            collected, self._pending = self._pending.result(), None
-            for c in collected:
-                score(c)
-        self.cycles += 1
-        tests = None
-        if cfg.test_rollouts_per_worker and (self.cycles % cfg.n_cycles == 0 or self.done):
-            tic = time.perf_counter()
-            tests = self.test_rollouts()
-            timings["test"] = time.perf_counter() - tic
-        losses.update({f"seconds/{k}": v for k, v in timings.items()})
-
+    def _result(
+        self,
+        rounds: list[RoundResult],
+        losses: dict[str, float],
+        replay_counts: np.ndarray,
+        tests: dict[str, np.ndarray] | None,
+    ) -> CycleResult:
+        """A cycle's scored rounds and measures as one `CycleResult`."""
+        n_mod = self.spec.n_modules
         parts = [self._rows(r) for r in rounds]
         rows = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
 
@@ -491,7 +521,7 @@ class Trainer:
     # ------------------------------------------------------------------------------------------
     def state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(small state for torch.save, replay arrays for npz)."""
-        if self._pending is not None:
+        if self._ahead.in_flight:
             raise RuntimeError("rounds are in flight: run cycle(drain=True) before a checkpoint")
         state = {
             "config": self.config.to_dict(),
@@ -534,41 +564,11 @@ class Trainer:
         self.elapsed = float(state["elapsed"])
         self._started = time.perf_counter()
 
-    def _pool(self) -> concurrent.futures.ThreadPoolExecutor:
-        if self._executor is None:
-            self._executor = concurrent.futures.ThreadPoolExecutor(1, "rollouts")
-        return self._executor
-
-    def _minibatches(
-        self, draw: Callable[[], Transitions], n: int
-    ) -> Iterator[tuple[Transitions, float]]:
-        """`n` minibatches from `draw`, each with the seconds the learner waited for it. With
-        `prefetch_minibatches` the next one is drawn in a thread while the caller steps on
-        this one: one draw at a time, in order, so the minibatches are the same."""
-        if not self.config.prefetch_minibatches:
-            for _ in range(n):
-                tic = time.perf_counter()
-                batch = draw()
-                yield batch, time.perf_counter() - tic
-            return
-        if self._sampler is None:
-            self._sampler = concurrent.futures.ThreadPoolExecutor(1, "minibatches")
-        ahead = self._sampler.submit(draw)
-        for i in range(n):
-            tic = time.perf_counter()
-            batch = ahead.result()
-            waited = time.perf_counter() - tic
-            if i + 1 < n:
-                ahead = self._sampler.submit(draw)
-            yield batch, waited
-
     def close(self) -> None:
         """Finish rounds in flight, and stop the rollout and sampling threads and the
         environment workers."""
-        for pool in (self._executor, self._sampler):
-            if pool is not None:
-                pool.shutdown(wait=True)
-        self._executor = self._sampler = None
+        self._ahead.close()
+        self._minibatches.close()
         self.envs.close()
         self.test_envs.close()
 

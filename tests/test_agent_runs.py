@@ -618,13 +618,13 @@ def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_pat
     try:
         before = [p.detach().clone() for p in trainer.agent.experts[0].actor.parameters()]
         trainer.cycle()  # collects its own rounds, then the next cycle's beside the updates
-        assert len(copies) == 1 and trainer._pending is not None
+        assert len(copies) == 1 and trainer._ahead.in_flight
         frozen = list(copies[0].experts[0].actor.parameters())
         live = list(trainer.agent.experts[0].actor.parameters())
         assert all(torch.equal(f, b) for f, b in zip(frozen, before, strict=True))
         assert any(not torch.equal(f, p) for f, p in zip(frozen, live, strict=True))
         result = trainer.cycle(drain=True)  # the rounds in flight, then the next ones, stored
-        assert trainer._pending is None and len(result.rows["episode"]) == 8
+        assert not trainer._ahead.in_flight and len(result.rows["episode"]) == 8
         np.testing.assert_array_equal(result.rows["episode"], np.arange(4, 12))
     finally:
         trainer.close()
