@@ -174,7 +174,7 @@ class Trainer:
     ) -> None:
         """`envs`: the `n_workers` training copies (a list, stepped in this process, or an
         `EnvBatch`); `test_envs`: as many copies for the test rollouts (default: the training
-        copies, whose random streams the tests then advance; `train()` always gives copies of
+        copies, whose random streams the tests then advance; `curious.run.train` gives copies of
         their own)."""
         config.validate()
         self.config = config
