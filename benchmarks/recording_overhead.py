@@ -56,7 +56,7 @@ def _timed_run(config: Any, out: Path, record: bool, settings: Any) -> float:
     """Seconds of one `train()` call (environments built inside, as in `curious train`)."""
     from curious.recording import RunRecorder
     from curious.recording.rollouts import attach_rollout_recording
-    from curious.train import train
+    from curious.run import train
 
     def make_recorder(trainer: Any, folder: Any) -> RunRecorder:
         recorder = RunRecorder(folder.path, trainer.spec.module_names, settings=settings)

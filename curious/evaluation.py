@@ -160,8 +160,9 @@ class EvaluationSession:
         `evaluate`'s."""
         from tqdm.auto import tqdm
 
+        from curious.hooks import RolloutInfo
         from curious.rollouts import run_episodes
-        from curious.train import RolloutInfo, goal_policy
+        from curious.train import goal_policy
 
         if episodes < 1:
             raise ValueError(f"--episodes must be at least 1, got {episodes}")

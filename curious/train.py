@@ -1,7 +1,7 @@
-"""The training loop (paper Algorithm 1, in cycles) and a run driver with resumable checkpoints.
+"""The training loop: paper Algorithm 1, in cycles, on one run's state (`Trainer`).
 
-`Trainer` owns the state of one run: agent, replay, competence queues, RNGs and counters. One
-call of `Trainer.cycle()`:
+`Trainer` owns the state of one run: agent, replay, competence queues, RNGs, counters and the
+sensory-failure schedule (`curious.sensor_failure`). One call of `Trainer.cycle()`:
 
 1. runs `episodes_per_worker` rounds of `n_workers` parallel episodes (fewer in the last round
    if `total_episodes` is reached, so episodes are counted exactly). Episode e (global, 0-based)
@@ -10,9 +10,9 @@ call of `Trainer.cycle()`:
    episodes practise with exploration noise. The condition (`curious.conditions`) draws every
    module (p_LP for `curious`; the evaluations' follow `Config.eval_modules`, decided once per
    cycle) and the goals, uniform in [-1, 1]^3, and scores the episodes. Once the sensory
-   failure has started (at `sensor_failure_episode`, or when the perturbed module's competence
-   reaches `sensor_failure_competence`), every episode runs with it;
-2. stores the episodes in the replay and the state statistics;
+   failure has started, every episode runs with it;
+2. stores the episodes in the replay and the state statistics, and adds the self-evaluations
+   to the competence queues;
 3. runs `n_updates` gradient steps on relabelled minibatches of `batch_per_worker * n_workers`
    transitions, then one Polyak update of the target networks;
 4. after the last cycle of an epoch, runs `test_rollouts_per_worker` rounds of noise-free test
@@ -21,131 +21,43 @@ call of `Trainer.cycle()`:
    goal's), as the authors' evaluator. They change nothing of training.
 
 With `overlap_rollouts`, step 1 for the next cycle runs in a thread during step 3, acting with a
-copy of the policy from before the updates; its rounds are stored and scored at the start of the
-next cycle. The environment copies step in this process or in worker processes
-(`curious.env_batch`, `env_processes`).
+copy of the policy from before the updates (`curious.overlap.RoundsAhead`); its rounds are stored
+and scored at the start of the next cycle. The environment copies step in this process or in
+worker processes (`curious.env_batch`, `env_processes`). A `Trainer.observer`
+(`curious.hooks.RoundObserver`) is called around every round of training episodes.
 
-`train()` runs a `Trainer` in a run folder: `metrics.parquet` and `tests.parquet` rows,
-checkpoints every `checkpoint_every_cycles` cycles (with no rounds in flight), `--resume`, a
-progress bar and an optional recorder.
-
-A recorder (`Recorder`, e.g. `curious.recording.RunRecorder`) is optional; after every cycle
-`train()` calls it, with B the cycle's episodes and N the modules:
-
-    recorder.log_episodes(episode=(B,), module=(B,) slot indices, success=(B,), eval=(B,),
-                          competence=(B, N), lp=(B, N), p_lp=(B, N), wall_time=(B,))
-    recorder.log_replay(episode, counts)     # (N,) modules of the cycle's replayed transitions
-    recorder.log_tests(episode, module=(K,), success=(K,), wall_time)   # an epoch's K tests
-    recorder.log_learner(episode, losses={"critic", "actor"}, q={"target_mean"})
-    recorder.checkpoint()                    # before every checkpoint: make it durable
-    recorder.close()                         # once, when training stops
-    recorder.close_after_error()             # instead, when an error stops it
-
-and a `Trainer.observer` (e.g. one that captures MuJoCo body poses for 3-D rollouts) is called
-around every round of parallel episodes:
-
-    observer.begin_round(episodes, modules, goals, evaluation, envs)   # before the resets
-    observer.after_step(t)                   # t = 0 after the resets, then 1..T after each step
-    observer.end_round(info)                 # RolloutInfo: states, outcomes, actions, success
+`curious.run.train` runs a `Trainer` in a run folder (tables, checkpoints, resume, recorder).
 """
 
 from __future__ import annotations
 
-import concurrent.futures
 import contextlib
 import functools
 import math
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
-import pyarrow.compute as pc
 import torch
 
 from curious import checkpoint
 from curious.agent import Agent
 from curious.conditions import make_condition
 from curious.config import Config, ConfigError
-from curious.env_batch import EnvBatch, LocalEnvs, ProcessEnvs
+from curious.env_batch import EnvBatch, LocalEnvs
 from curious.envs import GoalEnv
+from curious.hooks import RolloutInfo, RoundObserver
 from curious.inputs import GoalBox
 from curious.learning_progress import CompetenceTracker
-from curious.metrics import MetricsLog, TableLog, TestsLog
-from curious.replay import EpisodeReplay, Transitions
-from curious.resources import SUITE_COPY_BYTES, check_memory
-from curious.rollouts import EpisodeData, run_episodes
-from curious.run_folder import RunFolder, RunFolderError, config_differences, folder_lock
-
-
-class Recorder(Protocol):
-    """What `train()` logs to after every cycle (see the module docstring);
-    `curious.recording.RunRecorder` is one."""
-
-    def log_episodes(
-        self,
-        episode: np.ndarray,
-        module: np.ndarray,
-        success: np.ndarray,
-        eval: np.ndarray,
-        competence: np.ndarray,
-        lp: np.ndarray,
-        p_lp: np.ndarray,
-        wall_time: np.ndarray,
-    ) -> None: ...
-
-    def log_tests(
-        self, episode: int, module: np.ndarray, success: np.ndarray, wall_time: float
-    ) -> None: ...
-
-    def log_replay(self, episode: int, counts: np.ndarray) -> None: ...
-
-    def log_learner(self, episode: int, losses: dict[str, float], q: dict[str, float]) -> None: ...
-
-    def checkpoint(self) -> None:
-        """Make what was logged so far durable (called before every training checkpoint)."""
-
-    def close(self) -> None: ...
-
-    def close_after_error(self) -> None:
-        """Close when an error stopped training, never raising over that error."""
-
-
-class RoundObserver(Protocol):
-    """Called around every round of parallel episodes (see the module docstring)."""
-
-    def watched(self, episodes: np.ndarray, evaluation: np.ndarray) -> Sequence[int]:
-        """The copies (positions in the round) whose simulators it will read this round."""
-        ...
-
-    def begin_round(
-        self,
-        episodes: np.ndarray,
-        modules: np.ndarray,
-        goals: np.ndarray,
-        evaluation: np.ndarray,
-        envs: Sequence[GoalEnv],
-    ) -> None: ...
-
-    def after_step(self, t: int) -> None: ...
-
-    def end_round(self, info: RolloutInfo) -> None: ...
-
-
-@dataclass
-class RolloutInfo:
-    """One round of parallel episodes, for recorders that show rollouts."""
-
-    episodes: np.ndarray  # (n,) global episode indices
-    modules: np.ndarray  # (n,) module index practised or evaluated
-    raw_goals: np.ndarray  # (n, 3) goals in [-1, 1]^3
-    goals: np.ndarray  # (n, N, G) goal slots given to the policy
-    evaluation: np.ndarray  # (n,) bool
-    success: np.ndarray  # (n,) bool, final success of the module
-    data: EpisodeData  # states, achieved outcomes, actions
-    sensor_failure: np.ndarray  # (n,) bool, episodes run with the sensory failure
+from curious.overlap import Minibatches, RoundsAhead
+from curious.replay import EpisodeReplay
+from curious.resources import check_memory
+from curious.rollouts import run_episodes
+from curious.run_folder import config_differences
+from curious.sensor_failure import FailureSchedule
 
 
 @dataclass
@@ -179,6 +91,23 @@ class CycleResult:
     losses: dict[str, float]  # means over the cycle's updates, and seconds/* timings
     replay_counts: np.ndarray  # (N,) modules of the cycle's replayed transitions
     tests: dict[str, np.ndarray] | None = None  # tests.parquet rows, after an epoch's last cycle
+
+
+class _Timings:
+    """Seconds spent in a cycle's named parts (`CycleResult.losses`' `seconds/<part>`)."""
+
+    def __init__(self, *parts: str) -> None:
+        self.seconds = dict.fromkeys(parts, 0.0)
+
+    def add(self, part: str, seconds: float) -> None:
+        self.seconds[part] = self.seconds.get(part, 0.0) + seconds
+
+    @contextlib.contextmanager
+    def __call__(self, part: str) -> Iterator[None]:
+        """Time the `with` block as `part`."""
+        tic = time.perf_counter()
+        yield
+        self.add(part, time.perf_counter() - tic)
 
 
 def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
@@ -245,7 +174,7 @@ class Trainer:
     ) -> None:
         """`envs`: the `n_workers` training copies (a list, stepped in this process, or an
         `EnvBatch`); `test_envs`: as many copies for the test rollouts (default: the training
-        copies, whose random streams the tests then advance; `train()` always gives copies of
+        copies, whose random streams the tests then advance; `curious.run.train` gives copies of
         their own)."""
         config.validate()
         self.config = config
@@ -287,43 +216,107 @@ class Trainer:
         self._started = time.perf_counter()
         self._names = np.array(self.spec.module_names, dtype=object)
         self.observer: RoundObserver | None = None
-        self._pending: concurrent.futures.Future | None = None  # rounds in flight (overlap)
-        self._executor: concurrent.futures.ThreadPoolExecutor | None = None
-        self._sampler: concurrent.futures.ThreadPoolExecutor | None = None  # prefetching
-        self.failure_start: int | None = None
-        """First episode run with the sensory failure (None: not started)."""
-        self.failure_module = -1
-        if config.sensor_failure:
-            self.failure_module = self._check_sensor_failure()
-            if config.sensor_failure_episode >= 0:
-                self.failure_start = config.sensor_failure_episode
+        self.failure = FailureSchedule(config, self.spec, self.env, (self.envs, self.test_envs))
+        self._ahead: RoundsAhead[list[_Collected]] = RoundsAhead()  # overlap_rollouts
+        self._minibatches = Minibatches(config.prefetch_minibatches)
 
-    def _check_sensor_failure(self) -> int:
-        """Switch the failure off in every copy (a `ConfigError` where it cannot be); return the
-        index of the module it perturbs (-1 when the env does not say)."""
-        env = self.env
-        if not callable(getattr(env, "set_sensor_failure", None)):
-            raise ConfigError(
-                f"the sensory failure is set but {type(env).__name__} has no set_sensor_failure()"
-            )
-        env.set_sensor_failure(False)  # raises on a variant without the failure
-        for copies in (self.envs, self.test_envs):
-            copies.set_sensor_failure(np.zeros(len(copies), bool))
-        name = getattr(env, "sensor_failure_module", None)
-        if name is None:
-            if self.config.sensor_failure_competence != -1.0:
-                raise ConfigError(
-                    "sensor_failure_competence needs an env that names the module its "
-                    "failure perturbs (sensor_failure_module)"
-                )
-            return -1
-        return self.spec.module_index(name)
+    # ------------------------------------------------------------------------------------------
+    @property
+    def epoch(self) -> int:
+        return self.cycles // self.config.n_cycles
 
-    def failure_on(self, episodes: np.ndarray) -> np.ndarray:
-        """(n,) bool: which of these episodes run with the sensory failure."""
-        if self.failure_start is None:
-            return np.zeros(len(episodes), bool)
-        return np.asarray(episodes) >= self.failure_start
+    @property
+    def done(self) -> bool:
+        return self.episodes >= self.config.total_episodes
+
+    def wall_time(self) -> float:
+        return self.elapsed + time.perf_counter() - self._started
+
+    def cycle(self, drain: bool = False) -> CycleResult:
+        """One cycle of Algorithm 1 (the steps of the module docstring).
+
+        With `overlap_rollouts`, the rounds scored now were collected during the previous
+        cycle's updates, and the next cycle's rounds are collected during this one's, with the
+        policy as it is before them; `drain` (before a checkpoint) scores those too, so that a
+        checkpoint holds no rounds in flight.
+        """
+        cfg = self.config
+        timings = _Timings("rollout_policy", "rollout_env", "store", "sample", "update")
+        # 1-2. roll out rounds of parallel episodes; store them, score the self-evaluations
+        rounds = [self._score(c, timings) for c in self._rounds_to_score()]
+        if cfg.overlap_rollouts and not self.done:
+            self._collect_ahead()  # the next cycle's rounds, beside this cycle's updates
+        # 3. gradient steps on relabelled minibatches, then the target networks
+        losses, replay_counts = self._update(timings)
+        if drain:
+            rounds += [self._score(c, timings) for c in self._ahead.take() or ()]
+        self.cycles += 1
+        # 4. after an epoch's last cycle (and the run's), the test rollouts
+        tests = None
+        if cfg.test_rollouts_per_worker and (self.cycles % cfg.n_cycles == 0 or self.done):
+            with timings("test"):
+                tests = self.test_rollouts()
+        losses.update({f"seconds/{k}": v for k, v in timings.seconds.items()})
+        return self._result(rounds, losses, replay_counts, tests)
+
+    def _rounds_to_score(self) -> Iterable[_Collected]:
+        """This cycle's rounds: those collected during the previous cycle's updates, else
+        collected now by the policy as it is. Serially, each round is scored before the next
+        one is collected; with `overlap_rollouts`, all are collected first, as a cycle's rounds
+        collected ahead are."""
+        ahead = self._ahead.take()
+        if ahead is not None:
+            return ahead
+        rounds = self._rounds(self.epoch, self._acting_agent(frozen=False))
+        return list(rounds) if self.config.overlap_rollouts else rounds
+
+    def _rounds(self, epoch: int, agent: Agent, ahead: bool = False) -> Iterator[_Collected]:
+        """The rounds of one cycle from episode `self.episodes` on, each collected when asked
+        for: its modules and the failure's start follow the competence queues as they are then
+        (a caller that scores each round before asking for the next updates them in between).
+        `ahead` (collected in a thread beside the updates): the failure's start is left to the
+        training thread, which decided it before."""
+        cfg, start = self.config, self.episodes
+        lead = self.condition.lead_draw(self.rng)
+        for _ in range(cfg.episodes_per_worker):
+            n = min(cfg.n_workers, cfg.total_episodes - start)
+            if n <= 0:
+                return
+            if not ahead:
+                self.failure.start_if_due(start, self.tracker)
+            yield self._collect(n, start, epoch, agent, lead)
+            start += n
+
+    def _collect(
+        self, n: int, start: int, epoch: int, agent: Agent, lead: bool | None
+    ) -> _Collected:
+        """n parallel episodes from episode `start` on: choose modules and goals, roll out with
+        `agent`'s policy, judge success (`lead`: the cycle's `Condition.lead_draw`). Touches the
+        training copies, the rollout stream and the observer, nothing the learner or the test
+        rollouts use (so it may run beside them)."""
+        cfg, spec, condition = self.config, self.spec, self.condition
+        episodes = start + np.arange(n)
+        evaluation = episodes % cfg.eval_every == cfg.eval_every - 1
+        evaluation &= condition.self_evaluates
+        modules = condition.modules(evaluation, self.tracker, epoch, self.rng, lead)
+        raw = self.rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
+        goals, mask, task = condition.goals(self.env, modules, raw, self.rng)
+        experts = self.condition.acting_experts(modules, epoch)
+        explore = ~evaluation
+        act = self._policy(agent, goals, mask, task, experts, explore, self.rng, start)
+
+        failing = self.failure.apply(self.envs, episodes)
+        observer = self.observer
+        if observer is not None:
+            views = self.envs.observed(observer.watched(episodes, evaluation))
+            observer.begin_round(episodes, modules, goals, evaluation, views[:n])
+        step_hook = observer.after_step if observer else None
+        data = run_episodes(self.envs, modules, raw, act, step_hook)
+        success = condition.success(self.env, data, modules, goals)
+        info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
+        if observer is not None:
+            observer.end_round(info)
+        return _Collected(info, epoch)
 
     def _policy(
         self,
@@ -348,87 +341,31 @@ class Trainer:
 
         return act
 
-    def _start_failure_if_due(self, episode: int) -> None:
-        """Start the failure now if the perturbed module's competence reached the threshold,
-        measured over a full window of its evaluations (a few lucky results are not a learned
-        module)."""
-        threshold = self.config.sensor_failure_competence
-        if self.failure_start is None and threshold != -1.0:
-            m = self.failure_module
-            full = self.tracker.counts[m] >= self.config.lp_window
-            if full and self.tracker.competence()[m] >= threshold:
-                self.failure_start = episode
-
-    def _apply_failure(self, envs: EnvBatch, failing: np.ndarray) -> None:
-        if self.config.sensor_failure:
-            envs.set_sensor_failure(failing)
-
-    # ------------------------------------------------------------------------------------------
-    @property
-    def epoch(self) -> int:
-        return self.cycles // self.config.n_cycles
-
-    @property
-    def done(self) -> bool:
-        return self.episodes >= self.config.total_episodes
-
-    def wall_time(self) -> float:
-        return self.elapsed + time.perf_counter() - self._started
-
-    def _collect(
-        self, n: int, start: int, epoch: int, agent: Agent, lead: bool | None
-    ) -> _Collected:
-        """n parallel episodes from episode `start` on: choose modules and goals, roll out with
-        `agent`'s policy, judge success (`lead`: the cycle's `Condition.lead_draw`). Touches the
-        training copies, the rollout stream and the observer, nothing the learner or the test
-        rollouts use (so it may run beside them)."""
-        cfg, spec, condition = self.config, self.spec, self.condition
-        episodes = start + np.arange(n)
-        evaluation = episodes % cfg.eval_every == cfg.eval_every - 1
-        evaluation &= condition.self_evaluates
-        modules = condition.modules(evaluation, self.tracker, epoch, self.rng, lead)
-        raw = self.rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-        goals, mask, task = condition.goals(self.env, modules, raw, self.rng)
-        experts = self.condition.acting_experts(modules, epoch)
-        explore = ~evaluation
-        act = self._policy(agent, goals, mask, task, experts, explore, self.rng, start)
-
-        failing = self.failure_on(episodes)
-        self._apply_failure(self.envs, failing)
-        observer = self.observer
-        if observer is not None:
-            views = self.envs.observed(observer.watched(episodes, evaluation))
-            observer.begin_round(episodes, modules, goals, evaluation, views[:n])
-        step_hook = observer.after_step if observer else None
-        data = run_episodes(self.envs, modules, raw, act, step_hook)
-        success = condition.success(self.env, data, modules, goals)
-        info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
-        if observer is not None:
-            observer.end_round(info)
-        return _Collected(info, epoch)
-
-    def _score(self, collected: _Collected) -> RoundResult:
+    def _score(self, collected: _Collected, timings: _Timings) -> RoundResult:
         """Store a round's episodes, add its evaluations to the competence queues, and the
         measures after each of its episodes (the metrics rows)."""
-        info, n_mod = collected.info, self.spec.n_modules
-        data, modules, n = info.data, info.modules, len(info.episodes)
-        self.replay.store(data.states, data.achieved, data.actions, modules, info.goals)
-        self.agent.encoder.update_stats(data.states)
-        competence = np.empty((n, n_mod), np.float32)
-        lp = np.empty((n, n_mod), np.float32)
-        p_lp = np.empty((n, n_mod), np.float32)
-        wall = np.empty(n, np.float64)
-        for i in range(n):  # one episode at a time: rows hold the values after each episode
-            if info.evaluation[i]:
-                self.tracker.add(int(modules[i]), bool(info.success[i]))
-            competence[i] = self.tracker.competence()
-            lp[i] = self.tracker.learning_progress()
-            p_lp[i] = self.condition.practice_probs(self.tracker, collected.epoch)
-            wall[i] = self.wall_time()
-        if not self.condition.self_evaluates:  # never measured (her): no competence, no LP
-            competence[:] = np.nan
-            lp[:] = np.nan
-        self.episodes += n
+        timings.add("rollout_policy", collected.info.data.policy_seconds)
+        timings.add("rollout_env", collected.info.data.env_seconds)
+        with timings("store"):
+            info, n_mod = collected.info, self.spec.n_modules
+            data, modules, n = info.data, info.modules, len(info.episodes)
+            self.replay.store(data.states, data.achieved, data.actions, modules, info.goals)
+            self.agent.encoder.update_stats(data.states)
+            competence = np.empty((n, n_mod), np.float32)
+            lp = np.empty((n, n_mod), np.float32)
+            p_lp = np.empty((n, n_mod), np.float32)
+            wall = np.empty(n, np.float64)
+            for i in range(n):  # one episode at a time: rows hold the values after each episode
+                if info.evaluation[i]:
+                    self.tracker.add(int(modules[i]), bool(info.success[i]))
+                competence[i] = self.tracker.competence()
+                lp[i] = self.tracker.learning_progress()
+                p_lp[i] = self.condition.practice_probs(self.tracker, collected.epoch)
+                wall[i] = self.wall_time()
+            if not self.condition.self_evaluates:  # never measured (her): no competence, no LP
+                competence[:] = np.nan
+                lp[:] = np.nan
+            self.episodes += n
         return RoundResult(info, competence, lp, p_lp, wall)
 
     def _acting_agent(self, frozen: bool) -> Agent:
@@ -440,18 +377,48 @@ class Trainer:
             return self.agent.acting_copy("cpu" if on_cpu else None)
         return self.agent
 
-    def _collect_cycle(self, epoch: int, agent: Agent) -> list[_Collected]:
-        """The rounds of one cycle, collected one after the other without scoring between them
-        (module choices follow the competence queues as they were at the start)."""
-        cfg, out, start = self.config, [], self.episodes
-        lead = self.condition.lead_draw(self.rng)
-        for _ in range(cfg.episodes_per_worker):
-            n = min(cfg.n_workers, cfg.total_episodes - start)
-            if n <= 0:
-                break
-            out.append(self._collect(n, start, epoch, agent, lead))
-            start += n
-        return out
+    def _collect_ahead(self) -> None:
+        """Start collecting the next cycle's rounds in a thread, with a copy of the policy as it
+        is before this cycle's updates."""
+        next_epoch = (self.cycles + 1) // self.config.n_cycles
+        acting = self._acting_agent(frozen=True)
+        self.failure.start_if_due(self.episodes, self.tracker)  # decided here, read in the thread
+        self._ahead.start(lambda: list(self._rounds(next_epoch, acting, ahead=True)))
+
+    def _update(self, timings: _Timings) -> tuple[dict[str, float], np.ndarray]:
+        """`n_updates` gradient steps of the trained expert on relabelled minibatches, then one
+        Polyak update of its target networks: the losses' means over the cycle (none without
+        updates) and the (N,) modules of the replayed transitions. `TrainingDiverged` when a
+        mean loss is not finite."""
+        cfg, n_mod = self.config, self.spec.n_modules
+        replay_counts = np.zeros(n_mod, np.int64)
+        if not (cfg.n_updates and self.replay.size):
+            return {}, replay_counts
+        expert = self.condition.trained_expert(self.epoch)
+        probs = self.condition.replay_probs(self.tracker, self.epoch, self.replay.replayable())
+        stats: list[dict[str, torch.Tensor]] = []
+        rewards = []
+        draw = functools.partial(
+            self.replay.sample, cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
+        )
+        for batch, waited in self._minibatches(draw, cfg.n_updates):
+            timings.add("sample", waited)
+            with timings("update"):
+                if probs is not None:  # per-module replay (not the holistic condition)
+                    replay_counts += np.bincount(batch.module, minlength=n_mod)
+                rewards.append(float(batch.reward.mean()))
+                stats.append(self.agent.update(expert, batch))
+        with timings("update"):
+            self.agent.update_targets(expert)
+            losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
+            bad = sorted(k for k, v in losses.items() if not math.isfinite(v))
+            if bad:
+                verb = "is" if len(bad) == 1 else "are"
+                raise diverged(
+                    cfg, self.episodes, f"the updates' {', '.join(bad)} {verb} not finite"
+                )
+            losses["reward_mean"] = float(np.mean(rewards))
+        return losses, replay_counts
 
     def test_rollouts(self) -> dict[str, np.ndarray]:
         """`test_rollouts_per_worker` rounds of noise-free episodes on the test copies, modules
@@ -464,8 +431,7 @@ class Trainer:
         """
         cfg, spec = self.config, self.spec
         envs, n = self.test_envs, len(self.test_envs)
-        failing = self.failure_on(np.full(n, self.episodes))
-        self._apply_failure(envs, failing)
+        self.failure.apply(envs, np.full(n, self.episodes))
         explore = np.zeros(n, bool)
         condition, env = self.condition, self.env
         names = ("worker", "module", "raw", "ok", "module_ok")
@@ -521,90 +487,15 @@ class Trainer:
         rows["wall_time"] = round_.wall
         return rows
 
-    def cycle(self, drain: bool = False) -> CycleResult:
-        """One cycle: rollouts, then updates, then the target update (see the module docstring).
-
-        With `overlap_rollouts`, the rounds scored now were collected during the previous
-        cycle's updates, and the next cycle's rounds are collected during this one's, with the
-        policy as it is before them; `drain` (before a checkpoint) collects and scores those
-        too, so that a checkpoint holds no rounds in flight.
-        """
-        cfg, n_mod = self.config, self.spec.n_modules
-        timings = dict.fromkeys(("rollout_policy", "rollout_env", "store", "sample", "update"), 0.0)
-        epoch = self.cycles // cfg.n_cycles
-        rounds: list[RoundResult] = []
-
-        def score(collected: _Collected) -> None:
-            tic = time.perf_counter()
-            rounds.append(self._score(collected))
-            timings["store"] += time.perf_counter() - tic
-            timings["rollout_policy"] += collected.info.data.policy_seconds
-            timings["rollout_env"] += collected.info.data.env_seconds
-
-        if not cfg.overlap_rollouts:
-            acting = self._acting_agent(frozen=False)
-            lead = self.condition.lead_draw(self.rng)
-            for _ in range(cfg.episodes_per_worker):
-                n = min(cfg.n_workers, cfg.total_episodes - self.episodes)
-                if n <= 0:
-                    break
-                self._start_failure_if_due(self.episodes)
-                score(self._collect(n, self.episodes, epoch, acting, lead))
-        else:
-            if self._pending is not None:
-                collected, self._pending = self._pending.result(), None
-            else:
-                self._start_failure_if_due(self.episodes)
-                collected = self._collect_cycle(epoch, self._acting_agent(frozen=False))
-            for c in collected:
-                score(c)
-            if not self.done:  # the next cycle's rounds, beside this cycle's updates
-                next_epoch = (self.cycles + 1) // cfg.n_cycles
-                acting = self._acting_agent(frozen=True)
-                self._start_failure_if_due(self.episodes)  # decided here, read in the thread
-                self._pending = self._pool().submit(self._collect_cycle, next_epoch, acting)
-
-        losses: dict[str, float] = {}
-        replay_counts = np.zeros(n_mod, np.int64)
-        if cfg.n_updates and self.replay.size:
-            expert = self.condition.trained_expert(self.epoch)
-            probs = self.condition.replay_probs(self.tracker, self.epoch, self.replay.replayable())
-            stats: list[dict[str, torch.Tensor]] = []
-            rewards = []
-            draw = functools.partial(
-                self.replay.sample, cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
-            )
-            for batch, waited in self._minibatches(draw, cfg.n_updates):
-                tic = time.perf_counter()
-                if probs is not None:  # per-module replay (not the holistic condition)
-                    replay_counts += np.bincount(batch.module, minlength=n_mod)
-                rewards.append(float(batch.reward.mean()))
-                stats.append(self.agent.update(expert, batch))
-                timings["sample"] += waited
-                timings["update"] += time.perf_counter() - tic
-            tic = time.perf_counter()
-            self.agent.update_targets(expert)
-            losses = {k: float(torch.stack([s[k] for s in stats]).mean()) for k in stats[0]}
-            bad = sorted(k for k, v in losses.items() if not math.isfinite(v))
-            if bad:
-                verb = "is" if len(bad) == 1 else "are"
-                raise diverged(
-                    cfg, self.episodes, f"the updates' {', '.join(bad)} {verb} not finite"
-                )
-            losses["reward_mean"] = float(np.mean(rewards))
-            timings["update"] += time.perf_counter() - tic
-        if drain and self._pending is not None:
-            collected, self._pending = self._pending.result(), None
-            for c in collected:
-                score(c)
-        self.cycles += 1
-        tests = None
-        if cfg.test_rollouts_per_worker and (self.cycles % cfg.n_cycles == 0 or self.done):
-            tic = time.perf_counter()
-            tests = self.test_rollouts()
-            timings["test"] = time.perf_counter() - tic
-        losses.update({f"seconds/{k}": v for k, v in timings.items()})
-
+    def _result(
+        self,
+        rounds: list[RoundResult],
+        losses: dict[str, float],
+        replay_counts: np.ndarray,
+        tests: dict[str, np.ndarray] | None,
+    ) -> CycleResult:
+        """A cycle's scored rounds and measures as one `CycleResult`."""
+        n_mod = self.spec.n_modules
         parts = [self._rows(r) for r in rounds]
         rows = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]} if parts else {}
 
@@ -630,7 +521,7 @@ class Trainer:
     # ------------------------------------------------------------------------------------------
     def state_dict(self) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
         """(small state for torch.save, replay arrays for npz)."""
-        if self._pending is not None:
+        if self._ahead.in_flight:
             raise RuntimeError("rounds are in flight: run cycle(drain=True) before a checkpoint")
         state = {
             "config": self.config.to_dict(),
@@ -642,7 +533,7 @@ class Trainer:
             "rng": self.rng.bit_generator.state,
             "replay_rng": self.replay_rng.bit_generator.state,
             "test_rng": self.test_rng.bit_generator.state,
-            "failure_start": self.failure_start,
+            "failure_start": self.failure.start,
             "env_rng": self.envs.get_rng_states(),
             "test_env_rng": self.test_envs.get_rng_states(),
             "torch_rng": torch.get_rng_state(),
@@ -663,7 +554,7 @@ class Trainer:
         self.rng.bit_generator.state = state["rng"]
         self.replay_rng.bit_generator.state = state["replay_rng"]
         self.test_rng.bit_generator.state = state["test_rng"]
-        self.failure_start = state["failure_start"]
+        self.failure.start = state["failure_start"]
         self.envs.set_rng_states(state["env_rng"])
         if self.test_envs is not self.envs:
             self.test_envs.set_rng_states(state["test_env_rng"])
@@ -673,41 +564,11 @@ class Trainer:
         self.elapsed = float(state["elapsed"])
         self._started = time.perf_counter()
 
-    def _pool(self) -> concurrent.futures.ThreadPoolExecutor:
-        if self._executor is None:
-            self._executor = concurrent.futures.ThreadPoolExecutor(1, "rollouts")
-        return self._executor
-
-    def _minibatches(
-        self, draw: Callable[[], Transitions], n: int
-    ) -> Iterator[tuple[Transitions, float]]:
-        """`n` minibatches from `draw`, each with the seconds the learner waited for it. With
-        `prefetch_minibatches` the next one is drawn in a thread while the caller steps on
-        this one: one draw at a time, in order, so the minibatches are the same."""
-        if not self.config.prefetch_minibatches:
-            for _ in range(n):
-                tic = time.perf_counter()
-                batch = draw()
-                yield batch, time.perf_counter() - tic
-            return
-        if self._sampler is None:
-            self._sampler = concurrent.futures.ThreadPoolExecutor(1, "minibatches")
-        ahead = self._sampler.submit(draw)
-        for i in range(n):
-            tic = time.perf_counter()
-            batch = ahead.result()
-            waited = time.perf_counter() - tic
-            if i + 1 < n:
-                ahead = self._sampler.submit(draw)
-            yield batch, waited
-
     def close(self) -> None:
         """Finish rounds in flight, and stop the rollout and sampling threads and the
         environment workers."""
-        for pool in (self._executor, self._sampler):
-            if pool is not None:
-                pool.shutdown(wait=True)
-        self._executor = self._sampler = None
+        self._ahead.close()
+        self._minibatches.close()
         self.envs.close()
         self.test_envs.close()
 
@@ -732,247 +593,3 @@ class Trainer:
     def load_checkpoint(self, path: Path) -> None:
         state, replay = checkpoint.load(path, map_location=self.agent.device)
         self.load_state_dict(state, replay)
-
-
-# ----------------------------------------------------------------------------------------------
-def _progress_text(trainer: Trainer) -> dict[str, str]:
-    spec = trainer.spec
-    if not trainer.condition.self_evaluates:
-        return {}  # no competence to show (her)
-    competence = trainer.tracker.competence()
-    achievable = np.array(spec.achievable, bool)
-    success = competence[achievable].mean() if achievable.any() else float("nan")
-    p = trainer.condition.practice_probs(trainer.tracker, trainer.epoch)
-    short = [name.replace("cube", "c").replace("_", "") for name in spec.module_names]
-    p_text = " ".join(f"{name}:{v:.2f}" for name, v in zip(short, p, strict=True))
-    return {"success": f"{success:.2f}", "p_LP": p_text}
-
-
-def _log_cycle(recorder: Recorder, trainer: Trainer, result: CycleResult) -> None:
-    """Hand one cycle to a recorder (see the module docstring for the calls)."""
-    rows = result.rows
-    recorder.log_episodes(
-        episode=rows["episode"],
-        module=result.module_index,
-        success=rows["success"],
-        eval=rows["eval"],
-        competence=result.competence,
-        lp=result.lp,
-        p_lp=result.p_lp,
-        wall_time=rows["wall_time"],
-    )
-    losses = result.losses
-    if result.tests is not None:
-        tests = result.tests
-        recorder.log_tests(
-            int(tests["episode"][0]), tests["module"], tests["success"], tests["wall_time"][0]
-        )
-    if result.replay_counts.sum() > 0:
-        recorder.log_replay(trainer.episodes, result.replay_counts)
-    if "critic_loss" in losses:
-        recorder.log_learner(
-            trainer.episodes,
-            losses={"critic": losses["critic_loss"], "actor": losses["actor_loss"]},
-            q={"target_mean": losses["q_target_mean"]},
-        )
-
-
-def train(
-    config: Config,
-    out: str | Path,
-    resume: bool = False,
-    make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
-    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
-    stop_after_cycles: int | None = None,
-    restart: bool = False,
-) -> Trainer:
-    """Train `config` in the run folder `out` (created, continued with `resume=True`, or started
-    over with `restart=True`, which removes the run the folder held once every check passed).
-
-    `make_envs(config)` builds the `n_workers` environment copies (default: the suite variant
-    `config.variant`); it is called a second time for the test rollouts' copies (the default
-    seeds those from a stream of their own). `make_recorder(trainer, folder)`, called once the
-    folder is ready (and a resumed trainer is at its checkpoint's episode), returns the recorder
-    the loop logs to.
-    `stop_after_cycles` ends this call early (after a checkpoint), which is how tests interrupt
-    a run. Errors about the folder, the checkpoint or what the run needs (memory) are raised
-    before anything in the folder is written (`resume_checks` says what a resume refuses);
-    while it trains, the folder is locked against a second process (`RunFolderBusy`).
-    """
-    with folder_lock(out):
-        return _train(config, out, resume, restart, make_envs, make_recorder, stop_after_cycles)
-
-
-def _train(
-    config: Config,
-    out: str | Path,
-    resume: bool,
-    restart: bool,
-    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
-    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
-    stop_after_cycles: int | None,
-) -> Trainer:
-    folder = RunFolder.prepare(out, config, resume, restart)
-    trainer = Trainer(config, *_environments(config, make_envs))
-    with contextlib.closing(trainer):  # the environment workers stop with the run
-        return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles)
-
-
-def _environments(
-    config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
-) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None]:
-    """The training copies and the test rollouts' copies of a run (see `train`)."""
-    tests_wanted = config.test_rollouts_per_worker > 0
-    if make_envs is not None:
-        if config.processes > 1:
-            raise ConfigError(
-                "env_processes > 1 builds the suite's environments in worker processes; a "
-                "custom make_envs runs in this process (env_processes=1)"
-            )
-        return make_envs(config), make_envs(config) if tests_wanted else None
-    from curious.envs import suite_env_fns
-
-    train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
-    test_fns = suite_env_fns(config.variant, config.seed, config.n_workers, stream=1)
-    # One copy first: its spec sizes the run, checked before the others are built.
-    first = (test_fns if tests_wanted else train_fns)[0]()
-    condition = make_condition(config, first.spec)
-    check_memory(config, first.spec, condition.n_experts, SUITE_COPY_BYTES)
-    tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
-    if config.processes > 1:
-        return ProcessEnvs(train_fns, config.processes), tests
-    if tests_wanted:
-        return [fn() for fn in train_fns], tests
-    return [first, *(fn() for fn in train_fns[1:])], None
-
-
-def resume_checks(
-    trainer: Trainer,
-    folder: RunFolder,
-    metrics: TableLog,
-    tests: TableLog,
-    from_checkpoint: bool,
-) -> None:
-    """Refuse (`RunFolderError`) a resume that would lose or leave out part of the run.
-
-    Without a checkpoint, a run starts over from episode 0: right for a run stopped before its
-    first checkpoint was written (its rows, at most one checkpoint interval, are redone as rows
-    after any checkpoint are), but a folder holding more rows than that had checkpoints, which
-    were removed, and starting over would replace the whole run. With one, the tables must hold
-    every row the checkpoint's own counters say the run wrote (a deleted or older
-    metrics.parquet or tests.parquet would leave a gap)."""
-    config, episodes = trainer.config, trainer.episodes
-    if not from_checkpoint:
-        interval = config.checkpoint_every_cycles * config.episodes_per_cycle
-        if metrics.n_rows > interval:
-            kept = [f"{metrics.n_rows:,} episodes in {metrics.path.name}"]
-            kept += [f"{tests.n_rows:,} test rollouts in {tests.path.name}"] if tests.n_rows else []
-            kept += [folder.recording_path.name] if folder.recording_path.exists() else []
-            raise RunFolderError(
-                f"cannot resume {folder.path}: no checkpoint is left in {folder.checkpoints}, so "
-                f"the run would start over from episode 0 and replace {', '.join(kept)}; "
-                "restore the checkpoints, or pass --restart instead of --resume to start the "
-                "run over"
-            )
-        return
-    if metrics.n_rows < episodes:
-        raise RunFolderError(
-            f"{folder.metrics_path} holds {metrics.n_rows:,} rows but the checkpoint is at "
-            f"episode {episodes:,}: the run's rows are missing, so going on would leave a gap; "
-            "restore metrics.parquet, or start the run over with --restart"
-        )
-    # Test rollouts ran after every finished epoch, n_workers x test_rollouts_per_worker each.
-    epochs = trainer.cycles // config.n_cycles
-    expected = epochs * config.n_workers * config.test_rollouts_per_worker
-    table = tests.table()
-    have = int(pc.sum(pc.less_equal(table["episode"], episodes)).as_py() or 0)
-    if have < expected:
-        raise RunFolderError(
-            f"{folder.tests_path} holds {have:,} test rollouts up to episode {episodes:,}, but the "
-            f"run had run {expected:,} by its checkpoint ({epochs:,} epochs): they are missing, "
-            "so going on would leave the run without them; restore tests.parquet, or start the "
-            "run over with --restart"
-        )
-
-
-def _run(
-    trainer: Trainer,
-    folder: RunFolder,
-    resume: bool,
-    restart: bool,
-    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
-    stop_after_cycles: int | None,
-) -> Trainer:
-    from tqdm.auto import tqdm
-
-    config = trainer.config
-    latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None
-    if latest is not None:
-        trainer.load_state_dict(*latest[1:])  # raises on another config, before any write
-    tables: list[TableLog] = []
-    if resume:  # read before anything is written: a bad table is an error with nothing changed
-        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
-        tables.append(TestsLog(folder.tests_path))
-        resume_checks(trainer, folder, *tables, from_checkpoint=latest is not None)
-
-    if restart:
-        folder.clear()
-    folder.write_config(config, trainer.spec)
-    checkpoint.remove_partial(folder.checkpoints)
-    checkpoint.prune(folder.checkpoints, spare=latest[0] if latest is not None else None)
-    if not tables:
-        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
-        tables.append(TestsLog(folder.tests_path))
-    metrics, tests = tables
-    for table in tables:
-        if table.n_rows:
-            rows_before = table.n_rows
-            table.truncate(trainer.episodes)  # rows logged after the checkpoint are redone
-            if table.n_rows != rows_before:
-                table.flush()
-
-    recorder = make_recorder(trainer, folder) if make_recorder is not None else None
-    bar = tqdm(
-        total=config.total_episodes,
-        initial=trainer.episodes,
-        unit="ep",
-        disable=not config.progress,
-        dynamic_ncols=True,
-        desc=f"{config.condition} seed {config.seed}",
-    )
-    cycles_here = 0
-    try:
-        while not trainer.done:
-            every = config.checkpoint_every_cycles
-            drain = (trainer.cycles + 1) % every == 0 or (
-                stop_after_cycles is not None and cycles_here + 1 >= stop_after_cycles
-            )
-            result = trainer.cycle(drain=drain)
-            cycles_here += 1
-            metrics.append(result.rows)
-            if result.tests is not None:
-                tests.append(result.tests)
-            if recorder is not None and len(result.module_index):
-                _log_cycle(recorder, trainer, result)
-            bar.update(len(result.rows.get("episode", ())))
-            bar.set_postfix(_progress_text(trainer), refresh=False)
-            stop_now = stop_after_cycles is not None and cycles_here >= stop_after_cycles
-            if trainer.done or stop_now or trainer.cycles % config.checkpoint_every_cycles == 0:
-                trainer.ensure_finite()  # a diverged run writes none of this checkpoint
-                metrics.flush()
-                if config.test_rollouts_per_worker:
-                    tests.flush()
-                if recorder is not None:
-                    recorder.checkpoint()
-                trainer.save_checkpoint(folder.checkpoints)
-            if stop_now:
-                break
-    except BaseException:
-        if recorder is not None:
-            recorder.close_after_error()  # never hides the error that stopped training
-        raise
-    finally:
-        bar.close()
-    if recorder is not None:
-        recorder.close()
-    return trainer

@@ -7,7 +7,7 @@ state          what happens
 =============  ===================================================================
 ``new``        no folder, or an empty one: train from episode 0
 ``partial``    config.json of the same run and fewer episodes than the budget (a run
-               that was interrupted): `curious.train.train(..., resume=True)` goes on
+               that was interrupted): `curious.run.train(..., resume=True)` goes on
                from its last checkpoint
 ``finished``   a checkpoint at the budget and every episode in metrics.parquet:
                nothing is done
@@ -204,7 +204,7 @@ def _run_partition(
             runner_name(),
         )
 
-    from curious.train import train
+    from curious.run import train
 
     config = spec.config(overrides)
     resume = state == PARTIAL

@@ -12,7 +12,8 @@ from curious.config import PRESETS, ConfigError, resolve
 from curious.envs import EnvSpec
 from curious.learning_progress import CompetenceTracker
 from curious.rollouts import EpisodeData
-from curious.train import Trainer, train
+from curious.run import train
+from curious.train import Trainer
 
 SPEC = ToyGoalEnv.spec
 

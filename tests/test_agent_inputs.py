@@ -12,7 +12,8 @@ import suite
 from curious.config import ConfigError, resolve
 from curious.envs import SuiteEnv
 from curious.inputs import GoalBox
-from curious.train import Trainer, train
+from curious.run import train
+from curious.train import Trainer
 from suite import layout
 
 GRID = np.array(list(itertools.product([-1.0, -0.5, 0.0, 0.5, 1.0], repeat=3)))

@@ -18,8 +18,9 @@ from curious.agent import Agent
 from curious.checkpoint import list_checkpoints
 from curious.cli import main
 from curious.config import resolve
+from curious.run import train
 from curious.run_folder import RunFolderError
-from curious.train import TrainingDiverged, train
+from curious.train import TrainingDiverged
 
 SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)
 """smoke with 2 workers: 4 episodes a cycle, an epoch of 2 cycles, a checkpoint every 3."""

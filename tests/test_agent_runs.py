@@ -21,8 +21,8 @@ from curious.checkpoint import CheckpointError, list_checkpoints
 from curious.cli import main
 from curious.config import ConfigError, resolve
 from curious.learning_progress import CompetenceTracker
+from curious.run import train
 from curious.run_folder import RunFolderError
-from curious.train import train
 
 TESTS = Path(__file__).resolve().parent
 SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)
@@ -201,7 +201,7 @@ KILL_SCRIPT = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     from toy_env import make_toy_envs
     from curious.config import resolve
-    from curious.train import train
+    from curious.run import train
     config = resolve("smoke", "curious", 0, dict(
         total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
         buffer_episodes=64))
@@ -434,18 +434,18 @@ def sensor_failure_trainer(**changes):
 def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     trainer = sensor_failure_trainer(sensor_failure_competence=0.75)
     module = trainer.spec.module_index("push_cube3")
-    assert trainer.failure_module == module
+    assert trainer.failure.module == module
     rows = trainer.cycle().rows
-    assert trainer.failure_start is None and not rows["sensor_failure"].any()
+    assert trainer.failure.start is None and not rows["sensor_failure"].any()
     trainer.tracker = CompetenceTracker(trainer.spec.n_modules, trainer.config.lp_window)
     for _ in range(trainer.config.lp_window - 1):  # competence 1.0 over less than a window
         trainer.tracker.add(module, True)
-    trainer._start_failure_if_due(trainer.episodes)
-    assert trainer.failure_start is None
+    trainer.failure.start_if_due(trainer.episodes, trainer.tracker)
+    assert trainer.failure.start is None
     trainer.tracker.add(module, True)  # a full window at competence >= 0.75
     started_at = trainer.episodes
     result = trainer.cycle()
-    assert trainer.failure_start == started_at
+    assert trainer.failure.start == started_at
     assert result.rows["sensor_failure"].all()
     assert all(env._task.sensor_failure for env in trainer.envs.envs)
     assert all(env._task.sensor_failure for env in trainer.test_envs.envs)  # tests, after an epoch
@@ -453,7 +453,7 @@ def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     path = trainer.save_checkpoint(tmp_path / "checkpoints")
     again = sensor_failure_trainer(sensor_failure_competence=0.75)
     again.load_checkpoint(path)
-    assert again.failure_start == started_at
+    assert again.failure.start == started_at
 
 
 def test_sensory_failure_settings_are_checked(tmp_path):
@@ -547,7 +547,7 @@ RECORDED_KILL_SCRIPT = textwrap.dedent(
     from curious.config import resolve
     from curious.recording import RecorderSettings
     from curious.recording.rollouts import recorder_factory
-    from curious.train import train
+    from curious.run import train
     config = resolve("smoke", "curious", 0, dict(
         total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
         buffer_episodes=64))
@@ -634,13 +634,13 @@ def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_pat
     try:
         before = [p.detach().clone() for p in trainer.agent.experts[0].actor.parameters()]
         trainer.cycle()  # collects its own rounds, then the next cycle's beside the updates
-        assert len(copies) == 1 and trainer._pending is not None
+        assert len(copies) == 1 and trainer._ahead.in_flight
         frozen = list(copies[0].experts[0].actor.parameters())
         live = list(trainer.agent.experts[0].actor.parameters())
         assert all(torch.equal(f, b) for f, b in zip(frozen, before, strict=True))
         assert any(not torch.equal(f, p) for f, p in zip(frozen, live, strict=True))
         result = trainer.cycle(drain=True)  # the rounds in flight, then the next ones, stored
-        assert trainer._pending is None and len(result.rows["episode"]) == 8
+        assert not trainer._ahead.in_flight and len(result.rows["episode"]) == 8
         np.testing.assert_array_equal(result.rows["episode"], np.arange(4, 12))
     finally:
         trainer.close()

@@ -191,7 +191,7 @@ def test_a_full_disk_never_replaces_the_last_good_recording(
     from curious import checkpoint
     from curious.config import resolve
     from curious.recording.rollouts import recorder_factory
-    from curious.train import train
+    from curious.run import train
 
     config = resolve(
         "smoke", "curious", 0, dict(total_episodes=48, n_workers=2, episodes_per_worker=2)
@@ -315,7 +315,7 @@ def test_a_resume_removes_the_checkpoint_a_kill_left_over(tmp_path: Path) -> Non
 
     from curious.checkpoint import list_checkpoints
     from curious.config import resolve
-    from curious.train import train
+    from curious.run import train
 
     config = resolve("smoke", "curious", 0, dict(total_episodes=24, progress=False))
     envs = lambda c: make_toy_envs(c.seed, c.n_workers)  # noqa: E731

@@ -19,8 +19,8 @@ from curious.config import resolve
 from curious.recording import RecorderSettings, RunRecorder
 from curious.recording.reader import read_component, summarize
 from curious.recording.rollouts import RolloutObserver, attach_rollout_recording
+from curious.run import train
 from curious.run_folder import RECORDING_FILE
-from curious.train import train
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 

@@ -108,7 +108,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 2
 
-    from curious.train import TrainingDiverged, train
+    from curious.run import train
+    from curious.train import TrainingDiverged
 
     make_recorder = None
     if not args.no_record:

@@ -1,6 +1,6 @@
 """Rollouts of a training run in 3D: a round observer that captures evaluation episodes.
 
-`RolloutObserver` plugs into `Trainer.observer` (see `curious.train`). In each round of parallel
+`RolloutObserver` is a `Trainer.observer` (`curious.hooks.RoundObserver`). In each round of parallel
 episodes it picks the evaluation episodes that the recorder wants in 3D (`rollout_due` of the
 episode's evaluation count), copies the body poses out of those environments' MuJoCo physics at
 every step into a preallocated `RolloutCapture`, together with the grip site (the gripper
@@ -195,7 +195,7 @@ def recorder_factory(
     spawn: bool = False,
     run_name: str | None = None,
 ) -> Callable[[Any, Any], Any]:
-    """The `make_recorder` hook of `curious.train.train`: a run's `RunRecorder`, with the
+    """The `make_recorder` hook of `curious.run.train`: a run's `RunRecorder`, with the
     observer that records evaluation episodes in 3D installed when `settings.rollout_every > 0`.
 
     `curious train` and the reproduction pipeline both record their runs through it.
