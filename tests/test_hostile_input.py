@@ -72,6 +72,7 @@ def test_mujoco_gl_osmesa_without_its_library_is_refused_by_render_alone(tmp_pat
     assert "libosmesa6" in line
 
 
+@pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs Linux's /proc")
 def test_ctrl_c_while_the_command_line_starts_is_one_line(tmp_path):
     """The parser imports torch and MuJoCo (seconds): a Ctrl-C then, as later, is one line."""
     env = {**os.environ, "MUJOCO_GL": "disable", "OMP_NUM_THREADS": "1"}
@@ -84,7 +85,13 @@ def test_ctrl_c_while_the_command_line_starts_is_one_line(tmp_path):
         text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
-    time.sleep(1.5)
+    # Wait until torch is being loaded, i.e. the command line is importing (a fixed sleep lands
+    # before Python has started on a loaded machine, where SIGINT still kills by default).
+    maps = Path(f"/proc/{proc.pid}/maps")
+    deadline = time.monotonic() + 120
+    while "libtorch" not in maps.read_text() and time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()[1][-2000:]
+        time.sleep(0.05)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130 and one_line(err) == "curious train: interrupted"
