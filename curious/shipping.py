@@ -76,6 +76,15 @@ class _Found:
     total: int
     finished: bool
 
+    @property
+    def progress(self) -> str:
+        """How far an unfinished run has got, in words."""
+        if self.episodes == 0:
+            return f"{self.run} (not started)"
+        if self.episodes >= self.total:
+            return f"{self.run} (all {self.total:,} episodes, but no checkpoint at the end)"
+        return f"{self.run} ({self.episodes:,} of {self.total:,} episodes)"
+
 
 def _inside(path: Path, other: Path) -> bool:
     """Whether `path` is `other` or lies below it (both resolved)."""
@@ -230,9 +239,9 @@ def ship(
     not_started = [f for f in found if f.episodes == 0]
     running = [f for f in found if not f.finished and f.episodes > 0]
     chosen = [f for f in found if f.finished or (unfinished and f.episodes > 0)]
-    left_out = [f"{f.run} (not started)" for f in not_started]
+    left_out = [f.progress for f in not_started]
     if not unfinished:
-        left_out += [f"{f.run} ({f.episodes:,} of {f.total:,} episodes)" for f in running]
+        left_out += [f.progress for f in running]
     if not chosen:
         detail = ", ".join(sorted(left_out)[:5]) + (", ..." if len(left_out) > 5 else "")
         hint = "" if unfinished else "; pass --unfinished to ship them as a progress snapshot"

@@ -251,7 +251,7 @@ def _from_data(args: argparse.Namespace) -> int:
     if given:
         print(
             f"curious reproduce: error: --from-data trains nothing, so {', '.join(given)} "
-            "would do nothing: leave it out",
+            f"would do nothing: leave {'it' if len(given) == 1 else 'them'} out",
             file=sys.stderr,
         )
         return 2
