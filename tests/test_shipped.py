@@ -354,3 +354,26 @@ def test_a_table_shipped_in_a_format_this_curious_does_not_read_is_named(shipped
         analysis.AnalysisError, match=r"metrics.parquet: it was shipped in format 99"
     ):
         analysis.load_runs(run)
+
+
+def test_dagster_definitions_read_shipped_data_from_the_environment(shipped, tmp_path, monkeypatch):
+    """`CURIOUS_FROM_DATA` (what `curious reproduce --from-data` prints for `dagster dev`): the
+    runs asset reads DATA, which is the runs root, and nothing is written by loading them."""
+    from pipelines.definitions import reproduction_from_environment
+    from pipelines.from_data import ShippedDataError
+    from pipelines.training import FINISHED
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("CURIOUS_BUDGET", "smoke")
+    monkeypatch.setenv("CURIOUS_FROM_DATA", str(shipped.data))
+    monkeypatch.delenv("CURIOUS_OUT", raising=False)
+    repro = reproduction_from_environment()
+    assert repro.data is not None and repro.data.path == shipped.data.resolve()
+    assert repro.layout.runs_root == shipped.data.resolve()
+    assert repro.layout.out == (tmp_path / "runs" / "smoke-shipped").resolve()
+    spec = repro.budget.experiments["main"].runs()[0]
+    assert repro.run_state(spec) == FINISHED
+    assert not any(tmp_path.iterdir())
+    monkeypatch.setenv("CURIOUS_BUDGET", "quick")
+    with pytest.raises(ShippedDataError, match="holds runs of budget 'smoke', not 'quick'"):
+        reproduction_from_environment()
