@@ -12,7 +12,7 @@ ship leaves `out` as it was; an `out` holding an earlier shipped folder is repla
 Nothing below `root` is written. Refused with a `ShippedError` before anything is written: a
 `root` that does not exist, holds no run folder, has no finished run (without `unfinished`), or
 is a shipped folder itself; an `out` that is a file, a folder holding anything but a shipped
-folder, inside a run folder, or inside `root` (or holding it).
+folder of the same budget, inside a run folder, or inside `root` (or holding it).
 """
 
 from __future__ import annotations
@@ -102,6 +102,19 @@ def _check_root(root: Path) -> None:
                 f"{root} is a shipped data folder ({folder / 'shipped.json'}), not the runs it "
                 "came from: ship the run folders themselves"
             )
+
+
+def _check_replaced(out: Path, budget: str | None) -> None:
+    """A `ShippedError` where `out` holds runs shipped from another budget than `budget`: a
+    ship replaces an earlier ship of the same runs, never another campaign's."""
+    if not ShippedFolder(out).is_shipped:
+        return
+    held = ShippedFolder(out).read_manifest().budget
+    if held != budget:
+        raise ShippedError(
+            f"--out {out} holds runs of budget {held}, not {budget}: shipping there would "
+            "replace them; choose another --out (data/<budget>), or remove it first"
+        )
 
 
 def _check_out(out: Path, root: Path) -> None:
@@ -233,6 +246,7 @@ def ship(
     _check_root(root)
     _check_out(out, root)
     _check_out(out, runs)
+    _check_replaced(out, budget)
     found = find_runs(runs) if runs.is_dir() else []
     if not found:
         raise ShippedError(f"{root} holds no run folder (no {CONFIG_FILE} below it)")
@@ -250,6 +264,7 @@ def ship(
         )
     with _locked(out):
         _check_out(out, root)  # again, now that no other ship can write it
+        _check_replaced(out, budget)
         staging = out.with_name(f".{out.name}.shipping-{os.getpid()}")
         shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir(parents=True)

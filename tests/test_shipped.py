@@ -283,6 +283,11 @@ def refusal(tmp_path: Path, smoke, case: str) -> tuple[list[str], str]:
         (tmp_path / "d").mkdir()
         (tmp_path / "d" / "notes.txt").write_text("mine")
         return ["ship", str(runs), "--out", str(tmp_path / "d")], "holds no shipped data folder"
+    if case == "out holds another budget":
+        assert cli(["ship", str(runs), "--out", str(tmp_path / "d")])[0] == 0  # budget: none
+        return ["ship", str(smoke.out), "--out", str(tmp_path / "d")], (
+            "holds runs of budget None, not smoke: shipping there would replace them"
+        )
     if case == "out is a file":
         (tmp_path / "d").write_text("")
         return ["ship", str(runs), "--out", str(tmp_path / "d")], "is not a folder"
@@ -324,6 +329,7 @@ def refusal(tmp_path: Path, smoke, case: str) -> tuple[list[str], str]:
         "out inside a run folder",
         "out inside the runs",
         "out holds other files",
+        "out holds another budget",
         "out is a file",
         "root is shipped",
         "no out for runs",
