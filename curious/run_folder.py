@@ -437,9 +437,8 @@ class RunFolder:
     def finished_at(self, total_episodes: int) -> bool:
         """Whether the run has reached `total_episodes`: that many episodes logged, and a
         checkpoint taken at (or after) them, so that nothing is left to train."""
-        return (
-            self.newest_checkpoint() or 0
-        ) >= total_episodes and self.episodes_logged() >= total_episodes
+        logged = self.episodes_logged() >= total_episodes
+        return logged and (self.newest_checkpoint() or 0) >= total_episodes
 
     def read_stored(self) -> dict[str, Any]:
         """config.json's content, checked to be a run's description: a JSON object whose

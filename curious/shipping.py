@@ -111,8 +111,12 @@ def _check_replaced(out: Path, budget: str | None) -> None:
         return
     held = ShippedFolder(out).read_manifest().budget
     if held != budget:
+
+        def runs(name: str | None) -> str:
+            return f"the {name} budget's runs" if name else "runs of no reproduction"
+
         raise ShippedError(
-            f"--out {out} holds runs of budget {held}, not {budget}: shipping there would "
+            f"--out {out} holds {runs(held)}, these are {runs(budget)}: shipping there would "
             "replace them; choose another --out (data/<budget>), or remove it first"
         )
 

@@ -286,7 +286,7 @@ def refusal(tmp_path: Path, smoke, case: str) -> tuple[list[str], str]:
     if case == "out holds another budget":
         assert cli(["ship", str(runs), "--out", str(tmp_path / "d")])[0] == 0  # budget: none
         return ["ship", str(smoke.out), "--out", str(tmp_path / "d")], (
-            "holds runs of budget None, not smoke: shipping there would replace them"
+            "holds runs of no reproduction, these are the smoke budget's runs: shipping there"
         )
     if case == "out is a file":
         (tmp_path / "d").write_text("")
