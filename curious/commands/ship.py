@@ -8,8 +8,8 @@ ROOT is a `curious reproduce` output folder (its run folders are found where its
 says, and its budget is recorded) or any folder of run folders. The data folder holds each
 run's config.json and its tables without the columns no analysis reads (`curious.shipped`);
 no checkpoint, no recording. By default only finished runs are shipped; `--unfinished` ships the
-others too, marked as unfinished in shipped.json. An --out holding an earlier shipped folder is
-replaced. Prints what was shipped and the size written.
+others too, marked as unfinished in shipped.json. An --out holding an earlier ship of the same
+budget is replaced. Prints what was shipped and the size written.
 """
 
 from __future__ import annotations
