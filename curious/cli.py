@@ -20,6 +20,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.render",
     "curious.commands.bench",
     "curious.commands.reproduce",
+    "curious.commands.ship",
     "curious.commands.progress",
     "curious.commands.evaluate",
 )

@@ -22,7 +22,8 @@ config.json's keys:
 
 Who reads what: training (`prepare`, `write_config`, the paths), `curious evaluate`
 (`read_config`), `curious progress` and the analysis (`read_info`, `episodes_logged`,
-`newest_checkpoint`), the reproduction pipeline (`check_resumable`).
+`newest_checkpoint`), the reproduction pipeline (`check_resumable`, `finished_at`), `curious ship`
+(`read_info`, `finished_at`).
 
 `prepare` checks a folder before anything is written: a non-empty folder is only accepted with
 `resume=True`, and then only for the same config (`check_resumable`: fields in
@@ -432,6 +433,12 @@ class RunFolder:
         """Episodes of the newest complete checkpoint, by its name (None: none)."""
         found = list_checkpoints(self.checkpoints)
         return checkpoint_episodes(found[-1]) if found else None
+
+    def finished_at(self, total_episodes: int) -> bool:
+        """Whether the run has reached `total_episodes`: that many episodes logged, and a
+        checkpoint taken at (or after) them, so that nothing is left to train."""
+        logged = self.episodes_logged() >= total_episodes
+        return logged and (self.newest_checkpoint() or 0) >= total_episodes
 
     def read_stored(self) -> dict[str, Any]:
         """config.json's content, checked to be a run's description: a JSON object whose

@@ -19,8 +19,9 @@
 # is high while it is being learned and low once it is solved, or when it cannot be learned
 # (the distractors); module selection follows LP (p_LP).
 #
-# `out` is the output folder of `curious reproduce`; `condition` and `seed` pick the run of
-# Fig. 2b/2c (`seed = None`: the lowest).
+# `out` is the output folder of `curious reproduce`, or a shipped data folder such as the
+# repository's `data/laptop` (default: the quick budget's output); `condition` and `seed` pick
+# the run of Fig. 2b/2c (`seed = None`: the lowest).
 
 # %%
 # %matplotlib inline

@@ -19,7 +19,8 @@
 # near zero on what cannot be learned and the agent stops practising and replaying it.
 #
 # The `distractors` experiment trains both conditions with 0, 4 and 7 distracting modules.
-# `out` is the output folder of `curious reproduce`.
+# `out` is the output folder of `curious reproduce`, or a shipped data folder such as the
+# repository's `data/laptop` (default: the quick budget's output).
 
 # %%
 # %matplotlib inline

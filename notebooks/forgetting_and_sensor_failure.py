@@ -26,10 +26,11 @@
 # where the failure started and push_cube3 was learned before it; the others say why not.
 #
 # Part 1 reads the `sensor_failure` experiment; part 2 looks for spontaneous forgetting in the
-# CURIOUS runs of the `main` experiment. `out` is the output folder of `curious reproduce`. The
-# `quick` budget leaves the sensory failure out (`curious reproduce --budget laptop --experiments
-# sensor_failure` trains it): where the folder has no `sensor_failure` runs, part 1's cells say so
-# and do nothing, and part 2 runs all the same.
+# CURIOUS runs of the `main` experiment. `out` is the output folder of `curious reproduce`, or
+# a shipped data folder such as the repository's `data/laptop` (default: the quick budget's
+# output). The `quick` budget leaves the sensory failure out (`curious reproduce --budget laptop
+# --experiments sensor_failure` trains it): where the folder has no `sensor_failure` runs, part
+# 1's cells say so and do nothing, and part 2 runs all the same.
 
 # %%
 # %matplotlib inline

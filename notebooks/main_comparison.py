@@ -24,7 +24,8 @@
 # HER, one goal over the holistic goal space, stays flat. With the `quick` budget's 1,000
 # episodes per run only the start of the curves is visible; `laptop` and `paper` go further.
 #
-# `out` is the output folder of `curious reproduce` (default: the quick budget's).
+# `out` is the output folder of `curious reproduce`, or a shipped data folder such as the
+# repository's `data/laptop` (default: the quick budget's output).
 
 # %%
 # %matplotlib inline

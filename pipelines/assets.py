@@ -5,7 +5,9 @@ For every experiment E (`curious.experiments`), in group E:
 * `E/runs`: the training runs, partitioned by `condition` x `seed` (one partition = one run
   folder). One Dagster run materialises a whole range of partitions (single-run backfill
   policy) and trains them side by side on the pool; a partition whose folder already holds the
-  finished run is not retrained, an interrupted one resumes from its checkpoint.
+  finished run is not retrained, an interrupted one resumes from its checkpoint. Reading
+  shipped data (`curious reproduce --from-data`), it trains nothing: it checks that every
+  partition's run is shipped and finished (`pipelines.from_data`).
 * `E/metrics`: the combined metrics table of the experiment's runs
   (`curious.analysis.load_runs`), written to `metrics/E.parquet`, and their test rollouts
   (`curious.analysis.load_tests`) to `metrics/E.tests.parquet` where every run has them.
@@ -28,7 +30,7 @@ from dagster import AssetExecutionContext
 
 from curious.experiments import Experiment
 from pipelines.resources import Reproduction
-from pipelines.training import FINISHED, folder_state
+from pipelines.training import FINISHED
 
 RESOURCE = "reproduction"
 
@@ -108,6 +110,7 @@ def _runs_asset(experiment: Experiment) -> dg.AssetsDefinition:
         specs = [experiment.run(str(key)) for key in context.partition_keys]
         results = repro.train(experiment, specs)
         trained = [r for r in results if r.trained]
+        shipped = {} if repro.data is None else {"shipped_data": _path(repro, repro.data.path)}
         return dg.MaterializeResult(
             metadata={
                 "runs_root": _path(repro, repro.layout.experiment_runs(name)),
@@ -115,6 +118,7 @@ def _runs_asset(experiment: Experiment) -> dg.AssetsDefinition:
                 "trained": len(trained),
                 "already_finished": len(results) - len(trained),
                 "train_seconds": round(sum(r.seconds for r in trained), 1),
+                **shipped,
             }
         )
 
@@ -174,9 +178,7 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
         repro: Reproduction = getattr(context.resources, RESOURCE)
         layout = repro.layout
         specs = experiment.runs()
-        unfinished = [
-            s.label for s in specs if folder_state(s, layout.runs_root, repro.overrides) != FINISHED
-        ]
+        unfinished = [s.label for s in specs if repro.run_state(s) != FINISHED]
         if unfinished:
             raise RuntimeError(
                 f"{len(unfinished)} run(s) of {name} are not finished ({', '.join(unfinished)}): "

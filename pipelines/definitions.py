@@ -9,6 +9,8 @@ variables, which is what `dagster dev -m pipelines` loads:
     CURIOUS_RUNS_DIR     run folders, e.g. on shared storage (default: $CURIOUS_OUT/runs)
     CURIOUS_RAY_ADDRESS  train partitions as Ray tasks there (default: local processes)
     CURIOUS_WORKERS      local worker processes (default: one per core)
+    CURIOUS_FROM_DATA    read the runs from this shipped data folder instead of training them
+                         (as `curious reproduce --from-data`; CURIOUS_RUNS_DIR is then unused)
 
 To see the runs `curious reproduce` made in the UI, point Dagster at its instance:
 `DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster dev -m pipelines`.
@@ -47,9 +49,17 @@ def reproduction_from_environment() -> Reproduction:
             "instead (the budget, as in `curious reproduce --budget`)"
         )
     budget = get_budget(os.environ.get("CURIOUS_BUDGET") or DEFAULT_BUDGET)
-    layout = OutputLayout.at(
-        os.environ.get("CURIOUS_OUT") or budget.default_out, os.environ.get("CURIOUS_RUNS_DIR")
+    data = None
+    if os.environ.get("CURIOUS_FROM_DATA"):
+        from pipelines.from_data import ShippedData
+
+        data = ShippedData.open(os.environ["CURIOUS_FROM_DATA"])
+        data.check_budget(budget)
+    out = os.environ.get("CURIOUS_OUT") or (
+        budget.default_out if data is None else f"{budget.default_out}-shipped"
     )
+    runs_dir = os.environ.get("CURIOUS_RUNS_DIR") if data is None else data.path
+    layout = OutputLayout.at(out, runs_dir)
     address = os.environ.get("CURIOUS_RAY_ADDRESS") or None
     workers = int(os.environ["CURIOUS_WORKERS"]) if os.environ.get("CURIOUS_WORKERS") else None
     return Reproduction(
@@ -57,6 +67,7 @@ def reproduction_from_environment() -> Reproduction:
         layout=layout,
         make_pool=lambda: make_pool(address, workers),
         progress=False,
+        data=data,
     )
 
 

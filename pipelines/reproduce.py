@@ -12,6 +12,11 @@
    (trained side by side on the pool; finished ones are skipped, interrupted ones resume);
 3. one Dagster run materialises the metrics tables, the figures and `report.md`.
 
+With `from_data` (`curious reproduce --from-data DATA`), step 2 trains nothing: the runs are read
+from a shipped data folder (`curious ship`, `pipelines.from_data`), which stands for the runs
+root, and steps 1 and 3 are the same. OUT's reproduce.json records DATA, so an output folder
+holds either trained runs' results or shipped data's, never both.
+
 The Dagster instance lives in `OUT/.dagster` (sqlite storage, no server, no daemon), so the
 history of materialisations is kept with the results and `dagster dev` can show it.
 """
@@ -26,11 +31,16 @@ import time
 import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from curious.experiments import Experiment, ExperimentError, ReproduceBudget, get_budget
+from curious.shipped import ShippedFolder
 from pipelines.resources import OutputLayout, Reproduction
-from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy, folder_state
+from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy
+
+if TYPE_CHECKING:
+    from pipelines.from_data import ShippedData
 
 MANIFEST_VERSION = 1
 _DAGSTER_YAML = (
@@ -63,6 +73,8 @@ class ReproduceResult:
     layout: OutputLayout
     results: list[PartitionResult] = field(default_factory=list)
     seconds: float = 0.0
+    from_data: Path | None = None
+    """The shipped data folder the runs were read from (None: trained)."""
 
     @property
     def trained(self) -> list[PartitionResult]:
@@ -73,14 +85,20 @@ class ReproduceResult:
         return [r for r in self.results if not r.trained]
 
 
-def check_output_folder(layout: OutputLayout, budget: ReproduceBudget) -> None:
-    """Raise `ReproduceError` unless OUT is absent, empty, or made by `budget`."""
+def check_output_folder(
+    layout: OutputLayout, budget: ReproduceBudget, from_data: Path | None = None
+) -> None:
+    """Raise `ReproduceError` unless OUT is absent, empty, or made by `budget`, from the same
+    shipped data folder (`from_data`) or, without one, from trained runs."""
     out = layout.out
     if out.exists() and not out.is_dir():
         raise ReproduceError(f"--out {out} exists and is not a folder")
+    if ShippedFolder(out).is_shipped:
+        raise ReproduceError(f"--out {out} is a shipped data folder: choose another --out")
     if layout.manifest.is_file():
         try:
             made_by = layout.budget_name()
+            made_from = _manifest(layout).get("from_data")
         except (OSError, ValueError) as exc:
             raise ReproduceError(f"{layout.manifest} is unreadable ({exc})") from None
         if made_by != budget.name:
@@ -88,6 +106,13 @@ def check_output_folder(layout: OutputLayout, budget: ReproduceBudget) -> None:
                 f"{out} holds the output of budget {made_by!r}, not {budget.name!r}: pass "
                 f"--budget {made_by} to go on with it, or choose another --out "
                 f"(default for {budget.name}: {budget.default_out})"
+            )
+        given = None if from_data is None else str(from_data)
+        if made_from != given:
+            made = f"from the shipped data in {made_from}" if made_from else "by training"
+            asked = f"from {given}" if given else "by training"
+            raise ReproduceError(
+                f"{out} holds a reproduction made {made}, not {asked}: choose another --out"
             )
         return
     if out.is_dir() and any(out.iterdir()):
@@ -101,22 +126,39 @@ def check_runs(reproduction: Reproduction, experiments: Sequence[Experiment]) ->
     """Every partition's folder state, counted; raises `RunFolderMismatch` for a stranger.
 
     Every run's config is resolved first, so a bad override fails before anything is written.
+    Reading shipped data, every run must be shipped finished (`ReproduceError` else).
     """
     counts: dict[str, int] = {}
     for experiment in experiments:
+        if reproduction.data is not None and (lacks := reproduction.data.missing(experiment)):
+            raise ReproduceError(
+                f"{reproduction.data.path} lacks runs of {experiment.name}: {', '.join(lacks)}"
+            )
         for spec in experiment.runs():
             spec.config(reproduction.overrides)
-            check_not_busy(spec, reproduction.layout.runs_root)
-            state = folder_state(spec, reproduction.layout.runs_root, reproduction.overrides)
+            if reproduction.data is None:
+                check_not_busy(spec, reproduction.layout.runs_root)
+            state = reproduction.run_state(spec)
             counts[state] = counts.get(state, 0) + 1
     return counts
 
 
-def _write_manifest(layout: OutputLayout, budget: ReproduceBudget) -> None:
+def _manifest(layout: OutputLayout) -> dict[str, Any]:
+    data = json.loads(layout.manifest.read_text())
+    if not isinstance(data, dict):
+        raise ValueError("it is not a JSON object")
+    return data
+
+
+def _write_manifest(
+    layout: OutputLayout, budget: ReproduceBudget, from_data: Path | None = None
+) -> None:
     layout.out.mkdir(parents=True, exist_ok=True)
     data: dict[str, Any] = {"version": MANIFEST_VERSION, "budget": budget.name}
     if layout.runs_root != layout.out / "runs":
         data["runs_dir"] = str(layout.runs_root)
+    if from_data is not None:
+        data["from_data"] = str(from_data)
     if layout.manifest.is_file():
         old = json.loads(layout.manifest.read_text())
         if old == data:
@@ -199,6 +241,7 @@ def reproduce(
     record: bool = True,
     progress: bool = True,
     say: Callable[[str], None] | None = None,
+    from_data: str | os.PathLike | None = None,
 ) -> ReproduceResult:
     """Train and draw everything `budget` asks for (see the module docstring).
 
@@ -206,15 +249,43 @@ def reproduce(
     anything is written, so that a Ray cluster that does not answer fails first. `overrides`
     change single training settings of every run (`--device`); `say` prints progress lines.
     While it runs, OUT is locked against a second reproduction (`ReproduceError`).
+
+    With `from_data`, a shipped data folder (`curious ship`), nothing is trained: the runs are
+    read from it (`pipelines.from_data`), by default every experiment it holds complete, into
+    OUT (default `runs/<budget>-shipped`); `runs_dir`, `make_pool` and `overrides` must be None.
     """
     tic = time.perf_counter()
     chosen = get_budget(budget)
-    selected = chosen.select(experiments)
-    layout = OutputLayout.at(out or chosen.default_out, runs_dir)
+    data = None
+    if from_data is not None:
+        if runs_dir is not None or make_pool is not None or overrides:
+            raise ReproduceError(
+                "--from-data reads shipped runs: it takes no --runs-dir, pool or training setting"
+            )
+        data, selected = _shipped_data(from_data, chosen, experiments)
+        layout = OutputLayout.at(out or f"{chosen.default_out}-shipped", data.path)
+    else:
+        selected = chosen.select(experiments)
+        layout = OutputLayout.at(out or chosen.default_out, runs_dir)
     with _reproduction_lock(layout):
         return _reproduce(
-            chosen, selected, layout, make_pool, overrides, record, progress, say, tic
+            chosen, selected, layout, make_pool, overrides, record, progress, say, tic, data
         )
+
+
+def _shipped_data(
+    path: str | os.PathLike, budget: ReproduceBudget, experiments: Sequence[str] | None
+) -> tuple[ShippedData, list[Experiment]]:
+    """The shipped data folder at `path`, checked against `budget`, and the experiments to build
+    from it; `ReproduceError` where it cannot stand for them."""
+    from pipelines.from_data import ShippedData, ShippedDataError
+
+    try:
+        data = ShippedData.open(path)
+        data.check_budget(budget)
+        return data, data.select(budget, experiments)
+    except ShippedDataError as exc:
+        raise ReproduceError(str(exc)) from None
 
 
 @contextlib.contextmanager
@@ -244,6 +315,7 @@ def _reproduce(
     progress: bool,
     say: Callable[[str], None] | None,
     tic: float,
+    data: ShippedData | None = None,
 ) -> ReproduceResult:
     import dagster as dg
 
@@ -251,7 +323,7 @@ def _reproduce(
     from pipelines.definitions import build_definitions
     from pipelines.executors import make_pool as default_pool
 
-    check_output_folder(layout, chosen)
+    check_output_folder(layout, chosen, None if data is None else data.path)
     repro = Reproduction(
         budget=chosen,
         layout=layout,
@@ -259,17 +331,26 @@ def _reproduce(
         overrides=dict(overrides or {}),
         record=record,
         progress=progress,
+        data=data,
     )
     if say is not None:
         repro.say = say
     counts = check_runs(repro, selected)
-    pool = repro.pool  # connects to Ray (or fails) before anything is written
-    repro.say(
-        f"curious reproduce --budget {chosen.name}: {', '.join(e.name for e in selected)}; "
-        f"{sum(counts.values())} runs ({counts.get('finished', 0)} finished, "
-        f"{counts.get('partial', 0)} to resume, {counts.get('new', 0)} new) on {pool.description}"
-    )
-    _write_manifest(layout, chosen)
+    names = ", ".join(e.name for e in selected)
+    if data is not None:
+        repro.say(
+            f"curious reproduce --budget {chosen.name} --from-data {data.path}: {names}; "
+            f"{sum(counts.values())} shipped runs read, none trained"
+        )
+    else:
+        pool = repro.pool  # connects to Ray (or fails) before anything is written
+        repro.say(
+            f"curious reproduce --budget {chosen.name}: {names}; "
+            f"{sum(counts.values())} runs ({counts.get('finished', 0)} finished, "
+            f"{counts.get('partial', 0)} to resume, {counts.get('new', 0)} new) on "
+            f"{pool.description}"
+        )
+    _write_manifest(layout, chosen, None if data is None else data.path)
     defs = build_definitions(repro)
     try:
         with warnings.catch_warnings():
@@ -313,6 +394,7 @@ def _reproduce(
         layout=layout,
         results=list(repro.results),
         seconds=time.perf_counter() - tic,
+        from_data=None if data is None else data.path,
     )
 
 

@@ -3,12 +3,14 @@
 `Reproduction` is a plain object handed to Dagster as the `reproduction` resource. It knows the
 budget, the output folder's layout and the pool that trains partitions (created on
 first use, so building the definitions, e.g. for `dagster dev`, starts no process and contacts no
-cluster).
+cluster), or the shipped data folder read in place of training (`curious reproduce --from-data`,
+`pipelines.from_data`).
 
 Output folder layout (`OutputLayout`):
 
     OUT/reproduce.json          which budget made this folder (checked on every later call)
-    OUT/runs/<experiment>/<condition>/seed-<s>/    run folders (or --runs-dir on shared storage)
+    OUT/runs/<experiment>/<condition>/seed-<s>/    run folders (or --runs-dir on shared storage;
+                                                   with --from-data, the shipped data folder)
     OUT/metrics/<experiment>.parquet               the combined metrics table of an experiment
     OUT/metrics/<experiment>.tests.parquet         its combined test rollouts (Fig. 2a), where
                                                    every run has them
@@ -26,9 +28,10 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from curious.experiments import Experiment, ReproduceBudget, RunSpec
+from curious.shipped import ShippedFolder
 from pipelines.executors import Job, Pool, run_all
 from pipelines.training import (
     FINISHED,
@@ -38,6 +41,9 @@ from pipelines.training import (
     folder_state,
     run_folder,
 )
+
+if TYPE_CHECKING:
+    from pipelines.from_data import ShippedData
 
 
 @dataclass(frozen=True)
@@ -54,7 +60,9 @@ class OutputLayout:
 
     @classmethod
     def open(cls, out: str | Path) -> OutputLayout:
-        """The layout of an existing output folder; its runs_dir comes from reproduce.json.
+        """The layout of an existing output folder; its runs_dir comes from reproduce.json. A
+        shipped data folder (`curious.shipped`) opens too, as its own runs root: the notebooks
+        take either as their `out`.
 
         A relative `out` that does not exist here is also looked for from the parent folders
         (a notebook runs in notebooks/, the default output lies in the repository's root).
@@ -68,9 +76,12 @@ class OutputLayout:
             if manifest.is_file():
                 data = json.loads(manifest.read_text())
                 return cls.at(path, data.get("runs_dir"))
+            if ShippedFolder(path).is_shipped:  # its runs lie in it, as in a runs root
+                return cls.at(path, path)
         raise FileNotFoundError(
-            f"no `curious reproduce` output at {out} (no reproduce.json there or above the "
-            "current folder): run `curious reproduce` first, or pass the output folder"
+            f"no `curious reproduce` output or shipped data folder at {out} (no reproduce.json "
+            "or shipped.json there or above the current folder): run `curious reproduce` "
+            "first, or pass the output folder"
         )
 
     @property
@@ -81,10 +92,12 @@ class OutputLayout:
         """The budget that made this folder, from reproduce.json (None without one).
 
         Raises OSError or ValueError on an unreadable manifest. Folders made before budgets were
-        named apart from training presets call it `preset`.
+        named apart from training presets call it `preset`. A shipped data folder's budget is
+        its shipped.json's.
         """
         if not self.manifest.is_file():
-            return None
+            shipped = ShippedFolder(self.out)
+            return shipped.read_manifest().budget if shipped.is_shipped else None
         manifest = json.loads(self.manifest.read_text())
         name = (
             manifest.get("budget", manifest.get("preset")) if isinstance(manifest, dict) else None
@@ -138,6 +151,9 @@ class Reproduction:
     progress: bool = True
     say: Callable[[str], None] = _print
     results: list[PartitionResult] = field(default_factory=list)
+    data: ShippedData | None = None
+    """The shipped data folder read instead of training (`curious reproduce --from-data`); its
+    path is the layout's runs root."""
     _pool: Pool | None = None
 
     @property
@@ -154,12 +170,22 @@ class Reproduction:
     def experiment(self, name: str) -> Experiment:
         return self.budget.experiments[name]
 
+    def run_state(self, spec: RunSpec) -> str:
+        """`new`, `partial` or `finished`: of the run folder (`pipelines.training.folder_state`),
+        or of the shipped run where the runs are read from shipped data
+        (`pipelines.from_data.ShippedData.state`)."""
+        if self.data is not None:
+            return self.data.state(spec)
+        return folder_state(spec, self.layout.runs_root, self.overrides)
+
     def train(self, experiment: Experiment, specs: Sequence[RunSpec]) -> list[PartitionResult]:
         """Bring every run of `specs` to its budget on the pool, with a progress bar.
 
-        Runs whose folders already hold the finished run are not sent to the pool at all.
+        Runs whose folders already hold the finished run are not sent to the pool at all; from
+        shipped data nothing is trained, and a run that is not there finished is an error.
         """
-
+        if self.data is not None:
+            return self._read_shipped(experiment, specs)
         root = self.layout.runs_root
         results: dict[str, PartitionResult] = {}
         todo: list[Job] = []
@@ -178,6 +204,33 @@ class Reproduction:
         ordered = [results[s.partition_key] for s in specs]
         self.results.extend(ordered)
         return ordered
+
+    def _read_shipped(
+        self, experiment: Experiment, specs: Sequence[RunSpec]
+    ) -> list[PartitionResult]:
+        """The shipped runs of `specs`, checked to be there and finished; nothing is trained."""
+        from pipelines.from_data import ShippedDataError
+
+        assert self.data is not None
+        lacking = [s for s in specs if self.data.state(s) != FINISHED]
+        if lacking:
+            raise ShippedDataError(
+                f"{self.data.path} lacks finished runs of {experiment.name}: "
+                + ", ".join(str(s.relative_path) for s in lacking)
+            )
+        results = []
+        for spec in specs:
+            entry = self.data.manifest.get(spec.relative_path)
+            assert entry is not None
+            folder = run_folder(spec, self.layout.runs_root)
+            results.append(
+                PartitionResult(
+                    spec.partition_key, str(folder), FINISHED, entry.episodes, 0.0, False, "shipped"
+                )
+            )
+        self.say(f"  {experiment.name}: {len(results)} shipped run(s) read from {self.data.path}")
+        self.results.extend(results)
+        return results
 
     def _train(self, experiment: Experiment, jobs: list[Job]) -> dict[str, PartitionResult]:
         from tqdm.auto import tqdm

@@ -119,8 +119,7 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
         ) from None
     except RunFolderError as exc:
         raise RunFolderMismatch(f"{exc}; or move the folder away") from None
-    total = expected.total_episodes
-    if (folder.newest_checkpoint() or 0) >= total and folder.episodes_logged() >= total:
+    if folder.finished_at(expected.total_episodes):
         return FINISHED
     return PARTIAL
 

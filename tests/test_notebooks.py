@@ -1,8 +1,9 @@
-"""The notebooks (jupytext percent files in notebooks/) execute against the smoke reproduction.
+"""The notebooks (jupytext percent files in notebooks/) execute against the smoke reproduction,
+and against the same runs shipped into a data folder (`curious ship`).
 
-Each notebook is read with jupytext, given the smoke output folder as its `out` parameter the
-way papermill does it (a cell injected after the one tagged `parameters`), and executed with
-nbclient in a fresh kernel from the notebooks folder.
+Each notebook is read with jupytext, given the smoke output folder (or the shipped data folder)
+as its `out` parameter the way papermill does it (a cell injected after the one tagged
+`parameters`), and executed with nbclient in a fresh kernel from the notebooks folder.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import jupytext
 import nbformat
 import pytest
 from nbclient import NotebookClient
-from pipeline_smoke import smoke_output
+from pipeline_smoke import shipped_smoke, smoke_output
 
 from curious.experiments import DEFAULT_BUDGET, get_budget
 
@@ -31,6 +32,11 @@ NAMES = (
 @pytest.fixture(scope="session")
 def smoke(tmp_path_factory):
     return smoke_output(tmp_path_factory)
+
+
+@pytest.fixture(scope="session")
+def shipped(tmp_path_factory):
+    return shipped_smoke(tmp_path_factory)
 
 
 def parameters_cell(nb: nbformat.NotebookNode) -> int:
@@ -67,10 +73,34 @@ def execute(name: str, out: Path) -> list[nbformat.NotebookNode]:
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_notebook_executes_against_the_smoke_output(name, smoke):
-    outputs = execute(name, smoke.out)
-    images = [o for o in outputs if "image/png" in o.get("data", {})]
-    assert images, f"{name} drew no figure"
+def test_notebook_executes_against_the_smoke_output_and_its_shipped_data(
+    name, smoke, shipped, tmp_path_factory
+):
+    """The notebook runs on the smoke output and draws figures; with `out` set to the same runs
+    shipped into a data folder, it runs on the shipped tables alone and draws the same figures,
+    byte for byte, and prints the same text (outputs that name a run folder aside: its path
+    differs)."""
+    assert shipped.source.out == smoke.out
+    base = str(tmp_path_factory.getbasetemp())
+
+    def shown(outputs: list[nbformat.NotebookNode]) -> tuple[list[str], list[str], int]:
+        images, texts, with_paths = [], [], 0
+        for o in outputs:
+            data = o.get("data", {})
+            if "image/png" in data:
+                images.append(data["image/png"])
+                continue
+            text = o.get("text", "") + data.get("text/plain", "")
+            if base in text:
+                with_paths += 1
+            else:
+                texts.append(text)
+        return images, texts, with_paths
+
+    from_runs = shown(execute(name, smoke.out))
+    from_data = shown(execute(name, shipped.data))
+    assert from_runs[0], f"{name} drew no figure"
+    assert from_data == from_runs
 
 
 def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(smoke, tmp_path):

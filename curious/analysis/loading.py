@@ -8,6 +8,12 @@ every column of ``metrics.parquet``. `load_tests` reads the same folders' ``test
 one row per (run, test rollout), with the same identity columns; a run without test rollouts (one
 trained before they were logged, or with ``test_rollouts_per_worker=0``) is an `AnalysisError`.
 
+A shipped data folder (`curious.shipped`, written by ``curious ship``: a reproduction's runs
+reduced to what the analysis reads, e.g. the repository's ``data/laptop``) is a folder of run
+folders too, and loads wherever run folders do: ``load_runs("data/laptop/main")``. Its tables
+lack the columns shipping leaves out (the goals, the worker, the raw self-evaluations and the
+tests' clock; their parquet metadata says which), and every column they keep is the run's own.
+
 What ``config.json`` says about a run is read by `curious.run_folder.RunFolder.read_info`, which
 knows every version of the file (`read_run_info` here raises its errors as `AnalysisError`).
 
@@ -35,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from curious.metrics import tests_schema
 from curious.run_folder import (
@@ -45,6 +52,7 @@ from curious.run_folder import (
     RunFolderError,
     RunInfo,
 )
+from curious.shipped import ShippedError, shipped_drops
 
 __all__ = [
     "IDENTITY_COLUMNS",
@@ -190,6 +198,14 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
         raise AnalysisError(str(exc)) from None
 
 
+def _shipped_drops(path: Path) -> tuple[str, ...]:
+    """The columns a shipped run's table leaves out (`curious.shipped`); none for a run's own."""
+    try:
+        return shipped_drops(pq.read_schema(path).metadata)
+    except ShippedError as exc:
+        raise AnalysisError(f"{path}: {exc}") from None
+
+
 def _read_metrics(info: RunInfo) -> pd.DataFrame:
     metrics_path = RunFolder(info.path).metrics_path
     if not metrics_path.is_file():
@@ -198,7 +214,8 @@ def _read_metrics(info: RunInfo) -> pd.DataFrame:
         metrics = pd.read_parquet(metrics_path)
     except Exception as exc:  # pyarrow raises several types for unreadable files
         raise AnalysisError(f"{metrics_path} is not a readable parquet file: {exc}") from exc
-    expected = list(BASE_COLUMNS) + [
+    dropped = _shipped_drops(metrics_path)
+    expected = [c for c in BASE_COLUMNS if c not in dropped] + [
         prefix + m for prefix in PER_MODULE_PREFIXES for m in info.module_names
     ]
     missing = [c for c in expected if c not in metrics.columns]
@@ -303,7 +320,8 @@ def _combined(tables: list[pd.DataFrame]) -> pd.DataFrame:
             )
     table = pd.concat(tables, axis=0, ignore_index=True, sort=False)
     for column in _CATEGORICAL:
-        table[column] = table[column].astype("category")
+        if column in table:  # a shipped run's metrics have no `module`
+            table[column] = table[column].astype("category")
     return table
 
 
@@ -320,7 +338,8 @@ def _read_tests(info: RunInfo) -> pd.DataFrame:
         tests = pd.read_parquet(path)
     except Exception as exc:  # pyarrow raises several types for unreadable files
         raise AnalysisError(f"{path} is not a readable parquet file: {exc}") from exc
-    missing = [c for c in TEST_COLUMNS if c not in tests.columns]
+    dropped = _shipped_drops(path)
+    missing = [c for c in TEST_COLUMNS if c not in tests.columns and c not in dropped]
     if missing == ["module_success"]:
         raise AnalysisError(
             f"{path} lacks column module_success: it was written before the test rollouts "

@@ -6,11 +6,17 @@
     curious reproduce --budget paper --ray-address auto --runs-dir /shared/curious
     curious reproduce --budget paper --device cuda --workers 4 \
         --set env_processes=4 --set prefetch_minibatches=true   # one GPU node (docs/scaling.md)
+    curious reproduce --from-data data/laptop           # the report and figures from shipped runs
 
 The assets (pipelines/) are materialised in this process on a Dagster instance kept in
 OUT/.dagster: no server to start. Training runs go to worker processes (one per core unless
 --workers says otherwise), or to Ray tasks with --ray-address. A second call with the same
 budget and --out retrains nothing that is finished and resumes what was interrupted.
+
+--from-data DATA trains nothing: it reads the runs from a shipped data folder (`curious ship`;
+the repository's data/<budget>), every experiment it holds complete unless --experiments says
+otherwise, with its budget unless --budget says otherwise, and builds the same report and
+figures into --out (default runs/<budget>-shipped). DATA is only read.
 
 Errors about the input (unknown budget or experiment, an output folder made by another budget,
 a run folder holding another run, a Ray address that does not answer, an output folder that
@@ -23,9 +29,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from curious.commands import add_set_option
 from curious.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
+
+if TYPE_CHECKING:
+    from pipelines.reproduce import ReproduceResult
 
 
 class _PresetIsForTrain(argparse.Action):
@@ -60,8 +70,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--budget",
-        default=DEFAULT_BUDGET,
-        help=f"experiments, seeds and episodes: {', '.join(BUDGETS)} (default {DEFAULT_BUDGET})",
+        default=None,
+        help=f"experiments, seeds and episodes: {', '.join(BUDGETS)} (default {DEFAULT_BUDGET}; "
+        "with --from-data, the shipped runs' budget)",
     )
     parser.add_argument(
         "--preset",
@@ -77,6 +88,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         help=f"comma-separated subset of {','.join(EXPERIMENTS)} (default: all the budget's)",
     )
     parser.add_argument("--out", default=None, help="output folder (default: runs/<budget>)")
+    parser.add_argument(
+        "--from-data",
+        default=None,
+        metavar="DATA",
+        help="read the runs from a shipped data folder (curious ship) instead of training them",
+    )
     parser.add_argument(
         "--runs-dir",
         default=None,
@@ -145,10 +162,14 @@ def run(args: argparse.Namespace) -> int:
     from curious.config import ConfigError
     from curious.experiments import ExperimentError
 
-    for option, value in (("--out", args.out), ("--runs-dir", args.runs_dir)):
+    options = (("--out", args.out), ("--runs-dir", args.runs_dir), ("--from-data", args.from_data))
+    for option, value in options:
         if value is not None and not value.strip():
             print(f"curious reproduce: error: {option} is empty: name a folder", file=sys.stderr)
             return 2
+    if args.from_data is not None:
+        return _from_data(args)
+    args.budget = args.budget or DEFAULT_BUDGET
     if args.workers is not None and args.workers < 1:
         print("curious reproduce: error: --workers must be >= 1", file=sys.stderr)
         return 2
@@ -205,17 +226,68 @@ def run(args: argparse.Namespace) -> int:
         )
         return 130
 
+    _done(result)
+    return 0
+
+
+_TRAINING_OPTIONS = {
+    "runs_dir": "--runs-dir",
+    "ray_address": "--ray-address",
+    "workers": "--workers",
+    "device": "--device",
+    "overrides": "--set",
+}
+
+
+def _from_data(args: argparse.Namespace) -> int:
+    """`--from-data`: the report and figures from shipped runs; nothing is trained."""
+    from curious.experiments import ExperimentError
+    from curious.shipped import ShippedError, ShippedFolder
+    from pipelines.reproduce import ReproduceError, reproduce
+    from pipelines.training import RunFolderMismatch
+
+    given = [flag for name, flag in _TRAINING_OPTIONS.items() if getattr(args, name)]
+    given += ["--gpus-per-run"] if args.gpus_per_run else []
+    if given:
+        print(
+            f"curious reproduce: error: --from-data trains nothing, so {', '.join(given)} "
+            f"would do nothing: leave {'it' if len(given) == 1 else 'them'} out",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        budget = args.budget
+        folder = ShippedFolder(args.from_data)
+        if budget is None and folder.is_shipped:
+            budget = folder.read_manifest().budget
+        result = reproduce(
+            budget or DEFAULT_BUDGET,
+            experiments=_experiments(args.experiments),
+            out=args.out,
+            progress=not args.no_progress,
+            from_data=args.from_data,
+        )
+    except (ExperimentError, ReproduceError, RunFolderMismatch, ShippedError) as exc:
+        print(f"curious reproduce: error: {exc}", file=sys.stderr)
+        return 2
+    _done(result)
+    return 0
+
+
+def _done(result: ReproduceResult) -> None:
+    """The closing lines: what was done, and where the products are."""
     layout = result.layout
     minutes, seconds = divmod(round(result.seconds), 60)
-    print(
-        f"\nDone in {minutes}m{seconds:02d}s: {len(result.trained)} run(s) trained, "
-        f"{len(result.skipped)} already finished."
-    )
+    if result.from_data is not None:
+        done = f"{len(result.results)} shipped run(s) read, none trained"
+    else:
+        done = f"{len(result.trained)} run(s) trained, {len(result.skipped)} already finished"
+    print(f"\nDone in {minutes}m{seconds:02d}s: {done}.")
     print(f"  report:  {layout.report}")
     print(f"  figures: {layout.figures}")
     print(f"  runs:    {layout.runs_root}")
+    shipped = f"CURIOUS_FROM_DATA={result.from_data} " if result.from_data else ""
     print(
         f"  Dagster: DAGSTER_HOME={layout.dagster_home} CURIOUS_BUDGET={result.budget} "
-        f"CURIOUS_OUT={layout.out} dagster dev -m pipelines"
+        f"CURIOUS_OUT={layout.out} {shipped}dagster dev -m pipelines"
     )
-    return 0

@@ -1,0 +1,139 @@
+"""Shipped runs in place of trained ones: `curious reproduce --from-data DATA`.
+
+A shipped data folder (`curious.shipped`, written by `curious ship`) is laid out as a
+reproduction's runs root, so the pipeline reads it as one (`OutputLayout.runs_root`): the `runs`
+asset checks that every partition's run is there and finished instead of training it, and the
+metrics, figures and report are built from its tables as from any run folders. Nothing is ever
+written into DATA.
+
+A partition's state in DATA (`shipped_state`): `new` where the run was not shipped, `partial`
+where it was shipped unfinished (a progress snapshot), `finished` where it was shipped finished.
+A shipped run whose config.json names another run than the partition's (condition, variant,
+seed, training preset, episodes, sensory failure) raises `RunFolderMismatch`. That check reads
+the run's identity only (`RunInfo`, which reads every version of config.json), not every
+setting as a resume does, so that runs shipped by an earlier curious stay readable when later
+versions add settings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from curious.experiments import Experiment, ReproduceBudget, RunSpec
+from curious.shipped import ShippedError, ShippedFolder, ShippedManifest
+from pipelines.training import FINISHED, NEW, PARTIAL, RunFolderMismatch
+
+
+class ShippedDataError(RuntimeError):
+    """A shipped data folder that cannot stand for the runs asked for (nothing was written)."""
+
+
+@dataclass(frozen=True)
+class ShippedData:
+    """A shipped data folder and its manifest, read once."""
+
+    path: Path
+    manifest: ShippedManifest
+
+    @classmethod
+    def open(cls, path: str | Path) -> ShippedData:
+        """The shipped folder at `path`; a `ShippedDataError` where it is not one."""
+        folder = ShippedFolder(Path(path).resolve())
+        if not folder.path.is_dir():
+            raise ShippedDataError(f"--from-data {path} does not exist")
+        try:
+            return cls(folder.path, folder.read_manifest())
+        except ShippedError as exc:
+            raise ShippedDataError(f"--from-data: {exc}") from None
+
+    def state(self, spec: RunSpec) -> str:
+        """`new`, `partial` or `finished` (see the module docstring)."""
+        from curious.run_folder import RunFolder, RunFolderError
+
+        entry = self.manifest.get(spec.relative_path)
+        if entry is None:
+            return NEW
+        folder = RunFolder(ShippedFolder(self.path).run_path(entry.run))
+        try:
+            info = folder.read_info()
+        except RunFolderError as exc:
+            raise RunFolderMismatch(str(exc)) from None
+        expected = {
+            "condition": spec.condition,
+            "variant": spec.variant,
+            "seed": spec.seed,
+            "preset": spec.train_preset,
+            "total_episodes": spec.total_episodes,
+            "sensor_failure_episode": spec.sensor_failure_episode,
+            "sensor_failure_competence": spec.sensor_failure_competence,
+        }
+        shipped = {
+            "condition": info.condition,
+            "variant": info.variant,
+            "seed": info.seed,
+            "preset": info.preset,
+            "total_episodes": info.total_episodes,
+            "sensor_failure_episode": info.perturbation_episode,
+            "sensor_failure_competence": info.failure_competence,
+        }
+        differ = [k for k in expected if expected[k] != shipped[k]]
+        if differ:
+            detail = ", ".join(f"{k}: {shipped[k]!r} != {expected[k]!r}" for k in differ)
+            raise RunFolderMismatch(
+                f"{folder.path} holds another run than {spec.label} ({detail}): it was not "
+                "shipped from this budget's reproduction"
+            )
+        return FINISHED if entry.finished and entry.episodes >= spec.total_episodes else PARTIAL
+
+    def missing(self, experiment: Experiment) -> list[str]:
+        """The runs of `experiment` that DATA lacks or holds unfinished, in words."""
+        out = []
+        for spec in experiment.runs():
+            state = self.state(spec)
+            if state == NEW:
+                out.append(f"{spec.relative_path} (not shipped)")
+            elif state == PARTIAL:
+                entry = self.manifest.get(spec.relative_path)
+                assert entry is not None
+                out.append(
+                    f"{spec.relative_path} (shipped unfinished: {entry.episodes:,} of "
+                    f"{spec.total_episodes:,} episodes)"
+                )
+        return out
+
+    def check_budget(self, budget: ReproduceBudget) -> None:
+        """A `ShippedDataError` where DATA was shipped from another budget's reproduction."""
+        shipped = self.manifest.budget
+        if shipped is not None and shipped != budget.name:
+            raise ShippedDataError(
+                f"{self.path} holds runs of budget {shipped!r}, not {budget.name!r}: pass "
+                f"--budget {shipped}"
+            )
+
+    def select(self, budget: ReproduceBudget, names: Sequence[str] | None) -> list[Experiment]:
+        """The experiments to build from DATA: those named (each complete in DATA, else a
+        `ShippedDataError` naming what it lacks), or, with no names, every experiment of the
+        budget that DATA holds complete (at least one)."""
+        chosen = budget.select(names)
+        if names is None:
+            complete = [e for e in chosen if not self.missing(e)]
+            if not complete:
+                raise ShippedDataError(
+                    f"{self.path} holds no experiment of budget {budget.name!r} whose runs are "
+                    f"all shipped and finished ({self._lacks(chosen)})"
+                )
+            return complete
+        lacking = [e for e in chosen if self.missing(e)]
+        if lacking:
+            raise ShippedDataError(
+                f"{self.path} lacks runs of {', '.join(e.name for e in lacking)}: "
+                f"{self._lacks(lacking)}; ship them once finished (`curious ship`), or leave "
+                "those experiments out"
+            )
+        return chosen
+
+    def _lacks(self, experiments: Sequence[Experiment]) -> str:
+        gaps = [m for e in experiments for m in self.missing(e)]
+        return ", ".join(gaps[:4]) + (f" and {len(gaps) - 4} more" if len(gaps) > 4 else "")

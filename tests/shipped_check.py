@@ -1,0 +1,89 @@
+"""What every shipped data folder must satisfy, checked on the smoke reproduction shipped in the
+tests (test_shipped.py) and on whatever the repository ships in data/ (test_shipped_data.py).
+
+`check_shipped_folder(data, out)`: the manifest lists exactly what the folder holds; every run
+loads with `curious.analysis` with the episodes and test rollouts the manifest says (a finished
+run: its whole budget); and `curious reproduce --from-data` builds the report from it, the
+combined tables behind the report being the shipped tables, and the report's per-run numbers
+(episodes, final competence, final test success) those computed from them. A progress snapshot
+(no experiment whose runs are all shipped finished) has no report: once its runs are loaded,
+the check is skipped with that reason.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from curious import analysis
+from curious.cli import main as curious_cli
+from curious.experiments import get_budget
+from curious.run_folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.shipped import MANIFEST_FILE, ShippedFolder
+from pipelines.from_data import ShippedData, ShippedDataError
+
+
+def files_of(folder: Path) -> set[str]:
+    return {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
+
+
+def _two(value: float) -> str:
+    return "–" if pd.isna(value) else f"{value:.2f}"
+
+
+def check_shipped_folder(data: Path, out: Path) -> str:
+    """Check the shipped folder `data` (see the module docstring), building its report in `out`;
+    returns the report's text."""
+    shipped = ShippedFolder(data)
+    manifest = shipped.read_manifest()
+    assert manifest.runs, f"{data} ships no run"
+    expected_files = {MANIFEST_FILE}
+    for r in manifest.runs:
+        expected_files |= {f"{r.run}/{CONFIG_FILE}", f"{r.run}/{METRICS_FILE}"}
+        if r.test_rollouts:
+            expected_files.add(f"{r.run}/{TESTS_FILE}")
+    assert files_of(data) == expected_files, "the folder holds what shipped.json lists, only"
+
+    for r in manifest.runs:
+        runs = analysis.load_runs(shipped.run_path(r.run))
+        assert len(runs) == r.episodes
+        assert runs["episode"].tolist() == list(range(r.episodes)), f"{r.run}: every episode"
+        if r.finished:
+            assert r.episodes == r.total_episodes
+        if r.test_rollouts:
+            assert len(analysis.load_tests(shipped.run_path(r.run))) == r.test_rollouts
+
+    if manifest.budget is None:
+        pytest.skip(f"{data} was not shipped from a reproduction: it has no report to build")
+    try:
+        ShippedData.open(data).select(get_budget(manifest.budget), None)
+    except ShippedDataError as exc:
+        pytest.skip(f"{data} loads; no report is built from a progress snapshot: {exc}")
+    stderr = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(stderr):
+        code = curious_cli(
+            ["reproduce", "--from-data", str(data), "--out", str(out), "--no-progress"]
+        )
+    assert code == 0, stderr.getvalue()[-3000:]
+    report = (out / "report.md").read_text(encoding="utf-8")
+    built = sorted(p.stem for p in (out / "metrics").glob("*.parquet") if ".tests" not in p.name)
+    assert built, "the report covers at least one experiment"
+    for experiment in built:
+        runs = analysis.load_runs(data / experiment)
+        combined = pd.read_parquet(out / "metrics" / f"{experiment}.parquet")
+        pd.testing.assert_frame_equal(combined, runs, check_categorical=False)
+        tests = analysis.load_tests(data / experiment)
+        final_test = analysis.final_success(analysis.epoch_success(tests)).set_index("run")
+        final_competence = analysis.final_competence(runs).set_index("run")["value"]
+        for run, rows in runs.groupby("run", observed=True):
+            relative = Path(str(run)).relative_to(data.resolve()).as_posix()
+            line = next(x for x in report.splitlines() if x.startswith(f"| {relative} |"))
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            assert cells[4] == f"{len(rows):,}", f"{relative}: episodes in the report"
+            assert cells[6] == _two(final_competence.get(run)), f"{relative}: final competence"
+            assert cells[7] == _two(final_test["value"].get(run)), f"{relative}: test success"
+    return report

@@ -1,0 +1,385 @@
+"""`curious ship` and `curious reproduce --from-data`, on the smoke reproduction.
+
+The smoke output (`pipeline_smoke`, shared with the pipeline and notebook tests) is shipped once
+into a data folder; the report, the figures and the tables built from that folder alone must be
+those built from the run folders.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+from pipeline_smoke import shipped_smoke, smoke_output
+from shipped_check import check_shipped_folder, files_of
+
+from curious import analysis
+from curious.cli import main as curious_cli
+from curious.run_folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE, RunFolder
+from curious.shipped import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
+from pipelines.resources import OutputLayout
+
+EXPERIMENTS = ("main", "distractors", "sensor_failure")
+
+
+@pytest.fixture(scope="session")
+def smoke(tmp_path_factory):
+    return smoke_output(tmp_path_factory)
+
+
+@pytest.fixture(scope="session")
+def shipped(tmp_path_factory):
+    return shipped_smoke(tmp_path_factory)
+
+
+def hashes(folder: Path) -> dict[str, str]:
+    return {
+        p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def cli(args: list[str]) -> tuple[int, str, str]:
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = curious_cli(args)
+    return code, stdout.getvalue(), stderr.getvalue()
+
+
+@pytest.fixture(scope="session")
+def from_data(shipped, tmp_path_factory):
+    """`curious reproduce --from-data` on the shipped smoke runs, and whether DATA was left as it
+    was."""
+    out = tmp_path_factory.mktemp("from_data") / "out"
+    before = hashes(shipped.data)
+    code, stdout, stderr = cli(
+        ["reproduce", "--from-data", str(shipped.data), "--out", str(out), "--no-progress"]
+    )
+    assert code == 0, stderr[-3000:]
+    return out, stdout, stderr, hashes(shipped.data) == before
+
+
+def smoke_runs(smoke) -> list[Path]:
+    return sorted(p.parent for p in (smoke.out / "runs").rglob(CONFIG_FILE))
+
+
+# ------------------------------------------------------------------------------------ curious ship
+
+
+def test_ship_writes_each_runs_description_and_reduced_tables_and_prints_their_size(smoke, shipped):
+    data, sources = shipped.data, smoke_runs(smoke)
+    relative = [p.relative_to(smoke.out / "runs").as_posix() for p in sources]
+    manifest = ShippedFolder(data).read_manifest()
+    assert manifest.budget == "smoke"
+    assert [r.run for r in manifest.runs] == sorted(relative)
+    assert all(r.finished and r.episodes == r.total_episodes == 24 for r in manifest.runs)
+    expected = {"shipped.json"} | {
+        f"{r}/{name}" for r in relative for name in (CONFIG_FILE, METRICS_FILE, TESTS_FILE)
+    }
+    assert files_of(data) == expected  # no checkpoint, no recording
+    for source, rel in zip(sources, relative, strict=True):
+        target = data / rel
+        assert (target / CONFIG_FILE).read_bytes() == (source / CONFIG_FILE).read_bytes()
+        for name, dropped in ((METRICS_FILE, METRICS_DROPPED), (TESTS_FILE, TESTS_DROPPED)):
+            original, reduced = pq.read_table(source / name), pq.read_table(target / name)
+            kept = [f for f in original.schema if f.name not in dropped]
+            assert list(reduced.schema) == kept  # names, order and Arrow types
+            pd.testing.assert_frame_equal(  # NaN where the run has NaN (her's competence)
+                reduced.to_pandas(),
+                original.select([f.name for f in kept]).to_pandas(),
+                check_exact=True,
+            )
+            codecs = {
+                meta.row_group(g).column(c).compression
+                for meta in [pq.read_metadata(target / name)]
+                for g in range(meta.num_row_groups)
+                for c in range(meta.num_columns)
+            }
+            assert codecs == {"ZSTD"}
+
+    size = sum(p.stat().st_size for p in data.rglob("*") if p.is_file())
+    printed = re.search(r"([\d,]+) bytes\)", shipped.stdout)
+    assert printed and int(printed.group(1).replace(",", "")) == size
+    assert (
+        f"shipped 14 finished run(s) of budget smoke from {smoke.out} to {data}" in shipped.stdout
+    )
+    tables = sum(
+        (p / name).stat().st_size
+        for p in sources
+        for name in (CONFIG_FILE, METRICS_FILE, TESTS_FILE)
+    )
+    whole = sum(p.stat().st_size for p in (smoke.out / "runs").rglob("*") if p.is_file())
+    assert size < tables and size < 0.01 * whole
+
+
+def test_shipped_tables_load_with_every_number_of_the_run_folders(smoke, shipped):
+    """`load_runs` / `load_tests` of the shipped folder: the run folders' rows, identity columns
+    and kept columns, value for value and type for type; only the `run` path differs."""
+
+    def relative(table: pd.DataFrame, root: Path) -> pd.DataFrame:
+        table = table.copy()
+        runs = table["run"].astype(str).map(lambda r: Path(r).relative_to(root.resolve()))
+        table["run"] = runs.map(Path.as_posix).astype("category")
+        return table
+
+    for experiment in EXPERIMENTS:
+        for load, dropped in (
+            (analysis.load_runs, METRICS_DROPPED),
+            (analysis.load_tests, TESTS_DROPPED),
+        ):
+            original = relative(load(smoke.out / "runs" / experiment), smoke.out / "runs")
+            reduced = relative(load(shipped.data / experiment), shipped.data)
+            gone = [c for c in original if c not in reduced]
+            assert set(gone) == set(dropped)
+            pd.testing.assert_frame_equal(reduced, original.drop(columns=gone))
+    layout = OutputLayout.open(shipped.data)  # how the notebooks open their `out`
+    assert layout.runs_root == shipped.data.resolve() and layout.budget_name() == "smoke"
+    assert len(analysis.load_runs(shipped.data)) == 14 * 24
+
+
+def test_shipping_again_replaces_the_folder_with_the_same_bytes(smoke, shipped, tmp_path):
+    out = tmp_path / "data" / "smoke"
+    assert cli(["ship", str(smoke.out), "--out", str(out)])[0] == 0
+    (out / "main" / "stale.txt").write_text("from an earlier ship")
+    code, _, stderr = cli(["ship", str(smoke.out), "--out", str(out)])
+    assert code == 0, stderr
+    assert hashes(out) == hashes(shipped.data)  # deterministic: an unchanged run, an unchanged file
+    assert sorted(p.name for p in out.parent.iterdir()) == ["smoke"]  # nothing left beside it
+
+
+def test_the_default_out_of_a_reproduction_is_data_and_its_budget(smoke, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, stdout, _ = cli(["ship", str(smoke.out)])
+    assert code == 0 and "to data/smoke" in stdout
+    assert ShippedFolder(tmp_path / "data" / "smoke").read_manifest().budget == "smoke"
+
+
+# ---------------------------------------------------------------------- reproduce --from-data
+
+
+def test_report_and_figures_from_the_shipped_data_are_those_of_the_run_folders(
+    smoke, shipped, from_data
+):
+    """Built from the shipped tables alone, through the same Dagster assets: the same report.md
+    (every table, every Welch test, byte for byte), the same figures and the same combined
+    tables (less the columns shipping leaves out); nothing trained, DATA untouched."""
+    out, stdout, stderr, untouched = from_data
+    assert untouched
+    assert (out / "report.md").read_bytes() == (smoke.out / "report.md").read_bytes()
+    figures = sorted(p.name for p in (smoke.out / "figures").iterdir())
+    assert sorted(p.name for p in (out / "figures").iterdir()) == figures
+    for name in figures:
+        assert (out / "figures" / name).read_bytes() == (smoke.out / "figures" / name).read_bytes()
+    for experiment in EXPERIMENTS:
+        for suffix, dropped in ((".parquet", METRICS_DROPPED), (".tests.parquet", TESTS_DROPPED)):
+            ours = pd.read_parquet(out / "metrics" / f"{experiment}{suffix}")
+            theirs = pd.read_parquet(smoke.out / "metrics" / f"{experiment}{suffix}")
+            for table, root in ((ours, shipped.data), (theirs, smoke.out / "runs")):
+                table["run"] = table["run"].astype(str).str.removeprefix(str(root.resolve()))
+            pd.testing.assert_frame_equal(ours, theirs.drop(columns=list(dropped)))
+    assert "Done in" in stdout and "14 shipped run(s) read, none trained" in stdout
+    assert "curious reproduce --budget smoke --from-data" in stderr
+    assert not (out / "runs").exists()
+    manifest = json.loads((out / "reproduce.json").read_text())
+    assert manifest["from_data"] == manifest["runs_dir"] == str(shipped.data.resolve())
+    assert OutputLayout.open(out).runs_root == shipped.data.resolve()  # notebooks on `out` too
+
+
+def test_the_shipped_smoke_folder_passes_the_repository_data_check(shipped, tmp_path):
+    """The check test_shipped_data.py applies to data/, on a folder known to be good."""
+    report = check_shipped_folder(shipped.data, tmp_path / "out")
+    assert "| main/curious/seed-0 | curious | default | 0 | 24 |" in report
+
+
+def test_an_output_folder_holds_trained_or_shipped_results_never_both(smoke, from_data, tmp_path):
+    out = from_data[0]
+    code, _, err = cli(["reproduce", "--budget", "smoke", "--out", str(out), "--no-progress"])
+    assert code == 2 and err.count("\n") == 1
+    assert "made from the shipped data in" in err and "not by training" in err
+    data = tmp_path / "data"
+    assert cli(["ship", str(smoke.out), "--out", str(data)])[0] == 0
+    before = hashes(smoke.out)
+    code, _, err = cli(["reproduce", "--from-data", str(data), "--out", str(smoke.out)])
+    assert code == 2 and err.count("\n") == 1 and "made by training, not from" in err
+    assert hashes(smoke.out) == before
+
+
+# ---------------------------------------------------------------------- unfinished runs
+
+
+def partial_copy(smoke, out: Path, experiment: str = "main") -> Path:
+    """A smoke output in `out` with the runs of `experiment` only (no recordings), and
+    <experiment>/curious/seed-0 cut to its first 12 episodes: a run still training."""
+    for source in smoke_runs(smoke):
+        rel = source.relative_to(smoke.out / "runs")
+        if rel.parts[0] == experiment:
+            shutil.copytree(source, out / "runs" / rel, ignore=shutil.ignore_patterns("*.rrd"))
+    shutil.copy(smoke.out / "reproduce.json", out)
+    folder = RunFolder(out / "runs" / experiment / "curious" / "seed-0")
+    table = pq.read_table(folder.metrics_path)
+    pq.write_table(table.slice(0, 12), folder.metrics_path)
+    return folder.path
+
+
+def test_unfinished_runs_are_shipped_only_when_asked_and_marked(smoke, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    root = tmp_path / "out"
+    partial_copy(smoke, root)
+    code, stdout, _ = cli(["ship", str(root), "--out", str(tmp_path / "finished")])
+    assert code == 0
+    left = "left out (--unfinished ships those that have started): main/curious/seed-0 (12 of 24 "
+    assert f"{left}episodes)" in stdout
+    runs = ShippedFolder(tmp_path / "finished").read_manifest().runs
+    assert len(runs) == 5 and "main/curious/seed-0" not in [r.run for r in runs]
+
+    snapshot = tmp_path / "snapshot"
+    code, stdout, _ = cli(["ship", str(root), "--out", str(snapshot), "--unfinished"])
+    assert code == 0 and "5 finished run(s) and 1 unfinished" in stdout
+    entry = ShippedFolder(snapshot).read_manifest().get("main/curious/seed-0")
+    assert entry is not None and not entry.finished and entry.episodes == 12
+    assert len(analysis.load_runs(snapshot / "main" / "curious" / "seed-0")) == 12
+
+    for extra in (["--experiments", "main"], []):
+        code, _, err = cli(["reproduce", "--from-data", str(snapshot), *extra])
+        assert code == 2 and err.count("\n") == 1, err
+        assert "main/curious/seed-0 (shipped unfinished: 12 of 24 episodes)" in err
+    assert not (tmp_path / "runs").exists()
+
+
+# ------------------------------------------------------------------------------------ refusals
+
+
+def refusal(tmp_path: Path, smoke, case: str) -> tuple[list[str], str]:
+    """The command line of one refused call, and what its one line says."""
+    runs = smoke.out / "runs" / "main"
+    if case == "missing root":
+        return ["ship", str(tmp_path / "nowhere"), "--out", str(tmp_path / "d")], "does not exist"
+    if case == "empty root":
+        (tmp_path / "empty").mkdir()
+        return ["ship", str(tmp_path / "empty"), "--out", str(tmp_path / "d")], "holds no run"
+    if case == "nothing finished":
+        partial_copy(smoke, tmp_path / "out", "sensor_failure")
+        shutil.rmtree(tmp_path / "out" / "runs" / "sensor_failure" / "m-uvfa")
+        return ["ship", str(tmp_path / "out"), "--out", str(tmp_path / "d")], (
+            "is finished (sensor_failure/curious/seed-0 (12 of 24 episodes)); pass --unfinished"
+        )
+    if case == "out inside a run folder":
+        other = tmp_path / "other"
+        other.mkdir()
+        shutil.copy(runs / "curious" / "seed-0" / CONFIG_FILE, other)
+        return ["ship", str(runs), "--out", str(other / "d")], "lies inside the run folder"
+    if case == "out inside the runs":
+        return ["ship", str(runs), "--out", str(runs / "d")], "overlap"
+    if case == "out holds other files":
+        (tmp_path / "d").mkdir()
+        (tmp_path / "d" / "notes.txt").write_text("mine")
+        return ["ship", str(runs), "--out", str(tmp_path / "d")], "holds no shipped data folder"
+    if case == "out holds another budget":
+        assert cli(["ship", str(runs), "--out", str(tmp_path / "d")])[0] == 0  # budget: none
+        return ["ship", str(smoke.out), "--out", str(tmp_path / "d")], (
+            "holds runs of no reproduction, these are the smoke budget's runs: shipping there"
+        )
+    if case == "out is a file":
+        (tmp_path / "d").write_text("")
+        return ["ship", str(runs), "--out", str(tmp_path / "d")], "is not a folder"
+    if case == "root is shipped":
+        data = tmp_path / "data"
+        assert cli(["ship", str(runs), "--out", str(data)])[0] == 0
+        return ["ship", str(data), "--out", str(tmp_path / "d")], "is a shipped data folder"
+    if case == "no out for runs":
+        return ["ship", str(runs)], "is not a `curious reproduce` output: pass --out"
+    if case == "not shipped data":
+        return ["reproduce", "--from-data", str(runs)], "is not a shipped data folder"
+    data = tmp_path / "data"
+    assert cli(["ship", str(smoke.out), "--out", str(data)])[0] == 0
+    if case == "another budget":
+        return ["reproduce", "--budget", "quick", "--from-data", str(data)], (
+            "not 'quick': pass --budget smoke"
+        )
+    if case == "a run not shipped":
+        shutil.rmtree(data / "main" / "her")
+        shipped = ShippedFolder(data)
+        manifest = shipped.read_manifest()
+        kept = tuple(r for r in manifest.runs if not r.run.startswith("main/her/"))
+        shipped.write_manifest(type(manifest)("smoke", kept))
+        return ["reproduce", "--experiments", "main", "--from-data", str(data)], (
+            "lacks runs of main: main/her/seed-0 (not shipped), main/her/seed-1 (not shipped)"
+        )
+    assert case == "a training option"
+    return ["reproduce", "--from-data", str(data), "--workers", "2"], (
+        "--from-data trains nothing, so --workers would do nothing"
+    )
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "missing root",
+        "empty root",
+        "nothing finished",
+        "out inside a run folder",
+        "out inside the runs",
+        "out holds other files",
+        "out holds another budget",
+        "out is a file",
+        "root is shipped",
+        "no out for runs",
+        "not shipped data",
+        "another budget",
+        "a run not shipped",
+        "a training option",
+    ],
+)
+def test_a_refused_call_says_why_in_one_line_and_writes_nothing(smoke, tmp_path, case, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "case").mkdir()
+    args, why = refusal(tmp_path / "case", smoke, case)
+    before_smoke, before = hashes(smoke.out), files_of(tmp_path)
+    code, _, err = cli(args)
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"curious {args[0]}: error: ") and why in err, err
+    assert files_of(tmp_path) == before and hashes(smoke.out) == before_smoke
+
+
+def test_a_table_shipped_in_a_format_this_curious_does_not_read_is_named(shipped, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(shipped.data / "main" / "curious" / "seed-0", run)
+    table = pq.read_table(run / METRICS_FILE)
+    mark = {b"curious.shipped": json.dumps({"format": 99, "dropped": ["g0"]}).encode()}
+    pq.write_table(table.replace_schema_metadata(mark), run / METRICS_FILE)
+    with pytest.raises(
+        analysis.AnalysisError, match=r"metrics.parquet: it was shipped in format 99"
+    ):
+        analysis.load_runs(run)
+
+
+def test_dagster_definitions_read_shipped_data_from_the_environment(shipped, tmp_path, monkeypatch):
+    """`CURIOUS_FROM_DATA` (what `curious reproduce --from-data` prints for `dagster dev`): the
+    runs asset reads DATA, which is the runs root, and nothing is written by loading them."""
+    from pipelines.definitions import reproduction_from_environment
+    from pipelines.from_data import ShippedDataError
+    from pipelines.training import FINISHED
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("CURIOUS_BUDGET", "smoke")
+    monkeypatch.setenv("CURIOUS_FROM_DATA", str(shipped.data))
+    monkeypatch.delenv("CURIOUS_OUT", raising=False)
+    repro = reproduction_from_environment()
+    assert repro.data is not None and repro.data.path == shipped.data.resolve()
+    assert repro.layout.runs_root == shipped.data.resolve()
+    assert repro.layout.out == (tmp_path / "runs" / "smoke-shipped").resolve()
+    spec = repro.budget.experiments["main"].runs()[0]
+    assert repro.run_state(spec) == FINISHED
+    assert not any(tmp_path.iterdir())
+    monkeypatch.setenv("CURIOUS_BUDGET", "quick")
+    with pytest.raises(ShippedDataError, match="holds runs of budget 'smoke', not 'quick'"):
+        reproduction_from_environment()
