@@ -59,6 +59,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from curious.envs import EnvSpec, GoalEnv
+from curious.inputs import GoalInput
 from curious.learning_progress import CompetenceTracker, lp_probabilities
 
 if TYPE_CHECKING:
@@ -193,17 +194,15 @@ class Condition:
     # -- goals and scores ---------------------------------------------------------------------
     def goals(
         self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Goal slots (n, N, G), slot mask (n, N) and task descriptor (n, N) of n episodes with
-        goals `raw` (n, G) in [-1, 1]^G: the practised module's slot only."""
+    ) -> GoalInput[np.ndarray]:
+        """The goal input of n episodes of `modules` (n,) with goals `raw` (n, G) in
+        [-1, 1]^G: the practised module's slot, mask and task descriptor only."""
         n, n_mod, g = len(modules), self.n_modules, self.spec.goal_dim
         goals = np.zeros((n, n_mod, g), np.float32)
         for k in np.unique(modules):
             sel = np.flatnonzero(modules == k)
             goals[sel, k] = env.goal_slot(int(k), raw[sel])
-        task = np.zeros((n, n_mod), np.float32)
-        task[np.arange(n), modules] = 1.0
-        return goals, task.copy(), task
+        return GoalInput.modular(goals, modules)
 
     def module_success(
         self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
@@ -346,11 +345,9 @@ class HER(Condition):
 
     def goals(
         self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> GoalInput[np.ndarray]:
         assert self.goal_space is not None
-        n, n_mod = len(modules), self.n_modules
-        goals = self.goal_space.draw(env, modules, raw, rng)
-        return goals, np.ones((n, n_mod), np.float32), np.zeros((n, n_mod), np.float32)
+        return GoalInput.holistic(self.goal_space.draw(env, modules, raw, rng))
 
     def success(
         self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray

@@ -89,8 +89,9 @@ def test_her_draws_a_goal_for_every_module_with_no_task_and_no_task_replay():
     rng = np.random.default_rng(0)
     modules = np.array([0, 1, 2, 0])
     raw = rng.uniform(-1, 1, (4, 3))
-    goals, mask, task = her.goals(ToyGoalEnv(), modules, raw, rng)
-    assert np.all(mask == 1) and np.all(task == 0)
+    goal = her.goals(ToyGoalEnv(), modules, raw, rng)
+    goals = goal.slots
+    assert np.all(goal.mask == 1) and np.all(goal.task == 0)
     env = ToyGoalEnv()
     for i, m in enumerate(modules):  # the named module keeps its drawn goal
         np.testing.assert_array_equal(goals[i, m], env.goal_slot(int(m), raw[i]))
