@@ -136,13 +136,8 @@ class Condition:
     """Whether `Config.eval_modules` = `released` draws this condition's modules (see the
     module docstring)."""
 
-    def __init__(
-        self,
-        spec: EnvSpec,
-        lp_eps: float,
-        eval_modules: str = "uniform",
-        eval_every: int = 10,
-    ) -> None:
+    def __init__(self, spec: EnvSpec, lp_eps: float, eval_modules: str, eval_every: int) -> None:
+        """`lp_eps`, `eval_modules`, `eval_every`: the `Config` settings (`make_condition`)."""
         self.spec = spec
         self.n_modules = spec.n_modules
         self.lp_eps = lp_eps
@@ -322,13 +317,7 @@ class HER(Condition):
     self_evaluates = False
     follows_lead = False
 
-    def __init__(
-        self,
-        spec: EnvSpec,
-        lp_eps: float,
-        eval_modules: str = "uniform",
-        eval_every: int = 10,
-    ) -> None:
+    def __init__(self, spec: EnvSpec, lp_eps: float, eval_modules: str, eval_every: int) -> None:
         super().__init__(spec, lp_eps, eval_modules, eval_every)
         self.goal_space = HolisticGoals(spec)
 

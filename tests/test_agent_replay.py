@@ -156,7 +156,7 @@ def test_a_module_with_nothing_to_replay_gets_no_share_of_the_minibatch():
     replay = EpisodeReplay(SPEC, capacity=50, active_only=True)
     replay.store(states, achieved, actions, modules, goals)
     np.testing.assert_array_equal(replay.replayable(), [True, False, True])
-    probs = MUVFA(SPEC, 0.4).replay_probs(None, 0, replay.replayable())
+    probs = MUVFA(SPEC, 0.4, "released", 10).replay_probs(None, 0, replay.replayable())
     batch = replay.sample(3000, np.random.default_rng(3), ToyGoalEnv(), probs, her_p=1.0)
     assert not np.any(batch.module == 1)
     assert np.bincount(batch.module, minlength=3)[[0, 2]].min() > 1300

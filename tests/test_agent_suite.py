@@ -145,7 +145,7 @@ def test_her_places_its_goals_above_cube2_where_cube2_is(env):
     from curious.rollouts import EpisodeData
 
     spec = env.spec
-    her = HER(spec, 0.4)
+    her = HER(spec, 0.4, "released", 10)
     space = her.goal_space
     names = spec.module_names
     above, stack = names.index("cube1_above_cube2"), names.index("stack")
