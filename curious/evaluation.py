@@ -129,14 +129,11 @@ class EvaluationSession:
         return len(self.envs)
 
     def modules(self, names: Sequence[str] | None) -> list[str]:
-        """The modules to play: `names` (checked against the run's) or all of them."""
-        known = list(self.spec.module_names)
-        chosen = list(names) if names else known
-        unknown = [m for m in chosen if m not in known]
-        if unknown:
-            raise ValueError(
-                f"unknown module {', '.join(unknown)}; the run's are {', '.join(known)}"
-            )
+        """The modules to play: `names` (checked against the run's, `EnvSpec.module_index`) or
+        all of them."""
+        chosen = list(names) if names else list(self.spec.module_names)
+        for name in chosen:
+            self.spec.module_index(name)
         return chosen
 
     def close(self) -> None:

@@ -205,7 +205,7 @@ def test_bad_inputs_are_named(tmp_path: Path) -> None:
             recorder.log_episodes([0, 1], [0, 1], [0, 1], [0, 0], np.zeros((2, 4)), zeros, zeros)
         with pytest.raises(ValueError, match="unknown module 'fly'"):
             recorder.log_episodes([0, 1], ["reach", "fly"], [0, 1], [0, 0], zeros, zeros, zeros)
-        with pytest.raises(ValueError, match="module index out of range"):
+        with pytest.raises(ValueError, match="module index 9 out of range: there are 5 modules"):
             recorder.log_episodes([0, 1], [0, 9], [0, 1], [0, 0], zeros, zeros, zeros)
         with pytest.raises(ValueError, match="success has 3 rows, expected 2"):
             recorder.log_episodes([0, 1], [0, 1], [0, 1, 1], [0, 0], zeros, zeros, zeros)
