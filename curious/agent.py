@@ -17,7 +17,7 @@ import torch
 
 from curious.config import Config
 from curious.envs import EnvSpec
-from curious.inputs import GoalBox, InputEncoder
+from curious.inputs import GoalBox, GoalInput, InputEncoder
 from curious.learner import Learner
 from curious.replay import Transitions
 
@@ -54,17 +54,15 @@ class Agent:
     def act(
         self,
         states: np.ndarray,
-        goals: np.ndarray,
-        goal_mask: np.ndarray,
-        task: np.ndarray,
+        goal: GoalInput[np.ndarray],
         experts: np.ndarray,
         explore: np.ndarray,
         rng: np.random.Generator,
     ) -> np.ndarray:
-        """(n, A) actions for n copies; `explore` (n,) bool rows get exploration noise."""
-        x = self.encoder.encode(
-            self._tensor(states), self._tensor(goals), self._tensor(goal_mask), self._tensor(task)
-        )
+        """(n, A) actions for n copies in states (n, S) with their goal input (the goals where
+        they are at this step, `GoalInput.placed`); `experts` (n,) the expert acting in each
+        row; `explore` (n,) bool rows get exploration noise."""
+        x = self.encoder.encode(self._tensor(states), goal.map(self._tensor))
         actions = np.empty((len(states), self.spec.action_dim), np.float32)
         for k in np.unique(experts):
             rows = np.flatnonzero(experts == k)
@@ -96,9 +94,7 @@ class Agent:
     def update(self, expert: int, batch: Transitions) -> dict[str, torch.Tensor]:
         """One gradient step of `expert` on a relabelled minibatch."""
         t = self._tensor
-        x, x_next = self.encoder.encode_pair(
-            t(batch.state), t(batch.next_state), t(batch.goals), t(batch.goal_mask), t(batch.task)
-        )
+        x, x_next = self.encoder.encode_pair(t(batch.state), t(batch.next_state), batch.goal.map(t))
         return self.experts[expert].update(x, t(batch.action), t(batch.reward), x_next)
 
     def update_targets(self, expert: int) -> None:

@@ -59,6 +59,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from curious.envs import EnvSpec, GoalEnv
+from curious.inputs import GoalInput
 from curious.learning_progress import CompetenceTracker, lp_probabilities
 
 if TYPE_CHECKING:
@@ -135,13 +136,8 @@ class Condition:
     """Whether `Config.eval_modules` = `released` draws this condition's modules (see the
     module docstring)."""
 
-    def __init__(
-        self,
-        spec: EnvSpec,
-        lp_eps: float,
-        eval_modules: str = "uniform",
-        eval_every: int = 10,
-    ) -> None:
+    def __init__(self, spec: EnvSpec, lp_eps: float, eval_modules: str, eval_every: int) -> None:
+        """`lp_eps`, `eval_modules`, `eval_every`: the `Config` settings (`make_condition`)."""
         self.spec = spec
         self.n_modules = spec.n_modules
         self.lp_eps = lp_eps
@@ -193,17 +189,15 @@ class Condition:
     # -- goals and scores ---------------------------------------------------------------------
     def goals(
         self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Goal slots (n, N, G), slot mask (n, N) and task descriptor (n, N) of n episodes with
-        goals `raw` (n, G) in [-1, 1]^G: the practised module's slot only."""
+    ) -> GoalInput[np.ndarray]:
+        """The goal input of n episodes of `modules` (n,) with goals `raw` (n, G) in
+        [-1, 1]^G: the practised module's slot, mask and task descriptor only."""
         n, n_mod, g = len(modules), self.n_modules, self.spec.goal_dim
         goals = np.zeros((n, n_mod, g), np.float32)
         for k in np.unique(modules):
             sel = np.flatnonzero(modules == k)
             goals[sel, k] = env.goal_slot(int(k), raw[sel])
-        task = np.zeros((n, n_mod), np.float32)
-        task[np.arange(n), modules] = 1.0
-        return goals, task.copy(), task
+        return GoalInput.modular(goals, modules)
 
     def module_success(
         self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
@@ -323,13 +317,7 @@ class HER(Condition):
     self_evaluates = False
     follows_lead = False
 
-    def __init__(
-        self,
-        spec: EnvSpec,
-        lp_eps: float,
-        eval_modules: str = "uniform",
-        eval_every: int = 10,
-    ) -> None:
+    def __init__(self, spec: EnvSpec, lp_eps: float, eval_modules: str, eval_every: int) -> None:
         super().__init__(spec, lp_eps, eval_modules, eval_every)
         self.goal_space = HolisticGoals(spec)
 
@@ -346,11 +334,9 @@ class HER(Condition):
 
     def goals(
         self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> GoalInput[np.ndarray]:
         assert self.goal_space is not None
-        n, n_mod = len(modules), self.n_modules
-        goals = self.goal_space.draw(env, modules, raw, rng)
-        return goals, np.ones((n, n_mod), np.float32), np.zeros((n, n_mod), np.float32)
+        return GoalInput.holistic(self.goal_space.draw(env, modules, raw, rng))
 
     def success(
         self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray

@@ -23,15 +23,21 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from curious.inputs import GoalInput
 
 EVAL_STREAM = 2
 """`suite_env_fns` stream of the evaluation copies (0: training, 1: test rollouts)."""
 
 Policy = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
 """`act(states, achieved, t)` -> actions, as `run_episodes` calls it."""
+
+PolicyFor = Callable[["GoalInput[np.ndarray]", np.ndarray], Policy]
+"""`policy(goal, experts)` -> the `act` of a batch with that goal input and acting experts."""
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -123,14 +129,11 @@ class EvaluationSession:
         return len(self.envs)
 
     def modules(self, names: Sequence[str] | None) -> list[str]:
-        """The modules to play: `names` (checked against the run's) or all of them."""
-        known = list(self.spec.module_names)
-        chosen = list(names) if names else known
-        unknown = [m for m in chosen if m not in known]
-        if unknown:
-            raise ValueError(
-                f"unknown module {', '.join(unknown)}; the run's are {', '.join(known)}"
-            )
+        """The modules to play: `names` (checked against the run's, `EnvSpec.module_index`) or
+        all of them."""
+        chosen = list(names) if names else list(self.spec.module_names)
+        for name in chosen:
+            self.spec.module_index(name)
         return chosen
 
     def close(self) -> None:
@@ -146,7 +149,7 @@ class EvaluationSession:
         self,
         episodes: int,
         modules: Sequence[str] | None = None,
-        policy: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Policy] | None = None,
+        policy: PolicyFor | None = None,
         observer: Any = None,
         progress: bool = False,
     ) -> Evaluation:
@@ -189,14 +192,13 @@ class EvaluationSession:
                     size = min(n, episodes - start)
                     mods = np.full(size, m, np.int64)
                     raw = rng.uniform(-1.0, 1.0, (size, spec.goal_dim))
-                    goals, mask, task = condition.goals(env, mods, raw, rng)
+                    goal = condition.goals(env, mods, raw, rng)
+                    goals = goal.slots
                     experts = condition.acting_experts(mods, self.epoch)
                     if policy is not None:
-                        act = policy(goals, mask, task, experts)
+                        act = policy(goal, experts)
                     else:
-                        act = goal_policy(
-                            env, self.agent, goals, mask, task, experts, explore[:size], rng
-                        )
+                        act = goal_policy(env, self.agent, goal, experts, explore[:size], rng)
                     numbers = position * episodes + start + np.arange(size)
                     evaluation = np.ones(size, bool)
                     if observer is not None:
@@ -336,7 +338,7 @@ def evaluate(
     seed: int = 0,
     copies: int | None = None,
     processes: int | None = None,
-    policy: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Policy] | None = None,
+    policy: PolicyFor | None = None,
     progress: bool = False,
     observer: Any = None,
 ) -> Evaluation:
@@ -348,7 +350,7 @@ def evaluate(
     played at once (default: the run's `n_workers`, at most `episodes`); `processes`: worker
     processes stepping them (default: the run's `env_processes`; the numbers do not depend on
     it). `observer`: as `EvaluationSession.evaluate`'s. `policy`, for tests:
-    `policy(goals, mask, task, experts)` returns the `act` of a batch instead of the agent's.
+    `policy(goal, experts)` returns the `act` of a batch instead of the agent's.
     Errors (`ValueError`, `RuntimeError`) name what is wrong in one line."""
     with open_run(run, episodes, variant, seed, copies, processes) as session:
         return session.evaluate(episodes, modules, policy, observer, progress)

@@ -33,6 +33,12 @@ run of every experiment:
 =========  ===============================================================================
 
 The numbers behind `quick` were measured on a 2-core machine; see `ReproduceBudget.notes`.
+
+This module is in `curious`, not in `pipelines/`, although the Dagster assets are its main
+readers: `curious progress` (`curious.analysis.progress`) lists the runs a reproduction's budget
+has not started from it, and `curious reproduce` builds its `--budget` choices and help from it
+without loading Dagster. `pipelines/` imports it; nothing in `curious` imports `pipelines/`
+except `curious reproduce` when it runs them.
 """
 
 from __future__ import annotations

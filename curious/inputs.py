@@ -1,5 +1,9 @@
 """The E-UVFA input: [normalised state, masked scaled goal vector, task descriptor].
 
+`GoalInput` is the goal part (slots, mask, task descriptor) as one value, from where goals are
+drawn (`curious.conditions`) and relabelled (`curious.replay`) to `InputEncoder`, which builds
+the network input from it.
+
 The goal vector has one 3-D slot per module. Modular conditions fill only the practised module's
 slot and set the one-hot task descriptor; the holistic `her` condition fills every slot and leaves
 the descriptor at zero. Inactive slots are zero *after* scaling, so that their first-layer weights
@@ -22,13 +26,72 @@ keeps goals distinct too; the fixed map keeps that property and gives inputs of 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Generic, TypeVar
 
 import numpy as np
 import torch
 
 from curious.envs import EnvSpec, GoalEnv
 from curious.normalizer import RunningNormalizer, device_copies
+
+A = TypeVar("A", np.ndarray, torch.Tensor)
+B = TypeVar("B", np.ndarray, torch.Tensor)
+
+
+@dataclass(frozen=True)
+class GoalInput(Generic[A]):
+    """The goal part of the E-UVFA input `[s_t, g, task_d]` (paper §3) of n episodes or
+    transitions: what goals are drawn as (`Condition.goals`), what the policy acts on
+    (`placed`, at each step), what a relabelled minibatch carries (`Transitions.goal`), and what
+    `InputEncoder.encode` turns into the network's goal and task inputs. numpy arrays (float32)
+    until `Agent` moves them to its device (`map`).
+
+    * `slots` (n, N, G): the goal vector g as N module slots of G coordinates each: the goal of
+      the practised module in its slot, zero elsewhere (the holistic `her` condition fills every
+      slot). A slot is the raw goal position (`GoalEnv.goal_slot`); the encoder maps it into its
+      module's goal box (`GoalBox`).
+    * `mask` (n, N): 1 where a slot carries a goal. The encoder zeroes the other slots *after*
+      scaling, so their first-layer weights get no gradient (the paper's masking). The
+      practised module's one-hot; all ones in `her`.
+    * `task` (n, N): the task descriptor task_d, the one-hot of the practised module; all
+      zeros in `her` (one goal over every module, no task).
+    """
+
+    slots: A
+    mask: A
+    task: A
+
+    @staticmethod
+    def modular(slots: np.ndarray, modules: np.ndarray) -> GoalInput[np.ndarray]:
+        """One module per row, `modules` (n,): its slot of `slots` (n, N, G) carries the goal
+        (the others are zero), and it is the task descriptor."""
+        n, n_mod = slots.shape[:2]
+        task = np.zeros((n, n_mod), np.float32)
+        task[np.arange(n), modules] = 1.0
+        return GoalInput(slots, task.copy(), task)
+
+    @staticmethod
+    def holistic(slots: np.ndarray) -> GoalInput[np.ndarray]:
+        """One goal over every slot of `slots` (n, N, G), no task descriptor (`her`)."""
+        n, n_mod = slots.shape[:2]
+        return GoalInput(slots, np.ones((n, n_mod), np.float32), np.zeros((n, n_mod), np.float32))
+
+    def placed(self, env: GoalEnv, achieved: np.ndarray) -> GoalInput[np.ndarray]:
+        """The goals that the slots stand for given the outcomes (n, .) of one step
+        (`GoalEnv.goal`: the suite's `cube1_above_cube2` and `stack` goals follow cube 2, as the
+        authors' env moves them), zero where the mask is not set: what the policy sees."""
+        slots, mask = self.slots, self.mask
+        goals = np.zeros_like(slots)
+        for k in np.flatnonzero(mask.any(axis=0)):
+            rows = np.flatnonzero(mask[:, k])
+            goals[rows, k] = env.goal(int(k), slots[rows, k], achieved[rows])
+        return GoalInput(goals, mask, self.task)
+
+    def map(self, fn: Callable[[A], B]) -> GoalInput[B]:
+        """The same input with `fn` applied to each part (e.g. to tensors on a device)."""
+        return GoalInput(fn(self.slots), fn(self.mask), fn(self.task))
 
 
 @dataclass(frozen=True)
@@ -102,33 +165,29 @@ class InputEncoder:
         """Add the states of a batch of episodes, (E, T+1, S), to the state statistics."""
         self.state_norm.update(states.reshape(-1, self.spec.state_dim))
 
-    def encode_goals(self, goals: torch.Tensor, goal_mask: torch.Tensor) -> torch.Tensor:
-        """(B, N * G) network goal inputs from goal slots (B, N, G) and their mask (B, N)."""
+    def encode_goals(self, goal: GoalInput[torch.Tensor]) -> torch.Tensor:
+        """(B, N * G) network goal inputs: each slot's coordinates in its module's goal box,
+        clipped, zero where the mask is not set."""
+        slots = goal.slots
         centre, scale = device_copies(
-            self._torch, goals.device, self._goal_centre, self._goal_scale
+            self._torch, slots.device, self._goal_centre, self._goal_scale
         )
-        scaled = torch.clamp((goals - centre) / scale, -self.clip, self.clip)
-        return (scaled * goal_mask.unsqueeze(-1)).flatten(1)
+        scaled = torch.clamp((slots - centre) / scale, -self.clip, self.clip)
+        return (scaled * goal.mask.unsqueeze(-1)).flatten(1)
 
-    def encode(
-        self, state: torch.Tensor, goals: torch.Tensor, goal_mask: torch.Tensor, task: torch.Tensor
-    ) -> torch.Tensor:
-        """(B, input_dim) from state (B, S), goals (B, N, G), goal_mask (B, N), task (B, N)."""
+    def encode(self, state: torch.Tensor, goal: GoalInput[torch.Tensor]) -> torch.Tensor:
+        """(B, input_dim) `[s_t, g, task_d]` from states (B, S) and their goal input."""
         s = self.state_norm.normalize(state)
-        return torch.cat([s, self.encode_goals(goals, goal_mask), task], dim=1)
+        return torch.cat([s, self.encode_goals(goal), goal.task], dim=1)
 
     def encode_pair(
-        self,
-        state: torch.Tensor,
-        next_state: torch.Tensor,
-        goals: torch.Tensor,
-        goal_mask: torch.Tensor,
-        task: torch.Tensor,
+        self, state: torch.Tensor, next_state: torch.Tensor, goal: GoalInput[torch.Tensor]
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """`encode` of a transition's two states with one goal part (half the work)."""
         n = state.shape[0]
         s = self.state_norm.normalize(torch.cat([state, next_state]))
-        g = self.encode_goals(goals, goal_mask)
+        g = self.encode_goals(goal)
+        task = goal.task
         return torch.cat([s[:n], g, task], dim=1), torch.cat([s[n:], g, task], dim=1)
 
     def state_dict(self) -> dict:

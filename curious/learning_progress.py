@@ -39,7 +39,8 @@ def lp_probabilities(lp: np.ndarray, eps: float) -> np.ndarray:
 class CompetenceTracker:
     """Per-module queues of evaluation results and the measures computed from them."""
 
-    def __init__(self, n_modules: int, window: int = 300) -> None:
+    def __init__(self, n_modules: int, window: int) -> None:
+        """`window`: `Config.lp_window`, the results competence averages."""
         if window <= 0:
             raise ValueError(f"window must be > 0, got {window}")
         self.n_modules = n_modules

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from curious.envs import EnvSpec, GoalEnv
+from curious.inputs import GoalInput
 
 if TYPE_CHECKING:
     from curious.conditions import HolisticGoals
@@ -50,9 +51,7 @@ class Transitions:
     state: np.ndarray  # (B, S)
     next_state: np.ndarray  # (B, S)
     action: np.ndarray  # (B, A)
-    goals: np.ndarray  # (B, N, G) goal slots, zero where not masked
-    goal_mask: np.ndarray  # (B, N) float: slots that carry a goal
-    task: np.ndarray  # (B, N) float one-hot descriptor (zeros in the holistic condition)
+    goal: GoalInput[np.ndarray]  # goals (placed after the step), mask, task descriptor
     reward: np.ndarray  # (B,) float32 in {-1, 0}
     module: np.ndarray  # (B,) module of the goal and task descriptor, -1 in the holistic condition
     episode: np.ndarray  # (B,) buffer slot of the source episode
@@ -195,15 +194,11 @@ class EpisodeReplay:
 
         goals = np.zeros((B, n_mod, spec.goal_dim), np.float32)
         goals[np.arange(B), module] = goal
-        task = np.zeros((B, n_mod), np.float32)
-        task[np.arange(B), module] = 1.0
         return Transitions(
             state=self.states[episode, step],
             next_state=self.states[episode, step + 1],
             action=self.actions[episode, step],
-            goals=goals,
-            goal_mask=task.copy(),
-            task=task,
+            goal=GoalInput.modular(goals, module),
             reward=reward,
             module=module,
             episode=episode,
@@ -222,8 +217,7 @@ class EpisodeReplay:
         """The flat baseline's minibatch (flowersteam/curious her.py,
         `make_sample_her_transitions`: episodes drawn among all, HER 'future' goals over the
         whole goal vector, the env's flat reward)."""
-        spec = self.spec
-        n_mod, T, B = spec.n_modules, spec.episode_length, batch_size
+        T, B = self.spec.episode_length, batch_size
         episode = rng.integers(self.size, size=B)
         step = rng.integers(T, size=B)
         her = rng.random(B) < her_p
@@ -240,9 +234,7 @@ class EpisodeReplay:
             state=self.states[episode, step],
             next_state=self.states[episode, step + 1],
             action=self.actions[episode, step],
-            goals=goals,
-            goal_mask=np.ones((B, n_mod), np.float32),
-            task=np.zeros((B, n_mod), np.float32),
+            goal=GoalInput.holistic(goals),
             reward=reward,
             module=np.full(B, -1, np.int64),
             episode=episode,

@@ -50,7 +50,7 @@ from curious.config import Config, ConfigError
 from curious.env_batch import EnvBatch, LocalEnvs
 from curious.envs import GoalEnv
 from curious.hooks import RolloutInfo, RoundObserver
-from curious.inputs import GoalBox
+from curious.inputs import GoalBox, GoalInput
 from curious.learning_progress import CompetenceTracker
 from curious.overlap import Minibatches, RoundsAhead
 from curious.replay import EpisodeReplay
@@ -115,35 +115,19 @@ def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
     return LocalEnvs(envs) if isinstance(envs, Sequence) else envs
 
 
-def goals_now(
-    env: GoalEnv, slots: np.ndarray, mask: np.ndarray, achieved: np.ndarray
-) -> np.ndarray:
-    """(n, N, G) the goals that the slots (n, N, G) stand for given the outcomes (n, .) of one
-    step (`GoalEnv.goal`: the suite's `cube1_above_cube2` and `stack` goals follow cube 2, as
-    the authors' env moves them); zero where `mask` (n, N) is not set."""
-    goals = np.zeros_like(slots)
-    for k in np.flatnonzero(mask.any(axis=0)):
-        rows = np.flatnonzero(mask[:, k])
-        goals[rows, k] = env.goal(int(k), slots[rows, k], achieved[rows])
-    return goals
-
-
 def goal_policy(
     env: GoalEnv,
     agent: Agent,
-    goals: np.ndarray,
-    mask: np.ndarray,
-    task: np.ndarray,
+    goal: GoalInput[np.ndarray],
     experts: np.ndarray,
     explore: np.ndarray,
     rng: np.random.Generator,
 ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
-    """`act(states, achieved, t)` of a round of episodes with these goal slots, experts and
-    noise: the agent sees each slot's goal where it is at step t (`goals_now`)."""
+    """`act(states, achieved, t)` of a round of episodes with this goal input, experts and
+    noise: the agent sees each slot's goal where it is at step t (`GoalInput.placed`)."""
 
     def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
-        now = goals_now(env, goals, mask, achieved)
-        return agent.act(states, now, mask, task, experts, explore, rng)
+        return agent.act(states, goal.placed(env, achieved), experts, explore, rng)
 
     return act
 
@@ -300,10 +284,11 @@ class Trainer:
         evaluation &= condition.self_evaluates
         modules = condition.modules(evaluation, self.tracker, epoch, self.rng, lead)
         raw = self.rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-        goals, mask, task = condition.goals(self.env, modules, raw, self.rng)
+        goal = condition.goals(self.env, modules, raw, self.rng)
+        goals = goal.slots
         experts = self.condition.acting_experts(modules, epoch)
         explore = ~evaluation
-        act = self._policy(agent, goals, mask, task, experts, explore, self.rng, start)
+        act = self._policy(agent, goal, experts, explore, self.rng, start)
 
         failing = self.failure.apply(self.envs, episodes)
         observer = self.observer
@@ -321,9 +306,7 @@ class Trainer:
     def _policy(
         self,
         agent: Agent,
-        goals: np.ndarray,
-        mask: np.ndarray,
-        task: np.ndarray,
+        goal: GoalInput[np.ndarray],
         experts: np.ndarray,
         explore: np.ndarray,
         rng: np.random.Generator,
@@ -331,7 +314,7 @@ class Trainer:
     ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
         """`goal_policy` for a round of episodes from episode `episode` on, which raises
         `TrainingDiverged` when it gives a non-finite action."""
-        policy = goal_policy(self.env, agent, goals, mask, task, experts, explore, rng)
+        policy = goal_policy(self.env, agent, goal, experts, explore, rng)
 
         def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
             actions = policy(states, achieved, t)
@@ -439,12 +422,10 @@ class Trainer:
         for _ in range(cfg.test_rollouts_per_worker):
             modules = self.test_rng.integers(spec.n_modules, size=n)
             raw = self.test_rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-            goals, mask, task = condition.goals(env, modules, raw, self.test_rng)
+            goal = condition.goals(env, modules, raw, self.test_rng)
+            goals = goal.slots
             experts = condition.acting_experts(modules, self.epoch)
-
-            act = self._policy(
-                self.agent, goals, mask, task, experts, explore, self.test_rng, self.episodes
-            )
+            act = self._policy(self.agent, goal, experts, explore, self.test_rng, self.episodes)
             data = run_episodes(envs, modules, raw, act)
             parts["worker"].append(np.arange(n, dtype=np.int32))
             parts["module"].append(modules)

@@ -72,7 +72,7 @@ def _episodes(achieved_final: np.ndarray) -> EpisodeData:
 def test_her_scores_the_whole_goal_and_keeps_the_named_modules_slot_as_a_second_view():
     """The paper's HER "stays flat": its success is the holistic goal met, never the named
     module's slot alone (what our scorer read before)."""
-    her = HER(SPEC, 0.4)
+    her = HER(SPEC, 0.4, "released", 10)
     env = ToyGoalEnv()
     goals = np.zeros((2, 3, 3), np.float32)
     goals[:, 2] = 0.9  # the beacon's slot: far from where the outcomes are
@@ -85,12 +85,13 @@ def test_her_scores_the_whole_goal_and_keeps_the_named_modules_slot_as_a_second_
 
 
 def test_her_draws_a_goal_for_every_module_with_no_task_and_no_task_replay():
-    her = HER(SPEC, 0.4)
+    her = HER(SPEC, 0.4, "released", 10)
     rng = np.random.default_rng(0)
     modules = np.array([0, 1, 2, 0])
     raw = rng.uniform(-1, 1, (4, 3))
-    goals, mask, task = her.goals(ToyGoalEnv(), modules, raw, rng)
-    assert np.all(mask == 1) and np.all(task == 0)
+    goal = her.goals(ToyGoalEnv(), modules, raw, rng)
+    goals = goal.slots
+    assert np.all(goal.mask == 1) and np.all(goal.task == 0)
     env = ToyGoalEnv()
     for i, m in enumerate(modules):  # the named module keeps its drawn goal
         np.testing.assert_array_equal(goals[i, m], env.goal_slot(int(m), raw[i]))
@@ -318,7 +319,7 @@ def test_mg_te_plays_every_episode_of_an_epoch_on_its_module_with_its_expert(tmp
     np.testing.assert_array_equal(
         np.array(SPEC.module_names)[modules_moved], active[rows_moved + 1]
     )
-    mgte = MGTE(SPEC, 0.4)
+    mgte = MGTE(SPEC, 0.4, "released", 10)
     np.testing.assert_array_equal(mgte.acting_experts(np.array([2, 0, 1]), 5), [2, 0, 1])
 
 
@@ -337,21 +338,19 @@ def test_task_replay_leaves_out_modules_with_nothing_to_replay():
     """flowersteam/curious ddpg.py (`sample_batch`): minibatch proportions only over the task
     buffers that hold something (`ind_valid_buffers`), eps / n_valid + (1 - eps) CP / sum CP
     over them (`replay_task_cp_buffer`), or 1 / n_valid (`replay_task_random_buffer`)."""
-    spec = FOUR
     valid = np.array([True, True, False, True])
     lp = [0.2, 0.0, 0.6, 0.1]
-    p = Curious(spec, 0.4).replay_probs(_LP(lp), 0, valid)
+    curious, muvfa, mgte = (c(FOUR, 0.4, "released", 10) for c in (Curious, MUVFA, MGTE))
+    p = curious.replay_probs(_LP(lp), 0, valid)
     expected = [0.4 / 3 + 0.6 * 0.2 / 0.3, 0.4 / 3, 0.0, 0.4 / 3 + 0.6 * 0.1 / 0.3]
     np.testing.assert_allclose(p, expected)
-    np.testing.assert_allclose(
-        MUVFA(spec, 0.4).replay_probs(_LP(lp), 0, valid), [1 / 3, 1 / 3, 0, 1 / 3]
-    )
+    np.testing.assert_allclose(muvfa.replay_probs(_LP(lp), 0, valid), [1 / 3, 1 / 3, 0, 1 / 3])
     # nothing replayable yet: every module, as before any buffer filled
     nothing = np.zeros(4, bool)
-    np.testing.assert_allclose(MUVFA(spec, 0.4).replay_probs(_LP(lp), 0, nothing), 0.25)
+    np.testing.assert_allclose(muvfa.replay_probs(_LP(lp), 0, nothing), 0.25)
     # no progress among the valid ones: uniform over them
     np.testing.assert_allclose(
-        Curious(spec, 0.4).replay_probs(_LP([0, 0, 0.6, 0]), 0, valid), [1 / 3, 1 / 3, 0, 1 / 3]
+        curious.replay_probs(_LP([0, 0, 0.6, 0]), 0, valid), [1 / 3, 1 / 3, 0, 1 / 3]
     )
     # mg-te replays its trained expert's module whatever is valid
-    np.testing.assert_array_equal(MGTE(spec, 0.4).replay_probs(_LP(lp), 6, valid), [0, 0, 1, 0])
+    np.testing.assert_array_equal(mgte.replay_probs(_LP(lp), 6, valid), [0, 0, 1, 0])

@@ -13,19 +13,27 @@ def test_every_preset_and_condition_resolves(preset, condition):
     assert Config.from_dict(config.to_dict()) == config
 
 
-def test_lp_eps_and_her_p_are_stated_once_in_the_config():
-    """The authors' eps_task 0.4 and replay_k 4 (her_p 0.8) live in `Config` only (pinned by the
-    test below): the replay, the conditions and the LP rule take them from their caller, so a
-    changed value in `Config` cannot be shadowed by a second default that drifted."""
+def test_settings_of_the_config_are_stated_once_in_it():
+    """The authors' eps_task 0.4, replay_k 4 (her_p 0.8), queue_length 300 (lp_window) and the
+    evaluation schedule (eval_every, eval_modules) live in `Config` only (pinned by the tests
+    below): the replay, the conditions, the competence queues, the LP rule and the recording's
+    synthetic run take them from their caller, so a changed value in `Config` cannot be shadowed
+    by a second default that drifted."""
     import inspect
 
     from curious.conditions import CONDITION_CLASSES
     from curious.learning_progress import CompetenceTracker, lp_probabilities
+    from curious.recording.cost import synthetic_episodes
     from curious.replay import EpisodeReplay
 
     uses = [(EpisodeReplay.sample, "her_p"), (lp_probabilities, "eps")]
-    uses += [(CompetenceTracker.p_lp, "eps")]
-    uses += [(cls.__init__, "lp_eps") for cls in CONDITION_CLASSES.values()]
+    uses += [(CompetenceTracker.p_lp, "eps"), (CompetenceTracker.__init__, "window")]
+    uses += [
+        (cls.__init__, name)
+        for cls in CONDITION_CLASSES.values()
+        for name in ("lp_eps", "eval_modules", "eval_every")
+    ]
+    uses += [(synthetic_episodes, name) for name in ("window", "eval_every", "lp_eps")]
     for function, name in uses:
         default = inspect.signature(function).parameters[name].default
         assert default is inspect.Parameter.empty, (function.__qualname__, name, default)

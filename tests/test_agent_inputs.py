@@ -11,7 +11,7 @@ from toy_env import ToyGoalEnv
 import suite
 from curious.config import ConfigError, resolve
 from curious.envs import SuiteEnv
-from curious.inputs import GoalBox
+from curious.inputs import GoalBox, GoalInput
 from curious.run import train
 from curious.train import Trainer
 from suite import layout
@@ -25,9 +25,8 @@ def goal_inputs(trainer: Trainer, module: int) -> np.ndarray:
     n, g = spec.n_modules, spec.goal_dim
     goals = np.zeros((len(GRID), n, g), np.float32)
     goals[:, module] = trainer.env.goal_slot(module, GRID)
-    mask = np.zeros((len(GRID), n), np.float32)
-    mask[:, module] = 1.0
-    encoded = trainer.agent.encoder.encode_goals(torch.from_numpy(goals), torch.from_numpy(mask))
+    goal = GoalInput.modular(goals, np.full(len(GRID), module)).map(torch.from_numpy)
+    encoded = trainer.agent.encoder.encode_goals(goal)
     return encoded.numpy().reshape(len(GRID), n, g)[:, module]
 
 
@@ -130,9 +129,9 @@ def test_the_policy_sees_each_episodes_goal_where_it_is_at_every_step():
     seen = []
     act = trainer.agent.act
 
-    def recording_act(states, goals, *args):
-        seen.append(goals.copy())
-        return act(states, goals, *args)
+    def recording_act(states, goal, *args):
+        seen.append(goal.slots.copy())
+        return act(states, goal, *args)
 
     trainer.agent.act = recording_act
     trainer.cycle()
@@ -144,3 +143,38 @@ def test_the_policy_sees_each_episodes_goal_where_it_is_at_every_step():
         np.testing.assert_array_equal(seen[t][:, k], expected)
         others = np.delete(seen[t], k, axis=1)
         np.testing.assert_array_equal(others, 0.0)
+
+
+@pytest.mark.parametrize("condition", ["curious", "her"])
+def test_the_goal_input_drawn_for_episodes_is_the_networks_goal_and_task_input(condition):
+    """Paper §3, the E-UVFA input [s, g, task_d]: a condition draws one `GoalInput` per round,
+    and the encoder reads exactly it: the practised module's scaled slot and its one-hot task
+    descriptor, zero in every other slot (modular conditions); every slot and no descriptor
+    (the flat `her`)."""
+    from curious.conditions import make_condition
+    from curious.inputs import InputEncoder
+
+    env = ToyGoalEnv()
+    spec = env.spec
+    n_mod, g = spec.n_modules, spec.goal_dim
+    config = resolve("smoke", condition, 0)
+    rng = np.random.default_rng(4)
+    modules = np.array([0, 2, 1, 2])
+    raw = rng.uniform(-1.0, 1.0, (len(modules), g))
+    goal = make_condition(config, spec).goals(env, modules, raw, rng)
+    assert isinstance(goal, GoalInput)
+    for i, m in enumerate(modules):  # the episode's own goal stands in its module's slot
+        np.testing.assert_array_equal(goal.slots[i, m], env.goal_slot(int(m), raw[i]))
+    encoder = InputEncoder(spec, GoalBox.of(env))
+    x = encoder.encode(torch.zeros(len(modules), spec.state_dim), goal.map(torch.from_numpy))
+    goal_part = x[:, spec.state_dim : spec.state_dim + n_mod * g].reshape(-1, n_mod, g).numpy()
+    task_part = x[:, spec.state_dim + n_mod * g :].numpy()
+    practised = np.eye(n_mod, dtype=bool)[modules]
+    if condition == "her":
+        assert np.all(goal.mask == 1) and np.all(task_part == 0)
+        assert np.all(np.abs(goal_part).sum(-1) > 0)
+    else:
+        np.testing.assert_array_equal(goal.mask, practised)
+        np.testing.assert_array_equal(task_part, practised)
+        assert np.all(goal_part[~practised] == 0) and np.all(goal.slots[~practised] == 0)
+        assert np.all(np.abs(goal_part[practised]).sum(-1) > 0)

@@ -9,7 +9,7 @@ import torch
 from toy_env import ToyGoalEnv
 
 from curious.config import resolve
-from curious.inputs import GoalBox, InputEncoder
+from curious.inputs import GoalBox, GoalInput, InputEncoder
 from curious.learner import Learner
 from curious.networks import Actor, Critic
 from curious.normalizer import RunningNormalizer
@@ -65,7 +65,7 @@ def test_inactive_goal_slots_get_no_gradient():
     goals = torch.tensor(rng.normal(size=(n, 3, 3)), dtype=torch.float32)
     task = torch.zeros(n, 3)
     task[:, 1] = 1.0  # every transition practises module 1
-    x = encoder.encode(torch.randn(n, 7), goals, task, task)
+    x = encoder.encode(torch.randn(n, 7), GoalInput(goals, task, task))
     assert x.shape == (n, encoder.input_dim)
     slot = lambda m: slice(7 + 3 * m, 7 + 3 * m + 3)  # noqa: E731
     assert torch.all(x[:, slot(0)] == 0) and torch.all(x[:, slot(2)] == 0)
@@ -307,9 +307,10 @@ def test_encode_pair_equals_two_encodes():
     s, s2 = torch.randn(16, 7), torch.randn(16, 7)
     goals, mask = torch.randn(16, 3, 3), torch.ones(16, 3)
     task = torch.zeros(16, 3)
-    x, x2 = encoder.encode_pair(s, s2, goals, mask, task)
-    torch.testing.assert_close(x, encoder.encode(s, goals, mask, task))
-    torch.testing.assert_close(x2, encoder.encode(s2, goals, mask, task))
+    goal = GoalInput(goals, mask, task)
+    x, x2 = encoder.encode_pair(s, s2, goal)
+    torch.testing.assert_close(x, encoder.encode(s, goal))
+    torch.testing.assert_close(x2, encoder.encode(s2, goal))
 
 
 def test_direct_adam_step_gives_the_same_bits_as_optimizer_step():

@@ -56,10 +56,10 @@ def test_her_goals_come_only_from_later_steps_of_the_same_episode():
     for i in range(len(batch.step)):
         m, e = batch.module[i], batch.episode[i]
         outcomes = replay.achieved[e][:, cols[m]]  # (T+1, 3) this episode's outcomes
-        matches = np.flatnonzero(np.all(outcomes == batch.goals[i, m], axis=1))
+        matches = np.flatnonzero(np.all(outcomes == batch.goal.slots[i, m], axis=1))
         assert matches.size and matches.max() > batch.step[i]
-        assert np.all(batch.goals[i, np.arange(3) != m] == 0)
-        assert batch.goal_mask[i, m] == 1 and batch.goal_mask[i].sum() == 1
+        assert np.all(batch.goal.slots[i, np.arange(3) != m] == 0)
+        assert batch.goal.mask[i, m] == 1 and batch.goal.mask[i].sum() == 1
     # transitions are the stored ones
     np.testing.assert_array_equal(batch.state, replay.states[batch.episode, batch.step])
     np.testing.assert_array_equal(batch.next_state, replay.states[batch.episode, batch.step + 1])
@@ -85,7 +85,7 @@ def test_substituted_modules_follow_the_given_probabilities(probs):
     if used.sum() > 1:
         result = stats.chisquare(counts[used], probs[used] / probs[used].sum() * counts.sum())
         assert result.pvalue > 1e-3
-    np.testing.assert_array_equal(batch.task.argmax(1), batch.module)
+    np.testing.assert_array_equal(batch.goal.task.argmax(1), batch.module)
 
 
 def test_recomputed_rewards_equal_the_envs():
@@ -93,7 +93,7 @@ def test_recomputed_rewards_equal_the_envs():
     env = ToyGoalEnv()
     batch = replay.sample(3000, np.random.default_rng(4), env, np.full(3, 1 / 3), her_p=0.8)
     nxt = replay.achieved[batch.episode, batch.step + 1]
-    expected = [env.reward(m, nxt[i], batch.goals[i, m]) for i, m in enumerate(batch.module)]
+    expected = [env.reward(m, nxt[i], batch.goal.slots[i, m]) for i, m in enumerate(batch.module)]
     np.testing.assert_array_equal(batch.reward, expected)
     # hindsight goals reached at the very next step give reward 0
     at_next = batch.goal_step == batch.step + 1
@@ -124,11 +124,11 @@ def test_transitions_not_relabelled_keep_their_episodes_module_and_goal(probs):
     practised = replay.modules[batch.episode[own]]
     np.testing.assert_array_equal(batch.module[own], practised)
     np.testing.assert_array_equal(
-        batch.goals[own, practised], replay.goals[batch.episode[own], practised]
+        batch.goal.slots[own, practised], replay.goals[batch.episode[own], practised]
     )
-    np.testing.assert_array_equal(batch.task[own].argmax(1), practised)
+    np.testing.assert_array_equal(batch.goal.task[own].argmax(1), practised)
     # a real pair is one the episode was run with: its goal is the one the module was given
-    assert np.all(np.abs(batch.goals[own, practised]).sum(1) > 0)
+    assert np.all(np.abs(batch.goal.slots[own, practised]).sum(1) > 0)
 
 
 def test_modules_replay_only_episodes_where_their_outcome_moved():
@@ -156,7 +156,7 @@ def test_a_module_with_nothing_to_replay_gets_no_share_of_the_minibatch():
     replay = EpisodeReplay(SPEC, capacity=50, active_only=True)
     replay.store(states, achieved, actions, modules, goals)
     np.testing.assert_array_equal(replay.replayable(), [True, False, True])
-    probs = MUVFA(SPEC, 0.4).replay_probs(None, 0, replay.replayable())
+    probs = MUVFA(SPEC, 0.4, "released", 10).replay_probs(None, 0, replay.replayable())
     batch = replay.sample(3000, np.random.default_rng(3), ToyGoalEnv(), probs, her_p=1.0)
     assert not np.any(batch.module == 1)
     assert np.bincount(batch.module, minlength=3)[[0, 2]].min() > 1300
@@ -173,18 +173,19 @@ def test_holistic_reward_is_one_distance_over_every_goal_coordinate():
     replay, _ = filled_replay(holistic=True)
     env = ToyGoalEnv()
     batch = replay.sample(3000, np.random.default_rng(11), env, None, her_p=0.8)
-    assert np.all(batch.goal_mask == 1) and np.all(batch.task == 0) and np.all(batch.module == -1)
+    assert np.all(batch.goal.mask == 1) and np.all(batch.goal.task == 0)
+    assert np.all(batch.module == -1)
     nxt = replay.achieved[batch.episode, batch.step + 1]
     cols = SPEC.hindsight_columns()
-    joint = np.linalg.norm((nxt[:, cols] - batch.goals).reshape(len(nxt), -1), axis=1)
+    joint = np.linalg.norm((nxt[:, cols] - batch.goal.slots).reshape(len(nxt), -1), axis=1)
     np.testing.assert_array_equal(batch.reward == 0, joint <= SPEC.success_distance)
     # every module within its own distance is not enough (the rule this replaced)
-    each = np.all([env.reward(k, nxt, batch.goals[:, k]) == 0 for k in range(3)], axis=0)
+    each = np.all([env.reward(k, nxt, batch.goal.slots[:, k]) == 0 for k in range(3)], axis=0)
     assert np.any(each & (batch.reward == -1))
     her = batch.goal_step >= 0
     future = replay.achieved[batch.episode[her], batch.goal_step[her]][:, cols]
-    np.testing.assert_array_equal(batch.goals[her], future)
-    np.testing.assert_array_equal(batch.goals[~her], replay.goals[batch.episode[~her]])
+    np.testing.assert_array_equal(batch.goal.slots[her], future)
+    np.testing.assert_array_equal(batch.goal.slots[~her], replay.goals[batch.episode[~her]])
     assert np.all(batch.reward[batch.goal_step == batch.step + 1] == 0)
 
 
@@ -296,7 +297,7 @@ def test_own_goals_above_cube2_follow_it_after_each_step(suite_env):
     batch = replay.sample(500, np.random.default_rng(0), suite_env, probs, her_p=0.0)
     nxt = achieved[0, batch.step + 1]
     expected = suite_env.goal(k, slot, nxt)
-    np.testing.assert_array_equal(batch.goals[:, k], expected)
+    np.testing.assert_array_equal(batch.goal.slots[:, k], expected)
     cube2_x = 1.45 + 0.002 * (batch.step + 1)
-    np.testing.assert_allclose(batch.goals[:, k, 0], cube2_x, atol=1e-5)
+    np.testing.assert_allclose(batch.goal.slots[:, k, 0], cube2_x, atol=1e-5)
     np.testing.assert_array_equal(batch.reward, suite_env.reward(k, nxt, expected))

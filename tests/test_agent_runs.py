@@ -20,6 +20,7 @@ from toy_env import make_toy_envs
 from curious.checkpoint import CheckpointError, list_checkpoints
 from curious.cli import main
 from curious.config import ConfigError, resolve
+from curious.inputs import GoalInput
 from curious.learning_progress import CompetenceTracker
 from curious.run import train
 from curious.run_folder import RunFolderError
@@ -740,7 +741,7 @@ def test_an_acting_copy_on_another_device_acts_as_the_agent(tmp_path):
         goals = rng.uniform(-1, 1, (n, spec.n_modules, spec.goal_dim)).astype(np.float32)
         mask, task = np.ones((n, spec.n_modules)), np.eye(spec.n_modules)[[0, 1, 0]]
         experts, calm = np.zeros(n, np.int64), np.zeros(n, bool)
-        args = (states, goals, mask, task, experts, calm, rng)
+        args = (states, GoalInput(goals, mask, task), experts, calm, rng)
         np.testing.assert_array_equal(agent.act(*args), twin.act(*args))
     finally:
         trainer.close()

@@ -53,7 +53,7 @@ def test_recomputed_suite_rewards_match_reported_success(env):
     replay.store(states, achieved, actions, np.arange(n), goals)
     batch = replay.sample(700, rng, env, np.full(n, 1 / n), her_p=0.8)
     nxt = achieved[batch.episode, batch.step + 1]
-    expected = [env.reward(m, nxt[i], batch.goals[i, m]) for i, m in enumerate(batch.module)]
+    expected = [env.reward(m, nxt[i], batch.goal.slots[i, m]) for i, m in enumerate(batch.module)]
     np.testing.assert_array_equal(batch.reward, np.asarray(expected).reshape(-1))
     assert (batch.reward == 0).any()  # hindsight goals give successes on the real suite
 
@@ -145,7 +145,7 @@ def test_her_places_its_goals_above_cube2_where_cube2_is(env):
     from curious.rollouts import EpisodeData
 
     spec = env.spec
-    her = HER(spec, 0.4)
+    her = HER(spec, 0.4, "released", 10)
     space = her.goal_space
     names = spec.module_names
     above, stack = names.index("cube1_above_cube2"), names.index("stack")

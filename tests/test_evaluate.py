@@ -83,8 +83,8 @@ def test_still_arm_reach_scored_by_the_env(runs):
     drawn, and it is whether the final distance is within the env's success distance."""
     seen = []
 
-    def still(goals, mask, task, experts):
-        seen.append(goals)
+    def still(goal, experts):
+        seen.append(goal.slots)
         return lambda states, achieved, t: np.zeros((len(states), 4), np.float32)
 
     result = evaluate(runs / "curious", episodes=6, modules=["reach"], copies=3, policy=still)
@@ -101,8 +101,8 @@ def test_still_arm_reach_scored_by_the_env(runs):
 def test_mgte_plays_module_m_with_expert_m(runs):
     experts_seen = {}
 
-    def record(goals, mask, task, experts):
-        module = int(np.flatnonzero(task[0])[0])
+    def record(goal, experts):
+        module = int(np.flatnonzero(goal.task[0])[0])
         experts_seen.setdefault(module, []).extend(experts.tolist())
         return lambda states, achieved, t: np.zeros((len(states), 4), np.float32)
 

@@ -25,7 +25,7 @@ from curious.run_folder import RECORDING_FILE
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 SETTINGS = RecorderSettings(rollout_every=0, stats_keyframe_every=50)
 CYCLE, EPOCH, TOTAL = 20, 3, 400  # episodes a cycle, cycles an epoch, episodes in all
-DATA = synthetic_episodes(TOTAL, len(MODULES), seed=5, window=10)
+DATA = synthetic_episodes(TOTAL, len(MODULES), seed=5, window=10, eval_every=10, lp_eps=0.4)
 
 
 def assert_same_points(path: Path, reference: Path) -> None:

@@ -144,7 +144,7 @@ def test_refusals_are_one_line_and_write_nothing(smoke_run, tmp_path, capsys, mo
     out = str(tmp_path / "v.mp4")
     run = ["--run", str(smoke_run)]
     assert "unsupported --out suffix '.avi'" in _refused(capsys, *run, "--out", "x.avi")
-    assert "unknown module nope" in _refused(capsys, *run, "--module", "nope", "--out", out)
+    assert "unknown module 'nope'" in _refused(capsys, *run, "--module", "nope", "--out", out)
     err = _refused(capsys, *run, "--variant", "distractors_0", "--out", out)
     assert "the run was trained on" in err
     assert "--policy is for the random" in _refused(capsys, *run, "--policy", "still", "--out", out)

@@ -8,8 +8,9 @@ closes the recording and reports its size.
     python -m curious.recording.cost --episodes 20000 --rollouts 40 --out /tmp/rec-cost
 
 The synthetic run looks like a real one where it matters for size: one evaluation episode in
-ten, competence as the mean of each module's last 300 evaluations (so it changes only on that
-module's evaluations), LP and p_LP derived from it as in the paper.
+`eval_every`, competence as the mean of each module's last `lp_window` evaluations (so it changes
+only on that module's evaluations), LP and p_LP derived from it as in the paper (the run's
+settings, `Config`).
 """
 
 from __future__ import annotations
@@ -46,15 +47,15 @@ def fetch_model() -> mujoco.MjModel:
 
 
 def synthetic_episodes(
-    n_episodes: int, n_modules: int = len(MODULES), seed: int = 0, window: int = 300
+    n_episodes: int, n_modules: int, seed: int, window: int, eval_every: int, lp_eps: float
 ) -> dict[str, np.ndarray]:
     """Per-episode arrays shaped like `metrics.parquet`'s, from made-up learning curves.
 
     Module i's success probability rises along a logistic curve starting at a module-dependent
-    episode (the last modules never rise, like distractors); every tenth episode is an
+    episode (the last modules never rise, like distractors); every `eval_every`-th episode is an
     evaluation; competence, absolute LP and p_LP come from the agent's own
-    `curious.learning_progress` (last `window` results against the `window` before, the run's
-    default `lp_eps`).
+    `curious.learning_progress` (last `window` results against the `window` before, p_LP with
+    `lp_eps`).
     """
     rng = np.random.default_rng(seed)
     episodes = np.arange(n_episodes, dtype=np.int64)
@@ -62,7 +63,7 @@ def synthetic_episodes(
     onset = np.linspace(0.1, 1.2, n_modules) * n_episodes
     p = 1.0 / (1.0 + np.exp(-(episodes[:, None] - onset[None]) / (0.05 * n_episodes + 1)))
     success = rng.random(n_episodes) < p[episodes, modules]
-    is_eval = episodes % 10 == 0
+    is_eval = episodes % eval_every == 0
     # The agent's own bookkeeping, one evaluation at a time; row i + 1 holds the values after
     # the i-th evaluation, row 0 those before any. Each episode then reads the row of the last
     # evaluation at or before it.
@@ -74,7 +75,7 @@ def synthetic_episodes(
         tracker.add(int(modules[e]), bool(success[e]))
         after[0, i] = tracker.competence()
         after[1, i] = tracker.learning_progress()
-        after[2, i] = lp_probabilities(after[1, i], Config.lp_eps)
+        after[2, i] = lp_probabilities(after[1, i], lp_eps)
     competence, lp, p_lp = after[:, np.searchsorted(evals, episodes, side="right")]
     return {
         "episode": episodes,
@@ -130,7 +131,9 @@ def measure_logging_cost(
     `file_bytes`, and the inputs.
     """
     settings = settings or RecorderSettings()
-    data_arrays = synthetic_episodes(n_episodes, len(MODULES), seed)
+    data_arrays = synthetic_episodes(
+        n_episodes, len(MODULES), seed, Config.lp_window, Config.eval_every, Config.lp_eps
+    )
     rng = np.random.default_rng(seed)
     model = model if model is not None else fetch_model()
     mj_data = mujoco.MjData(model)

@@ -234,7 +234,6 @@ class RunRecorder:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         self.path = self.run_dir / RECORDING_FILE
         self.working = self.run_dir / WORKING_FILENAME
-        self._module_index = {name: i for i, name in enumerate(self.module_names)}
         self._rgb = np.array([module_rgb(n) for n in self.module_names], dtype=np.uint8)
         self._labels = [module_label(n) for n in self.module_names]
         self._entities = [module_entity(n) for n in self.module_names]
@@ -368,20 +367,13 @@ class RunRecorder:
         return _as_1d("wall_time", wall_time, n, np.float64)
 
     def _modules(self, module: Any, n: int) -> np.ndarray:
-        arr = _as_1d("module", module, n)
-        if arr.dtype.kind in "UOS":
-            try:
-                return np.array([self._module_index[str(m)] for m in arr], dtype=np.int64)
-            except KeyError as exc:
-                raise ValueError(
-                    f"unknown module {exc.args[0]!r}; modules: {self.module_names}"
-                ) from None
-        idx = arr.astype(np.int64)
-        if idx.size and (idx.min() < 0 or idx.max() >= len(self.module_names)):
-            raise ValueError(
-                f"module index out of range [0, {len(self.module_names)}): {idx.min()}..{idx.max()}"
-            )
-        return idx
+        """(n,) slot indices of modules given by name or index: the suite's rule and its
+        errors (`suite.module_index`), applied once per distinct value."""
+        from suite import module_index  # a run has loaded the suite already
+
+        values, inverse = np.unique(_as_1d("module", module, n), return_inverse=True)
+        index = [module_index(self.module_names, value) for value in values.tolist()]
+        return np.asarray(index, np.int64)[inverse.reshape(-1)]
 
     def _per_module(self, name: str, values: Any, n: int) -> np.ndarray:
         arr = np.asarray(values, dtype=np.float64)

@@ -1,0 +1,75 @@
+"""docs/architecture.md's table from the paper's concepts to the code names real places: every
+file and every `Class.method` or function it names exists, where the row says it lives."""
+
+import ast
+import importlib
+import re
+from pathlib import Path
+
+from curious.config import Config
+
+ROOT = Path(__file__).resolve().parents[1]
+CONCEPTS = (
+    "E-UVFA input",
+    "competence",
+    "LP and p_LP",
+    "task selection",
+    "task replay",
+    "HER relabelling",
+    "reward recomputation",
+    "the update",
+    "MG-TE",
+    "the flat baseline",
+    "the sensory failure",
+)
+
+
+def _rows() -> dict[str, list[str]]:
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    section = text.split("## Where the paper lives in the code", 1)[1].split("\n## ", 1)[0]
+    rows = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 3 and cells[0] not in ("concept", "---"):
+            rows[cells[0]] = cells
+    return rows
+
+
+def _top_level(path: Path) -> set[str]:
+    """The classes and functions a source file defines at its top level."""
+    body = ast.parse(path.read_text()).body
+    return {n.name for n in body if isinstance(n, (ast.FunctionDef, ast.ClassDef))}
+
+
+def _resolve(name: str, homes: dict[str, str]) -> object:
+    """The object `Head` or `Head.attr` names (Head: a class or function of `homes`)."""
+    head, _, attr = name.partition(".")
+    obj = getattr(importlib.import_module(homes[head]), head)
+    return getattr(obj, attr) if attr else obj
+
+
+def test_every_concept_of_the_paper_has_a_row():
+    rows = _rows()
+    for concept in CONCEPTS:
+        assert any(name.startswith(concept) for name in rows), concept
+
+
+def test_every_place_the_table_names_exists_where_it_says():
+    homes = {}
+    for path in [*ROOT.glob("curious/**/*.py"), *ROOT.glob("suite/*.py")]:
+        module = path.relative_to(ROOT).with_suffix("").as_posix().replace("/", ".")
+        for name in _top_level(path):
+            homes.setdefault(name, module)
+    for concept, (_, where, called_from) in _rows().items():
+        files = re.findall(r"`((?:curious|suite)/[\w/]+\.py)`", where)
+        assert files, concept
+        own = set().union(*(_top_level(ROOT / f) for f in files))
+        names = re.findall(r"`([A-Za-z_]\w*(?:\.\w+)?)`", where)
+        assert {n.split(".")[0] for n in names} & own, (concept, "names nothing of", files)
+        named_classes = [n.split(".")[0] for n in names if n.split(".")[0] in homes]
+        for name in names + re.findall(r"`([A-Za-z_]\w*\.\w+)`", called_from):
+            if name.split(".")[0] in homes:
+                assert _resolve(name, homes) is not None, (concept, name)
+            else:  # a method named bare after its class (`encode_pair`), or a setting
+                owners = [_resolve(c, homes) for c in named_classes] + [Config]
+                assert any(hasattr(o, name) for o in owners), (concept, name)
