@@ -16,7 +16,6 @@ import jupytext
 import nbformat
 import pytest
 from nbclient import NotebookClient
-from pipeline_smoke import shipped_smoke, smoke_output
 
 from curious.experiments import DEFAULT_BUDGET, get_budget
 
@@ -27,16 +26,6 @@ NAMES = (
     "forgetting_and_sensor_failure",
     "distractors",
 )
-
-
-@pytest.fixture(scope="session")
-def smoke(tmp_path_factory):
-    return smoke_output(tmp_path_factory)
-
-
-@pytest.fixture(scope="session")
-def shipped(tmp_path_factory):
-    return shipped_smoke(tmp_path_factory)
 
 
 def parameters_cell(nb: nbformat.NotebookNode) -> int:

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
-from pipeline_smoke import smoke_output
 
 from curious.cli import main as curious_cli
 from curious.experiments import get_budget
@@ -31,11 +30,6 @@ from pipelines.training import FINISHED, folder_state, run_folder, run_partition
 
 FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "distractors", "forgetting")
 SMOKE = get_budget("smoke")
-
-
-@pytest.fixture(scope="session")
-def smoke(tmp_path_factory):
-    return smoke_output(tmp_path_factory)
 
 
 def hashes(folder: Path) -> dict[str, str]:

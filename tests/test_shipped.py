@@ -18,7 +18,6 @@ from pathlib import Path
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
-from pipeline_smoke import shipped_smoke, smoke_output
 from shipped_check import check_shipped_folder, files_of
 
 from curious import analysis
@@ -28,16 +27,6 @@ from curious.shipped import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
 from pipelines.resources import OutputLayout
 
 EXPERIMENTS = ("main", "distractors", "sensor_failure")
-
-
-@pytest.fixture(scope="session")
-def smoke(tmp_path_factory):
-    return smoke_output(tmp_path_factory)
-
-
-@pytest.fixture(scope="session")
-def shipped(tmp_path_factory):
-    return shipped_smoke(tmp_path_factory)
 
 
 def hashes(folder: Path) -> dict[str, str]:
