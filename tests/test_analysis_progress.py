@@ -115,3 +115,18 @@ def test_a_reproduction_lists_the_runs_its_budget_has_not_started(campaign, tmp_
     started = [r for r in rows if r.episodes]
     assert [(r.condition, r.seed, r.episodes) for r in started] == [("curious", 0, 24)]
     assert all(r.commits == () and r.checkpoint is None for r in rows if not r.episodes)
+
+
+def test_a_reproduction_with_its_runs_elsewhere_reads_them_there(campaign, tmp_path):
+    """`curious reproduce --runs-dir` keeps the runs outside OUT; reproduce.json says where."""
+    from curious.experiments import get_budget
+
+    out, runs = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    manifest = {"version": 1, "budget": "smoke", "runs_dir": str(runs)}
+    (out / "reproduce.json").write_text(json.dumps(manifest))
+    shutil.copytree(campaign / "main" / "curious-0", runs / "main" / "curious" / "seed-0")
+    rows = progress_table(out)
+    assert len(rows) == len(get_budget("smoke").runs())
+    started = [r for r in rows if r.episodes]
+    assert [(r.condition, r.seed, r.episodes) for r in started] == [("curious", 0, 24)]

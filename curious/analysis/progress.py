@@ -16,13 +16,16 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from curious.analysis.loading import AnalysisError, read_run_info, search_run_folders
 from curious.run_folder import CONFIG_FILE, RunFolder
+
+if TYPE_CHECKING:
+    from curious.experiments import ReproduceBudget
 
 __all__ = ["DEFAULT_TEST_EPOCHS", "RunProgress", "progress_markdown", "progress_table"]
 
@@ -110,23 +113,29 @@ def _progress(path: Path, epochs: int) -> RunProgress:
     )
 
 
-def _planned(root: Path) -> list[RunProgress]:
-    """The runs a reproduction output folder (one with `reproduce.json`) plans under
-    `runs/` that have not written their config yet: 0 episodes, so the table shows the whole
-    budget."""
+def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
+    """The budget and runs folder of a reproduction's output folder (one with
+    `reproduce.json`; its runs lie under `runs/` or where `--runs-dir` put them), else None."""
     from curious.experiments import ExperimentError, get_budget
 
     manifest = root / "reproduce.json"
     if not manifest.is_file():
-        return []
+        return None
     try:
         data = json.loads(manifest.read_text(encoding="utf-8"))
         budget = get_budget(str(data.get("budget", data.get("preset"))))
+        runs_dir = data.get("runs_dir")
     except (json.JSONDecodeError, AttributeError, ExperimentError) as exc:
         raise AnalysisError(f"{manifest} is damaged: {exc}") from exc
+    return budget, (Path(runs_dir) if runs_dir else root / "runs")
+
+
+def _planned(budget: ReproduceBudget, runs_root: Path) -> list[RunProgress]:
+    """The runs a reproduction plans that have not written their config yet: 0 episodes, so
+    the table shows the whole budget."""
     rows = []
     for spec in budget.runs():
-        folder = root / "runs" / spec.relative_path
+        folder = runs_root / spec.relative_path
         if not RunFolder(folder).has_config:
             rows.append(
                 RunProgress(
@@ -162,10 +171,13 @@ def progress_table(
     planned: dict[str, RunProgress] = {}
     found: set[Path] = set()
     for root in paths:
-        mine = _planned(root)
+        reproduction = _reproduction(root)
+        mine = _planned(*reproduction) if reproduction else []
         planned.update((r.run, r) for r in mine)
         try:
-            found.update(f.resolve() for f in _run_folders(root))
+            found.update(
+                f.resolve() for f in _run_folders(reproduction[1] if reproduction else root)
+            )
         except AnalysisError:
             if not mine:  # a reproduction that has started no run yet is not an error
                 raise
