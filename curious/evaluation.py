@@ -156,7 +156,7 @@ class EvaluationSession:
         """Play `episodes` noise-free episodes of each of `modules` (default: all), in the
         order given, with goals drawn uniformly from the session's seed.
 
-        `observer`: a round observer (`curious.train.RoundObserver`: the 3-D rollout recorder,
+        `observer`: a round observer (`curious.hooks.RoundObserver`: the 3-D rollout recorder,
         the video's frame grabber) called around every batch as in training; the episodes it
         sees are numbered 0, 1, ... through the evaluation, module after module (module k's
         j-th episode is k * episodes + j), and all are evaluation episodes. `policy`: as

@@ -71,6 +71,9 @@ RUN_ENTRIES: tuple[str, ...] = (
     CHECKPOINTS_DIR,
 )
 """What a run writes in its folder (with temporaries named after them, a leading dot aside)."""
+EVALUATION_RECORDING_FILE = "evaluation.rrd"
+"""Where `curious evaluate --record` writes without a FILE: the current folder, never a run
+folder (a run folder holds a run's files only: `--restart` refuses one with more)."""
 
 CHECKPOINT_PREFIX = "ep-"
 _CHECKPOINT_NAME = re.compile(r"ep-(\d{12})")

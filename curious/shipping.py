@@ -40,6 +40,7 @@ from curious.run_folder import (
 from curious.shipped import (
     COMPRESSION,
     LEVEL,
+    MANIFEST_FILE,
     METRICS_DROPPED,
     TESTS_DROPPED,
     ShippedError,
@@ -99,7 +100,7 @@ def _check_root(root: Path) -> None:
     for folder in (root, *root.parents):
         if ShippedFolder(folder).is_shipped:
             raise ShippedError(
-                f"{root} is a shipped data folder ({folder / 'shipped.json'}), not the runs it "
+                f"{root} is a shipped data folder ({folder / MANIFEST_FILE}), not the runs it "
                 "came from: ship the run folders themselves"
             )
 

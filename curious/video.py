@@ -21,6 +21,7 @@ the success radius (`suite.render.add_goal_marker`), so every frame shows what t
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -79,6 +80,7 @@ def real_time_fps(control_timestep: float, every: int = 1, speed: float = 1.0) -
     return speed / (control_timestep * every)
 
 
+@functools.cache
 def _font(size: int) -> Any:
     """DejaVu Sans at `size` pixels (matplotlib, a dependency, ships it), else Pillow's own."""
     from PIL import ImageFont
@@ -224,25 +226,6 @@ def open_writer(kind: str, out: str | os.PathLike[str], fps: float) -> VideoWrit
     return PngFrames(out) if kind == "png" else VideoWriter(kind, out, fps)
 
 
-def make_renderer(model: Any, width: int, height: int) -> Any:
-    """A `mujoco.Renderer` of `model` (its off-screen buffer grown to the frame size where the
-    model's is smaller); a GL that cannot make a context is one line with the fix."""
-    import mujoco
-
-    from curious.gl import GL_FIX
-
-    model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
-    model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
-    try:
-        return mujoco.Renderer(model, height=height, width=width)
-    except Exception as exc:  # the GL libraries raise a variety of errors here
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise RuntimeError(
-            f"MuJoCo could not make an off-screen GL context ({type(exc).__name__}: {first}); "
-            f"{GL_FIX}"
-        ) from None
-
-
 def kept_steps(episode_length: int, every: int) -> list[int]:
     """The steps filmed: 0, every, 2 * every, ..., and always the last."""
     steps = list(range(0, episode_length + 1, every))
@@ -252,7 +235,7 @@ def kept_steps(episode_length: int, every: int) -> list[int]:
 
 
 class EpisodeFilm:
-    """A round observer (`curious.train.RoundObserver`) that films every episode of a round.
+    """A round observer (`curious.hooks.RoundObserver`) that films every episode of a round.
 
     At each kept step it renders every copy of the round from `camera`, with the goal marker;
     when the round ends it captions each copy's frames (`caption(episode, module, raw_goal,
@@ -307,7 +290,7 @@ class EpisodeFilm:
         self._frames = [[] for _ in self._views]
 
     def _render(self, i: int, env: Any) -> np.ndarray:
-        from suite.render import add_goal_marker, scene_camera
+        from suite.render import add_goal_marker, make_renderer, scene_camera
 
         physics = env.dm_env.physics
         renderer = self._renderers.get(i)

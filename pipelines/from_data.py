@@ -6,7 +6,7 @@ asset checks that every partition's run is there and finished instead of trainin
 metrics, figures and report are built from its tables as from any run folders. Nothing is ever
 written into DATA.
 
-A partition's state in DATA (`shipped_state`): `new` where the run was not shipped, `partial`
+A partition's state in DATA (`ShippedData.state`): `new` where the run was not shipped, `partial`
 where it was shipped unfinished (a progress snapshot), `finished` where it was shipped finished.
 A shipped run whose config.json names another run than the partition's (condition, variant,
 seed, training preset, episodes, sensory failure) raises `RunFolderMismatch`. That check reads

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -54,7 +54,6 @@ def render_episode(
         camera: a view of the scene (`CAMERAS`).
         height, width: frame size in pixels.
     """
-    import mujoco
 
     check_gl_backend()
     if every < 1:
@@ -62,13 +61,7 @@ def render_episode(
     if not 1 <= steps <= layout.EPISODE_STEPS:
         raise ValueError(f"steps must be in 1..{layout.EPISODE_STEPS}, got {steps}")
     physics = env.physics
-    try:
-        renderer = mujoco.Renderer(physics.model.ptr, height=height, width=width)
-    except Exception as exc:  # the GL libraries raise a variety of errors here
-        raise RuntimeError(
-            f"MuJoCo could not make an off-screen GL context ({type(exc).__name__}: {exc}). "
-            f"{GL_HELP}"
-        ) from exc
+    renderer = make_renderer(physics.model.ptr, width, height)
     view = scene_camera(physics, camera)
     frames = []
     try:
@@ -85,18 +78,21 @@ def render_episode(
     return frames
 
 
-def save_frames(frames: list[np.ndarray], out_dir: str | Path, prefix: str = "frame") -> list[Path]:
-    """Write frames as numbered PNG files; returns their paths."""
-    from PIL import Image
+def make_renderer(model: Any, width: int, height: int) -> Any:
+    """A `mujoco.Renderer` of `model` (an `mjModel`), its off-screen buffer grown to the frame
+    size where the model's is smaller; a GL that cannot make a context is one line with the fix."""
+    import mujoco
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for i, frame in enumerate(frames):
-        path = out / f"{prefix}_{i:03d}.png"
-        Image.fromarray(frame).save(path)
-        paths.append(path)
-    return paths
+    model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
+    model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+    try:
+        return mujoco.Renderer(model, height=height, width=width)
+    except Exception as exc:  # the GL libraries raise a variety of errors here
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise RuntimeError(
+            f"MuJoCo could not make an off-screen GL context ({type(exc).__name__}: {first}). "
+            f"{GL_HELP}"
+        ) from None
 
 
 def scene_camera(physics, camera: str):

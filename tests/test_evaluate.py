@@ -149,6 +149,8 @@ def test_errors_are_one_line(runs, tmp_path, capsys):
     assert "modules" in err
     assert "unknown module" in _one_line_error(capsys, [str(runs / "curious"), "--modules", "x"])
     assert "no config.json" in _one_line_error(capsys, [str(tmp_path)])
+    lone = [str(runs / "curious"), "--record-episodes", "3"]
+    assert "--record-episodes is for --record" in _one_line_error(capsys, lone)
 
 
 def _files(folder):

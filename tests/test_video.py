@@ -132,6 +132,18 @@ def test_random_arm_video_and_png_frames_stay(tmp_path):
     ]  # fmt: skip
 
 
+def test_random_arm_renders_frames_larger_than_the_models_buffer(tmp_path):
+    """The model's off-screen buffer is 640x480; both arms grow it to the frame asked for."""
+    from PIL import Image
+
+    _needs_gl()
+    frames = tmp_path / "big"
+    done = _render("--module", "reach", "--steps", "1", "--width", "1280", "--height", "720",
+                   "--out", str(frames))  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert {Image.open(p).size for p in frames.iterdir()} == {(1280, 720)}
+
+
 def _refused(capsys, *args: str) -> str:
     assert curious_cli(["render", "--no-progress", *args]) == 2
     err = capsys.readouterr().err.strip()

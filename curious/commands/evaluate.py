@@ -29,9 +29,10 @@ import argparse
 import json
 import sys
 
-DEFAULT_FILE = "evaluation.rrd"
-"""`--record` without FILE (`curious.recording.evaluation.DEFAULT_FILE`; named here too so that
-the help needs no import of Rerun)."""
+from curious.run_folder import EVALUATION_RECORDING_FILE as DEFAULT_FILE
+
+RECORD_EPISODES = 2
+"""`--record-episodes` unless given: each module's first episodes kept in 3-D."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -82,9 +83,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--record-episodes",
         type=int,
-        default=2,
+        default=None,
         metavar="N",
-        help="with --record: episodes of each module recorded in 3-D (default: %(default)s)",
+        help=f"with --record: episodes of each module recorded in 3-D (default: {RECORD_EPISODES})",
     )
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -95,6 +96,8 @@ def run(args: argparse.Namespace) -> int:
     from curious.evaluation import evaluate, evaluation_table
 
     if args.record is None:
+        if args.record_episodes is not None:
+            raise ValueError("--record-episodes is for --record: add --record [FILE]")
         result = evaluate(
             args.run,
             episodes=args.episodes,
@@ -121,8 +124,7 @@ def _evaluate_and_record(args: argparse.Namespace):
     from curious.recording.evaluation import EvaluationRecording, check_target
 
     target = check_target(args.record, args.run)
-    if args.record_episodes < 0:
-        raise ValueError(f"--record-episodes must be >= 0, got {args.record_episodes}")
+    per_module = RECORD_EPISODES if args.record_episodes is None else args.record_episodes
     with open_run(
         args.run, args.episodes, args.variant, args.seed, None, args.processes
     ) as session:
@@ -132,7 +134,7 @@ def _evaluate_and_record(args: argparse.Namespace):
             target,
             session.spec.module_names,
             args.episodes,
-            min(args.record_episodes, args.episodes),
+            min(per_module, args.episodes),
             session.spec.episode_length,
             name,
         )

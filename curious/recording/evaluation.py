@@ -35,13 +35,11 @@ import rerun as rr
 from curious.analysis.palette import module_entity
 from curious.recording.recorder import RecorderSettings, RunRecorder
 from curious.recording.rollouts import RolloutObserver
-from curious.run_folder import CONFIG_FILE, RECORDING_FILE
+from curious.run_folder import CONFIG_FILE, EVALUATION_RECORDING_FILE, RECORDING_FILE
 
 __all__ = ["DEFAULT_FILE", "EvaluationRecording", "check_target"]
 
-DEFAULT_FILE = "evaluation.rrd"
-"""Where `curious evaluate --record` writes without a FILE: in the current folder, never in the
-run folder (a run folder holds a run's files only: `--restart` refuses one with more)."""
+DEFAULT_FILE = EVALUATION_RECORDING_FILE
 
 
 def check_target(path: str | os.PathLike[str], run: str | os.PathLike[str]) -> Path:
