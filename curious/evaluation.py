@@ -274,17 +274,16 @@ def open_run(
     from curious.env_batch import LocalEnvs, ProcessEnvs
     from curious.envs import suite_env_fns
     from curious.inputs import GoalBox
-    from curious.run_folder import CONFIG_FILE, RunFolder
+    from curious.run_folder import RunFolder
 
     if episodes < 1:
         raise ValueError(f"--episodes must be at least 1, got {episodes}")
     folder = RunFolder(run)
-    if not folder.config_path.is_file():
-        raise ValueError(f"{folder.path} is not a run folder (no {CONFIG_FILE})")
+    info = folder.read_info()  # a RunFolderError naming what is missing or damaged
     config = folder.read_config()
     if config.device != "cpu" and not torch.cuda.is_available():
         config = dataclasses.replace(config, device="cpu")  # a GPU run evaluates on a laptop
-    run_modules = list(folder.read_stored().get("modules", []))
+    run_modules = list(info.module_names)
     latest = checkpoint.load_latest(folder.checkpoints, config.device, replay=False)
     if latest is None:
         raise ValueError(f"{folder.path} holds no checkpoint to evaluate (in {folder.checkpoints})")

@@ -1,7 +1,7 @@
 """`curious reproduce` and the Dagster pipeline behind it, on the smoke budget.
 
 One smoke reproduction (every experiment, 14 runs of 24 episodes) is built once per session
-(`pipeline_smoke`) and shared with the notebook tests.
+(`conftest.py`) and shared with the notebook tests.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """`curious ship` and `curious reproduce --from-data`, on the smoke reproduction.
 
-The smoke output (`pipeline_smoke`, shared with the pipeline and notebook tests) is shipped once
+The smoke output (`conftest.py`, shared with the pipeline and notebook tests) is shipped once
 into a data folder; the report, the figures and the tables built from that folder alone must be
 those built from the run folders.
 """
