@@ -22,11 +22,12 @@ Identity columns of the table (the same on every row of a run):
 ``modules`` (module names in slot order, comma-joined), ``achievable_modules`` (the achievable
 ones, comma-joined), ``n_distractors`` (how many modules are not achievable),
 ``perturbation_episode`` (nullable int: the config's ``sensor_failure_episode``),
-``failure_competence`` (nullable float: the config's ``sensor_failure_competence``) and
+``failure_competence`` (nullable float: the config's ``sensor_failure_competence``),
 ``perturbed_modules`` (the modules the variant's sensory failure perturbs, comma-joined; empty
-for a variant without one). Where the failure actually started is in the ``sensor_failure``
-column of ``metrics.parquet`` (runs trained before that column existed lack it);
-`curious.analysis.perturbation.failure_onsets` reads it.
+for a variant without one) and ``lp_window`` (nullable int: the config's ``lp_window``, the
+evaluation results a module's competence averages once it has that many). Where the failure
+actually started is in the ``sensor_failure`` column of ``metrics.parquet`` (runs trained before
+that column existed lack it); `curious.analysis.perturbation.failure_onsets` reads it.
 String columns (these and ``module``) are categorical.
 Runs with different module sets load into one table
 (their per-module columns are NaN where a run has no such module); the statistics and figures
@@ -100,6 +101,7 @@ IDENTITY_COLUMNS: tuple[str, ...] = (
     "perturbation_episode",
     "failure_competence",
     "perturbed_modules",
+    "lp_window",
 )
 
 PathsOrRoot = str | PathLike[str] | Iterable[str | PathLike[str]]
@@ -271,6 +273,8 @@ def _identity(info: RunInfo, n: int) -> pd.DataFrame:
     front["perturbation_episode"] = pd.array([info.perturbation_episode] * n, dtype=pd.Int64Dtype())
     front["failure_competence"] = pd.array([info.failure_competence] * n, dtype=pd.Float64Dtype())
     front["perturbed_modules"] = ",".join(info.sensor_failure_modules)
+    window = (info.settings or {}).get("lp_window")
+    front["lp_window"] = pd.array([window] * n, dtype=pd.Int64Dtype())
     return front
 
 

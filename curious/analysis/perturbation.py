@@ -111,6 +111,7 @@ def _unmeasured(status: str, note: str, onset_competence: float = np.nan) -> dic
         "dropped": False,
         "recovered": False,
         "recovery_episodes": np.nan,
+        "competence_drop": np.nan,
         "note": note,
     }
 
@@ -152,7 +153,7 @@ def _measure(
             f"< {bar:.2f} at episode {p:,}, so there was nothing to forget"
         )
         return _unmeasured("not_learned", note, onset_competence)
-    window = pre_window if pre_window is not None else max(1, p // 10)
+    window = _window(pre_window, p)
     pre = float(np.mean(values[:start][episodes[:start] >= p - window]))
     threshold = fraction * pre
     after = values[start:]
@@ -184,8 +185,34 @@ def _measure(
         "dropped": dropped,
         "recovered": bool(np.isfinite(recovered_at)),
         "recovery_episodes": recovered_at,
+        "competence_drop": pre - float(after[trough]),
         "note": note,
     }
+
+
+def _window(pre_window: int | None, p: int) -> int:
+    """Episodes averaged on each side of the onset ``p``: ``pre_window``, else ``p // 10``."""
+    return pre_window if pre_window is not None else max(1, p // 10)
+
+
+def _shift(episodes: np.ndarray, lp: np.ndarray, p_lp: np.ndarray, p: int, window: int) -> dict:
+    """Mean LP and p_LP of the module over the ``window`` episodes before the onset ``p`` and
+    the ``window`` episodes from it (NaN where a side has no episode)."""
+    before = (episodes >= p - window) & (episodes < p)
+    after = (episodes >= p) & (episodes < p + window)
+
+    def mean(values: np.ndarray, rows: np.ndarray) -> float:
+        return float(values[rows].mean()) if rows.any() else np.nan
+
+    return {
+        "lp_before": mean(lp, before),
+        "lp_after": mean(lp, after),
+        "p_lp_before": mean(p_lp, before),
+        "p_lp_after": mean(p_lp, after),
+    }
+
+
+_NO_SHIFT = dict.fromkeys(("lp_before", "lp_after", "p_lp_before", "p_lp_after"), np.nan)
 
 
 def _learned_bar(learned: float | None, own: float) -> float:
@@ -215,6 +242,11 @@ RECOVERY_COLUMNS: tuple[str, ...] = (
     "dropped",
     "recovered",
     "recovery_episodes",
+    "competence_drop",
+    "lp_before",
+    "lp_after",
+    "p_lp_before",
+    "p_lp_after",
     "note",
 )
 
@@ -246,8 +278,16 @@ def recovery(
       episode ``e`` after the trough back at or above it: ``recovery_episodes = e - p + 1``
       (counting from the trough keeps a noisy dip on the way down from passing for a recovery).
       A run that never dropped has ``recovery_episodes = 0``; one not back by its end, NaN.
+      ``competence_drop`` is ``pre_competence`` minus the trough's competence.
 
-    Only ``measured`` runs have numbers; every run has a ``note``, one sentence on its outcome.
+    Wherever the failure started (``measured`` and ``not_learned``), ``lp_before``/``lp_after``
+    and ``p_lp_before``/``p_lp_after`` are the module's mean absolute LP and mean probability of
+    being practised (the ``p_lp/<module>`` column: p_LP where the condition selects modules by
+    LP, uniform in M-UVFA) over the ``pre_window`` episodes before ``p`` and as many from ``p``
+    on: the paper's refocus on a module whose competence drops shows as LP and p_LP rising.
+
+    Only ``measured`` runs have recovery numbers; every run has a ``note``, one sentence on its
+    outcome.
     Returns one row per run with `RECOVERY_COLUMNS`.
     """
     require_runs(df)
@@ -257,6 +297,10 @@ def recovery(
     if column not in df.columns:
         raise KeyError(f"no module {module!r} in these runs (no column {column!r})")
     onsets = failure_onsets(df)
+    lp, p_lp = (
+        {run: v for run, _, _, v in run_arrays(df, df[f"{prefix}/{module}"].to_numpy(np.float64))}
+        for prefix in ("lp", "p_lp")
+    )
     rows = []
     for run, first, episodes, values in run_arrays(df, df[column].to_numpy(np.float64)):
         onset = onsets.loc[run]
@@ -275,10 +319,15 @@ def recovery(
             planned = None if pd.isna(planned) else int(planned)
             threshold = np.nan if given or pd.isna(own) else float(own)
             n_episodes = int(episodes[-1]) + 1
-            measured = _never_started(module, values, n_episodes, threshold, planned)
+            measured = {
+                **_never_started(module, values, n_episodes, threshold, planned),
+                **_NO_SHIFT,
+            }
             p = pd.NA
         else:
             measured = _measure(module, episodes, values, int(p), bar, fraction, pre_window)
+            window = _window(pre_window, int(p))
+            measured.update(_shift(episodes, lp[run], p_lp[run], int(p), window))
         row = {c: df[c].iat[first] for c in ("run", "condition", "seed", "variant")}
         row.update(
             module=module,

@@ -52,6 +52,7 @@ from curious.analysis.loading import AnalysisError, require_runs, require_tests
 
 __all__ = [
     "ALPHA",
+    "RUN_COLUMNS",
     "achievable_competence",
     "across_seeds",
     "bin_runs",
@@ -60,13 +61,14 @@ __all__ = [
     "final_competence",
     "final_success",
     "nice_bin_size",
+    "on_achievable",
     "run_arrays",
     "welch_per_bin",
 ]
 
 ALPHA = 0.01
 
-_RUN_COLUMNS = (
+RUN_COLUMNS: tuple[str, ...] = (
     "run",
     "condition",
     "seed",
@@ -75,6 +77,7 @@ _RUN_COLUMNS = (
     "achievable_modules",
     "n_distractors",
 )
+"""The columns that say which run a row of a per-run table belongs to."""
 
 
 def achievable_competence(df: pd.DataFrame) -> pd.Series:
@@ -155,12 +158,12 @@ def bin_runs(
         ends = (np.arange(n_bins) + 1) * bin_size
         at = np.searchsorted(episodes, ends - 1, side="right") - 1
         ok = at >= 0
-        columns = {c: np.repeat(np.array([df[c].iat[first]]), ok.sum()) for c in _RUN_COLUMNS}
+        columns = {c: np.repeat(np.array([df[c].iat[first]]), ok.sum()) for c in RUN_COLUMNS}
         columns["bin"] = np.arange(n_bins)[ok]
         columns["episodes"] = ends[ok]
         columns["value"] = run_values[at[ok]]
         parts.append(pd.DataFrame(columns))
-    columns = [*_RUN_COLUMNS, "bin", "episodes", "value"]
+    columns = [*RUN_COLUMNS, "bin", "episodes", "value"]
     if not parts:
         return pd.DataFrame(columns=columns)
     out = pd.concat(parts, ignore_index=True)
@@ -290,13 +293,13 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
     rows = []
     for _run, first, episodes, values in run_arrays(df, data):
         at = int(np.searchsorted(episodes, at_episode, side="right")) - 1
-        row = {c: df[c].iat[first] for c in _RUN_COLUMNS}
+        row = {c: df[c].iat[first] for c in RUN_COLUMNS}
         row.update(episodes=at_episode + 1, value=float(values[at]) if at >= 0 else np.nan)
         rows.append(row)
-    return pd.DataFrame(rows, columns=[*_RUN_COLUMNS, "episodes", "value"])
+    return pd.DataFrame(rows, columns=[*RUN_COLUMNS, "episodes", "value"])
 
 
-def _on_achievable(tests: pd.DataFrame) -> np.ndarray:
+def on_achievable(tests: pd.DataFrame) -> np.ndarray:
     """(n,) bool: whether each test rollout's module is achievable in its run."""
     out = np.zeros(len(tests), bool)
     module = tests["module"].astype(str).to_numpy()
@@ -319,7 +322,7 @@ def epoch_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     require_tests(tests)
     if bin_size is not None and bin_size < 1:
         raise ValueError(f"bin_size must be >= 1, got {bin_size}")
-    hit = _on_achievable(tests)
+    hit = on_achievable(tests)
     episodes = tests["episode"].to_numpy(np.int64)
     points = episodes if bin_size is None else -(-episodes // bin_size) * bin_size
     frame = pd.DataFrame(
@@ -336,11 +339,11 @@ def epoch_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     out = out.reset_index()
     last = pd.Series(episodes, index=frame["run"]).groupby(level=0).max()
     out = out[out["episodes"] <= out["run"].map(last)]
-    identity = tests.groupby("run", observed=True)[list(_RUN_COLUMNS[1:])].first()
+    identity = tests.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
     out = out.join(identity, on="run")
     out["run"] = out["run"].astype(tests["run"].dtype)
     out.attrs["bin_size"] = bin_size
-    return out[[*_RUN_COLUMNS, "episodes", "epoch", "n_tests", "value"]].reset_index(drop=True)
+    return out[[*RUN_COLUMNS, "episodes", "epoch", "n_tests", "value"]].reset_index(drop=True)
 
 
 def final_success(points: pd.DataFrame) -> pd.DataFrame:
@@ -355,5 +358,5 @@ def final_success(points: pd.DataFrame) -> pd.DataFrame:
     common = points.groupby("run", observed=True)["episodes"].max().min()
     upto = points[points["episodes"] <= common]
     last = upto.loc[upto.groupby("run", observed=True)["episodes"].idxmax()]
-    columns = [*_RUN_COLUMNS, "episodes", "n_tests", "value"]
+    columns = [*RUN_COLUMNS, "episodes", "n_tests", "value"]
     return last[columns].sort_values("run").reset_index(drop=True)
