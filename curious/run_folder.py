@@ -18,7 +18,10 @@ config.json's keys:
                                       `RunInfo` derives it from the variant's definition
     config                            the resolved settings (`Config.to_dict`)
     versions, git, created            libraries, source commit and time of the first start
-    resumed                           one entry per resume: its time, libraries, commit, settings
+    machine                           the machine of the first start (`machine`): processor,
+                                      cores, system, and the GPU where it trains on one
+    resumed                           one entry per resume: its time, libraries, commit, machine,
+                                      settings
 
 Who reads what: training (`prepare`, `write_config`, the paths), `curious evaluate`
 (`read_config`), `curious progress` and the analysis (`read_info`, `episodes_logged`,
@@ -196,6 +199,46 @@ def library_versions() -> dict[str, str | None]:
     return versions
 
 
+def _cpu_model() -> str:
+    """The processor's model name (Linux's /proc/cpuinfo), else what `platform` knows."""
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name") and ":" in line:
+                return line.split(":", 1)[1].strip()
+    return platform.processor() or platform.machine()
+
+
+def machine(device: str = "cpu") -> dict[str, Any]:
+    """What a run starts or resumes on, for the compute an experiment took: the processor, its
+    logical cores, the system and, with ``device`` `cuda`, the GPU (no host name)."""
+    gpu = None
+    if device.startswith("cuda"):
+        import torch
+
+        if torch.cuda.is_available():
+            gpu = torch.cuda.get_device_name(torch.device(device))
+    affinity = getattr(os, "sched_getaffinity", None)  # the cores this process may use (Linux)
+    cores = len(affinity(0)) if affinity is not None else os.cpu_count()
+    return {
+        "cpu": _cpu_model(),
+        "cores": cores,
+        "system": f"{platform.system()} {platform.release()}",
+        "gpu": gpu,
+    }
+
+
+def machine_text(entry: Mapping[str, Any]) -> str:
+    """One line for a `machine` entry, e.g. ``AMD EPYC 7B13, 2 cores``; empty where none."""
+    if not entry.get("cpu"):
+        return ""
+    text = str(entry["cpu"])
+    if entry.get("cores"):
+        text += f", {entry['cores']} cores"
+    if entry.get("gpu"):
+        text += f", {entry['gpu']}"
+    return text
+
+
 def git_commit() -> dict[str, Any]:
     """Commit (and whether the tree has changes) of the source tree this package runs from."""
     root = Path(__file__).resolve().parent.parent
@@ -258,7 +301,9 @@ class RunInfo:
     git: Mapping[str, Any] | None = None
     """Source commit of the first start: `commit` and `dirty` (local changes)."""
     resumed: tuple[Mapping[str, Any], ...] = ()
-    """One entry per resume: `at`, `versions`, `git`, `config`."""
+    """One entry per resume: `at`, `versions`, `git`, `machine`, `config`."""
+    machine: Mapping[str, Any] | None = None
+    """The machine of the first start (`machine`; None where config.json predates it)."""
 
     @property
     def achievable_modules(self) -> tuple[str, ...]:
@@ -281,6 +326,14 @@ class RunInfo:
     def total_episodes(self) -> int:
         """The run's budget in episodes (its latest `total_episodes`; 0 where not set)."""
         return int((self.settings or {}).get("total_episodes", 0))
+
+    @property
+    def machines(self) -> tuple[str, ...]:
+        """The machines the run trained on, first start then resumes (`machine_text`), without
+        repeats; starts that predate the record are left out."""
+        entries = [self.machine or {}, *(r.get("machine", {}) for r in self.resumed)]
+        texts = (machine_text(e) for e in entries if isinstance(e, Mapping))
+        return tuple(dict.fromkeys(t for t in texts if t))
 
     @property
     def commits(self) -> tuple[str, ...]:
@@ -349,6 +402,7 @@ def _parse_info(data: dict[str, Any], folder: Path, config_path: Path) -> RunInf
         versions=_mapping(data.get("versions")),
         git=_mapping(data.get("git")),
         resumed=tuple(_mapping(r) for r in resumed) if isinstance(resumed, list) else (),
+        machine=_mapping(data.get("machine")),
     )
 
 
@@ -582,6 +636,7 @@ class RunFolder:
             "config": config.to_dict(),
             "versions": library_versions(),
             "git": git_commit(),
+            "machine": machine(config.device),
             "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         }
 
@@ -595,9 +650,11 @@ class RunFolder:
                 "at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
                 "versions": data["versions"],
                 "git": data["git"],
+                "machine": data["machine"],
                 "config": data["config"],
             }
             for key in ("created", "versions", "git"):
                 data[key] = old.get(key, data[key])
+            data["machine"] = old.get("machine")  # None: the first start predates the record
             data["resumed"] = [*old.get("resumed", []), resumed]
         write_json_atomic(self.config_path, data)

@@ -19,11 +19,13 @@ analysis loads it as any run folder, and the folder is laid out as a reproductio
 The tables keep every row, and every column they keep is as the run wrote it (the same Arrow
 types, the same values), so every number drawn from them is the run's. They leave out what no
 analysis, figure, report or notebook reads: the goal of every episode (`g0..g2`, random floats
-that are most of the bytes), the worker, and the raw self-evaluation record (`module`,
-`success`, `eval`; the competence, LP and p_LP computed from it are kept), and the clock of the
-test rollouts. Each reduced table says so in its parquet metadata (`SHIPPED_KEY`), which
-`shipped_drops` reads for the loaders. They are written with zstd (`COMPRESSION`, `LEVEL`),
-dictionary-encoded only for strings; writing the same runs again gives the same bytes.
+that are most of the bytes), the worker, each episode's `success` (the competence, LP and p_LP
+computed from the self-evaluations' successes are kept, and with them the episode's `module`
+and `eval` flag, from which the order of learning counts each module's evaluations), and the
+clock of the test rollouts. Each reduced table says so in its parquet metadata
+(`SHIPPED_KEY`), which `shipped_drops` reads for the loaders. They are written with zstd
+(`COMPRESSION`, `LEVEL`), dictionary-encoded only for strings; writing the same runs again gives
+the same bytes.
 
 `shipped.json`:
 
@@ -44,7 +46,8 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 MANIFEST_FILE = "shipped.json"
-FORMAT = 1
+FORMAT = 2
+"""1: shipped without `module` and `eval` (the order of learning cannot be read from it)."""
 SHIPPED_KEY = b"curious.shipped"
 """Parquet schema metadata of a reduced table: JSON with the format and the columns dropped."""
 COMPRESSION = "zstd"
@@ -52,7 +55,7 @@ LEVEL = 9
 """zstd level: measured on a `laptop` run, 7.0 bytes per metrics row (level 3: 7.9; 19: 7.0),
 written in 20 ms per 13,600 rows."""
 
-METRICS_DROPPED: tuple[str, ...] = ("worker", "module", "g0", "g1", "g2", "success", "eval")
+METRICS_DROPPED: tuple[str, ...] = ("worker", "g0", "g1", "g2", "success")
 """Columns of metrics.parquet a shipped run leaves out (see the module docstring)."""
 TESTS_DROPPED: tuple[str, ...] = ("g0", "g1", "g2", "wall_time")
 """Columns of tests.parquet a shipped run leaves out."""

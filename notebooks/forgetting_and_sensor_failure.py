@@ -92,33 +92,19 @@ if has_failure:
     display(analysis.recovery_summary(per_run))
 
 # %% [markdown]
-# ## Module selection after the perturbation
+# ## The competence drop, the LP rise and the shift of module selection
 #
-# Mean p_LP of the followed module over the episodes before and after each run's failure, in
-# the runs where it started: with LP-based selection it rises when the module's competence
-# drops.
+# Per run where the failure started: the competence drop to the trough, and the followed
+# module's mean absolute LP and mean probability of being practised (`p_lp`: p_LP with
+# LP-based selection, uniform in M-UVFA) over the episodes before the failure and as many from
+# it on (`analysis.recovery`'s `pre_window`, a tenth of those before it by default). With
+# LP-based selection both rise when the module's competence drops.
 
 # %%
 if has_failure:
-    followed = str(per_run["module"].iat[0])
-    rows = []
-    for r in per_run.dropna(subset=["perturbation_episode"]).itertuples():
-        run = df[df["run"] == r.run]
-        p = int(r.perturbation_episode)
-        window = max(1, p // 2)
-        e = run["episode"].to_numpy()
-        values = run[f"p_lp/{followed}"].to_numpy()
-        rows.append(
-            {
-                "condition": r.condition,
-                "seed": r.seed,
-                "failure from": p,
-                "p_lp before": float(values[(e >= p - window) & (e < p)].mean()),
-                "p_lp after": float(values[(e >= p) & (e < p + window)].mean()),
-            }
-        )
-    columns = ["condition", "seed", "failure from", "p_lp before", "p_lp after"]
-    display(pd.DataFrame(rows, columns=columns).round(3))
+    columns = ["competence_drop", "lp_before", "lp_after", "p_lp_before", "p_lp_after"]
+    started = per_run[per_run["status"] != "never_started"]
+    display(started[["condition", "seed", "perturbation_episode", *columns]].round(3))
 
 # %% [markdown]
 # ## Part 2: spontaneous forgetting in the main runs

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from curious import analysis
-from curious.analysis.palette import condition_label
+from curious.analysis.palette import condition_label, module_label
 from curious.experiments import Experiment
 from curious.run_folder import RunFolder, RunFolderError
 from pipelines.resources import Reproduction
@@ -35,6 +35,8 @@ FIGURE_TEXT: dict[str, str] = {
     "forgetting": "Competence and LP of the perturbed module around the sensory failure.",
 }
 MAX_WELCH_ROWS = 12
+ORDER_LEVEL = 0.5
+"""The competence at which the order of learning counts a module as learned."""
 
 
 def _fmt(value: float, digits: int = 2) -> str:
@@ -96,27 +98,53 @@ def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
     return _table(header, rows)
 
 
+def _machines(runs: Iterable[object]) -> tuple[list[str], int]:
+    """The machines the runs trained on (their config.json), and how many runs record none."""
+    found: dict[str, None] = {}
+    unrecorded = 0
+    for run in runs:
+        try:
+            machines = RunFolder(str(run)).read_info().machines
+        except RunFolderError:
+            machines = ()
+        found.update(dict.fromkeys(machines))
+        unrecorded += not machines
+    return sorted(found), unrecorded
+
+
 def _compute(tables: dict[str, pd.DataFrame]) -> list[str]:
     """How long the runs trained, read off their own clocks (`wall_time`, seconds of training
-    since each run started, resumes included)."""
-    walls = pd.concat([t.groupby("run", observed=True)["wall_time"].max() for t in tables.values()])
+    since each run started, resumes included), in all and per experiment with the machines."""
+    per_experiment = {
+        name: t.groupby("run", observed=True)["wall_time"].max() for name, t in tables.items()
+    }
+    walls = pd.concat(per_experiment.values())
     if walls.empty:
         return []
-    return [
+    lines = [
         f"Training time, from the runs' own clocks: {len(walls)} runs, "
         f"{walls.sum() / 60:,.1f} run-minutes in all, {walls.min() / 60:.1f} to "
         f"{walls.max() / 60:.1f} min per run (runs that share a machine's cores slow each "
         "other; the test rollouts after the last training episode are not counted).",
         "",
     ]
+    for name, wall in per_experiment.items():
+        machines, unrecorded = _machines(wall.index)
+        where = f"on {'; '.join(machines)}" if machines else "machine not recorded"
+        if machines and unrecorded:
+            where += f" ({unrecorded} of the runs do not record theirs)"
+        lines.append(f"- `{name}`: {len(wall)} runs, {wall.sum() / 3600:,.2f} run-hours, {where}.")
+    return [*lines, ""]
 
 
-def _runs_table(table: pd.DataFrame, points: pd.DataFrame | None) -> list[str]:
+def _runs_table(table: pd.DataFrame, tests: pd.DataFrame | None) -> list[str]:
     """One row per run; its final competence and, with test rollouts, its final test success."""
     runs = analysis.runs_table(table)
     final = analysis.final_competence(table).set_index("run")["value"]
     tested = (
-        analysis.final_success(points).set_index("run")["value"] if points is not None else None
+        analysis.final_success(analysis.epoch_success(tests)).set_index("run")["value"]
+        if tests is not None
+        else None
     )
     wall = table.groupby("run", observed=True)["wall_time"].max()
     rows = []
@@ -223,23 +251,89 @@ NO_TESTS = (
 )
 
 
+def _episodes_to_success(e: Experiment, tests: pd.DataFrame) -> list[str]:
+    """Per condition and seed: the episodes each achievable module needed to reach each level of
+    test success (`analysis.episodes_to_test_success`)."""
+    table = analysis.episodes_to_test_success(tests)
+    levels = sorted(set(table["level"]))
+    modules = list(dict.fromkeys(table["module"].astype(str)))
+    rows = []
+    for (condition, seed), group in _in_order(table, e).groupby(
+        ["condition", "seed"], observed=True, sort=False
+    ):
+        got = group.set_index(["module", "level"])["episodes"]
+        cells = [" / ".join(_episodes(_float(got[(m, v)])) for v in levels) for m in modules]
+        last = int(group["last_episodes"].max())
+        rows.append((condition_label(condition), seed, *cells, f"{last:,}"))
+    header = ("condition", "seed", *map(module_label, modules), "tested up to")
+    return [
+        "Episodes to reach test success "
+        f"{' / '.join(_fmt(v, 1) for v in levels)} on each achievable module, per seed: the "
+        "first epoch whose test rollouts on the module, pooled over the last "
+        f"{table.attrs['window']} epochs, succeed that often (– : not within the run). Read "
+        "with Fig. 2a's scoring (HER: its whole goal met).",
+        "",
+        *_table(header, rows),
+    ]
+
+
+def _in_order(frame: pd.DataFrame, e: Experiment) -> pd.DataFrame:
+    """Rows by the experiment's order of conditions, then seed."""
+    rank = {c: i for i, c in enumerate(e.conditions)}
+    key = frame["condition"].astype(str).map(rank).fillna(len(rank))
+    return (
+        frame.assign(_rank=key).sort_values(["_rank", "seed"], kind="stable").drop(columns="_rank")
+    )
+
+
+def _float(value: object) -> float:
+    return math.nan if pd.isna(value) else float(value)
+
+
+def _learning_order(e: Experiment, table: pd.DataFrame) -> list[str]:
+    """Per run: the order in which its modules' competence crossed `ORDER_LEVEL`, against the
+    paper's (`analysis.learning_order`)."""
+    crossings = analysis.competence_crossings(table, level=ORDER_LEVEL)
+    order = analysis.learning_order(crossings)
+    first = crossings.set_index(["run", "module"])["episode"]
+    modules = list(dict.fromkeys(crossings["module"].astype(str)))
+    rows = []
+    for r in _in_order(order, e).itertuples():
+        cells = [_episodes(_float(first[(r.run, m)])) for m in modules]
+        verdict = "–" if pd.isna(r.follows_paper) else ("yes" if r.follows_paper else "no")
+        rows.append((condition_label(r.condition), r.seed, *cells, r.order or "none", verdict))
+    header = ("condition", "seed", *map(module_label, modules), "order", "as the paper")
+    paper = " → ".join(" and ".join(group) for group in analysis.PAPER_ORDER)
+    return [
+        f"Order of learning: the first episode at which each module's competence reached "
+        f"{_fmt(ORDER_LEVEL, 1)} over a full window of its self-evaluations (– : not within the "
+        f"run), and whether the order agrees with the paper's ({paper}, the last two in either "
+        "order; a module not reached counts as after those reached).",
+        "",
+        *_table(header, rows),
+    ]
+
+
 def _main(
-    repro: Reproduction, e: Experiment, table: pd.DataFrame, points: pd.DataFrame | None
+    repro: Reproduction, e: Experiment, table: pd.DataFrame, tests: pd.DataFrame | None
 ) -> list[str]:
     lines = [*_figure(repro, "fig2a")]
-    if points is None:
+    if tests is None:
         lines += [NO_TESTS, ""]
     else:
+        points = analysis.epoch_success(tests)
         lines += _final_by_condition(e, points)
         if e.compare is not None:
             lines += _welch_points(points, *e.compare)
+        lines += _episodes_to_success(e, tests)
     for name in ("fig2b", "fig2c", "table1"):
         lines += _figure(repro, name)
+    lines += _learning_order(e, table)
     return lines
 
 
 def _distractors(
-    repro: Reproduction, e: Experiment, table: pd.DataFrame, points: pd.DataFrame | None
+    repro: Reproduction, e: Experiment, table: pd.DataFrame, tests: pd.DataFrame | None
 ) -> list[str]:
     lines = [*_figure(repro, "distractors")]
     final = analysis.final_competence(table)
@@ -302,7 +396,7 @@ def _recovery_rows(summary: pd.DataFrame) -> list[tuple[str, ...]]:
 
 
 def _sensor_failure(
-    repro: Reproduction, e: Experiment, table: pd.DataFrame, points: pd.DataFrame | None
+    repro: Reproduction, e: Experiment, table: pd.DataFrame, tests: pd.DataFrame | None
 ) -> list[str]:
     lines = [*_figure(repro, "forgetting")]
     csv = repro.layout.figures / "forgetting.csv"
@@ -325,11 +419,32 @@ def _sensor_failure(
             r.seed,
             "never" if pd.isna(r.perturbation_episode) else f"{int(r.perturbation_episode):,}",
             _fmt(r.onset_competence),
+            _fmt(r.competence_drop),
+            f"{_fmt(r.lp_before)} → {_fmt(r.lp_after)}",
+            f"{_fmt(r.p_lp_before)} → {_fmt(r.p_lp_after)}",
+            _episodes(r.recovery_episodes),
             r.note,
         )
-        for r in per_run.sort_values(["condition", "seed"]).itertuples()
+        for r in _in_order(per_run, e).itertuples()
     ]
-    header = ("condition", "seed", "failure from episode", "competence then", "outcome")
+    header = (
+        "condition",
+        "seed",
+        "failure from episode",
+        "competence then",
+        "drop",
+        "LP before → after",
+        "p_LP before → after",
+        "recovery (episodes)",
+        "outcome",
+    )
+    lines += [
+        "Per run: the competence just before the failure, its drop to the trough, the module's "
+        "mean absolute LP and mean probability of being practised (p_LP; uniform in M-UVFA) over "
+        "the episodes before the failure and as many from it on (a tenth of those before it), "
+        "and the episodes to regain 90 % of the competence before (0: it never fell below).",
+        "",
+    ]
     lines += _table(header, rows)
     measured = _recovery_rows(analysis.recovery_summary(per_run))
     if not measured:
@@ -371,10 +486,8 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         for name in budget.experiments
         if layout.metrics(name).is_file()
     }
-    points = {
-        name: analysis.epoch_success(pd.read_parquet(layout.tests(name)))
-        for name in tables
-        if layout.tests(name).is_file()
+    tests = {
+        name: pd.read_parquet(layout.tests(name)) for name in tables if layout.tests(name).is_file()
     }
     included = [budget.experiments[name] for name in tables]
     lines = [
@@ -407,8 +520,8 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
     for e in included:
         table = tables[e.name]
         lines += [f"## {e.title}", ""]
-        lines += SECTIONS[e.name](repro, e, table, points.get(e.name))
-        lines += ["### Runs", "", *_runs_table(table, points.get(e.name))]
+        lines += SECTIONS[e.name](repro, e, table, tests.get(e.name))
+        lines += ["### Runs", "", *_runs_table(table, tests.get(e.name))]
     missing = [name for name in budget.experiments if name not in tables]
     if missing and included:
         lines += [

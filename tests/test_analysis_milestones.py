@@ -153,6 +153,10 @@ def test_episodes_to_a_level_of_test_success_per_module_and_seed(tmp_path):
     assert got[("push_cube1", 0.5)] == 40 and got[("push_cube1", 0.9)] == 50
     assert pd.isna(got[("stack", 0.5)]) and pd.isna(got[("cube1_above_cube2", 0.9)])
     assert (table["last_episodes"] == 60).all()
+    assert table["module"].tolist()[::2] == list(ACHIEVABLE)  # slot order, then level
+    # a run with fewer epochs than the window has a row per module and level, reaching nothing
+    short = episodes_to_test_success(load_tests(tmp_path), window=7)
+    assert len(short) == 8 and short["episodes"].isna().all()
     with pytest.raises(ValueError, match="levels"):
         episodes_to_test_success(load_tests(tmp_path), levels=(1.5,))
 

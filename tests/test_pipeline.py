@@ -23,6 +23,7 @@ import pytest
 from curious.cli import main as curious_cli
 from curious.experiments import get_budget
 from curious.recording.reader import summarize
+from curious.run_folder import machine, machine_text
 from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
 from pipelines.reproduce import ReproduceError, check_output_folder, reproduce
@@ -74,6 +75,20 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
         for p in sorted((out / "runs").rglob("metrics.parquet"))
     ]
     assert f"{len(walls)} runs, {sum(walls) / 60:,.1f} run-minutes in all" in report
+    # ... and per experiment, with the machine the runs recorded
+    main = [
+        pq.read_table(p, columns=["wall_time"])["wall_time"].to_numpy().max()
+        for p in sorted((out / "runs" / "main").rglob("metrics.parquet"))
+    ]
+    here = machine_text(machine())
+    assert f"- `main`: {len(main)} runs, {sum(main) / 3600:,.2f} run-hours, on {here}." in report
+    # C1 and C2: episodes to 0.5 / 0.9 test success per module and seed, and the order of
+    # learning against the paper's, one row per run of the main comparison
+    assert "Episodes to reach test success 0.5 / 0.9 on each achievable module" in report
+    assert "| CURIOUS | 0 | " in report and "| HER | 1 | " in report
+    assert "Order of learning: the first episode at which each module's competence" in report
+    # C3/C5: the drop, the LP and p_LP before and after the failure, per run
+    assert "| LP before → after | p_LP before → after | recovery (episodes) |" in report
     # the command ends by saying where the products are
     assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
     assert json.loads((out / "reproduce.json").read_text())["budget"] == "smoke"

@@ -21,6 +21,8 @@ from curious.run_folder import (
     RunFolderError,
     checkpoint_name,
     list_checkpoints,
+    machine,
+    machine_text,
 )
 from pipelines.training import PARTIAL, RunFolderMismatch, folder_state, run_folder
 
@@ -83,6 +85,31 @@ def test_run_info_carries_the_provenance_of_every_start(tmp_path):
     info = run.read_info()
     assert info.commits == ("aaaaaaa", "bbbbbbb+")
     assert info.versions["curious"] is not None and len(info.resumed) == 2
+
+
+def test_config_json_records_the_machine_of_every_start(tmp_path, monkeypatch):
+    """For the compute an experiment took (the report's run-hours per machine): the processor
+    and cores of the first start, and of each resume; none for starts that predate the record."""
+    here = machine()
+    assert here["cpu"] and here["cores"] >= 1 and here["gpu"] is None
+    run = _written(tmp_path / "run", "default")
+    assert json.loads(run.config_path.read_text())["machine"] == here
+    assert run.read_info().machines == (machine_text(here),)
+    elsewhere = {"cpu": "Other CPU", "cores": 64, "system": "Linux", "gpu": "NVIDIA H100"}
+    monkeypatch.setattr("curious.run_folder.machine", lambda device="cpu": elsewhere)
+    run.write_config(resolve("smoke", "curious", 0), SuiteEnv("default", seed=0).spec)
+    data = json.loads(run.config_path.read_text())
+    assert data["machine"] == here and data["resumed"][-1]["machine"] == elsewhere
+    assert run.read_info().machines == (machine_text(here), "Other CPU, 64 cores, NVIDIA H100")
+    # a folder whose first start predates the record: the resume's machine only
+    old = _written(tmp_path / "old", "default")
+    data = json.loads(old.config_path.read_text())
+    del data["machine"]
+    old.config_path.write_text(json.dumps(data))
+    assert old.read_info().machines == ()
+    old.write_config(resolve("smoke", "curious", 0), SuiteEnv("default", seed=0).spec)
+    assert json.loads(old.config_path.read_text())["machine"] is None
+    assert old.read_info().machines == ("Other CPU, 64 cores, NVIDIA H100",)
 
 
 def test_a_bad_record_of_the_perturbed_modules_is_named(tmp_path):

@@ -63,29 +63,40 @@ def _check_levels(levels: Sequence[float]) -> tuple[float, ...]:
     return levels
 
 
+def _identity(tests: pd.DataFrame) -> pd.DataFrame:
+    """The run columns of each run of a tests table, indexed by ``run``."""
+    return tests.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
+
+
+def _achievable(identity: pd.DataFrame) -> pd.DataFrame:
+    """One row per (run, achievable module): ``run``, ``slot`` (the module's rank among the
+    run's achievable ones) and ``module``."""
+    return pd.DataFrame(
+        [
+            (run, slot, module)
+            for run, achievable in identity["achievable_modules"].astype(str).items()
+            for slot, module in enumerate(m for m in achievable.split(",") if m)
+        ],
+        columns=["run", "slot", "module"],
+    )
+
+
 def module_test_success(tests: pd.DataFrame, window: int = DEFAULT_TEST_EPOCHS) -> pd.DataFrame:
     """Each run's test success on each achievable module, pooled over the last ``window`` epochs.
 
     ``tests`` is a `load_tests` table. Returns one row per (run, achievable module, epoch) from
-    the run's ``window``-th epoch on: the run columns, ``module``, ``epoch``, ``episodes``
-    (training episodes done when the epoch's tests ran), ``n_tests`` (the module's test rollouts
-    in the window) and ``value`` (their success rate; NaN where ``n_tests`` is 0).
+    the run's ``window``-th epoch on, modules in slot order: the run columns, ``module``,
+    ``epoch``, ``episodes`` (training episodes done when the epoch's tests ran), ``n_tests`` (the
+    module's test rollouts in the window) and ``value`` (their success rate; NaN where
+    ``n_tests`` is 0).
     """
     require_tests(tests)
     if window < 1:
         raise ValueError(f"window must be >= 1 epoch, got {window}")
     epochs = tests.groupby(["run", "epoch"], observed=True, sort=True)["episode"].max()
     epochs = epochs.rename("episodes").reset_index()
-    identity = tests.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
-    modules = pd.DataFrame(
-        [
-            (run, module)
-            for run, achievable in identity["achievable_modules"].astype(str).items()
-            for module in achievable.split(",")
-            if module
-        ],
-        columns=["run", "module"],
-    )
+    identity = _identity(tests)
+    modules = _achievable(identity)
     hit = on_achievable(tests)
     counts = (
         pd.DataFrame(
@@ -99,7 +110,7 @@ def module_test_success(tests: pd.DataFrame, window: int = DEFAULT_TEST_EPOCHS) 
         .groupby(["run", "module", "epoch"], observed=True)["won"]
         .agg(won="sum", n="size")
     )
-    grid = modules.merge(epochs, on="run").sort_values(["run", "module", "epoch"])
+    grid = modules.merge(epochs, on="run").sort_values(["run", "slot", "epoch"])
     grid = grid.join(counts, on=["run", "module", "epoch"]).fillna({"won": 0, "n": 0})
     rolling = grid.groupby(["run", "module"], observed=True, sort=False)[["won", "n"]].rolling(
         window, min_periods=window
@@ -121,32 +132,31 @@ def episodes_to_test_success(
 ) -> pd.DataFrame:
     """The training episodes each run needed to reach each level of test success per module.
 
-    Reads `module_test_success` (``window`` epochs pooled). Returns one row per (run, achievable
-    module, level): the run columns, ``module``, ``level``, ``episodes`` (at the first epoch
-    whose pooled success reached the level; NA if none did) and ``last_episodes`` (the run's
-    last tested epoch: a run not there yet may still get there).
+    Reads `module_test_success` (``window`` epochs pooled; a run with fewer epochs has reached
+    nothing yet). Returns one row per (run, achievable module in slot order, level): the run
+    columns, ``module``, ``level``, ``episodes`` (at the first epoch whose pooled success reached
+    the level; NA if none did) and ``last_episodes`` (the run's last tested epoch: a run not
+    there yet may still get there).
     """
     levels = _check_levels(levels)
     success = module_test_success(tests, window)
-    last = tests.groupby("run", observed=True)["episode"].max()
-    rows = []
-    for (run, module), group in success.groupby(["run", "module"], observed=True, sort=True):
-        values = group["value"].to_numpy(np.float64)
-        for level in levels:
-            reached = np.flatnonzero(values >= level)
-            first = group.iloc[0]
-            rows.append(
-                {
-                    **{c: first[c] for c in RUN_COLUMNS},
-                    "module": module,
-                    "level": level,
-                    "episodes": int(group["episodes"].iat[reached[0]]) if reached.size else None,
-                    "last_episodes": int(last[run]),
-                }
-            )
-    columns = [*RUN_COLUMNS, "module", "level", "episodes", "last_episodes"]
-    out = pd.DataFrame(rows, columns=columns)
+    identity = _identity(tests)
+    base = _achievable(identity).merge(pd.DataFrame({"level": levels}), how="cross")
+    reached = [
+        success[success["value"] >= level]
+        .groupby(["run", "module"], observed=True)["episodes"]
+        .min()
+        .rename(level)
+        for level in levels
+    ]
+    first = pd.concat(reached, axis=1).rename_axis(columns="level").stack(future_stack=True)
+    base = base.join(first.rename("episodes"), on=["run", "module", "level"])
+    base["last_episodes"] = base["run"].map(tests.groupby("run", observed=True)["episode"].max())
+    out = base.join(identity, on="run").sort_values(["run", "slot", "level"], kind="stable")
+    out["run"] = out["run"].astype(tests["run"].dtype)
     out["episodes"] = out["episodes"].astype("Int64")
+    out["last_episodes"] = out["last_episodes"].astype(np.int64)
+    out = out[[*RUN_COLUMNS, "module", "level", "episodes", "last_episodes"]].reset_index(drop=True)
     out.attrs["window"] = window
     return out
 
