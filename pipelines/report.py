@@ -207,8 +207,9 @@ def _welch_summary(test: pd.DataFrame, better: str, worse: str, what: str) -> li
     return [text + ".", ""]
 
 
-def _episodes(value: float) -> str:
-    return "–" if not math.isfinite(value) else f"{value:,.0f}"
+def _episodes(value: object) -> str:
+    """An episode count, or – where there is none (NaN or NA)."""
+    return "–" if pd.isna(value) or not math.isfinite(float(value)) else f"{float(value):,.0f}"
 
 
 def _p(value: float) -> str:
@@ -262,7 +263,7 @@ def _episodes_to_success(e: Experiment, tests: pd.DataFrame) -> list[str]:
         ["condition", "seed"], observed=True, sort=False
     ):
         got = group.set_index(["module", "level"])["episodes"]
-        cells = [" / ".join(_episodes(_float(got[(m, v)])) for v in levels) for m in modules]
+        cells = [" / ".join(_episodes(got[(m, v)]) for v in levels) for m in modules]
         last = int(group["last_episodes"].max())
         rows.append((condition_label(condition), seed, *cells, f"{last:,}"))
     header = ("condition", "seed", *map(module_label, modules), "tested up to")
@@ -286,10 +287,6 @@ def _in_order(frame: pd.DataFrame, e: Experiment) -> pd.DataFrame:
     )
 
 
-def _float(value: object) -> float:
-    return math.nan if pd.isna(value) else float(value)
-
-
 def _learning_order(e: Experiment, table: pd.DataFrame) -> list[str]:
     """Per run: the order in which its modules' competence crossed `ORDER_LEVEL`, against the
     paper's (`analysis.learning_order`)."""
@@ -299,7 +296,7 @@ def _learning_order(e: Experiment, table: pd.DataFrame) -> list[str]:
     modules = list(dict.fromkeys(crossings["module"].astype(str)))
     rows = []
     for r in _in_order(order, e).itertuples():
-        cells = [_episodes(_float(first[(r.run, m)])) for m in modules]
+        cells = [_episodes(first[(r.run, m)]) for m in modules]
         verdict = "–" if pd.isna(r.follows_paper) else ("yes" if r.follows_paper else "no")
         rows.append((condition_label(r.condition), r.seed, *cells, r.order or "none", verdict))
     header = ("condition", "seed", *map(module_label, modules), "order", "as the paper")
