@@ -13,8 +13,10 @@ output folder can be moved or shared as a whole.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +39,20 @@ FIGURE_TEXT: dict[str, str] = {
 MAX_WELCH_ROWS = 12
 ORDER_LEVEL = 0.5
 """The competence at which the order of learning counts a module as learned."""
+
+
+@dataclass
+class _Tables:
+    """One experiment's combined tables: the metrics, and the test rollouts where the runs have
+    them, with the test success points drawn from those once."""
+
+    metrics: pd.DataFrame
+    tests: pd.DataFrame | None
+
+    @functools.cached_property
+    def points(self) -> pd.DataFrame | None:
+        """`analysis.epoch_success` of the test rollouts (None without them)."""
+        return None if self.tests is None else analysis.epoch_success(self.tests)
 
 
 def _fmt(value: float, digits: int = 2) -> str:
@@ -137,14 +153,13 @@ def _compute(tables: dict[str, pd.DataFrame]) -> list[str]:
     return [*lines, ""]
 
 
-def _runs_table(table: pd.DataFrame, tests: pd.DataFrame | None) -> list[str]:
+def _runs_table(tables: _Tables) -> list[str]:
     """One row per run; its final competence and, with test rollouts, its final test success."""
+    table, points = tables.metrics, tables.points
     runs = analysis.runs_table(table)
     final = analysis.final_competence(table).set_index("run")["value"]
     tested = (
-        analysis.final_success(analysis.epoch_success(tests)).set_index("run")["value"]
-        if tests is not None
-        else None
+        analysis.final_success(points).set_index("run")["value"] if points is not None else None
     )
     wall = table.groupby("run", observed=True)["wall_time"].max()
     rows = []
@@ -311,29 +326,25 @@ def _learning_order(e: Experiment, table: pd.DataFrame) -> list[str]:
     ]
 
 
-def _main(
-    repro: Reproduction, e: Experiment, table: pd.DataFrame, tests: pd.DataFrame | None
-) -> list[str]:
+def _main(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
     lines = [*_figure(repro, "fig2a")]
-    if tests is None:
+    points = tables.points
+    if tables.tests is None or points is None:  # both or neither
         lines += [NO_TESTS, ""]
     else:
-        points = analysis.epoch_success(tests)
         lines += _final_by_condition(e, points)
         if e.compare is not None:
             lines += _welch_points(points, *e.compare)
-        lines += _episodes_to_success(e, tests)
+        lines += _episodes_to_success(e, tables.tests)
     for name in ("fig2b", "fig2c", "table1"):
         lines += _figure(repro, name)
-    lines += _learning_order(e, table)
+    lines += _learning_order(e, tables.metrics)
     return lines
 
 
-def _distractors(
-    repro: Reproduction, e: Experiment, table: pd.DataFrame, tests: pd.DataFrame | None
-) -> list[str]:
+def _distractors(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
     lines = [*_figure(repro, "distractors")]
-    final = analysis.final_competence(table)
+    final = analysis.final_competence(tables.metrics)
     episodes = int(final["episodes"].iat[0])
     tests = []
     if e.compare is not None:
@@ -392,9 +403,7 @@ def _recovery_rows(summary: pd.DataFrame) -> list[tuple[str, ...]]:
     ]
 
 
-def _sensor_failure(
-    repro: Reproduction, e: Experiment, table: pd.DataFrame, tests: pd.DataFrame | None
-) -> list[str]:
+def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
     lines = [*_figure(repro, "forgetting")]
     csv = repro.layout.figures / "forgetting.csv"
     if not csv.is_file():
@@ -483,8 +492,12 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         for name in budget.experiments
         if layout.metrics(name).is_file()
     }
-    tests = {
-        name: pd.read_parquet(layout.tests(name)) for name in tables if layout.tests(name).is_file()
+    by_experiment = {
+        name: _Tables(
+            table,
+            pd.read_parquet(layout.tests(name)) if layout.tests(name).is_file() else None,
+        )
+        for name, table in tables.items()
     }
     included = [budget.experiments[name] for name in tables]
     lines = [
@@ -515,10 +528,9 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
             "",
         ]
     for e in included:
-        table = tables[e.name]
         lines += [f"## {e.title}", ""]
-        lines += SECTIONS[e.name](repro, e, table, tests.get(e.name))
-        lines += ["### Runs", "", *_runs_table(table, tests.get(e.name))]
+        lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
+        lines += ["### Runs", "", *_runs_table(by_experiment[e.name])]
     missing = [name for name in budget.experiments if name not in tables]
     if missing and included:
         lines += [

@@ -30,7 +30,7 @@ import pandas as pd
 
 from curious.analysis.loading import AnalysisError, require_runs, require_tests
 from curious.analysis.progress import DEFAULT_TEST_EPOCHS
-from curious.analysis.statistics import RUN_COLUMNS, on_achievable
+from curious.analysis.statistics import FLOAT32_SLACK, RUN_COLUMNS, on_achievable
 
 __all__ = [
     "LEVELS",
@@ -51,9 +51,6 @@ PAPER_ORDER: tuple[tuple[str, ...], ...] = (
 )
 """The order of learning the paper reports (Supp. Materials, "Table 1"): groups in order, the
 modules of one group in either order."""
-
-_FLOAT32_SLACK = 1e-6
-"""Competences are stored as float32: a crossing allows this much."""
 
 
 def _check_levels(levels: Sequence[float]) -> tuple[float, ...]:
@@ -187,7 +184,7 @@ def competence_crossings(df: pd.DataFrame, level: float = 0.5) -> pd.DataFrame:
             values = df[f"competence/{module}"].to_numpy(np.float64)[at]
             evaluations = np.cumsum(evaluated[at] & (practised[at] == module))
             full = evaluations >= (window[first] if has_window[first] else 1)
-            hit = np.flatnonzero(full & (values >= level - _FLOAT32_SLACK))
+            hit = np.flatnonzero(full & (values >= level - FLOAT32_SLACK))
             rows.append(
                 {
                     **{c: df[c].iat[first] for c in RUN_COLUMNS},

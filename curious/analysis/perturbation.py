@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from curious.analysis.loading import AnalysisError, require_runs
-from curious.analysis.statistics import run_arrays
+from curious.analysis.statistics import FLOAT32_SLACK, run_arrays
 from curious.config import LEARNED_COMPETENCE
 
 __all__ = [
@@ -30,9 +30,6 @@ __all__ = [
     "recovery",
     "recovery_summary",
 ]
-
-_FLOAT32_SLACK = 1e-6
-"""Competences are stored as float32 (0.7 reads 0.69999999): comparisons allow this much."""
 
 
 def perturbed_module(df: pd.DataFrame) -> str:
@@ -147,7 +144,7 @@ def _measure(
         note = "the failure started with the run's first episode: nothing was learned before it"
         return _unmeasured("not_learned", note)
     onset_competence = float(values[start - 1])
-    if onset_competence < bar - _FLOAT32_SLACK:
+    if onset_competence < bar - FLOAT32_SLACK:
         note = (
             f"not learned before the failure: {module} had competence {onset_competence:.2f} "
             f"< {bar:.2f} at episode {p:,}, so there was nothing to forget"
@@ -297,12 +294,10 @@ def recovery(
     if column not in df.columns:
         raise KeyError(f"no module {module!r} in these runs (no column {column!r})")
     onsets = failure_onsets(df)
-    lp, p_lp = (
-        {run: v for run, _, _, v in run_arrays(df, df[f"{prefix}/{module}"].to_numpy(np.float64))}
-        for prefix in ("lp", "p_lp")
-    )
+    columns = [column, f"lp/{module}", f"p_lp/{module}"]
     rows = []
-    for run, first, episodes, values in run_arrays(df, df[column].to_numpy(np.float64)):
+    for run, first, episodes, arrays in run_arrays(df, df[columns].to_numpy(np.float64)):
+        values, lp, p_lp = arrays.T
         onset = onsets.loc[run]
         if perturbation_episode is None and onset["source"] == "none":
             raise AnalysisError(
@@ -327,7 +322,7 @@ def recovery(
         else:
             measured = _measure(module, episodes, values, int(p), bar, fraction, pre_window)
             window = _window(pre_window, int(p))
-            measured.update(_shift(episodes, lp[run], p_lp[run], int(p), window))
+            measured.update(_shift(episodes, lp, p_lp, int(p), window))
         row = {c: df[c].iat[first] for c in ("run", "condition", "seed", "variant")}
         row.update(
             module=module,

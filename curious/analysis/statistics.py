@@ -52,6 +52,7 @@ from curious.analysis.loading import AnalysisError, require_runs, require_tests
 
 __all__ = [
     "ALPHA",
+    "FLOAT32_SLACK",
     "RUN_COLUMNS",
     "achievable_competence",
     "across_seeds",
@@ -67,6 +68,10 @@ __all__ = [
 ]
 
 ALPHA = 0.01
+
+FLOAT32_SLACK = 1e-6
+"""Competences are stored as float32 (0.7 reads 0.69999999): comparisons with a level allow
+this much."""
 
 RUN_COLUMNS: tuple[str, ...] = (
     "run",
@@ -115,7 +120,8 @@ def run_arrays(
     df: pd.DataFrame, values: np.ndarray
 ) -> Iterator[tuple[str, int, np.ndarray, np.ndarray]]:
     """Yields (run, first row index, episodes, values) per run of a loaded table, episodes
-    ascending; ``values`` is aligned with ``df``'s rows."""
+    ascending; ``values`` is aligned with ``df``'s rows (one value per row, or one row of
+    several columns per row)."""
     for run, rows in df.groupby("run", observed=True, sort=True).indices.items():
         episodes = df["episode"].to_numpy()[rows]
         order = np.argsort(episodes, kind="stable")
