@@ -214,7 +214,7 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
     from test_analysis_synthetic import FAILURE_MODULES, failure_curves, write_run
 
     from curious import analysis
-    from pipelines.report import _sensor_failure
+    from pipelines.report import _sensor_failure, _Tables
     from pipelines.resources import OutputLayout, Reproduction
 
     # A short laptop run's case: push_cube3 never reaches the 0.5 that would start the failure.
@@ -235,7 +235,9 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
     figures = repro.layout.figures
     _, per_run = analysis.forgetting(table, out_dir=figures)
     per_run.drop(columns=["run"]).to_csv(figures / "forgetting.csv", index=False)
-    text = "\n".join(_sensor_failure(repro, laptop.experiments["sensor_failure"], table, None))
+    text = "\n".join(
+        _sensor_failure(repro, laptop.experiments["sensor_failure"], _Tables(table, None))
+    )
     assert "The failure starts when the perturbed module's competence reaches 0.5." in text
     assert "It never started in any of the 2 runs." in text
     assert "push_cube3 never reached competence 0.50 over a full window" in text
@@ -275,7 +277,7 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
     from test_analysis_synthetic import write_perturbation_study
 
     from curious import analysis
-    from pipelines.report import _sensor_failure
+    from pipelines.report import _sensor_failure, _Tables
     from pipelines.resources import OutputLayout, Reproduction
 
     write_perturbation_study(tmp_path / "runs", perturbation=300, n_episodes=900, seeds=(0, 1))
@@ -284,7 +286,7 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
     repro = Reproduction(paper, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
     _, per_run = analysis.forgetting(table, out_dir=repro.layout.figures)
     per_run.drop(columns=["run"]).to_csv(repro.layout.figures / "forgetting.csv", index=False)
-    lines = _sensor_failure(repro, paper.experiments["sensor_failure"], table, None)
+    lines = _sensor_failure(repro, paper.experiments["sensor_failure"], _Tables(table, None))
     assert "The failure starts at episode 237,500. It started at episode 300 in every run." in (
         "\n".join(lines)
     )
