@@ -174,7 +174,11 @@ class Experiment:
         return tuple(str(s) for s in self.seeds)
 
     def runs(self) -> list[RunSpec]:
-        """Every run of the experiment: variants, then conditions, then seeds."""
+        """Every run of the experiment, seed by seed (each seed's variants, then conditions).
+
+        `curious reproduce` trains them in this order, so a campaign stopped part-way holds the
+        same seeds of every condition: a comparison, not three seeds of one condition.
+        """
         several = len(self.variants) > 1
         return [
             RunSpec(
@@ -188,9 +192,9 @@ class Experiment:
                 sensor_failure_competence=self.sensor_failure_competence,
                 variant_in_key=several,
             )
+            for seed in self.seeds
             for variant in self.variants
             for condition in self.conditions
-            for seed in self.seeds
         ]
 
     def run(self, partition_key: str) -> RunSpec:

@@ -107,7 +107,11 @@ def _runs_asset(experiment: Experiment) -> dg.AssetsDefinition:
     )
     def runs(context: AssetExecutionContext) -> dg.MaterializeResult:
         repro: Reproduction = getattr(context.resources, RESOURCE)
-        specs = [experiment.run(str(key)) for key in context.partition_keys]
+        order = {s.partition_key: i for i, s in enumerate(experiment.runs())}  # seed by seed
+        specs = sorted(
+            (experiment.run(str(key)) for key in context.partition_keys),
+            key=lambda s: order[s.partition_key],
+        )
         results = repro.train(experiment, specs)
         trained = [r for r in results if r.trained]
         shipped = {} if repro.data is None else {"shipped_data": _path(repro, repro.data.path)}

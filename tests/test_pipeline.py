@@ -329,6 +329,38 @@ class InterruptingPool:
         pass
 
 
+class OrderPool(InterruptingPool):
+    """Records the runs in the order they are sent, then stops before any trains."""
+
+    description = "this process (recording the order)"
+
+    def __init__(self) -> None:
+        self.sent: list[str] = []
+
+    def submit(self, job):
+        self.sent.append(str(job.spec.relative_path))
+        return len(self.sent)
+
+    def wait(self, handles, timeout):
+        raise KeyboardInterrupt
+
+    def stop(self):
+        pass
+
+
+def test_runs_are_trained_seed_by_seed_so_a_stopped_campaign_compares_conditions(tmp_path):
+    pool = OrderPool()
+    with pytest.raises(KeyboardInterrupt):
+        reproduce(
+            "smoke", ["main"], out=tmp_path / "out", make_pool=lambda: pool, say=lambda _: None
+        )
+    assert pool.sent == [
+        f"main/{condition}/seed-{seed}"
+        for seed in (0, 1)
+        for condition in ("curious", "mg-te", "her")
+    ]
+
+
 def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
     out = tmp_path / "out"
     with pytest.raises(KeyboardInterrupt):

@@ -159,3 +159,14 @@ def test_unknown_names_and_bad_definitions_are_clear_errors():
         )
     with pytest.raises(ExperimentError, match="compares"):
         Experiment(conditions=("curious",), total_episodes=10, compare=("curious", "her"), **base)
+
+
+@pytest.mark.parametrize("name", list(BUDGETS))
+def test_every_seed_of_every_condition_comes_before_the_next_seed(name):
+    for experiment in get_budget(name).experiments.values():
+        runs = experiment.runs()
+        per_seed = len(experiment.condition_keys)
+        for i, seed in enumerate(experiment.seeds):
+            chunk = runs[i * per_seed : (i + 1) * per_seed]
+            assert {r.seed for r in chunk} == {seed}
+            assert [r.condition_key for r in chunk] == list(experiment.condition_keys)
