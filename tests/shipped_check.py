@@ -5,9 +5,10 @@ tests (test_shipped.py) and on whatever the repository ships in data/ (test_ship
 loads with `curious.analysis` with the episodes and test rollouts the manifest says (a finished
 run: its whole budget); and `curious reproduce --from-data` builds the report from it, the
 combined tables behind the report being the shipped tables, and the report's per-run numbers
-(episodes, final competence, final test success) those computed from them. A progress snapshot
-(no experiment whose runs are all shipped finished) has no report: once its runs are loaded,
-the check is skipped with that reason.
+(episodes, final competence, final test success) those computed from them. A folder with no
+experiment whose runs are all shipped finished (a progress snapshot, or a campaign shipped run by
+run as its runs finish) has no report: once its runs are loaded, the check is skipped with that
+reason.
 """
 
 from __future__ import annotations
@@ -62,7 +63,7 @@ def check_shipped_folder(data: Path, out: Path) -> str:
     try:
         ShippedData.open(data).select(get_budget(manifest.budget), None)
     except ShippedDataError as exc:
-        pytest.skip(f"{data} loads; no report is built from a progress snapshot: {exc}")
+        pytest.skip(f"{data} loads; no report is built until an experiment is shipped whole: {exc}")
     stderr = io.StringIO()
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(stderr):
         code = curious_cli(
