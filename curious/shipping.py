@@ -4,7 +4,10 @@
 of the run's budget logged and a checkpoint taken at the end (`RunFolder.finished_at`, how
 `curious reproduce` judges a partition finished). With `unfinished=True` the others go too,
 marked as unfinished in `shipped.json` (a progress snapshot); a run that has not logged an
-episode has no tables and is never shipped.
+episode has no tables and is never shipped. With `keep=True` the runs an earlier ship put in
+`out` stay there unless this one ships them again: a campaign whose machine lost the folders of
+runs it had shipped goes on adding runs to the same data folder (a run shipped finished is never
+replaced by an unfinished one of the same path).
 
 The new folder is written beside `out`, loaded back with `curious.analysis` (every run, its
 episodes and test rollouts counted), and only then put in `out`'s place, so a refused or failed
@@ -63,6 +66,8 @@ class ShipResult:
     """Bytes written per file name (`metrics.parquet`, `tests.parquet`, `config.json`,
     `shipped.json`), over every run."""
     seconds: float
+    kept: tuple[str, ...] = ()
+    """Runs an earlier ship put in `out` that stayed there as they were (`keep`)."""
 
     @property
     def bytes(self) -> int:
@@ -181,9 +186,22 @@ def _reduce(source: Path, target: Path, dropped: tuple[str, ...]) -> int:
     return table.num_rows
 
 
-def _write(found: list[_Found], target: Path, budget: str | None) -> ShippedManifest:
-    """The shipped folder of `found` in `target` (an empty folder)."""
-    runs = []
+def _write(
+    found: list[_Found],
+    target: Path,
+    budget: str | None,
+    kept: tuple[ShippedRun, ...] = (),
+    kept_from: Path = Path(),
+) -> ShippedManifest:
+    """The shipped folder of `found` in `target` (an empty folder), with the runs `kept` copied
+    as they are from the shipped folder `kept_from`."""
+    runs = list(kept)
+    for r in kept:
+        source, copy = (
+            ShippedFolder(kept_from).run_path(r.run),
+            ShippedFolder(target).run_path(r.run),
+        )
+        shutil.copytree(source, copy)
     for f in found:
         folder = ShippedFolder(target).run_path(f.run)
         folder.mkdir(parents=True)
@@ -241,10 +259,12 @@ def ship(
     runs_root: str | os.PathLike | None = None,
     budget: str | None = None,
     unfinished: bool = False,
+    keep: bool = False,
 ) -> ShipResult:
     """Ship the runs below `root` into `out` (see the module docstring). For a reproduction's
     output folder `root`, `runs_root` is where its run folders lie (their paths in `out` are
-    relative to it) and `budget` its budget, recorded in `shipped.json`."""
+    relative to it) and `budget` its budget, recorded in `shipped.json`. With `keep`, the runs
+    `out` holds that this ship does not replace stay in it."""
     tic = time.perf_counter()
     root, out = Path(root).resolve(), Path(out).resolve()
     runs = Path(runs_root).resolve() if runs_root is not None else root
@@ -261,6 +281,10 @@ def ship(
     left_out = [f.progress for f in not_started]
     if not unfinished:
         left_out += [f.progress for f in running]
+    held_finished = {r.run for r in _held(out, keep) if r.finished}
+    for f in [f for f in chosen if not f.finished and f.run.as_posix() in held_finished]:
+        chosen.remove(f)
+        left_out.append(f"{f.run} (unfinished here, shipped finished in {out} already)")
     if not chosen:
         detail = ", ".join(sorted(left_out)[:5]) + (", ..." if len(left_out) > 5 else "")
         hint = "" if unfinished else "; pass --unfinished to ship them as a progress snapshot"
@@ -273,14 +297,30 @@ def ship(
         staging = out.with_name(f".{out.name}.shipping-{os.getpid()}")
         shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir(parents=True)
+        shipping = {f.run.as_posix() for f in chosen}
+        kept = tuple(r for r in _held(out, keep) if r.run not in shipping)
         try:
-            manifest = _write(chosen, staging, budget)
+            manifest = _write(chosen, staging, budget, kept, out)
             _verify(staging, manifest)
             sizes = _sizes(staging)
             _replace(staging, out)
         finally:
             shutil.rmtree(staging, ignore_errors=True)
-    return ShipResult(out, manifest, tuple(sorted(left_out)), sizes, time.perf_counter() - tic)
+    return ShipResult(
+        out,
+        manifest,
+        tuple(sorted(left_out)),
+        sizes,
+        time.perf_counter() - tic,
+        tuple(r.run for r in kept),
+    )
+
+
+def _held(out: Path, keep: bool) -> tuple[ShippedRun, ...]:
+    """The runs an earlier ship put in `out`, where they are to be kept (none otherwise)."""
+    if not keep or not ShippedFolder(out).is_shipped:
+        return ()
+    return ShippedFolder(out).read_manifest().runs
 
 
 def _replace(staging: Path, out: Path) -> None:

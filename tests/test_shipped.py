@@ -244,6 +244,27 @@ def test_unfinished_runs_are_shipped_only_when_asked_and_marked(smoke, tmp_path,
     assert not (tmp_path / "runs").exists()
 
 
+def test_keep_adds_to_an_earlier_ship_whose_run_folders_are_gone(smoke, shipped, tmp_path):
+    """A machine that came back empty: the data folder holds every smoke run shipped; the new runs
+    root holds only main's, one of them still training. `--keep` ships main's finished runs again
+    (the same bytes), keeps every other run, and keeps the finished copy of the unfinished run."""
+    out = tmp_path / "data" / "smoke"
+    shutil.copytree(shipped.data, out)
+    root = tmp_path / "out"
+    partial_copy(smoke, root)
+    code, stdout, stderr = cli(["ship", str(root), "--out", str(out), "--keep", "--unfinished"])
+    assert code == 0, stderr
+    assert "shipped 5 finished run(s) of budget smoke" in stdout
+    assert "kept from the earlier ship: distractors/" in stdout
+    assert f"main/curious/seed-0 (unfinished here, shipped finished in {out} already)" in stdout
+    assert hashes(out) == hashes(shipped.data)
+
+    code, stdout, _ = cli(["ship", str(root), "--out", str(out)])  # without --keep: replaced
+    assert code == 0 and "kept" not in stdout
+    runs = [r.run for r in ShippedFolder(out).read_manifest().runs]
+    assert len(runs) == 5 and all(r.startswith("main/") for r in runs)
+
+
 # ------------------------------------------------------------------------------------ refusals
 
 

@@ -2,6 +2,7 @@
 
     curious ship runs/laptop                           # -> data/laptop (the budget's name)
     curious ship ~/curious-runs/laptop --out data/laptop --unfinished   # a progress snapshot
+    curious ship ~/curious-runs/laptop --out data/laptop --keep   # add to the runs shipped there
     curious reproduce --budget laptop --from-data data/laptop   # the report, without training
 
 ROOT is a `curious reproduce` output folder (its run folders are found where its reproduce.json
@@ -9,7 +10,10 @@ says, and its budget is recorded) or any folder of run folders. The data folder 
 run's config.json and its tables without the columns no analysis reads (`curious.shipped`);
 no checkpoint, no recording. By default only finished runs are shipped; `--unfinished` ships the
 others too, marked as unfinished in shipped.json. An --out holding an earlier ship of the same
-budget is replaced. Prints what was shipped and the size written.
+budget is replaced, or with `--keep` added to: the runs it holds stay unless this ship writes
+them again (a run shipped finished is never replaced by an unfinished one), so that runs whose
+folders are gone (a machine that came back empty) stay shipped. Prints what was shipped and the
+size written.
 """
 
 from __future__ import annotations
@@ -36,6 +40,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--unfinished",
         action="store_true",
         help="ship unfinished runs too, marked as such (a progress snapshot)",
+    )
+    parser.add_argument(
+        "--keep",
+        action="store_true",
+        help="keep the runs --out already holds that ROOT does not ship again",
     )
     parser.set_defaults(func=run)
 
@@ -65,15 +74,19 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None and budget is None:
         raise ValueError(f"{root} is not a `curious reproduce` output: pass --out")
     out = Path(args.out) if args.out is not None else Path("data", budget or "")
-    result = ship(root, out, runs_root=runs_root, budget=budget, unfinished=args.unfinished)
+    result = ship(
+        root, out, runs_root=runs_root, budget=budget, unfinished=args.unfinished, keep=args.keep
+    )
 
-    runs = result.manifest.runs
+    runs = [r for r in result.manifest.runs if r.run not in result.kept]
     finished = sum(r.finished for r in runs)
     what = f"{finished} finished run(s)" + (
         f" and {len(runs) - finished} unfinished" if finished < len(runs) else ""
     )
     of = f" of budget {budget}" if budget else ""
     print(f"shipped {what}{of} from {root} to {out}")
+    if result.kept:
+        print(f"  kept from the earlier ship: {', '.join(result.kept)}")
     sizes = result.sizes
     metadata = sizes.get(CONFIG_FILE, 0) + sizes.get(MANIFEST_FILE, 0)
     print(
