@@ -11,6 +11,7 @@ import pytest
 from curious.analysis.progress import progress_markdown, progress_table
 from curious.cli import main as curious_cli
 from curious.commands.progress import BEGIN, END
+from curious.experiments import get_budget
 
 
 @pytest.fixture(scope="module")
@@ -130,3 +131,30 @@ def test_a_reproduction_with_its_runs_elsewhere_reads_them_there(campaign, tmp_p
     assert len(rows) == len(get_budget("smoke").runs())
     started = [r for r in rows if r.episodes]
     assert [(r.condition, r.seed, r.episodes) for r in started] == [("curious", 0, 24)]
+
+
+def test_a_shipped_folder_stands_for_the_runs_a_reproduction_beside_it_has_not_started(
+    campaign, tmp_path, capsys
+):
+    """A machine that came back empty: main/curious/seed-0 is shipped, its folder is gone."""
+    from curious.shipping import ship
+
+    out, held = tmp_path / "out", tmp_path / "held"
+    out.mkdir()
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "smoke"}))
+    shutil.copytree(campaign / "main" / "her-0", out / "runs" / "main" / "her" / "seed-0")
+    shutil.copytree(campaign / "main" / "curious-0", held / "main" / "curious" / "seed-0")
+    data = tmp_path / "data"
+    ship(held, data, budget="smoke")
+    rows = progress_table([out, data])
+    named = {r.name: r for r in rows}
+    assert len(rows) == len(named) == len(get_budget("smoke").runs())
+    shipped = named["main/curious/seed-0"]
+    assert (shipped.episodes, shipped.shipped, shipped.checkpoint) == (24, True, None)
+    assert named["main/her/seed-0"].checkpoint == 24 and not named["main/her/seed-0"].shipped
+    assert [r.name for r in rows] == sorted(named)
+
+    assert curious_cli(["progress", str(out), str(data)]) == 0
+    text = capsys.readouterr().out
+    assert "| main/curious/seed-0 | curious | default | 0 | 24 | 24 | 100% | shipped |" in text
+    assert "| main/her/seed-0 | her | default | 0 | 24 | 24 | 100% | 24 |" in text

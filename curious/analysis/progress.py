@@ -6,7 +6,10 @@ episodes logged in ``metrics.parquet`` against the config's ``total_episodes``, 
 checkpoint, the run's own clock, the commits it ran from, and its test success over the last
 epochs (``tests.parquet``: noise-free test rollouts, scored as the paper's Fig. 2a, which for the
 flat `her` baseline is its holistic goal). A run that has written its config but no episode yet
-is listed with 0 episodes.
+is listed with 0 episodes. A root may also be a shipped data folder (`curious ship`): its runs are
+listed as shipped (no checkpoint), and they stand for the runs of the same path that a
+reproduction given beside it has not started, so that a campaign whose machine lost the folders
+of the runs it shipped still counts them.
 """
 
 from __future__ import annotations
@@ -51,6 +54,10 @@ class RunProgress:
     test_success: float | None
     test_count: int
     module_success: dict[str, float]
+    name: str = ""
+    """The run's path below the folder it was found in (a reproduction's runs root)."""
+    shipped: bool = False
+    """Read from a shipped data folder (its tables, no checkpoint)."""
 
     @property
     def done(self) -> float:
@@ -87,7 +94,7 @@ def _tests(folder: RunFolder, achievable: tuple[str, ...], epochs: int) -> tuple
     return int(tests["episode"].max()), success, len(recent), modules
 
 
-def _progress(path: Path, epochs: int) -> RunProgress:
+def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> RunProgress:
     info = read_run_info(path)
     folder = RunFolder(path)
     episodes, hours = 0, 0.0
@@ -110,7 +117,14 @@ def _progress(path: Path, epochs: int) -> RunProgress:
         test_success=success,
         test_count=count,
         module_success=modules,
+        name=_relative(path, root),
+        shipped=shipped,
     )
+
+
+def _relative(path: Path, root: Path) -> str:
+    """`path` below `root` (POSIX), or its name where it is `root` itself."""
+    return path.name if path == root else path.relative_to(root).as_posix()
 
 
 def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
@@ -152,6 +166,7 @@ def _planned(budget: ReproduceBudget, runs_root: Path) -> list[RunProgress]:
                     test_success=None,
                     test_count=0,
                     module_success={},
+                    name=spec.relative_path.as_posix(),
                 )
             )
     return rows
@@ -161,38 +176,43 @@ def progress_table(
     roots: str | PathLike[str] | Iterable[str | PathLike[str]],
     epochs: int = DEFAULT_TEST_EPOCHS,
 ) -> list[RunProgress]:
-    """Progress of every run folder below `roots` (one path or several), sorted by path; a
-    root that is a reproduction's output folder also lists the runs its budget has not started."""
+    """Progress of every run folder below `roots` (one path or several), sorted by the runs'
+    paths below their roots; a root that is a reproduction's output folder also lists the runs
+    its budget has not started, unless a shipped data folder among `roots` holds them."""
     if epochs < 1:
         raise AnalysisError(f"epochs must be at least 1, got {epochs}")
     paths = [Path(roots)] if isinstance(roots, (str, PathLike)) else [Path(r) for r in roots]
     if not paths:
         raise AnalysisError("no folder given")
+    from curious.shipped import ShippedFolder
+
     planned: dict[str, RunProgress] = {}
-    found: set[Path] = set()
+    found: dict[Path, tuple[Path, bool]] = {}  # run folder -> (its root, shipped)
     for root in paths:
         reproduction = _reproduction(root)
         mine = _planned(*reproduction) if reproduction else []
         planned.update((r.run, r) for r in mine)
+        runs_root = (reproduction[1] if reproduction else root).resolve()
+        shipped = ShippedFolder(root).is_shipped
         try:
-            found.update(
-                f.resolve() for f in _run_folders(reproduction[1] if reproduction else root)
-            )
+            found.update((f.resolve(), (runs_root, shipped)) for f in _run_folders(runs_root))
         except AnalysisError:
             if not mine:  # a reproduction that has started no run yet is not an error
                 raise
-    rows = {**planned, **{str(f): _progress(f, epochs) for f in found}}
-    return [rows[k] for k in sorted(rows)]
+    rows = {str(f): _progress(f, epochs, *where) for f, where in found.items()}
+    held = {r.name for r in rows.values() if r.shipped}
+    rows.update((k, r) for k, r in planned.items() if r.name not in held)
+    return sorted(rows.values(), key=lambda r: (r.name, r.run))
 
 
-def _name(run: str, base: Path | None) -> str:
-    path = Path(run)
+def _name(row: RunProgress, base: Path | None) -> str:
+    path = Path(row.run)
     if base is not None:
         try:
             return str(path.relative_to(base))
         except ValueError:
             pass
-    return path.name
+    return row.name or path.name
 
 
 def progress_markdown(
@@ -200,7 +220,8 @@ def progress_markdown(
     base: str | PathLike[str] | None = None,
     epochs: int = DEFAULT_TEST_EPOCHS,
 ) -> str:
-    """A markdown table of `rows`; run names relative to `base` where they lie below it."""
+    """A markdown table of `rows`; run names relative to `base` where they lie below it, else
+    below the folder each was found in. A shipped run's checkpoint reads `shipped`."""
     root = Path(base).resolve() if base is not None else None
     header = (
         "| run | condition | variant | seed | episodes | of | done | checkpoint | run hours "
@@ -218,8 +239,10 @@ def progress_markdown(
         )
         modules = ", ".join(f"{m} {s:.2f}" for m, s in r.module_success.items()) or "-"
         checkpoint = f"{r.checkpoint:,}" if r.checkpoint is not None else "none"
+        if r.shipped:
+            checkpoint = "shipped"
         lines.append(
-            f"| {_name(r.run, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
+            f"| {_name(r, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
             f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "
             f"| {rate} | {success} | {modules} | {' '.join(r.commits) or '-'} |"
         )

@@ -2,6 +2,7 @@
 
     curious progress ~/curious-runs/laptop
     curious progress ~/curious-runs/laptop --update docs/results.md
+    curious progress ~/curious-runs/laptop data/laptop   # with the runs shipped from it
 
 Read from the run folders alone (config.json, metrics.parquet, tests.parquet, checkpoints/), so
 it can be run while the runs train. `--update FILE` replaces the block between the lines
@@ -33,7 +34,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the last epochs (HER scored on its holistic goal, as the paper's Fig. 2a), and the "
         "commits the run was trained from (a '+' marks local changes). In a reproduction's "
         "output folder (one holding reproduce.json) the budget's runs that have not started "
-        "are listed too, with 0 episodes.",
+        "are listed too, with 0 episodes. A ROOT that is a shipped data folder (`curious "
+        "ship`) lists its runs as shipped, in place of the same runs not started in a "
+        "reproduction given beside it (a machine that lost the folders of runs it had shipped).",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("roots", nargs="+", metavar="ROOT", help="run folder, or a folder of them")
