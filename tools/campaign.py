@@ -17,13 +17,18 @@ Run it from the campaign's worktree, so that the code that trains is the campaig
         python /work/main/tools/campaign.py --out ~/curious-runs/laptop \
         --shipped /work/main/data/laptop --set torch_threads=1
 
-Stopped (Ctrl-C, or the machine's session ending), it is started again with the same command.
+With `--ship`, each run that finishes is shipped at once into the `--shipped` folder (`curious
+ship --keep`, by the checkout this file lies in) and committed there, so that a machine that comes
+back empty loses only the runs in flight. Stopped (Ctrl-C, or the machine's session ending), the
+queue is started again with the same command.
 """
 
 from __future__ import annotations
 
 import argparse
 import fnmatch
+import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -67,6 +72,37 @@ def queue(budget: str, only: tuple[str, ...], shipped: set[str]) -> list[RunSpec
     ]
 
 
+CHECKOUT = Path(__file__).resolve().parents[1]
+"""The checkout this file lies in: its `curious ship` ships the finished runs."""
+
+
+def ship_and_commit(out: Path, data: Path, run: str) -> None:
+    """Ship the finished runs of `out` into `data`, keeping what it holds, and commit `data`
+    where it lies in a git repository; a failure is printed, the queue goes on."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    ship = [sys.executable, "-m", "curious.cli", "ship", str(out), "--out", str(data), "--keep"]
+    steps = [ship]
+    inside = subprocess.run(
+        ["git", "-C", str(data), "rev-parse", "--show-toplevel"], capture_output=True, text=True
+    )
+    if inside.returncode == 0:
+        message = f"{data.name}: {run} shipped as soon as it finished (tools/campaign.py --ship)"
+        steps += [
+            ["git", "-C", str(data), "add", "--", "."],
+            ["git", "-C", str(data), "commit", "-q", "-m", message, "--", "."],
+        ]
+    for step in steps:
+        for attempt in range(5):  # another git command may hold the index for a moment
+            done = subprocess.run(step, cwd=CHECKOUT, env=env, capture_output=True, text=True)
+            if done.returncode == 0 or "index.lock" not in done.stderr:
+                break
+            time.sleep(10 * (attempt + 1))
+        print(done.stdout, done.stderr, sep="", end="", flush=True)
+        if done.returncode != 0:
+            print(f"{' '.join(step[:4])} ... failed ({done.returncode})", flush=True)
+            return
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="the reproduce output folder")
@@ -83,9 +119,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", help="as reproduce's --set"
     )
+    parser.add_argument(
+        "--ship",
+        action="store_true",
+        help="ship each run that finishes into --shipped at once, and commit it there",
+    )
     parser.add_argument("--workers", type=int, default=2, help="runs side by side (default 2)")
     parser.add_argument("--dry-run", action="store_true", help="list the queue and stop")
     args = parser.parse_args(argv)
+    if args.ship and args.shipped is None:
+        parser.error("--ship needs --shipped: the data folder to ship into")
 
     budget = get_budget(args.budget)
     layout = OutputLayout.at(args.out)
@@ -104,9 +147,14 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [Job(spec, str(layout.runs_root), overrides) for spec in specs]
     tic = time.time()
     pool = LocalPool(args.workers)
+
+    def on_done(job: Job, result: object) -> None:
+        print(f"{time.strftime('%H:%M:%S')} {result}", flush=True)
+        if args.ship:
+            ship_and_commit(layout.out, args.shipped.resolve(), str(job.spec.relative_path))
+
     try:
-        for result in run_all(pool, jobs):
-            print(f"{time.strftime('%H:%M:%S')} {result}", flush=True)
+        run_all(pool, jobs, on_done=on_done)
     finally:
         pool.close()
     print(f"done in {(time.time() - tic) / 3600:.2f} h", flush=True)
