@@ -148,7 +148,7 @@ def _check_out(out: Path, root: Path) -> None:
 def find_runs(root: Path) -> list[_Found]:
     """Every run folder below `root` (or `root` itself), with its episodes and whether it is
     finished; a `ShippedError` naming the folder for a config.json that is not a run's."""
-    from curious.analysis.loading import search_run_folders
+    from curious.analysis.loading import run_path_below, search_run_folders
 
     folders = [root] if RunFolder(root).has_config else search_run_folders(root, False)
     found = []
@@ -158,7 +158,7 @@ def find_runs(root: Path) -> list[_Found]:
             info = folder.read_info()
         except RunFolderError as exc:
             raise ShippedError(str(exc)) from None
-        run = PurePosixPath(path.name if path == root else path.relative_to(root).as_posix())
+        run = run_path_below(path, root)
         total = info.total_episodes
         found.append(
             _Found(folder, run, folder.episodes_logged(), total, folder.finished_at(total))
@@ -190,18 +190,14 @@ def _write(
     found: list[_Found],
     target: Path,
     budget: str | None,
-    kept: tuple[ShippedRun, ...] = (),
-    kept_from: Path = Path(),
+    kept: tuple[ShippedRun, ...],
+    held: ShippedFolder,
 ) -> ShippedManifest:
     """The shipped folder of `found` in `target` (an empty folder), with the runs `kept` copied
-    as they are from the shipped folder `kept_from`."""
+    as they are from the earlier ship `held`."""
     runs = list(kept)
     for r in kept:
-        source, copy = (
-            ShippedFolder(kept_from).run_path(r.run),
-            ShippedFolder(target).run_path(r.run),
-        )
-        shutil.copytree(source, copy)
+        shutil.copytree(held.run_path(r.run), ShippedFolder(target).run_path(r.run))
     for f in found:
         folder = ShippedFolder(target).run_path(f.run)
         folder.mkdir(parents=True)
@@ -281,10 +277,6 @@ def ship(
     left_out = [f.progress for f in not_started]
     if not unfinished:
         left_out += [f.progress for f in running]
-    held_finished = {r.run for r in _held(out, keep) if r.finished}
-    for f in [f for f in chosen if not f.finished and f.run.as_posix() in held_finished]:
-        chosen.remove(f)
-        left_out.append(f"{f.run} (unfinished here, shipped finished in {out} already)")
     if not chosen:
         detail = ", ".join(sorted(left_out)[:5]) + (", ..." if len(left_out) > 5 else "")
         hint = "" if unfinished else "; pass --unfinished to ship them as a progress snapshot"
@@ -294,13 +286,19 @@ def ship(
     with _locked(out):
         _check_out(out, root)  # again, now that no other ship can write it
         _check_replaced(out, budget)
+        earlier = ShippedFolder(out)
+        held = earlier.read_manifest().runs if keep and earlier.is_shipped else ()
+        finished = {r.run for r in held if r.finished}  # never replaced by an unfinished run
+        for f in [f for f in chosen if not f.finished and f.run.as_posix() in finished]:
+            chosen.remove(f)
+            left_out.append(f"{f.run} (unfinished here, shipped finished in {out} already)")
+        shipping = {f.run.as_posix() for f in chosen}
+        kept = tuple(r for r in held if r.run not in shipping)
         staging = out.with_name(f".{out.name}.shipping-{os.getpid()}")
         shutil.rmtree(staging, ignore_errors=True)
         staging.mkdir(parents=True)
-        shipping = {f.run.as_posix() for f in chosen}
-        kept = tuple(r for r in _held(out, keep) if r.run not in shipping)
         try:
-            manifest = _write(chosen, staging, budget, kept, out)
+            manifest = _write(chosen, staging, budget, kept, earlier)
             _verify(staging, manifest)
             sizes = _sizes(staging)
             _replace(staging, out)
@@ -314,13 +312,6 @@ def ship(
         time.perf_counter() - tic,
         tuple(r.run for r in kept),
     )
-
-
-def _held(out: Path, keep: bool) -> tuple[ShippedRun, ...]:
-    """The runs an earlier ship put in `out`, where they are to be kept (none otherwise)."""
-    if not keep or not ShippedFolder(out).is_shipped:
-        return ()
-    return ShippedFolder(out).read_manifest().runs
 
 
 def _replace(staging: Path, out: Path) -> None:

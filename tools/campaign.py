@@ -11,7 +11,9 @@ partial one resumes from its last checkpoint, a finished one is skipped). The fo
 `reproduce.json` that `reproduce` writes, so `curious progress` reads it and `curious reproduce`
 can go on with it later.
 
-Run it from the campaign's worktree, so that the code that trains is the campaign's commit:
+Run it from the campaign's worktree, so that the code that trains is the campaign's commit
+(9972821): it imports `curious` and `pipelines` from there, so it uses only what that commit has
+(`pipelines.reproduce._write_manifest` among them):
 
     cd ~/campaign && PYTHONPATH=$HOME/campaign MUJOCO_GL=disable \
         python /work/main/tools/campaign.py --out ~/curious-runs/laptop \
@@ -33,12 +35,14 @@ import sys
 import time
 from pathlib import Path
 
+import curious
 from curious.config import parse_overrides
 from curious.experiments import RunSpec, get_budget
 from curious.shipped import ShippedFolder
 from pipelines.executors import Job, LocalPool, run_all
 from pipelines.reproduce import _write_manifest, check_output_folder
 from pipelines.resources import OutputLayout
+from pipelines.training import PartitionResult
 
 DEFAULT_ONLY = ("main/*", "sensor_failure/*", "distractors/*@distractors_7/*")
 """The campaign's runs (docs/results.md): the main comparison, the sensory failure, then the
@@ -136,7 +140,6 @@ def main(argv: list[str] | None = None) -> int:
     overrides = parse_overrides(args.set)
     shipped = shipped_finished(args.shipped)
     specs = queue(budget.name, tuple(args.only or DEFAULT_ONLY), shipped)
-    import curious
 
     print(f"curious from {Path(curious.__file__).parent}; {len(specs)} runs queued", flush=True)
     for spec in specs:
@@ -148,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     tic = time.time()
     pool = LocalPool(args.workers)
 
-    def on_done(job: Job, result: object) -> None:
+    def on_done(job: Job, result: PartitionResult) -> None:
         print(f"{time.strftime('%H:%M:%S')} {result}", flush=True)
         if args.ship:
             ship_and_commit(layout.out, args.shipped.resolve(), str(job.spec.relative_path))

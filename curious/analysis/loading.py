@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from os import PathLike
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 import pandas as pd
@@ -68,6 +68,7 @@ __all__ = [
     "require_runs",
     "require_tests",
     "run_modules",
+    "run_path_below",
     "runs_table",
     "search_run_folders",
 ]
@@ -188,6 +189,12 @@ def search_run_folders(root: Path, started_only: bool = True) -> list[Path]:
             else:
                 stack.append(child)
     return runs
+
+
+def run_path_below(path: Path, root: Path) -> PurePosixPath:
+    """A run folder found by `search_run_folders(root)` as a path below `root`; its name where
+    it is `root` itself (a single run folder given as the root)."""
+    return PurePosixPath(path.name if path == root else path.relative_to(root).as_posix())
 
 
 def read_run_info(path: str | PathLike[str]) -> RunInfo:

@@ -24,7 +24,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from curious.analysis.loading import AnalysisError, read_run_info, search_run_folders
+from curious.analysis.loading import (
+    AnalysisError,
+    read_run_info,
+    run_path_below,
+    search_run_folders,
+)
 from curious.run_folder import CONFIG_FILE, RunFolder
 
 if TYPE_CHECKING:
@@ -117,14 +122,9 @@ def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> Run
         test_success=success,
         test_count=count,
         module_success=modules,
-        name=_relative(path, root),
+        name=run_path_below(path, root).as_posix(),
         shipped=shipped,
     )
-
-
-def _relative(path: Path, root: Path) -> str:
-    """`path` below `root` (POSIX), or its name where it is `root` itself."""
-    return path.name if path == root else path.relative_to(root).as_posix()
 
 
 def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
@@ -238,9 +238,9 @@ def progress_markdown(
             else "none yet"
         )
         modules = ", ".join(f"{m} {s:.2f}" for m, s in r.module_success.items()) or "-"
-        checkpoint = f"{r.checkpoint:,}" if r.checkpoint is not None else "none"
-        if r.shipped:
-            checkpoint = "shipped"
+        checkpoint = (
+            "shipped" if r.shipped else f"{r.checkpoint:,}" if r.checkpoint is not None else "none"
+        )
         lines.append(
             f"| {_name(r, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
             f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "
