@@ -238,9 +238,9 @@ def progress_markdown(
             else "none yet"
         )
         modules = ", ".join(f"{m} {s:.2f}" for m, s in r.module_success.items()) or "-"
-        checkpoint = (
-            "shipped" if r.shipped else f"{r.checkpoint:,}" if r.checkpoint is not None else "none"
-        )
+        checkpoint = "none" if r.checkpoint is None else f"{r.checkpoint:,}"
+        if r.shipped:
+            checkpoint = "shipped"
         lines.append(
             f"| {_name(r, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
             f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "
