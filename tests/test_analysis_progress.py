@@ -158,3 +158,34 @@ def test_a_shipped_folder_stands_for_the_runs_a_reproduction_beside_it_has_not_s
     text = capsys.readouterr().out
     assert "| main/curious/seed-0 | curious | default | 0 | 24 | 24 | 100% | shipped |" in text
     assert "| main/her/seed-0 | her | default | 0 | 24 | 24 | 100% | 24 |" in text
+
+
+@pytest.mark.parametrize("shipped_episodes", [24, 12])
+def test_a_run_both_shipped_and_in_the_reproduction_is_listed_once(
+    campaign, tmp_path, capsys, shipped_episodes
+):
+    """A finished run shipped while its folder is still on the machine: one row, from the
+    folder (its checkpoint), marked shipped only if the shipped copy holds all its episodes."""
+    from curious.shipping import ship
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "smoke"}))
+    shutil.copytree(campaign / "main" / "curious-0", out / "runs" / "main" / "curious" / "seed-0")
+    data = tmp_path / "data"
+    ship(out / "runs", data, budget="smoke")
+    metrics = data / "main" / "curious" / "seed-0" / "metrics.parquet"
+    pd.read_parquet(metrics).head(shipped_episodes).to_parquet(metrics)
+
+    rows = progress_table([out, data])
+    named = {r.name: r for r in rows}
+    assert len(rows) == len(named) == len(get_budget("smoke").runs())
+    row = named["main/curious/seed-0"]
+    whole = shipped_episodes == 24
+    assert (row.episodes, row.checkpoint, row.shipped) == (24, 24, whole)
+    assert row.run.startswith(str(out.resolve()))
+
+    assert curious_cli(["progress", str(out), str(data)]) == 0
+    checkpoint = "24, shipped" if whole else "24"
+    line = f"| main/curious/seed-0 | curious | default | 0 | 24 | 24 | 100% | {checkpoint} |"
+    assert line in capsys.readouterr().out

@@ -9,14 +9,16 @@ flat `her` baseline is its holistic goal). A run that has written its config but
 is listed with 0 episodes. A root may also be a shipped data folder (`curious ship`): its runs are
 listed as shipped (no checkpoint), and they stand for the runs of the same path that a
 reproduction given beside it has not started, so that a campaign whose machine lost the folders
-of the runs it shipped still counts them.
+of the runs it shipped still counts them. A run that both hold is listed once, from the
+reproduction's folder (which has its checkpoints and may have gone further), marked shipped when
+the shipped copy holds all its episodes.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from os import PathLike
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -62,7 +64,7 @@ class RunProgress:
     name: str = ""
     """The run's path below the folder it was found in (a reproduction's runs root)."""
     shipped: bool = False
-    """Read from a shipped data folder (its tables, no checkpoint)."""
+    """A shipped data folder holds all its episodes (a row read from one has no checkpoint)."""
 
     @property
     def done(self) -> float:
@@ -200,7 +202,11 @@ def progress_table(
             if not mine:  # a reproduction that has started no run yet is not an error
                 raise
     rows = {str(f): _progress(f, epochs, *where) for f, where in found.items()}
-    held = {r.name for r in rows.values() if r.shipped}
+    held = {r.name: k for k, r in rows.items() if r.shipped}
+    for key, row in list(rows.items()):
+        copy = held.get(row.name)
+        if not row.shipped and copy in rows:
+            rows[key] = replace(row, shipped=rows.pop(copy).episodes >= row.episodes)
     rows.update((k, r) for k, r in planned.items() if r.name not in held)
     return sorted(rows.values(), key=lambda r: (r.name, r.run))
 
@@ -221,7 +227,8 @@ def progress_markdown(
     epochs: int = DEFAULT_TEST_EPOCHS,
 ) -> str:
     """A markdown table of `rows`; run names relative to `base` where they lie below it, else
-    below the folder each was found in. A shipped run's checkpoint reads `shipped`."""
+    below the folder each was found in. A shipped run's checkpoint reads `shipped`, after the
+    newest checkpoint where its folder is also there."""
     root = Path(base).resolve() if base is not None else None
     header = (
         "| run | condition | variant | seed | episodes | of | done | checkpoint | run hours "
@@ -240,7 +247,7 @@ def progress_markdown(
         modules = ", ".join(f"{m} {s:.2f}" for m, s in r.module_success.items()) or "-"
         checkpoint = "none" if r.checkpoint is None else f"{r.checkpoint:,}"
         if r.shipped:
-            checkpoint = "shipped"
+            checkpoint = "shipped" if r.checkpoint is None else f"{checkpoint}, shipped"
         lines.append(
             f"| {_name(r, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
             f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "

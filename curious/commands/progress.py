@@ -36,7 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "output folder (one holding reproduce.json) the budget's runs that have not started "
         "are listed too, with 0 episodes. A ROOT that is a shipped data folder (`curious "
         "ship`) lists its runs as shipped, in place of the same runs not started in a "
-        "reproduction given beside it (a machine that lost the folders of runs it had shipped).",
+        "reproduction given beside it (a machine that lost the folders of runs it had "
+        "shipped); a run both hold is listed once, from its folder, its checkpoint followed "
+        "by 'shipped' when the shipped copy holds all its episodes.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("roots", nargs="+", metavar="ROOT", help="run folder, or a folder of them")
