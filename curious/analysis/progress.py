@@ -203,10 +203,10 @@ def progress_table(
                 raise
     rows = {str(f): _progress(f, epochs, *where) for f, where in found.items()}
     held = {r.name: k for k, r in rows.items() if r.shipped}
-    for key, row in list(rows.items()):
-        copy = held.get(row.name)
-        if not row.shipped and copy in rows:
-            rows[key] = replace(row, shipped=rows.pop(copy).episodes >= row.episodes)
+    live = {r.name: k for k, r in rows.items() if not r.shipped}
+    for name in held.keys() & live.keys():  # one row, the folder's; shipped if the copy is whole
+        copy, row = rows.pop(held[name]), rows[live[name]]
+        rows[live[name]] = replace(row, shipped=copy.episodes >= row.episodes)
     rows.update((k, r) for k, r in planned.items() if r.name not in held)
     return sorted(rows.values(), key=lambda r: (r.name, r.run))
 
