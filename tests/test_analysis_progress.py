@@ -4,11 +4,18 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 
 import pandas as pd
 import pytest
 
-from curious.analysis.progress import progress_markdown, progress_table
+from curious.analysis.progress import (
+    current_pace,
+    experiment_progress,
+    progress_markdown,
+    progress_table,
+    summary_markdown,
+)
 from curious.cli import main as curious_cli
 from curious.commands.progress import BEGIN, END
 from curious.experiments import get_budget
@@ -189,3 +196,44 @@ def test_a_run_both_shipped_and_in_the_reproduction_is_listed_once(
     checkpoint = "24, shipped" if whole else "24"
     line = f"| main/curious/seed-0 | curious | default | 0 | 24 | 24 | 100% | {checkpoint} |"
     assert line in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("at_once", [1, 2])
+def test_the_summary_sums_each_experiment_and_projects_the_hours_left(campaign, at_once):
+    rows = progress_table(campaign)
+    (main,) = experiment_progress(rows)
+    assert (main.experiment, main.runs, main.finished) == ("main", 3, 2)
+    assert (main.episodes, main.total_episodes, main.left) == (48, 72, 24)
+    assert main.run_hours == pytest.approx(sum(r.run_hours for r in rows))
+    pace = 48 / (3600 * main.run_hours)  # nothing is training: every run's pace
+    assert current_pace(rows) == pytest.approx(pace)
+    text = summary_markdown(rows, at_once)
+    side = "one at a time" if at_once == 1 else "2 at a time"
+    assert f"hours left at {pace:.1f} episodes/s per run, {side} |" in text
+    hours = 24 / pace / at_once / 3600
+    assert text.endswith(
+        f"| main | 2 of 3 | 48 | 72 | 67% | {main.run_hours:.2f} | 24 | {hours:.1f} |\n"
+    )
+
+
+def test_the_pace_is_that_of_the_runs_training_now(campaign):
+    """Finished runs that trained on a faster machine do not set the pace of the runs left."""
+    done, *_ = progress_table(campaign)
+    fast = replace(done, name="main/curious/seed-0", episodes=100, total_episodes=100, run_hours=1)
+    slow = replace(done, name="main/her/seed-1", episodes=30, total_episodes=100, run_hours=1)
+    new = replace(done, name="sensor_failure/curious/seed-0", episodes=0, run_hours=0.0)
+    new = replace(new, total_episodes=50)
+    rows = [fast, slow, new]
+    assert current_pace(rows) == pytest.approx(30 / 3600)
+    parts = {p.experiment: p for p in experiment_progress(rows)}
+    assert (parts["main"].left, parts["sensor_failure"].left) == (70, 50)
+    text = summary_markdown(rows, 2)
+    assert "| main | 1 of 2 | 130 | 200 | 65% | 2.00 | 70 | 1.2 |" in text
+    assert "| sensor_failure | 0 of 1 | 0 | 50 | 0% | 0.00 | 50 | 0.8 |" in text
+    assert "| all | 1 of 3 | 130 | 250 | 52% | 2.00 | 120 | 2.0 |" in text
+    assert current_pace([new]) is None and "| - |" in summary_markdown([new])
+
+
+def test_at_once_below_one_is_a_one_line_error(campaign, capsys):
+    assert curious_cli(["progress", str(campaign), "--at-once", "0"]) == 2
+    assert "--at-once must be at least 1" in capsys.readouterr().err

@@ -37,7 +37,16 @@ from curious.run_folder import CONFIG_FILE, RunFolder
 if TYPE_CHECKING:
     from curious.experiments import ReproduceBudget
 
-__all__ = ["DEFAULT_TEST_EPOCHS", "RunProgress", "progress_markdown", "progress_table"]
+__all__ = [
+    "DEFAULT_TEST_EPOCHS",
+    "ExperimentProgress",
+    "RunProgress",
+    "current_pace",
+    "experiment_progress",
+    "progress_markdown",
+    "progress_table",
+    "summary_markdown",
+]
 
 DEFAULT_TEST_EPOCHS = 5
 """Test success is pooled over this many of a run's last epochs: a `laptop` epoch tests each
@@ -254,3 +263,82 @@ def progress_markdown(
             f"| {rate} | {success} | {modules} | {' '.join(r.commits) or '-'} |"
         )
     return header + "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True)
+class ExperimentProgress:
+    """Where one experiment's runs stand together (the runs whose path starts with its name)."""
+
+    experiment: str
+    runs: int
+    finished: int
+    episodes: int
+    total_episodes: int
+    run_hours: float
+
+    @property
+    def left(self) -> int:
+        """Episodes its runs have still to log."""
+        return self.total_episodes - self.episodes
+
+
+def experiment_progress(rows: list[RunProgress]) -> list[ExperimentProgress]:
+    """`rows` summed per experiment (the first part of each run's path below its root), in
+    order of first appearance; a run found outside any experiment folder counts under ''."""
+    groups: dict[str, list[RunProgress]] = {}
+    for r in rows:
+        groups.setdefault(r.name.split("/")[0] if "/" in r.name else "", []).append(r)
+    return [
+        ExperimentProgress(
+            experiment=name,
+            runs=len(group),
+            finished=sum(r.episodes >= r.total_episodes for r in group),
+            episodes=sum(r.episodes for r in group),
+            total_episodes=sum(r.total_episodes for r in group),
+            run_hours=sum(r.run_hours for r in group),
+        )
+        for name, group in groups.items()
+    ]
+
+
+def current_pace(rows: list[RunProgress]) -> float | None:
+    """Episodes per second per run, by the runs' own clocks, of the runs training now (started
+    and unfinished: the machine at work), else of every run that has logged an episode; None
+    where none has."""
+    timed = [r for r in rows if r.run_hours > 0 and r.episodes]
+    now = [r for r in timed if r.episodes < r.total_episodes] or timed
+    if not now:
+        return None
+    return sum(r.episodes for r in now) / (3600 * sum(r.run_hours for r in now))
+
+
+def summary_markdown(rows: list[RunProgress], at_once: int = 1) -> str:
+    """A markdown table of `rows` per experiment, with the hours left at the current pace
+    (`current_pace`) with `at_once` runs training side by side."""
+    if at_once < 1:
+        raise AnalysisError(f"at_once must be at least 1, got {at_once}")
+    pace = current_pace(rows)
+    side = "one at a time" if at_once == 1 else f"{at_once} at a time"
+    left_head = f"hours left at {pace:.1f} episodes/s per run, {side}" if pace else "hours left"
+    lines = [
+        f"| experiment | runs finished | episodes | of | done | run-hours so far | episodes left "
+        f"| {left_head} |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    parts = experiment_progress(rows)
+    total = ExperimentProgress(
+        "all",
+        sum(p.runs for p in parts),
+        sum(p.finished for p in parts),
+        sum(p.episodes for p in parts),
+        sum(p.total_episodes for p in parts),
+        sum(p.run_hours for p in parts),
+    )
+    for p in [*parts, total] if len(parts) > 1 else parts:
+        done = p.episodes / p.total_episodes if p.total_episodes else 0.0
+        hours = f"{p.left / pace / at_once / 3600:.1f}" if pace else "-"
+        lines.append(
+            f"| {p.experiment or '-'} | {p.finished} of {p.runs} | {p.episodes:,} "
+            f"| {p.total_episodes:,} | {done:.0%} | {p.run_hours:.2f} | {p.left:,} | {hours} |"
+        )
+    return "\n".join(lines) + "\n"

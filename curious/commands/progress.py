@@ -3,11 +3,13 @@
     curious progress ~/curious-runs/laptop
     curious progress ~/curious-runs/laptop --update docs/results.md
     curious progress ~/curious-runs/laptop data/laptop   # with the runs shipped from it
+    curious progress ~/curious-runs/laptop --at-once 2   # hours left, two runs side by side
 
 Read from the run folders alone (config.json, metrics.parquet, tests.parquet, checkpoints/), so
-it can be run while the runs train. `--update FILE` replaces the block between the lines
-`<!-- progress:begin -->` and `<!-- progress:end -->` of FILE with the table and the time it
-was computed, leaving the rest of the file as it is.
+it can be run while the runs train. A second table sums the runs per experiment, with the hours
+left at the pace of the runs training now. `--update FILE` replaces the block between the lines
+`<!-- progress:begin -->` and `<!-- progress:end -->` of FILE with both tables and the time they
+were computed, leaving the rest of the file as it is.
 """
 
 from __future__ import annotations
@@ -38,7 +40,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "ship`) lists its runs as shipped, in place of the same runs not started in a "
         "reproduction given beside it (a machine that lost the folders of runs it had "
         "shipped); a run both hold is listed once, from its folder, its checkpoint followed "
-        "by 'shipped' when the shipped copy holds all its episodes.",
+        "by 'shipped' when the shipped copy holds all its episodes.\n\nA second table sums "
+        "the runs per experiment (the first folder of their paths): runs finished, episodes "
+        "logged and left, run-hours so far, and the hours left at the pace of the runs "
+        "training now (episodes per run-second of the started, unfinished runs, by their own "
+        "clocks; of every run when none is training) with --at-once runs side by side: an "
+        "estimate, which assumes the runs left cost what those cost.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("roots", nargs="+", metavar="ROOT", help="run folder, or a folder of them")
@@ -49,9 +56,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="pool test success over this many of each run's last epochs",
     )
     parser.add_argument(
+        "--at-once",
+        type=int,
+        default=1,
+        metavar="N",
+        help="runs trained side by side, for the hours left (default 1)",
+    )
+    parser.add_argument(
         "--update",
         metavar="FILE",
-        help=f"write the table into FILE between the lines {BEGIN} and {END}",
+        help=f"write the tables into FILE between the lines {BEGIN} and {END}",
     )
     parser.set_defaults(func=run)
 
@@ -67,16 +81,18 @@ def replace_block(text: str, block: str, path: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from curious.analysis import AnalysisError
-    from curious.analysis.progress import progress_markdown, progress_table
+    from curious.analysis.progress import progress_markdown, progress_table, summary_markdown
 
     if args.epochs < 1:
         raise ValueError(f"--epochs must be at least 1, got {args.epochs}")
+    if args.at_once < 1:
+        raise ValueError(f"--at-once must be at least 1, got {args.at_once}")
     try:
         rows = progress_table(args.roots, args.epochs)
     except AnalysisError as exc:
         raise ValueError(str(exc)) from exc
     base = args.roots[0] if len(args.roots) == 1 else None
-    table = progress_markdown(rows, base, args.epochs)
+    table = progress_markdown(rows, base, args.epochs) + "\n" + summary_markdown(rows, args.at_once)
     if args.update is None:
         sys.stdout.write(table)
         return 0
@@ -85,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"{path} does not exist; create it with the two marker lines")
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     roots = " ".join(str(r) for r in args.roots)
-    block = f"Computed by `curious progress {roots}` at {now}.\n\n{table}"
+    at_once = f" --at-once {args.at_once}" if args.at_once != 1 else ""
+    block = f"Computed by `curious progress {roots}{at_once}` at {now}.\n\n{table}"
     path.write_text(replace_block(path.read_text(encoding="utf-8"), block, path), encoding="utf-8")
     print(f"updated {path} ({len(rows)} runs)")
     return 0
