@@ -281,6 +281,24 @@ class ExperimentProgress:
         """Episodes its runs have still to log."""
         return self.total_episodes - self.episodes
 
+    @property
+    def done(self) -> float:
+        """Fraction of its runs' episodes logged."""
+        return self.episodes / self.total_episodes if self.total_episodes else 0.0
+
+    @classmethod
+    def of(cls, experiment: str, rows: Iterable[RunProgress]) -> ExperimentProgress:
+        """`rows` summed under the name `experiment`."""
+        rows = list(rows)
+        return cls(
+            experiment=experiment,
+            runs=len(rows),
+            finished=sum(r.episodes >= r.total_episodes for r in rows),
+            episodes=sum(r.episodes for r in rows),
+            total_episodes=sum(r.total_episodes for r in rows),
+            run_hours=sum(r.run_hours for r in rows),
+        )
+
 
 def experiment_progress(rows: list[RunProgress]) -> list[ExperimentProgress]:
     """`rows` summed per experiment (the first part of each run's path below its root), in
@@ -288,17 +306,7 @@ def experiment_progress(rows: list[RunProgress]) -> list[ExperimentProgress]:
     groups: dict[str, list[RunProgress]] = {}
     for r in rows:
         groups.setdefault(r.name.split("/")[0] if "/" in r.name else "", []).append(r)
-    return [
-        ExperimentProgress(
-            experiment=name,
-            runs=len(group),
-            finished=sum(r.episodes >= r.total_episodes for r in group),
-            episodes=sum(r.episodes for r in group),
-            total_episodes=sum(r.total_episodes for r in group),
-            run_hours=sum(r.run_hours for r in group),
-        )
-        for name, group in groups.items()
-    ]
+    return [ExperimentProgress.of(name, group) for name, group in groups.items()]
 
 
 def current_pace(rows: list[RunProgress]) -> float | None:
@@ -326,19 +334,10 @@ def summary_markdown(rows: list[RunProgress], at_once: int = 1) -> str:
         "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     parts = experiment_progress(rows)
-    total = ExperimentProgress(
-        "all",
-        sum(p.runs for p in parts),
-        sum(p.finished for p in parts),
-        sum(p.episodes for p in parts),
-        sum(p.total_episodes for p in parts),
-        sum(p.run_hours for p in parts),
-    )
-    for p in [*parts, total] if len(parts) > 1 else parts:
-        done = p.episodes / p.total_episodes if p.total_episodes else 0.0
+    for p in [*parts, ExperimentProgress.of("all", rows)] if len(parts) > 1 else parts:
         hours = f"{p.left / pace / at_once / 3600:.1f}" if pace else "-"
         lines.append(
             f"| {p.experiment or '-'} | {p.finished} of {p.runs} | {p.episodes:,} "
-            f"| {p.total_episodes:,} | {done:.0%} | {p.run_hours:.2f} | {p.left:,} | {hours} |"
+            f"| {p.total_episodes:,} | {p.done:.0%} | {p.run_hours:.2f} | {p.left:,} | {hours} |"
         )
     return "\n".join(lines) + "\n"
