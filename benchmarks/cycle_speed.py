@@ -16,10 +16,15 @@ rounds collected during the untimed warm-up stand for those still in flight at t
 * ours_workspace: ours with the written-out update (`learner_backend=workspace`);
 * peer_threads and ours_threads: peer and ours with one torch thread per core for the updates
   (`--set torch_threads=0`) instead of `--threads`;
-* ours_gpu: everything for a GPU node (`--device cuda`): overlap, a worker process per core,
-  prefetched minibatches, the compiled update (CUDA graphs) and acting on CPU copies. Not in the
-  default list, as the compiled update takes minutes to compile on a CPU:
-  `--device cuda --contenders ours_gpu,workers`.
+* ours_gpu: every setting meant for a GPU node (`--device cuda`) at once: overlap, a worker
+  process per core, prefetched minibatches, the compiled update and acting on CPU copies;
+* workers_prefetch, workers_compiled, workers_act_on_cpu: the workers with one of those
+  settings each, to tell what each one costs or gains on a GPU node;
+* ours_workers_prefetch: overlap, workers and prefetched minibatches (the fastest on a 16-core
+  node with an H100, 2026-11-26: docs/scaling.md).
+
+The default list leaves out the GPU node's contenders (the compiled update takes minutes to
+compile on a CPU): `--device cuda --contenders ours_gpu,workers` and the like ask for them.
 
 torch's thread count is one per process, so it is set before each contender's block.
 
@@ -49,8 +54,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--contenders",
-        default=",".join(name for name in CONTENDERS if name != "ours_gpu"),
-        help="comma-separated contenders besides peer and ours (default: all but ours_gpu)",
+        default=",".join(DEFAULT_CONTENDERS),
+        help=(
+            "comma-separated contenders besides peer and ours, of: "
+            f"{', '.join(CONTENDERS)} (default: {','.join(DEFAULT_CONTENDERS)})"
+        ),
     )
 
 
@@ -67,8 +75,23 @@ CONTENDERS: dict[str, dict[str, Any]] = {
         learner_backend="compiled",
         act_on_cpu=True,
     ),
+    "workers_prefetch": dict(env_processes=0, prefetch_minibatches=True),
+    "workers_compiled": dict(env_processes=0, learner_backend="compiled"),
+    "workers_act_on_cpu": dict(env_processes=0, act_on_cpu=True),
+    "ours_workers_prefetch": dict(
+        overlap_rollouts=True, env_processes=0, prefetch_minibatches=True
+    ),
 }
 """The settings of every optional contender, over the preset's (see the module docstring)."""
+
+DEFAULT_CONTENDERS = (
+    "workers",
+    "ours_workers",
+    "ours_workspace",
+    "peer_threads",
+    "ours_threads",
+)
+"""What `curious bench cycle` runs unless told: those that run as well on a CPU."""
 
 
 def _trainer(config: Any) -> Any:

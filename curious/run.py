@@ -90,9 +90,19 @@ def _environments(
     first = (test_fns if tests_wanted else train_fns)[0]()
     condition = make_condition(config, first.spec)
     check_memory(config, first.spec, condition.n_experts, SUITE_COPY_BYTES)
-    tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
     if config.processes > 1:
-        return ProcessEnvs(train_fns, config.processes), tests
+        # The test copies step in worker processes too: stepped in this process, a `paper`
+        # epoch's 190 test rollouts took about 8 s, a third of its 950 training episodes'
+        # 24 s (16 cores and an H100, 2026-11-26; docs/scaling.md).
+        train = ProcessEnvs(train_fns, config.processes)
+        if not tests_wanted:
+            return train, None
+        try:
+            return train, ProcessEnvs(test_fns, config.processes)
+        except BaseException:
+            train.close()
+            raise
+    tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
     if tests_wanted:
         return [fn() for fn in train_fns], tests
     return [first, *(fn() for fn in train_fns[1:])], None

@@ -11,9 +11,11 @@ import pyarrow.parquet as pq
 import pytest
 
 from curious.cli import main
+from curious.config import resolve
 from curious.env_batch import LocalEnvs, ProcessEnvs
 from curious.envs import suite_env_fns
 from curious.recording.reader import read_component
+from curious.run import _environments
 from curious.run_folder import RECORDING_FILE
 
 os.environ.setdefault("MUJOCO_GL", "disable")
@@ -42,6 +44,22 @@ def test_worker_processes_give_the_same_run_as_one_process(tmp_path: Path) -> No
     assert len(frames_a) > 10
     np.testing.assert_array_equal(frames_a, frames_b)
     np.testing.assert_allclose(np.array(poses_a, float), np.array(poses_b, float), atol=1e-9)
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_the_test_rollouts_copies_step_where_the_training_copies_do(processes: int) -> None:
+    """With env_processes > 1 the test copies step in worker processes of their own as well
+    (at `paper` size, stepped in the training process, they took a third of an epoch)."""
+    config = resolve("smoke", overrides=dict(n_workers=3, env_processes=processes))
+    train, tests = _environments(config, None)
+    try:
+        kind = ProcessEnvs if processes > 1 else list
+        assert isinstance(train, kind) and isinstance(tests, kind)
+        assert len(train) == len(tests) == 3 and train is not tests
+    finally:
+        for copies in (train, tests):
+            if isinstance(copies, ProcessEnvs):
+                copies.close()
 
 
 def test_process_copies_step_like_local_ones_and_keep_their_random_streams() -> None:
