@@ -95,7 +95,8 @@ class Config:
     """Worker processes that step the `n_workers` environment copies at the same time (each a
     share of them; 1 steps them in the training process, 0 takes one per core, at most
     `n_workers`). Whatever the number, a run gives the same episodes. With more than 1,
-    `train()` builds the suite's copies in the workers."""
+    `train()` builds the suite's copies in the workers, and the test rollouts' copies in as many
+    workers of their own."""
     overlap_rollouts: bool = False
     """Collect the next cycle's episodes while this cycle's updates run (in a thread, with the
     policy as it was before them: acting lags learning by one cycle, and module choices follow
@@ -142,9 +143,10 @@ class Config:
     """`ddpg` (the authors') or `td3` (twin critics, target smoothing, delayed actor)."""
     learner_backend: str = "autograd"
     """How the update runs, the same arithmetic each: `autograd` (the reference, readable),
-    `compiled` (each step, losses, backward and Adam, through `torch.compile`; on CUDA captured
-    as CUDA graphs with a capturable Adam) or `workspace` (both passes written out into
-    preallocated buffers; the fastest on a CPU, docs/benchmarks.md)."""
+    `compiled` (each step, losses, backward and Adam, through `torch.compile`; on CUDA it asks
+    for CUDA graphs with a capturable Adam, which inductor skipped in training runs on an H100,
+    docs/scaling.md) or `workspace` (both passes written out into preallocated buffers; the
+    fastest on a CPU, docs/benchmarks.md)."""
     hidden: int = 256
     """Units per hidden layer of actor and critic. Authors: 256."""
     layers: int = 3
