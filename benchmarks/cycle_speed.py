@@ -134,6 +134,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             device=args.device,
         ),
     )
+    # a budget that outlasts the warm-up, the timed cycles and an overlapped cycle ahead
+    needed = (args.cycles + 2) * base.episodes_per_cycle
+    base = dataclasses.replace(base, total_episodes=max(base.total_episodes, needed))
     wanted = [name for name in args.contenders.split(",") if name]
     unknown = sorted(set(wanted) - set(CONTENDERS))
     if unknown:

@@ -60,6 +60,18 @@ def test_the_cycle_benchmark_reports_every_contender_and_its_parts():
     assert torch.get_num_threads() == result["threads"]  # left as it was found
 
 
+def test_the_cycle_benchmark_times_more_cycles_than_the_preset_holds():
+    """7 timed cycles and the warm-up outlast the smoke preset's 24 episodes (6 cycles): the
+    benchmark gives its trainers the episodes it times."""
+    from benchmarks import cycle_speed
+
+    parser = argparse.ArgumentParser()
+    cycle_speed.add_arguments(parser)
+    args = ["--preset", "smoke", "--cycles", "7", "--contenders", ""]
+    result = cycle_speed.measure(parser.parse_args(args))
+    assert result["peer"] > 0 and result["ours"] > 0 and "workers" not in result
+
+
 def test_the_rollout_scaling_benchmark_reports_every_process_count():
     from benchmarks import rollout_scaling
 
