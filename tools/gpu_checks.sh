@@ -63,23 +63,19 @@ done
 wait
 
 step rates
+# each run's episodes/s over its own clock, tests and start included: the project's progress table
+python3 -m curious.cli progress "$out" | head -n 5
+# and its training alone: the episodes after its last epoch's test rollouts (the largest gap)
 python3 - "$out" <<'EOF'
-"""Training episodes/s of each run from its metrics.parquet: its last epoch (test rollouts left
-out), and the whole run by its own clock."""
 import sys
 from pathlib import Path
 
 import pandas as pd
 
 for folder in sorted(Path(sys.argv[1]).glob("**/metrics.parquet")):
-    m = pd.read_parquet(folder, columns=["episode", "wall_time"])
-    gaps = m["wall_time"].diff()
-    epoch = int(gaps.idxmax())  # the test rollouts sit in the largest gap
-    last = m.iloc[epoch:]
-    rate = (len(last) - 1) / (last["wall_time"].iloc[-1] - last["wall_time"].iloc[0])
-    whole = len(m) / m["wall_time"].iloc[-1]
-    print(f"{folder.parent}: {len(m)} episodes; {rate:.1f} episodes/s after episode "
-          f"{epoch}; {whole:.1f} over the run, tests and start included; test gap "
-          f"{gaps.max():.1f} s")
+    wall = pd.read_parquet(folder, columns=["wall_time"])["wall_time"]
+    after = wall.iloc[int(wall.diff().idxmax()) :]
+    rate = (len(after) - 1) / (after.iloc[-1] - after.iloc[0])
+    print(f"{folder.parent}: {rate:.1f} training episodes/s after its last test rollouts")
 EOF
 step done
