@@ -199,13 +199,22 @@ class Learner:
         """The reference backend (and the compiled one): DDPG's step, or TD3's critic step and,
         when `step_actor`, its actor step through the stepped critics."""
         ddpg_step, critic_step, actor_step = self._steps
+        actor_flat, critics_flat = self._online
         if self._graphs:  # a new replay of the captured graphs begins
             torch.compiler.cudagraph_mark_step_begin()
+        # Gradients are zeroed here, outside the steps: a compiled step that wrote into a tensor
+        # it was handed would not be captured as a CUDA graph ("mutated inputs").
         if not self.td3:
+            actor_flat.grad.zero_()
+            critics_flat.grad.zero_()
             critic_loss, actor_loss, q_target = self._kept(ddpg_step(x, action, reward, x_next))
             return critic_loss, actor_loss, q_target
+        critics_flat.grad.zero_()
         critic_loss, q_target = self._kept(critic_step(x, action, reward, x_next))
-        actor_loss = self._kept((actor_step(x),))[0] if step_actor else None
+        actor_loss = None
+        if step_actor:
+            actor_flat.grad.zero_()
+            actor_loss = self._kept((actor_step(x),))[0]
         return critic_loss, actor_loss, q_target
 
     def _kept(self, outputs: tuple[torch.Tensor, ...]) -> tuple[torch.Tensor, ...]:
@@ -216,9 +225,8 @@ class Learner:
     def _ddpg_step(
         self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """Both losses from the current networks, both gradients, both Adam steps."""
-        for flat in self._online:
-            flat.grad.zero_()
+        """Both losses from the current networks, both gradients (into zeroed `.grad`s), both Adam
+        steps."""
         target = self.td_target(reward, x_next)
         critic_loss = self.critic_loss(x, action, target)
         actor_loss = self.actor_loss(x)
@@ -231,7 +239,6 @@ class Learner:
         self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """TD3: the critics' loss, gradient and Adam step."""
-        self._online[1].grad.zero_()
         target = self.td_target(reward, x_next)
         critic_loss = self.critic_loss(x, action, target)
         critic_loss.backward()
@@ -240,7 +247,6 @@ class Learner:
 
     def _actor_step(self, x: torch.Tensor) -> torch.Tensor:
         """TD3: the actor's loss through the stepped critic, its gradient and Adam step."""
-        self._online[0].grad.zero_()
         actor_loss = self.actor_loss(x)
         actor_loss.backward()
         self.actor_opt.step()

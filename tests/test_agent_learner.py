@@ -2,6 +2,7 @@
 
 import copy
 import dataclasses
+import logging
 
 import numpy as np
 import pytest
@@ -168,19 +169,22 @@ def test_cuda_update_matches_cpu_closely():
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 @pytest.mark.parametrize("algorithm", ["ddpg", "td3"])
-def test_cuda_graphs_of_the_compiled_update_follow_the_reference(algorithm):
-    """`compiled` on CUDA: each step captured as a CUDA graph with a capturable Adam; the losses
-    of every replay (copied out of the graph) and the weights follow the reference backend on
-    the same device (TD3's target smoothing noise comes from the device's own generator, so a
-    CPU reference would draw other noise)."""
+def test_cuda_graphs_of_the_compiled_update_follow_the_reference(algorithm, caplog):
+    """`compiled` on CUDA: each step captured as a CUDA graph with a capturable Adam (inductor
+    says when it skips one, and why); the losses of every replay (copied out of the graph) and
+    the weights follow the reference backend on the same device (TD3's target smoothing noise
+    comes from the device's own generator, so a CPU reference would draw other noise)."""
     config = small_config(algorithm=algorithm, td3_policy_delay=2, device="cuda")
     reference = Learner(10, 4, config, seed=5)
     graphed = Learner(10, 4, dataclasses.replace(config, learner_backend="compiled"), seed=5)
     history = []
-    for step in range(6):
-        x, a, r, x2 = batch(seed=step)
-        x, a, r, x2 = (t.cuda() for t in (x, a, r, x2))
-        history.append((reference.update(x, a, r, x2), graphed.update(x, a, r, x2)))
+    with caplog.at_level(logging.WARNING):
+        for step in range(6):
+            x, a, r, x2 = batch(seed=step)
+            x, a, r, x2 = (t.cuda() for t in (x, a, r, x2))
+            history.append((reference.update(x, a, r, x2), graphed.update(x, a, r, x2)))
+    skipped = [r.getMessage() for r in caplog.records if "skipping cudagraphs" in r.getMessage()]
+    assert not skipped, skipped
     for want, got in history:  # earlier replays' losses were not overwritten
         for key in want:
             torch.testing.assert_close(got[key], want[key], rtol=1e-3, atol=1e-4)
