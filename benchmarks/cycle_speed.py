@@ -78,6 +78,9 @@ CONTENDERS: dict[str, dict[str, Any]] = {
     "workers_prefetch": dict(env_processes=0, prefetch_minibatches=True),
     "workers_compiled": dict(env_processes=0, learner_backend="compiled"),
     "workers_act_on_cpu": dict(env_processes=0, act_on_cpu=True),
+    "workers_prefetch_compiled": dict(
+        env_processes=0, prefetch_minibatches=True, learner_backend="compiled"
+    ),
     "ours_workers_prefetch": dict(
         overlap_rollouts=True, env_processes=0, prefetch_minibatches=True
     ),
