@@ -68,7 +68,7 @@ done
 
 step rates
 # each run's episodes/s over its own clock, tests and start included: the project's progress table
-python3 -m curious.cli progress "$out" | head -n 12
+python3 -m curious.cli progress "$out"
 # and its training alone: the episodes after its last epoch's test rollouts (the largest gap)
 python3 - "$out" <<'EOF'
 import sys
@@ -78,11 +78,12 @@ import pandas as pd
 
 for folder in sorted(Path(sys.argv[1]).glob("**/metrics.parquet")):
     wall = pd.read_parquet(folder, columns=["wall_time"])["wall_time"]
-    after = wall.iloc[int(wall.diff().idxmax()) :]
+    gaps = wall.diff()
+    after = wall.iloc[int(gaps.idxmax()) :]
     rate = (len(after) - 1) / (after.iloc[-1] - after.iloc[0])
     print(
         f"{folder.parent}: {rate:.1f} training episodes/s after its last test rollouts, "
-        f"which took {wall.diff().max():.1f} s"
+        f"which took {gaps.max():.1f} s"
     )
 EOF
 step done
