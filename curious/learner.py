@@ -19,7 +19,8 @@ cycle's.
 `Learner.update` is the one place that says which steps an update takes; the steps themselves
 run on one of the backends `Config.learner_backend` picks. `autograd` (the default) is the
 reference, written with autograd below; `compiled` runs the same functions through
-`torch.compile` (on CUDA in `reduce-overhead` mode: CUDA graphs with a capturable Adam);
+`torch.compile` (on CUDA in `reduce-overhead` mode: CUDA graphs with a capturable Adam; DDPG's
+step with its backward traced into the graph, `compile_step`);
 `workspace` is `curious.mlp_workspace.WorkspaceUpdate`, the same update with both passes written
 out into preallocated buffers, the fastest on a CPU, which is handed the networks and optimisers
 and is tested against the reference. docs/benchmarks.md has the speed of each.
@@ -31,6 +32,7 @@ tensors of its device.
 from __future__ import annotations
 
 import copy
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -76,6 +78,31 @@ def _adam(params: list[nn.Parameter], lr: float, capturable: bool = False) -> to
         return torch.optim.Adam(params, lr=lr, fused=True)
     except (RuntimeError, TypeError):  # fused not available for this device / build
         return torch.optim.Adam(params, lr=lr, foreach=True)
+
+
+def compile_step(
+    step: Callable[..., Any], mode: str | None, trace_backward: bool
+) -> Callable[..., Any]:
+    """`torch.compile(step, mode=mode)`; with `trace_backward`, the step's `backward()` is traced
+    into the graph of its losses where this torch can (dynamo's `trace_autograd_ops`, set while
+    the step runs: dynamo reads its settings when it compiles, and recompiles where they
+    differ). DDPG's step then runs as the losses-and-gradients graph and Adam's, instead of the
+    losses' graph, the autograd engine's kernels one by one, and Adam's (docs/benchmarks.md: 0.87
+    against 1.30 ms an update on an H100). TD3's steps keep the break: traced, torch 2.11 on CUDA
+    skipped the critic step's CUDA graph (its gradients are mutated inputs) and failed in the
+    actor step. A torch without the setting compiles the step with the break."""
+    compiled = torch.compile(step, mode=mode)
+    dynamo_config = getattr(getattr(torch, "_dynamo", None), "config", None)
+    if not trace_backward or not hasattr(dynamo_config, "trace_autograd_ops"):
+        return compiled
+    traced = dynamo_config.patch(trace_autograd_ops=True)
+
+    @functools.wraps(step)
+    def run(*args: Any) -> Any:
+        with traced:
+            return compiled(*args)
+
+    return run
 
 
 class Learner:
@@ -128,7 +155,11 @@ class Learner:
         steps = (self._ddpg_step, self._critic_step, self._actor_step)
         if compiled:  # losses, backward and Adam in one compiled function each
             mode = "reduce-overhead" if graphs else None
-            steps = tuple(torch.compile(f, mode=mode) for f in steps)
+            steps = (
+                compile_step(self._ddpg_step, mode, trace_backward=True),
+                compile_step(self._critic_step, mode, trace_backward=False),
+                compile_step(self._actor_step, mode, trace_backward=False),
+            )
         self._steps = steps
         self._graphs = graphs
 
@@ -138,14 +169,23 @@ class Learner:
         """Deterministic actions pi(x), shape (B, action_dim)."""
         return self.actor(x)
 
+    def target_noise(self, batch_size: int) -> torch.Tensor:
+        """TD3's standard normal draws for smoothing a minibatch's target actions, from the
+        learner's generator (drawn outside the compiled steps, which cannot trace a generator)."""
+        shape = (batch_size, self.action_dim)
+        return torch.randn(shape, generator=self.generator, device=self.device)
+
     @torch.no_grad()
-    def td_target(self, reward: torch.Tensor, x_next: torch.Tensor) -> torch.Tensor:
+    def td_target(
+        self, reward: torch.Tensor, x_next: torch.Tensor, noise: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0]; TD3 smooths the target
-        action and takes the smaller of its two target critics."""
+        action with `noise` (`target_noise` when not given) and takes the smaller of its two
+        target critics."""
         cfg = self.config
         next_action = self.actor_target(x_next)
         if self.td3:
-            noise = torch.randn(next_action.shape, generator=self.generator, device=self.device)
+            noise = self.target_noise(len(x_next)) if noise is None else noise
             noise = (noise * cfg.td3_target_noise).clamp(-cfg.td3_noise_clip, cfg.td3_noise_clip)
             next_action = (next_action + noise).clamp(-1.0, 1.0)
         q_next = self.critics_target[0](x_next, next_action)
@@ -210,7 +250,8 @@ class Learner:
             critic_loss, actor_loss, q_target = self._kept(ddpg_step(x, action, reward, x_next))
             return critic_loss, actor_loss, q_target
         critics_flat.grad.zero_()
-        critic_loss, q_target = self._kept(critic_step(x, action, reward, x_next))
+        noise = self.target_noise(len(x))
+        critic_loss, q_target = self._kept(critic_step(x, action, reward, x_next, noise))
         actor_loss = None
         if step_actor:
             actor_flat.grad.zero_()
@@ -228,29 +269,44 @@ class Learner:
         """Both losses from the current networks, both gradients (into zeroed `.grad`s), both Adam
         steps."""
         target = self.td_target(reward, x_next)
-        critic_loss = self.critic_loss(x, action, target)
-        actor_loss = self.actor_loss(x)
-        (critic_loss + actor_loss).backward()  # each loss reaches its own network only
+        loss, critic_loss, actor_loss = self._ddpg_losses(x, action, target)
+        loss.backward()  # each loss reaches its own network only
         self.critic_opt.step()
         self.actor_opt.step()
-        return critic_loss.detach(), actor_loss.detach(), target.mean()
+        return critic_loss, actor_loss, target.mean()
+
+    def _ddpg_losses(
+        self, x: torch.Tensor, action: torch.Tensor, target: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The sum of DDPG's two losses, and each detached. Only the sum keeps its autograd
+        graph, so that a compiled step can trace its backward (no returned tensor needs it)."""
+        critic_loss = self.critic_loss(x, action, target)
+        actor_loss = self.actor_loss(x)
+        return critic_loss + actor_loss, critic_loss.detach(), actor_loss.detach()
 
     def _critic_step(
-        self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
+        self,
+        x: torch.Tensor,
+        action: torch.Tensor,
+        reward: torch.Tensor,
+        x_next: torch.Tensor,
+        noise: torch.Tensor,
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """TD3: the critics' loss, gradient and Adam step."""
-        target = self.td_target(reward, x_next)
+        target = self.td_target(reward, x_next, noise)
         critic_loss = self.critic_loss(x, action, target)
+        reported = critic_loss.detach()
         critic_loss.backward()
         self.critic_opt.step()
-        return critic_loss.detach(), target.mean()
+        return reported, target.mean()
 
     def _actor_step(self, x: torch.Tensor) -> torch.Tensor:
         """TD3: the actor's loss through the stepped critic, its gradient and Adam step."""
         actor_loss = self.actor_loss(x)
+        reported = actor_loss.detach()
         actor_loss.backward()
         self.actor_opt.step()
-        return actor_loss.detach()
+        return reported
 
     @torch.no_grad()
     def update_targets(self) -> None:
