@@ -92,10 +92,9 @@ def compile_step(
     skipped the critic step's CUDA graph (its gradients are mutated inputs) and failed in the
     actor step. A torch without the setting compiles the step with the break."""
     compiled = torch.compile(step, mode=mode)
-    dynamo_config = getattr(getattr(torch, "_dynamo", None), "config", None)
-    if not trace_backward or not hasattr(dynamo_config, "trace_autograd_ops"):
+    if not trace_backward or not hasattr(torch._dynamo.config, "trace_autograd_ops"):
         return compiled
-    traced = dynamo_config.patch(trace_autograd_ops=True)
+    traced = torch._dynamo.config.patch(trace_autograd_ops=True)
 
     @functools.wraps(step)
     def run(*args: Any) -> Any:
@@ -295,18 +294,16 @@ class Learner:
         """TD3: the critics' loss, gradient and Adam step."""
         target = self.td_target(reward, x_next, noise)
         critic_loss = self.critic_loss(x, action, target)
-        reported = critic_loss.detach()
         critic_loss.backward()
         self.critic_opt.step()
-        return reported, target.mean()
+        return critic_loss.detach(), target.mean()
 
     def _actor_step(self, x: torch.Tensor) -> torch.Tensor:
         """TD3: the actor's loss through the stepped critic, its gradient and Adam step."""
         actor_loss = self.actor_loss(x)
-        reported = actor_loss.detach()
         actor_loss.backward()
         self.actor_opt.step()
-        return reported
+        return actor_loss.detach()
 
     @torch.no_grad()
     def update_targets(self) -> None:
