@@ -44,7 +44,7 @@ except `curious reproduce` when it runs them.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import PurePosixPath
 from typing import Any
 
@@ -134,6 +134,9 @@ class Experiment:
     """The perturbed module's competence at which the failure starts, or None."""
     compare: tuple[str, str] | None = None
     """(better, worse): the pair of conditions of the one-tailed Welch tests in the report."""
+    left_out_variants: tuple[str, ...] = ()
+    """The budget's variants of this experiment that it lacks (`with_variants`): a shipped data
+    folder that holds only some variants' runs finished stands for those alone."""
 
     def __post_init__(self) -> None:
         if self.name not in EXPERIMENTS:
@@ -163,6 +166,8 @@ class Experiment:
             )
         if self.compare is not None and not set(self.compare) <= set(self.conditions):
             raise ExperimentError(f"{self.name}: compares {self.compare} outside its conditions")
+        if set(self.left_out_variants) & set(self.variants):
+            raise ExperimentError(f"{self.name}: variants both kept and left out")
 
     @property
     def condition_keys(self) -> tuple[str, ...]:
@@ -179,7 +184,7 @@ class Experiment:
         `curious reproduce` trains them in this order, so a campaign stopped part-way holds the
         same seeds of every condition: a comparison, not three seeds of one condition.
         """
-        several = len(self.variants) > 1
+        several = len(self.variants) + len(self.left_out_variants) > 1
         return [
             RunSpec(
                 experiment=self.name,
@@ -196,6 +201,21 @@ class Experiment:
             for variant in self.variants
             for condition in self.conditions
         ]
+
+    def with_variants(self, variants: Iterable[str]) -> Experiment:
+        """This experiment with `variants` only (kept in its order), the others left out
+        (`left_out_variants`). Its runs keep the whole experiment's paths and partition keys
+        (`curious@distractors_7`), so that they name the same run folders."""
+        wanted = set(variants)
+        if unknown := sorted(wanted - set(self.variants)):
+            raise ExperimentError(
+                f"{self.name}: no variant(s) {unknown}; its variants: {', '.join(self.variants)}"
+            )
+        if not wanted:
+            raise ExperimentError(f"{self.name}: keep at least one variant")
+        kept = tuple(v for v in self.variants if v in wanted)
+        dropped = tuple(v for v in self.variants if v not in wanted)
+        return replace(self, variants=kept, left_out_variants=self.left_out_variants + dropped)
 
     def run(self, partition_key: str) -> RunSpec:
         """The run of a partition key (`condition|seed`), with a clear error for a stranger."""

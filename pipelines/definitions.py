@@ -55,6 +55,7 @@ def reproduction_from_environment() -> Reproduction:
 
         data = ShippedData.open(os.environ["CURIOUS_FROM_DATA"])
         data.check_budget(budget)
+        budget = data.stands_for(budget)
     out = os.environ.get("CURIOUS_OUT") or (
         budget.default_out if data is None else f"{budget.default_out}-shipped"
     )

@@ -13,12 +13,17 @@ seed, training preset, episodes, sensory failure) raises `RunFolderMismatch`. Th
 the run's identity only (`RunInfo`, which reads every version of config.json), not every
 setting as a resume does, so that runs shipped by an earlier curious stay readable when later
 versions add settings.
+
+An experiment of several variants whose runs DATA holds finished for some variants only stands
+for those (`ShippedData.stands_for`): a campaign that trained `distractors_7` alone rebuilds the
+distractors' figure and report for 7 distracting modules, and the report names the variants left
+out.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from curious.experiments import Experiment, ReproduceBudget, RunSpec
@@ -111,6 +116,24 @@ class ShippedData:
                 f"{self.path} holds runs of budget {shipped!r}, not {budget.name!r}: pass "
                 f"--budget {shipped}"
             )
+
+    def stands_for(self, budget: ReproduceBudget) -> ReproduceBudget:
+        """`budget` as DATA can stand for it: an experiment of several variants whose runs DATA
+        holds finished for some variants only (a campaign that trained `distractors_7` alone) is
+        cut to those variants (`Experiment.with_variants`, the others named as left out); every
+        other experiment stays whole, and `select` says what it lacks."""
+        experiments = {}
+        for name, experiment in budget.experiments.items():
+            if len(experiment.variants) > 1 and self.missing(experiment):
+                complete = [
+                    v
+                    for v in experiment.variants
+                    if not self.missing(experiment.with_variants([v]))
+                ]
+                if complete:
+                    experiment = experiment.with_variants(complete)
+            experiments[name] = experiment
+        return replace(budget, experiments=experiments)
 
     def select(self, budget: ReproduceBudget, names: Sequence[str] | None) -> list[Experiment]:
         """The experiments to build from DATA: those named (each complete in DATA, else a

@@ -529,6 +529,13 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         ]
     for e in included:
         lines += [f"## {e.title}", ""]
+        if e.left_out_variants:
+            lines += [
+                f"Variants left out: {', '.join(e.left_out_variants)}, whose runs the data this "
+                f"report was built from does not hold finished; read from "
+                f"{', '.join(e.variants)} alone.",
+                "",
+            ]
         lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
         lines += ["### Runs", "", *_runs_table(by_experiment[e.name])]
     missing = [name for name in budget.experiments if name not in tables]

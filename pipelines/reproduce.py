@@ -262,7 +262,7 @@ def reproduce(
             raise ReproduceError(
                 "--from-data reads shipped runs: it takes no --runs-dir, pool or training setting"
             )
-        data, selected = _shipped_data(from_data, chosen, experiments)
+        data, chosen, selected = _shipped_data(from_data, chosen, experiments)
         layout = OutputLayout.at(out or f"{chosen.default_out}-shipped", data.path)
     else:
         selected = chosen.select(experiments)
@@ -275,15 +275,17 @@ def reproduce(
 
 def _shipped_data(
     path: str | os.PathLike, budget: ReproduceBudget, experiments: Sequence[str] | None
-) -> tuple[ShippedData, list[Experiment]]:
-    """The shipped data folder at `path`, checked against `budget`, and the experiments to build
-    from it; `ReproduceError` where it cannot stand for them."""
+) -> tuple[ShippedData, ReproduceBudget, list[Experiment]]:
+    """The shipped data folder at `path`, checked against `budget`, the budget as it can stand
+    for it (`ShippedData.stands_for`) and the experiments to build from it; `ReproduceError`
+    where it cannot stand for them."""
     from pipelines.from_data import ShippedData, ShippedDataError
 
     try:
         data = ShippedData.open(path)
         data.check_budget(budget)
-        return data, data.select(budget, experiments)
+        budget = data.stands_for(budget)
+        return data, budget, data.select(budget, experiments)
     except ShippedDataError as exc:
         raise ReproduceError(str(exc)) from None
 

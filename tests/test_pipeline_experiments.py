@@ -85,6 +85,27 @@ def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several
         smoke.experiments["main"].run("curious|9")
 
 
+def test_an_experiment_cut_to_some_variants_names_the_same_run_folders():
+    """What a shipped data folder holding one variant's runs stands for (`ShippedData.stands_for`):
+    the runs of that variant, at the whole experiment's paths and partition keys."""
+    whole = get_budget("laptop").experiments["distractors"]
+    cut = whole.with_variants(["distractors_7"])
+    assert cut.variants == ("distractors_7",)
+    assert cut.left_out_variants == ("distractors_0", "distractors_4")
+    assert [r.relative_path for r in cut.runs()] == [
+        r.relative_path for r in whole.runs() if r.variant == "distractors_7"
+    ]
+    assert cut.condition_keys == ("curious@distractors_7", "m-uvfa@distractors_7")
+    assert whole.with_variants(["distractors_4", "distractors_0"]).variants == (
+        "distractors_0",
+        "distractors_4",
+    )
+    with pytest.raises(ExperimentError, match="no variant"):
+        whole.with_variants(["distractors_9"])
+    with pytest.raises(ExperimentError, match="at least one variant"):
+        whole.with_variants([])
+
+
 def test_the_quick_budget_is_the_default_and_small():
     quick = get_budget(DEFAULT_BUDGET)
     assert quick.name == "quick" and quick.default_out == "runs/quick"

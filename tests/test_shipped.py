@@ -183,6 +183,31 @@ def test_report_and_figures_from_the_shipped_data_are_those_of_the_run_folders(
     assert OutputLayout.open(out).runs_root == shipped.data.resolve()  # notebooks on `out` too
 
 
+def test_shipped_runs_of_some_variants_rebuild_those_variants_figures_and_numbers(smoke, tmp_path):
+    """A campaign that trained the distractors for 7 distracting modules alone (as the `laptop`
+    campaign does): `--from-data` builds the distractors' figure and report from those runs, with
+    the numbers the whole smoke reproduction has for 7, and names the variants left out."""
+    root = tmp_path / "out"
+    for source in smoke_runs(smoke):
+        rel = source.relative_to(smoke.out / "runs")
+        if rel.parts[0] == "main" or rel.parts[1].endswith("@distractors_7"):
+            shutil.copytree(source, root / "runs" / rel, ignore=shutil.ignore_patterns("*.rrd"))
+    shutil.copy(smoke.out / "reproduce.json", root)
+    data, out = tmp_path / "data", tmp_path / "report"
+    assert cli(["ship", str(root), "--out", str(data)])[0] == 0
+    code, _, err = cli(["reproduce", "--from-data", str(data), "--out", str(out), "--no-progress"])
+    assert code == 0, err[-3000:]
+    report = (out / "report.md").read_text()
+    assert "Variants left out: distractors_0, distractors_4, whose runs" in report
+    assert "Not in this report (not reproduced yet): sensor_failure" in report
+    row = next(line for line in report.splitlines() if line.startswith("| 7 |"))
+    assert row in (smoke.out / "report.md").read_text().splitlines()
+    assert not any(line.startswith(("| 0 |", "| 4 |")) for line in report.splitlines())
+    assert (out / "figures" / "distractors.png").is_file()
+    metrics = pd.read_parquet(out / "metrics" / "distractors.parquet")
+    assert set(metrics["variant"].astype(str)) == {"distractors_7"}
+
+
 def test_the_shipped_smoke_folder_passes_the_repository_data_check(shipped, tmp_path):
     """The check test_shipped_data.py applies to data/, on a folder known to be good."""
     report = check_shipped_folder(shipped.data, tmp_path / "out")

@@ -15,8 +15,10 @@ budget and --out retrains nothing that is finished and resumes what was interrup
 
 --from-data DATA trains nothing: it reads the runs from a shipped data folder (`curious ship`;
 the repository's data/<budget>), every experiment it holds complete unless --experiments says
-otherwise, with its budget unless --budget says otherwise, and builds the same report and
-figures into --out (default runs/<budget>-shipped). DATA is only read.
+otherwise (an experiment of several variants, complete for some of them only, from those
+variants, the report naming the others), with its budget unless --budget says otherwise, and
+builds the same report and figures into --out (default runs/<budget>-shipped). DATA is only
+read.
 
 Errors about the input (unknown budget or experiment, an output folder made by another budget,
 a run folder holding another run, a Ray address that does not answer, an output folder that
