@@ -124,13 +124,13 @@ class ShippedData:
         other experiment stays whole, and `select` says what it lacks."""
         experiments = {}
         for name, experiment in budget.experiments.items():
-            if len(experiment.variants) > 1 and self.missing(experiment):
+            if len(experiment.variants) > 1:
                 complete = [
                     v
                     for v in experiment.variants
                     if not self.missing(experiment.with_variants([v]))
                 ]
-                if complete:
+                if 0 < len(complete) < len(experiment.variants):
                     experiment = experiment.with_variants(complete)
             experiments[name] = experiment
         return replace(budget, experiments=experiments)
