@@ -237,3 +237,51 @@ def test_the_pace_is_that_of_the_runs_training_now(campaign):
 def test_at_once_below_one_is_a_one_line_error(campaign, capsys):
     assert curious_cli(["progress", str(campaign), "--at-once", "0"]) == 2
     assert "--at-once must be at least 1" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def failing(tmp_path_factory):
+    """A smoke run of the sensory-failure variant whose failure starts at episode 12 of 24."""
+    out = tmp_path_factory.mktemp("failure") / "sensor_failure" / "curious-0"
+    args = ["train", "--condition", "curious", "--seed", "0", "--preset", "smoke"]
+    args += ["--variant", "sensor_failure", "--set", "sensor_failure_episode=12"]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("MUJOCO_GL", "disable")
+        assert curious_cli([*args, "--out", str(out), "--no-progress"]) in (0, None)
+    return out
+
+
+def test_a_run_with_a_sensory_failure_says_where_it_started(failing, campaign):
+    metrics = pd.read_parquet(failing / "metrics.parquet")
+    first = int(metrics.loc[metrics["sensor_failure"], "episode"].min())
+    (row,) = progress_table(failing)
+    assert row.failure == f"from episode {first:,}"
+    assert "| sensory failure |" in progress_markdown([row])
+    assert f"| from episode {first:,} |" in progress_markdown([row])
+    # A table without such a run has no such column.
+    assert all(r.failure is None for r in progress_table(campaign))
+    assert "sensory failure" not in progress_markdown(progress_table(campaign))
+
+
+@pytest.mark.parametrize(
+    ("setting", "expected"),
+    [
+        ({"sensor_failure_episode": 50}, "not yet: starts at episode 50"),
+        (
+            {"sensor_failure_competence": 0.99},
+            "not yet: starts when push_cube3's competence reaches 0.99 (now {now:.2f})",
+        ),
+    ],
+)
+def test_a_failure_not_started_says_what_it_waits_for(failing, tmp_path, setting, expected):
+    run = tmp_path / "run"
+    shutil.copytree(failing, run)
+    config = json.loads((run / "config.json").read_text())
+    config["config"].update({"sensor_failure_episode": -1, "sensor_failure_competence": -1.0})
+    config["config"].update(setting)
+    (run / "config.json").write_text(json.dumps(config))
+    metrics = pd.read_parquet(run / "metrics.parquet")
+    metrics["sensor_failure"] = False
+    metrics.to_parquet(run / "metrics.parquet")
+    (row,) = progress_table(run)
+    assert row.failure == expected.format(now=metrics["competence/push_cube3"].iat[-1])

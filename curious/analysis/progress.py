@@ -1,17 +1,19 @@
 """How far a set of runs has got: one row per run folder, read from the folders alone.
 
-A long campaign (`curious reproduce --budget laptop`, or many `curious train` runs) is stopped
-and resumed many times; `progress_table` says where each run stands from what its folder holds:
-episodes logged in ``metrics.parquet`` against the config's ``total_episodes``, the newest
-checkpoint, the run's own clock, the commits it ran from, and its test success over the last
-epochs (``tests.parquet``: noise-free test rollouts, scored as the paper's Fig. 2a, which for the
-flat `her` baseline is its holistic goal). A run that has written its config but no episode yet
-is listed with 0 episodes. A root may also be a shipped data folder (`curious ship`): its runs are
-listed as shipped (no checkpoint), and they stand for the runs of the same path that a
-reproduction given beside it has not started, so that a campaign whose machine lost the folders
-of the runs it shipped still counts them. A run that both hold is listed once, from the
-reproduction's folder (which has its checkpoints and may have gone further), marked shipped when
-the shipped copy holds all its episodes.
+A long campaign (`curious reproduce --budget laptop`, or many `curious train` runs) is stopped and
+resumed many times; `progress_table` says where each run stands from what its folder holds: episodes
+logged in ``metrics.parquet`` against the config's ``total_episodes``, the newest checkpoint, the
+run's own clock, the commits it ran from, and its test success over the last epochs
+(``tests.parquet``: noise-free test rollouts, scored as the paper's Fig. 2a, which for the flat
+`her` baseline is its holistic goal), and, for a variant with a sensory failure, whether the failure
+has started (the first episode ``metrics.parquet`` flags) or how far the perturbed module's
+competence is from the run's threshold. A run that has written its config but no episode yet is
+listed with 0 episodes. A root may also be a shipped data folder (`curious ship`): its runs are
+listed as shipped (no checkpoint), and they stand for the runs of the same path that a reproduction
+given beside it has not started, so that a campaign whose machine lost the folders of the runs it
+shipped still counts them. A run that both hold is listed once, from the reproduction's folder
+(which has its checkpoints and may have gone further), marked shipped when the shipped copy holds
+all its episodes.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 
 from curious.analysis.loading import (
     AnalysisError,
@@ -32,7 +35,7 @@ from curious.analysis.loading import (
     run_path_below,
     search_run_folders,
 )
-from curious.run_folder import CONFIG_FILE, RunFolder
+from curious.run_folder import CONFIG_FILE, RunFolder, RunInfo
 
 if TYPE_CHECKING:
     from curious.experiments import ReproduceBudget
@@ -74,6 +77,8 @@ class RunProgress:
     """The run's path below the folder it was found in (a reproduction's runs root)."""
     shipped: bool = False
     """A shipped data folder holds all its episodes (a row read from one has no checkpoint)."""
+    failure: str | None = None
+    """Where the run's sensory failure stands (`_failure`); None for a variant without one."""
 
     @property
     def done(self) -> float:
@@ -110,6 +115,35 @@ def _tests(folder: RunFolder, achievable: tuple[str, ...], epochs: int) -> tuple
     return int(tests["episode"].max()), success, len(recent), modules
 
 
+def _failure(folder: RunFolder, info: RunInfo) -> str | None:
+    """Where a run's sensory failure stands: ``from episode N`` once ``metrics.parquet`` flags
+    it, else what it waits for (the setting's episode, or the perturbed module's competence
+    against the setting's threshold); None for a variant without a failure."""
+    modules = info.sensor_failure_modules
+    if not modules:
+        return None
+    path = folder.metrics_path
+    names = set(pq.read_schema(path).names) if path.is_file() else set()
+    wanted = ["episode", "sensor_failure", *(f"competence/{m}" for m in modules)]
+    metrics = pd.read_parquet(path, columns=[c for c in wanted if c in names]) if names else None
+    if metrics is not None and "sensor_failure" in metrics.columns:
+        flagged = metrics.loc[metrics["sensor_failure"].fillna(False).astype(bool), "episode"]
+        if len(flagged):
+            return f"from episode {int(flagged.min()):,}"
+    if info.perturbation_episode is not None:
+        return f"not yet: starts at episode {info.perturbation_episode:,}"
+    if info.failure_competence is None:
+        return "never (no episode or competence set)"
+    reads = [
+        f"{metrics[f'competence/{m}'].iat[-1]:.2f}"
+        for m in modules
+        if metrics is not None and len(metrics) and f"competence/{m}" in metrics.columns
+    ]
+    now = f" (now {', '.join(reads)})" if reads else ""
+    whose = " and ".join(f"{m}'s" for m in modules)
+    return f"not yet: starts when {whose} competence reaches {info.failure_competence:.2f}{now}"
+
+
 def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> RunProgress:
     info = read_run_info(path)
     folder = RunFolder(path)
@@ -135,6 +169,7 @@ def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> Run
         module_success=modules,
         name=run_path_below(path, root).as_posix(),
         shipped=shipped,
+        failure=_failure(folder, info),
     )
 
 
@@ -237,13 +272,18 @@ def progress_markdown(
 ) -> str:
     """A markdown table of `rows`; run names relative to `base` where they lie below it, else
     below the folder each was found in. A shipped run's checkpoint reads `shipped`, after the
-    newest checkpoint where its folder is also there."""
+    newest checkpoint where its folder is also there. Where a run has a sensory failure, a
+    column says where each run's failure stands."""
     root = Path(base).resolve() if base is not None else None
+    failures = any(r.failure is not None for r in rows)
     header = (
         "| run | condition | variant | seed | episodes | of | done | checkpoint | run hours "
         f"| episodes/s | test success, last {epochs} epochs (tests) | per achievable module "
-        "| commits |\n"
-        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|---|\n"
+        + ("| sensory failure " if failures else "")
+        + "| commits |\n"
+        + "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|---|"
+        + ("---|" if failures else "")
+        + "---|\n"
     )
     lines = []
     for r in rows:
@@ -260,7 +300,9 @@ def progress_markdown(
         lines.append(
             f"| {_name(r, root)} | {r.condition} | {r.variant} | {r.seed} | {r.episodes:,} "
             f"| {r.total_episodes:,} | {r.done:.0%} | {checkpoint} | {r.run_hours:.2f} "
-            f"| {rate} | {success} | {modules} | {' '.join(r.commits) or '-'} |"
+            f"| {rate} | {success} | {modules} "
+            + (f"| {r.failure or '-'} " if failures else "")
+            + f"| {' '.join(r.commits) or '-'} |"
         )
     return header + "\n".join(lines) + "\n"
 
