@@ -1,7 +1,8 @@
-"""The achievable modules are achievable: scripted controllers, written here from the true
-positions in the observation, succeed on reach, push_cube1, cube1_above_cube2 and stack from the
-env's random starts and goals, and on the `sensor_failure` variant's push_cube1 and push_cube3. This exercises the arm, the mocap weld, the fingers' grip on a
-cube (friction and contacts) and the success predicates together."""
+"""The achievable modules are achievable: scripted controllers, written here from the true positions
+in the observation, succeed on reach, push_cube1, cube1_above_cube2 and stack from the env's
+random starts and goals, and on the `sensor_failure` variant's push_cube1 and push_cube3. This
+exercises the arm, the mocap weld, the fingers' grip on a cube (friction and contacts) and the
+success predicates together."""
 
 from __future__ import annotations
 
