@@ -115,18 +115,21 @@ def _tests(folder: RunFolder, achievable: tuple[str, ...], epochs: int) -> tuple
     return int(tests["episode"].max()), success, len(recent), modules
 
 
-def _failure(folder: RunFolder, info: RunInfo) -> str | None:
-    """Where a run's sensory failure stands: ``from episode N`` once ``metrics.parquet`` flags
-    it, else what it waits for (the setting's episode, or the perturbed module's competence
-    against the setting's threshold); None for a variant without a failure."""
+def _failure_columns(info: RunInfo) -> list[str]:
+    """The metrics columns `_failure` reads: none for a variant without a sensory failure."""
+    modules = info.sensor_failure_modules
+    return ["sensor_failure", *(f"competence/{m}" for m in modules)] if modules else []
+
+
+def _failure(info: RunInfo, metrics: pd.DataFrame) -> str | None:
+    """Where a run's sensory failure stands: ``from episode N`` once ``metrics`` (its
+    ``episode`` and the `_failure_columns` it holds) flags it, else what it waits for (the
+    setting's episode, or the perturbed module's competence against the setting's threshold);
+    None for a variant without a failure."""
     modules = info.sensor_failure_modules
     if not modules:
         return None
-    path = folder.metrics_path
-    names = set(pq.read_schema(path).names) if path.is_file() else set()
-    wanted = ["episode", "sensor_failure", *(f"competence/{m}" for m in modules)]
-    metrics = pd.read_parquet(path, columns=[c for c in wanted if c in names]) if names else None
-    if metrics is not None and "sensor_failure" in metrics.columns:
+    if "sensor_failure" in metrics.columns:
         flagged = metrics.loc[metrics["sensor_failure"].fillna(False).astype(bool), "episode"]
         if len(flagged):
             return f"from episode {int(flagged.min()):,}"
@@ -137,7 +140,7 @@ def _failure(folder: RunFolder, info: RunInfo) -> str | None:
     reads = [
         f"{metrics[f'competence/{m}'].iat[-1]:.2f}"
         for m in modules
-        if metrics is not None and len(metrics) and f"competence/{m}" in metrics.columns
+        if len(metrics) and f"competence/{m}" in metrics.columns
     ]
     now = f" (now {', '.join(reads)})" if reads else ""
     whose = " and ".join(f"{m}'s" for m in modules)
@@ -147,11 +150,13 @@ def _failure(folder: RunFolder, info: RunInfo) -> str | None:
 def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> RunProgress:
     info = read_run_info(path)
     folder = RunFolder(path)
-    episodes, hours = 0, 0.0
+    metrics = pd.DataFrame(columns=["episode", "wall_time"])
     if folder.metrics_path.is_file():
-        metrics = pd.read_parquet(folder.metrics_path, columns=["episode", "wall_time"])
-        episodes = len(metrics)
-        hours = float(metrics["wall_time"].max()) / 3600 if episodes else 0.0
+        held = set(pq.read_schema(folder.metrics_path).names)
+        extra = [c for c in _failure_columns(info) if c in held]
+        metrics = pd.read_parquet(folder.metrics_path, columns=["episode", "wall_time", *extra])
+    episodes = len(metrics)
+    hours = float(metrics["wall_time"].max()) / 3600 if episodes else 0.0
     test_episode, success, count, modules = _tests(folder, info.achievable_modules, epochs)
     return RunProgress(
         run=str(path),
@@ -169,7 +174,7 @@ def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> Run
         module_success=modules,
         name=run_path_below(path, root).as_posix(),
         shipped=shipped,
-        failure=_failure(folder, info),
+        failure=_failure(info, metrics),
     )
 
 
