@@ -14,7 +14,9 @@
 #    whole reproduction rest on it).
 # Each step has a time limit of its own, so that a slow one leaves the others their turn; OUT/env.txt
 # says on what it ran. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two
-# epochs of `paper`), CONTENDERS, SIDE_BY_SIDE (2; "2 4" adds four runs, about 2.5 minutes more).
+# epochs of `paper`), CONTENDERS, SIDE_BY_SIDE (2; "2 4" adds four runs, about 2.5 minutes more),
+# STEPS (which steps run: "tests bench one side", all four by default; "one side" measures only
+# runs, one alone and N side by side).
 set -uo pipefail
 
 out=${1:?usage: bash tools/gpu_checks.sh OUT}
@@ -23,6 +25,8 @@ device=${DEVICE:-cuda}
 episodes=${EPISODES:-1900}
 contenders=${CONTENDERS:-workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu}
 side_by_side=${SIDE_BY_SIDE:-2}
+steps=" ${STEPS:-tests bench one side} "
+wanted() { [[ $steps == *" $1 "* ]]; }
 cores=$(nproc)
 mkdir -p "$out"
 export MUJOCO_GL=disable PYTHONUNBUFFERED=1
@@ -39,28 +43,37 @@ torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version
     git rev-parse --short HEAD 2>/dev/null
 } 2>&1 | tee "$out/env.txt"
 
-step CUDA tests
-timeout 80 python3 -m pytest -p no:cacheprovider tests/test_agent_learner.py -k cuda -rs -q \
-    >"$out/cuda-tests.txt" 2>&1
-tail -1 "$out/cuda-tests.txt"
+if wanted tests; then
+    step CUDA tests
+    timeout 80 python3 -m pytest -p no:cacheprovider tests/test_agent_learner.py -k cuda -rs -q \
+        >"$out/cuda-tests.txt" 2>&1
+    tail -1 "$out/cuda-tests.txt"
+fi
 
-step bench cycle
-timeout 220 python3 -m curious.cli bench cycle --preset "$preset" --device "$device" --cycles 6 \
-    --contenders "$contenders" --json >"$out/bench.json" 2>"$out/bench.err"
-echo "exit $?"
+if wanted bench; then
+    step bench cycle
+    timeout 220 python3 -m curious.cli bench cycle --preset "$preset" --device "$device" \
+        --cycles 6 --contenders "$contenders" --json >"$out/bench.json" 2>"$out/bench.err"
+    echo "exit $?"
+fi
 
 settings=(--preset "$preset" --device "$device" --no-record --no-progress
           --set prefetch_minibatches=true --set "total_episodes=$episodes")
-step one run, "$cores" worker processes
-timeout 120 python3 -m curious.cli train --out "$out/one-run" "${settings[@]}" \
-    --set "env_processes=$cores" >"$out/one-run.log" 2>&1
-echo "exit $?"
+if wanted one; then
+    step one run, "$cores" worker processes
+    timeout 120 python3 -m curious.cli train --out "$out/one-run" "${settings[@]}" \
+        --set "env_processes=$cores" >"$out/one-run.log" 2>&1
+    echo "exit $?"
+fi
 
+wanted side || side_by_side=""
 for n in $side_by_side; do
     share=$((cores / n > 1 ? cores / n : 2))
     step "$n" runs side by side, "$share" worker processes each
     for seed in $(seq 0 $((n - 1))); do
-        timeout 160 python3 -m curious.cli train --out "$out/$n-runs/seed-$seed" --seed "$seed" \
+        # each run has 1/N of the cores (four took about 85 s each on an H100 node): more time
+        timeout $((80 + 25 * n)) python3 -m curious.cli train --out "$out/$n-runs/seed-$seed" \
+            --seed "$seed" \
             "${settings[@]}" --set "env_processes=$share" >"$out/$n-runs-$seed.log" 2>&1 &
     done
     wait
