@@ -71,10 +71,10 @@ for n in $side_by_side; do
     share=$((cores / n > 1 ? cores / n : 2))
     step "$n" runs side by side, "$share" worker processes each
     for seed in $(seq 0 $((n - 1))); do
-        # each run has 1/N of the cores (four took about 85 s each on an H100 node): more time
+        # each run has 1/N of the cores, so N runs need longer (an H100 node: 4 runs ~95 s, 8 ~146 s)
         timeout $((80 + 25 * n)) python3 -m curious.cli train --out "$out/$n-runs/seed-$seed" \
-            --seed "$seed" \
-            "${settings[@]}" --set "env_processes=$share" >"$out/$n-runs-$seed.log" 2>&1 &
+            --seed "$seed" "${settings[@]}" --set "env_processes=$share" \
+            >"$out/$n-runs-$seed.log" 2>&1 &
     done
     wait
 done
