@@ -2,18 +2,29 @@
 
 A checkpoint is a folder `checkpoints/ep-<episodes>/` (its name and the listing of the complete
 ones are the run folder's format, `curious.run_folder`) holding `state.pt` (networks, optimisers,
-normalisers, competence queues, RNG states, counters, the config) and `replay.npz` (the replay
-buffer's filled part, uncompressed). It is written under a temporary name and renamed when
-complete, so a crash leaves either the previous checkpoint or the new one, never half of one.
-The two newest are kept (older ones are removed after the rename), so that a checkpoint damaged
-later (a disk error, a truncated copy) is not the end of a run: `load_latest` falls back to the
-one before, saying so.
+normalisers, competence queues, RNG states, counters, the config) and the replay buffer's filled
+part. It is written under a temporary name and renamed when complete, so a crash leaves either
+the previous checkpoint or the new one, never half of one. The two newest are kept (older ones
+are removed after the rename), so that a checkpoint damaged later (a disk error, a truncated
+copy) is not the end of a run: `load_latest` falls back to the one before, saying so.
+
+The replay only grows until it first stores an episode over another (a run keeps every episode
+by default), so a checkpoint writes only the episodes stored since the one before: each lands
+once, in a segment `checkpoints/replay/episodes-<first>-<end>.npz` written atomically, and a
+checkpoint's `replay.json` lists the segments that make up its replay. The checkpoints share
+their older segments (the disk holds the replay once, not once per checkpoint kept), and a
+segment goes when no kept checkpoint lists it. A replay that has evicted an episode, or a
+checkpoint with no earlier one of its run to build on, is written whole (a first segment, or
+`replay.npz` in the checkpoint's folder where episodes were evicted). The newest checkpoint's
+own segment damaged still falls back to the one before, which does not list it; a damaged
+older segment, shared by both, does not.
 """
 
 from __future__ import annotations
 
 import errno
 import functools
+import json
 import os
 import pickle
 import shutil
@@ -30,6 +41,10 @@ from curious.run_folder import checkpoint_episodes, checkpoint_name, list_checkp
 
 KEEP = 2
 """Checkpoints kept in a run folder: the newest and the one before."""
+SEGMENTS = "replay"
+"""The folder, beside the checkpoints, of the replay segments they share."""
+MANIFEST = "replay.json"
+"""A checkpoint's list of the replay segments that make up its replay."""
 FORMAT_VERSION = 4
 """2: goals enter the networks through a fixed map (no goal statistics), Xavier-initialised
 networks, the authors' stack guard and T3 heights; 3: test rollouts' random streams and the
@@ -57,16 +72,26 @@ def _fsync_dir(path: Path) -> None:
 
 
 def save(
-    directory: Path, episodes: int, state: dict[str, Any], replay: dict[str, Any], keep: int = KEEP
+    directory: Path,
+    episodes: int,
+    state: dict[str, Any],
+    replay: dict[str, Any],
+    keep: int = KEEP,
+    base: Path | None = None,
 ) -> Path:
-    """Write a checkpoint for `episodes` episodes into `directory`; return its path. A failed
-    write (a full disk, a read-only folder) is a `CheckpointError` naming the cause and the file,
-    and leaves the earlier checkpoints as they were."""
+    """Write a checkpoint for `episodes` episodes into `directory`; return its path.
+
+    `replay` is the replay's `state_dict`. `base` is the checkpoint this run last wrote or
+    resumed from: where it lists segments and nothing was evicted since, only the episodes after
+    it are written (module docstring). A failed write (a full disk, a read-only folder) is a
+    `CheckpointError` naming the cause and the file, and leaves the earlier checkpoints as they
+    were."""
     tmp = directory / f".tmp-{checkpoint_name(episodes)}"
     try:
-        return _save(directory, episodes, state, replay, keep)
+        return _save(directory, episodes, state, replay, keep, base)
     except (OSError, RuntimeError) as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        _remove_temporary_segments(directory)
         raise CheckpointError(_write_failure(exc, directory, tmp)) from exc
 
 
@@ -111,7 +136,12 @@ def _write_file(path: Path, write: Callable[[BinaryIO], object]) -> None:
 
 
 def _save(
-    directory: Path, episodes: int, state: dict[str, Any], replay: dict[str, Any], keep: int
+    directory: Path,
+    episodes: int,
+    state: dict[str, Any],
+    replay: dict[str, Any],
+    keep: int,
+    base: Path | None,
 ) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     final = directory / checkpoint_name(episodes)
@@ -121,7 +151,12 @@ def _save(
     tmp.mkdir()
     state = {"format": FORMAT_VERSION, "episodes": episodes, **state}
     _write_file(tmp / "state.pt", functools.partial(torch.save, state))
-    _write_file(tmp / "replay.npz", lambda handle: np.savez(handle, **replay))
+    if _grows_only(replay):
+        manifest = _write_segments(directory, replay, base)
+        text = json.dumps(manifest, indent=1)
+        _write_file(tmp / MANIFEST, lambda handle: handle.write(text.encode()))
+    else:
+        _write_file(tmp / "replay.npz", lambda handle: np.savez(handle, **replay))
     _fsync_dir(tmp)
     if final.exists():
         shutil.rmtree(final)
@@ -138,6 +173,117 @@ def prune(directory: Path, keep: int = KEEP, spare: Path | None = None) -> None:
     for old in list_checkpoints(directory)[:-keep]:
         if spare is None or old.resolve() != spare.resolve():
             shutil.rmtree(old, ignore_errors=True)
+    _prune_segments(directory)
+
+
+def _grows_only(replay: dict[str, Any]) -> bool:
+    """Whether `replay` is a replay's `state_dict` that has evicted nothing: its per-episode
+    arrays then hold every episode stored, oldest first, and a checkpoint can be written as
+    segments."""
+    if "evicted" not in replay or "size" not in replay or bool(replay["evicted"]):
+        return False
+    size = int(replay["size"])
+    return all(len(v) == size for v in replay.values() if np.ndim(v) > 0)
+
+
+def _segment_name(first: int, end: int) -> str:
+    return f"episodes-{first:012d}-{end:012d}.npz"
+
+
+def _read_manifest(path: Path) -> dict[str, Any]:
+    """A checkpoint's `replay.json`: `size` (episodes), `scalars` (the replay's other counters)
+    and `segments` (`[name, first, end]` rows, in order, covering episodes 0 to `size`)."""
+    manifest = json.loads((path / MANIFEST).read_text())
+    if not isinstance(manifest, dict) or not {"size", "scalars", "segments"} <= manifest.keys():
+        raise ValueError(f"{path / MANIFEST} is not a replay manifest")
+    return manifest
+
+
+def _write_segments(directory: Path, replay: dict[str, Any], base: Path | None) -> dict[str, Any]:
+    """Write the episodes of `replay` that `base`'s segments lack as a new segment (all of them
+    where `base` lists none or cannot be read), and return the new checkpoint's manifest."""
+    size = int(replay["size"])
+    arrays = {k: np.asarray(v) for k, v in replay.items() if np.ndim(v) > 0}
+    scalars = {k: np.asarray(v).item() for k, v in replay.items() if np.ndim(v) == 0}
+    segments: list[list[Any]] = []
+    folder = directory / SEGMENTS
+    if base is not None:
+        try:
+            earlier = _read_manifest(base)
+            if earlier["size"] <= size and all(
+                (folder / n).is_file() for n, *_ in earlier["segments"]
+            ):
+                segments = [list(row) for row in earlier["segments"]]
+        except (OSError, ValueError):
+            segments = []  # nothing to build on: the whole replay goes into one segment
+    first = segments[-1][2] if segments else 0
+    if size > first:
+        folder.mkdir(exist_ok=True)
+        name = _segment_name(first, size)
+        tmp = folder / f".tmp-{name}"
+        part = {k: v[first:size] for k, v in arrays.items()}
+        _write_file(tmp, lambda handle: np.savez(handle, **part))
+        os.replace(tmp, folder / name)
+        _fsync_dir(folder)
+        segments.append([name, first, size])
+    return {"size": size, "scalars": scalars, "segments": segments}
+
+
+def _read_segments(path: Path, replay: bool) -> dict[str, np.ndarray]:
+    """The replay arrays a checkpoint's manifest lists, joined in order (empty with `replay`
+    False, once every segment has been opened and listed)."""
+    manifest = _read_manifest(path)
+    folder = path.parent / SEGMENTS
+    parts: dict[str, list[np.ndarray]] = {}
+    expected = 0
+    for name, first, end in manifest["segments"]:
+        if first != expected:
+            raise ValueError(f"{path / MANIFEST}: segment {name} starts at {first}, not {expected}")
+        with np.load(folder / name) as data:
+            for key in data.files:
+                if replay:
+                    array = data[key]
+                    if len(array) != end - first:
+                        raise ValueError(
+                            f"segment {folder / name}: {key} holds {len(array)} episodes, "
+                            f"not {end - first}"
+                        )
+                    parts.setdefault(key, []).append(array)
+        expected = end
+    if expected != manifest["size"]:
+        raise ValueError(f"{path / MANIFEST}: segments end at {expected}, not {manifest['size']}")
+    if not replay:
+        return {}
+    arrays = {k: np.concatenate(v) for k, v in parts.items()}
+    return {**arrays, **{k: np.asarray(v) for k, v in manifest["scalars"].items()}}
+
+
+def _remove_temporary_segments(directory: Path) -> None:
+    """Remove half-written segments, and the segments' folder if that leaves it empty."""
+    folder = directory / SEGMENTS
+    if folder.is_dir():
+        for p in folder.glob(".tmp-*"):
+            p.unlink(missing_ok=True)
+        if not any(folder.iterdir()):
+            folder.rmdir()
+
+
+def _prune_segments(directory: Path) -> None:
+    """Remove the segments (and temporaries) that no checkpoint left lists; none while a
+    checkpoint's manifest cannot be read (it might list any of them)."""
+    folder = directory / SEGMENTS
+    if not folder.is_dir():
+        return
+    listed: set[str] = set()
+    for path in list_checkpoints(directory):
+        if (path / MANIFEST).exists():
+            try:
+                listed.update(name for name, *_ in _read_manifest(path)["segments"])
+            except (OSError, ValueError):
+                return
+    for p in folder.iterdir():
+        if p.is_file() and p.name not in listed:
+            p.unlink(missing_ok=True)
 
 
 def remove_partial(directory: Path) -> None:
@@ -146,6 +292,7 @@ def remove_partial(directory: Path) -> None:
         for p in directory.iterdir():
             if p.name.startswith(".tmp-"):
                 shutil.rmtree(p, ignore_errors=True)
+        _remove_temporary_segments(directory)
 
 
 def load(
@@ -157,14 +304,18 @@ def load(
     refused, and the arrays come back empty."""
     try:
         state = torch.load(path / "state.pt", map_location=map_location, weights_only=False)
-        with np.load(path / "replay.npz") as data:
-            arrays = {k: data[k] for k in data.files} if replay else {}
+        if (path / MANIFEST).exists():
+            arrays = _read_segments(path, replay)
+        else:
+            with np.load(path / "replay.npz") as data:
+                arrays = {k: data[k] for k in data.files} if replay else {}
     except (
         OSError,
         RuntimeError,
         ValueError,
         EOFError,
         KeyError,
+        TypeError,
         pickle.UnpicklingError,
         zipfile.BadZipFile,
     ) as exc:

@@ -86,6 +86,9 @@ class EpisodeReplay:
         self.moved = np.zeros((capacity, n), bool)
         self.size = 0
         self.ptr = 0
+        self.evicted = False
+        """Whether an episode was ever stored over another: until then the slots hold every
+        episode in the order stored, so a checkpoint need write only those after the last one."""
         self._hindsight = spec.hindsight_columns()  # (N, G)
         self._pools: list[np.ndarray] | None = None  # per module: episodes its outcome moved in
 
@@ -116,6 +119,7 @@ class EpisodeReplay:
         if e > self.capacity:
             raise ValueError(f"{e} episodes do not fit a replay of {self.capacity}")
         idx = (self.ptr + np.arange(e)) % self.capacity
+        self.evicted |= self.size + e > self.capacity
         self.states[idx] = states
         self.achieved[idx] = achieved
         self.actions[idx] = actions
@@ -254,6 +258,7 @@ class EpisodeReplay:
             "moved": self.moved[:n],
             "size": np.int64(n),
             "ptr": np.int64(self.ptr),
+            "evicted": np.bool_(self.evicted),
         }
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
@@ -273,4 +278,8 @@ class EpisodeReplay:
             target[:n] = array
         self.size = n
         self.ptr = n % self.capacity
+        # a dict without the flag (written before it existed) is taken as evicted unless its
+        # pointer says the ring never wrapped
+        ptr = int(state["ptr"])
+        self.evicted = bool(state["evicted"]) if "evicted" in state else ptr != n
         self._pools = None

@@ -171,6 +171,7 @@ def _run(
     latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None
     if latest is not None:
         trainer.load_state_dict(*latest[1:])  # raises on another config, before any write
+        trainer.last_checkpoint = latest[0]
     tables: list[TableLog] = []
     if resume:  # read before anything is written: a bad table is an error with nothing changed
         tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]

@@ -197,6 +197,9 @@ class Trainer:
         self.episodes = 0
         self.cycles = 0
         self.elapsed = 0.0  # seconds of training before this process (resumed runs)
+        self.last_checkpoint: Path | None = None
+        """The checkpoint this state last went to or came from: the next one writes only the
+        replay's episodes after it (`curious.checkpoint`)."""
         self._started = time.perf_counter()
         self._names = np.array(self.spec.module_names, dtype=object)
         self.observer: RoundObserver | None = None
@@ -569,8 +572,11 @@ class Trainer:
         """Checkpoint the run (`curious.checkpoint.save`), never a diverged one."""
         self.ensure_finite()
         state, replay = self.state_dict()
-        return checkpoint.save(directory, self.episodes, state, replay)
+        path = checkpoint.save(directory, self.episodes, state, replay, base=self.last_checkpoint)
+        self.last_checkpoint = path
+        return path
 
     def load_checkpoint(self, path: Path) -> None:
         state, replay = checkpoint.load(path, map_location=self.agent.device)
         self.load_state_dict(state, replay)
+        self.last_checkpoint = path

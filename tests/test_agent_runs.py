@@ -515,7 +515,8 @@ def test_a_damaged_newest_checkpoint_falls_back_to_the_one_before(tmp_path):
     run_stop(tmp_path / "r", stop=4, total_episodes=60, checkpoint_every_cycles=2)
     found = list_checkpoints(tmp_path / "r" / "checkpoints")
     assert len(found) == 2  # the newest and the one before are kept
-    (found[-1] / "replay.npz").write_bytes(b"PK\x03\x04 truncated")
+    own = json.loads((found[-1] / "replay.json").read_text())["segments"][-1][0]
+    (found[-1].parent / "replay" / own).write_bytes(b"PK\x03\x04 truncated")  # its own episodes
     (tmp_path / "r" / "checkpoints" / "ep-000000000016.bak").mkdir()  # a stray folder
     with pytest.warns(UserWarning, match="resuming from the one before"):
         trainer = run_stop(

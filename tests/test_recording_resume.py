@@ -20,7 +20,7 @@ import rerun as rr
 from curious.recording import RecorderSettings, RunRecorder
 from curious.recording.cost import synthetic_episodes
 from curious.recording.reader import read_points
-from curious.run_folder import RECORDING_FILE
+from curious.run_folder import RECORDING_FILE, list_checkpoints
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 SETTINGS = RecorderSettings(rollout_every=0, stats_keyframe_every=50)
@@ -176,7 +176,7 @@ def test_a_run_killed_three_times_records_what_an_uninterrupted_run_does(
     assert main([*TRAIN, "--out", str(out), "--resume"]) == 0
     assert_same_points(out / RECORDING_FILE, uninterrupted_run)
     assert not [w for w in recwarn if "footer" in str(w.message)]  # no "legacy format" warning
-    assert len(list((out / "checkpoints").iterdir())) == 2
+    assert len(list_checkpoints(out / "checkpoints")) == 2
 
 
 # ------------------------------------------------------------------------------ a full disk
