@@ -82,3 +82,18 @@ def test_the_rollout_scaling_benchmark_reports_every_process_count():
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     assert result["processes_1"] > 0 and result["processes_2"] == result["ours"]
     assert result["bound"] == 2 * result["physics_episodes_per_s_one_core"]
+
+
+def test_the_checkpoint_benchmark_keeps_the_replay_once_where_the_peer_keeps_it_twice():
+    from benchmarks import checkpoint_cost
+
+    parser = argparse.ArgumentParser()
+    checkpoint_cost.add_arguments(parser)
+    args = ["--episodes", "300", "--every", "100", "--rounds", "1"]
+    result = checkpoint_cost.measure(parser.parse_args(args))
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    assert result["ours"] > 0 and result["peer"] > 0 and result["bound"] > 0
+    replay_mb = result["replay_kb_per_episode"] * 300 / 1e3
+    assert replay_mb < result["disk_two_checkpoints_ours_mb"] < 1.1 * replay_mb
+    both = replay_mb * (300 + 200) / 300  # the replay at both checkpoints, 300 and 200 episodes
+    assert both < result["disk_two_checkpoints_peer_mb"] < 1.1 * both

@@ -1,5 +1,5 @@
-"""`curious bench {env,learner,cycle,rollouts,recording}`: speed benchmarks, ours side by side
-with a bound and a peer.
+"""`curious bench {env,learner,cycle,rollouts,recording,checkpoint}`: speed benchmarks, ours
+side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
@@ -32,6 +32,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "recording": (
         "benchmarks.recording_overhead",
         "training with vs without the Rerun recording: the overhead and the .rrd size",
+    ),
+    "checkpoint": (
+        "benchmarks.checkpoint_cost",
+        "a checkpoint's replay: only the new episodes vs the whole replay vs the raw write",
     ),
 }
 
