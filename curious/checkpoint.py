@@ -230,31 +230,39 @@ def _write_segments(directory: Path, replay: dict[str, Any], base: Path | None) 
 
 
 def _read_segments(path: Path, replay: bool) -> dict[str, np.ndarray]:
-    """The replay arrays a checkpoint's manifest lists, joined in order (empty with `replay`
-    False, once every segment has been opened and listed)."""
+    """The replay arrays a checkpoint's manifest lists, filled in order into one array each (the
+    memory of the replay and one segment at most; empty with `replay` False, once every segment
+    has been opened and listed)."""
     manifest = _read_manifest(path)
     folder = path.parent / SEGMENTS
-    parts: dict[str, list[np.ndarray]] = {}
+    size = manifest["size"]
+    arrays: dict[str, np.ndarray] = {}
     expected = 0
     for name, first, end in manifest["segments"]:
-        if first != expected:
-            raise ValueError(f"{path / MANIFEST}: segment {name} starts at {first}, not {expected}")
+        if first != expected or end > size:
+            raise ValueError(
+                f"{path / MANIFEST}: segment {name} does not follow episode {expected}"
+            )
         with np.load(folder / name) as data:
+            if arrays and set(data.files) != set(arrays):
+                raise ValueError(f"segment {folder / name} holds other arrays than the one before")
             for key in data.files:
-                if replay:
-                    array = data[key]
-                    if len(array) != end - first:
-                        raise ValueError(
-                            f"segment {folder / name}: {key} holds {len(array)} episodes, "
-                            f"not {end - first}"
-                        )
-                    parts.setdefault(key, []).append(array)
+                if not replay:
+                    continue
+                part = data[key]
+                if len(part) != end - first:
+                    raise ValueError(
+                        f"segment {folder / name}: {key} holds {len(part)} episodes, "
+                        f"not {end - first}"
+                    )
+                if key not in arrays:
+                    arrays[key] = np.empty((size, *part.shape[1:]), part.dtype)
+                arrays[key][first:end] = part
         expected = end
-    if expected != manifest["size"]:
-        raise ValueError(f"{path / MANIFEST}: segments end at {expected}, not {manifest['size']}")
+    if expected != size:
+        raise ValueError(f"{path / MANIFEST}: segments end at {expected}, not {size}")
     if not replay:
         return {}
-    arrays = {k: np.concatenate(v) for k, v in parts.items()}
     return {**arrays, **{k: np.asarray(v) for k, v in manifest["scalars"].items()}}
 
 

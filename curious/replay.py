@@ -269,7 +269,9 @@ class EpisodeReplay:
             raise ValueError(f"checkpoint replay holds {n} episodes, capacity is {self.capacity}")
         oldest = int(state["ptr"]) % n if n else 0  # a full ring's oldest episode sits at ptr
         for key in ("states", "achieved", "actions", "modules", "goals", "moved"):
-            array = np.roll(np.asarray(state[key]), -oldest, axis=0)
+            array = np.asarray(state[key])
+            if oldest:  # no copy of the whole replay where it is laid out oldest first
+                array = np.roll(array, -oldest, axis=0)
             target = getattr(self, key)
             if array.shape[1:] != target.shape[1:]:
                 raise ValueError(
