@@ -246,9 +246,7 @@ def _read_segments(path: Path, replay: bool) -> dict[str, np.ndarray]:
         with np.load(folder / name) as data:
             if arrays and set(data.files) != set(arrays):
                 raise ValueError(f"segment {folder / name} holds other arrays than the one before")
-            for key in data.files:
-                if not replay:
-                    continue
+            for key in data.files if replay else ():
                 part = data[key]
                 if len(part) != end - first:
                     raise ValueError(
@@ -262,7 +260,7 @@ def _read_segments(path: Path, replay: bool) -> dict[str, np.ndarray]:
     if expected != size:
         raise ValueError(f"{path / MANIFEST}: segments end at {expected}, not {size}")
     if not replay:
-        return {}
+        return arrays  # empty: every segment was opened and listed
     return {**arrays, **{k: np.asarray(v) for k, v in manifest["scalars"].items()}}
 
 
