@@ -11,12 +11,17 @@
 # 3. one short run with the fastest synchronous settings, into OUT/one-run/;
 # 4. for each N of SIDE_BY_SIDE, N such runs side by side, each with 1/N of the cores, into
 #    OUT/N-runs/ (what several runs sharing one node give: docs/scaling.md's projections of the
-#    whole reproduction rest on it).
+#    whole reproduction rest on it);
+# 5. (STEPS with "resume") one run stopped by a time limit, as a node's lease or a session ends it,
+#    then resumed from its last checkpoint with --resume and stopped again: OUT/resume/ holds its
+#    metrics, both logs and, after each stop, the checkpoints and replay segments it held
+#    (listings and each checkpoint's replay.json; the run folder itself stays in RESUME_DIR).
 # Each step has a time limit of its own, so that a slow one leaves the others their turn; OUT/env.txt
 # says on what it ran. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two
 # epochs of `paper`), CONTENDERS, SIDE_BY_SIDE (2; "2 4" adds four runs, about 2.5 minutes more),
 # STEPS (which steps run: "tests bench one side", all four by default; "one side" measures only
-# runs, one alone and N side by side).
+# runs, one alone and N side by side; "resume" adds step 5), RESUME_SECONDS (170: each leg of
+# step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
 out=${1:?usage: bash tools/gpu_checks.sh OUT}
@@ -78,6 +83,28 @@ for n in $side_by_side; do
     done
     wait
 done
+
+if wanted resume; then
+    run=${RESUME_DIR:-/tmp/curious-resume}
+    rm -rf "$run"
+    mkdir -p "$out/resume"
+    held() {  # what the run folder's checkpoints hold after a stop, into OUT/resume/$1.txt
+        (cd "$run/checkpoints" && ls -l --time-style=+%T -R . && tail -n +1 ep-*/replay.json) \
+            >"$out/resume/$1.txt" 2>&1
+    }
+    for leg in first resumed; do
+        step "$leg" leg, stopped after "${RESUME_SECONDS:-170}" s
+        flag=()
+        [[ $leg == resumed ]] && flag=(--resume)
+        timeout "${RESUME_SECONDS:-170}" python3 -m curious.cli train --out "$run" "${flag[@]}" \
+            --preset "$preset" --device "$device" --no-record --no-progress \
+            --set prefetch_minibatches=true --set "env_processes=$cores" \
+            >"$out/resume/$leg.log" 2>&1
+        echo "exit $?"
+        held "$leg"
+    done
+    cp "$run/metrics.parquet" "$run/tests.parquet" "$run/config.json" "$out/resume/" 2>/dev/null
+fi
 
 step rates
 # each run's episodes/s over its own clock, tests and start included: the project's progress table
