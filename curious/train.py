@@ -542,7 +542,9 @@ class Trainer:
         self.envs.set_rng_states(state["env_rng"])
         if self.test_envs is not self.envs:
             self.test_envs.set_rng_states(state["test_env_rng"])
-        torch.set_rng_state(state["torch_rng"])
+        # a checkpoint is loaded onto the agent's device; the CPU generator's state must be a CPU
+        # ByteTensor (on a GPU, torch.load moved it there and set_rng_state refused it)
+        torch.set_rng_state(state["torch_rng"].cpu())
         self.episodes = int(state["episodes"])
         self.cycles = int(state["cycles"])
         self.elapsed = float(state["elapsed"])

@@ -90,9 +90,15 @@ def test_run_folder_holds_config_metrics_and_checkpoint(tmp_path, condition):
     assert len(list_checkpoints(folder / "checkpoints")) == 2  # the newest and the one before
 
 
+CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+
+
+@pytest.mark.parametrize("device", ["cpu", pytest.param("cuda", marks=CUDA)])
 @pytest.mark.parametrize("overlap", [False, True])
-def test_resume_gives_the_same_run_as_no_interruption(tmp_path, overlap):
-    common = dict(total_episodes=48, checkpoint_every_cycles=3, overlap_rollouts=overlap)
+def test_resume_gives_the_same_run_as_no_interruption(tmp_path, overlap, device):
+    common = dict(
+        total_episodes=48, checkpoint_every_cycles=3, overlap_rollouts=overlap, device=device
+    )
     whole = run_stop(tmp_path / "whole", stop=None, **common)
     # A kill resumes from a checkpoint: overlapped, checkpoints collect the rounds in flight,
     # so the split is taken at a checkpoint cycle (6), where the whole run drained them too.

@@ -6,7 +6,7 @@
 #   bash tools/gpu_checks.sh OUT            # on a node with a CUDA device: results into OUT/
 #   PRESET=smoke DEVICE=cpu bash tools/gpu_checks.sh OUT   # the same steps on a CPU, in minutes
 #
-# 1. the CUDA tests (tests/test_agent_learner.py -k cuda), into OUT/cuda-tests.txt;
+# 1. the CUDA tests (tests/test_agent_learner.py and tests/test_agent_runs.py, -k cuda), into OUT/cuda-tests.txt;
 # 2. `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
 # 3. one short run with the fastest synchronous settings, into OUT/one-run/;
 # 4. for each N of SIDE_BY_SIDE, N such runs side by side, each with 1/N of the cores, into
@@ -50,7 +50,7 @@ torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version
 
 if wanted tests; then
     step CUDA tests
-    timeout 80 python3 -m pytest -p no:cacheprovider tests/test_agent_learner.py -k cuda -rs -q \
+    timeout 120 python3 -m pytest -p no:cacheprovider tests/test_agent_learner.py tests/test_agent_runs.py -k cuda -rs -q \
         >"$out/cuda-tests.txt" 2>&1
     tail -1 "$out/cuda-tests.txt"
 fi
