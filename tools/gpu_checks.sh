@@ -62,8 +62,9 @@ if wanted bench; then
     echo "exit $?"
 fi
 
-settings=(--preset "$preset" --device "$device" --no-record --no-progress
-          --set prefetch_minibatches=true --set "total_episodes=$episodes")
+common=(--preset "$preset" --device "$device" --no-record --no-progress
+        --set prefetch_minibatches=true)
+settings=("${common[@]}" --set "total_episodes=$episodes")
 if wanted one; then
     step one run, "$cores" worker processes
     timeout 120 python3 -m curious.cli train --out "$out/one-run" "${settings[@]}" \
@@ -86,6 +87,7 @@ done
 
 if wanted resume; then
     run=${RESUME_DIR:-/tmp/curious-resume}
+    seconds=${RESUME_SECONDS:-170}
     rm -rf "$run"
     mkdir -p "$out/resume"
     held() {  # what the run folder's checkpoints hold after a stop, into OUT/resume/$1.txt
@@ -93,13 +95,11 @@ if wanted resume; then
             >"$out/resume/$1.txt" 2>&1
     }
     for leg in first resumed; do
-        step "$leg" leg, stopped after "${RESUME_SECONDS:-170}" s
+        step "$leg" leg, stopped after "$seconds" s
         flag=()
         [[ $leg == resumed ]] && flag=(--resume)
-        timeout "${RESUME_SECONDS:-170}" python3 -m curious.cli train --out "$run" "${flag[@]}" \
-            --preset "$preset" --device "$device" --no-record --no-progress \
-            --set prefetch_minibatches=true --set "env_processes=$cores" \
-            >"$out/resume/$leg.log" 2>&1
+        timeout "$seconds" python3 -m curious.cli train --out "$run" "${flag[@]}" "${common[@]}" \
+            --set "env_processes=$cores" >"$out/resume/$leg.log" 2>&1
         echo "exit $?"
         held "$leg"
     done
