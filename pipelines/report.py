@@ -158,9 +158,7 @@ def _runs_table(tables: _Tables) -> list[str]:
     table, points = tables.metrics, tables.points
     runs = analysis.runs_table(table)
     final = analysis.final_competence(table).set_index("run")["value"]
-    tested = (
-        analysis.final_success(points).set_index("run")["value"] if points is not None else None
-    )
+    tested = analysis.final_success(points).set_index("run") if points is not None else None
     wall = table.groupby("run", observed=True)["wall_time"].max()
     rows = []
     for _, r in runs.sort_values(["variant", "condition", "seed"]).iterrows():
@@ -175,7 +173,7 @@ def _runs_table(tables: _Tables) -> list[str]:
             _fmt(final[r["run"]]),
         ]
         if tested is not None:
-            row.append(_fmt(tested.get(r["run"], math.nan)))
+            row.append(_tested_cell(tested, r["run"]))
         rows.append(row)
     header = [
         "run folder",
@@ -187,8 +185,18 @@ def _runs_table(tables: _Tables) -> list[str]:
         "final competence",
     ]
     if tested is not None:
-        header.append("final test success")
+        header.append("final test success (test rollouts)")
     return _table(header, rows)
+
+
+def _tested_cell(tested: pd.DataFrame, run: object) -> str:
+    """A run's test success at the last epoch with the rollouts behind it: an epoch tests a
+    few episodes on the achievable modules (fewer, the more distracting modules share the draw),
+    so the count says how far to trust the rate."""
+    if run not in tested.index:
+        return "–"
+    value, n = tested.at[run, "value"], tested.at[run, "n_tests"]
+    return f"{_fmt(value)} ({int(n)})"
 
 
 def _final_by_condition(e: Experiment, points: pd.DataFrame) -> list[str]:

@@ -86,5 +86,10 @@ def check_shipped_folder(data: Path, out: Path) -> str:
             cells = [c.strip() for c in line.strip("|").split("|")]
             assert cells[4] == f"{len(rows):,}", f"{relative}: episodes in the report"
             assert cells[6] == _two(final_competence.get(run)), f"{relative}: final competence"
-            assert cells[7] == _two(final_test["value"].get(run)), f"{relative}: test success"
+            tested = (
+                f"{_two(final_test.at[run, 'value'])} ({final_test.at[run, 'n_tests']})"
+                if run in final_test.index
+                else "–"
+            )
+            assert cells[7] == tested, f"{relative}: test success and its rollouts"
     return report
