@@ -52,6 +52,19 @@ def test_the_queue_goes_pattern_by_pattern_then_seed_by_seed_without_shipped_run
     ]
 
 
+def test_once_distractors_7_is_shipped_the_default_queue_goes_on_with_4_then_0(campaign):
+    """The laptop campaign's queue after its 17 runs: the distractor variants C4's degradation
+    needs, 4 distractors before 0, seed by seed."""
+    done = set(paths(campaign.queue("laptop", campaign.DEFAULT_ONLY[:3], set())))
+    assert len(done) == 17
+    assert paths(campaign.queue("laptop", campaign.DEFAULT_ONLY, done)) == [
+        f"distractors/{c}@distractors_{n}/seed-{seed}"
+        for n in (4, 0)
+        for seed in (0, 1)
+        for c in ("curious", "m-uvfa")
+    ]
+
+
 def test_a_dry_run_leaves_out_what_the_data_folder_holds_finished_and_writes_nothing(
     campaign, shipped, tmp_path
 ):

@@ -44,9 +44,16 @@ from pipelines.reproduce import _write_manifest, check_output_folder
 from pipelines.resources import OutputLayout
 from pipelines.training import PartitionResult
 
-DEFAULT_ONLY = ("main/*", "sensor_failure/*", "distractors/*@distractors_7/*")
-"""The campaign's runs (docs/results.md): the main comparison, the sensory failure, then the
-distractors' `distractors_7` variant."""
+DEFAULT_ONLY = (
+    "main/*",
+    "sensor_failure/*",
+    "distractors/*@distractors_7/*",
+    "distractors/*@distractors_4/*",
+    "distractors/*@distractors_0/*",
+)
+"""The campaign's runs (docs/results.md): the main comparison, the sensory failure, the
+distractors' `distractors_7` variant, then, as far as the compute allows, `distractors_4` and
+`distractors_0`, which C4's claim of a smaller degradation needs."""
 
 
 def shipped_finished(data: Path | None) -> set[str]:
