@@ -77,11 +77,12 @@ def check_shipped_folder(data: Path, out: Path) -> str:
         combined = pd.read_parquet(out / "metrics" / f"{experiment}.parquet")
         # An experiment shipped whole for some variants only is built from those (the others
         # are named as left out): its runs of other variants are not the report's.
+        variants = set(combined["variant"])
         runs = analysis.load_runs(data / experiment)
-        runs = runs[runs["variant"].isin(set(combined["variant"]))].reset_index(drop=True)
+        runs = runs[runs["variant"].isin(variants)].reset_index(drop=True)
         pd.testing.assert_frame_equal(combined, runs, check_categorical=False, check_like=True)
         tests = analysis.load_tests(data / experiment)
-        tests = tests[tests["variant"].isin(set(combined["variant"]))].reset_index(drop=True)
+        tests = tests[tests["variant"].isin(variants)].reset_index(drop=True)
         final_test = analysis.final_success(analysis.epoch_success(tests)).set_index("run")
         final_competence = analysis.final_competence(runs).set_index("run")["value"]
         for run, rows in runs.groupby("run", observed=True):
