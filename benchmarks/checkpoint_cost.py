@@ -4,7 +4,7 @@ A replay of the suite's variant holding `--episodes` episodes (random values, th
 checkpointed the way a run does it at that point: the checkpoint before it holds all but the
 last `--every` episodes (one checkpoint interval), and the timed checkpoint adds those. Timed,
 in interleaved rounds (the order alternates), each into a fresh folder and fsynced as
-`curious.checkpoint` writes it:
+`curious.runs.checkpoint` writes it:
 
 * ours: milliseconds of a checkpoint that writes only the episodes since the one before (segments);
 * peer: milliseconds of one that rewrites the whole replay (`replay.npz`, what a replay that has
@@ -47,8 +47,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _replay(variant: str, episodes: int) -> dict[str, Any]:
     """A replay `state_dict` of `episodes` random episodes with the variant's shapes."""
-    from curious.envs import SuiteEnv
-    from curious.replay import EpisodeReplay
+    from curious.agent.replay import EpisodeReplay
+    from curious.envs.goal_env import SuiteEnv
 
     spec = SuiteEnv(variant).spec
     replay = EpisodeReplay(spec, episodes)
@@ -87,7 +87,7 @@ def _raw_write(path: Path, arrays: dict[str, Any]) -> float:
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Times the three writes; returns ours/bound/peer/unit and the disk each kind keeps."""
-    from curious import checkpoint
+    from curious.runs import checkpoint
 
     if args.episodes < 1 or args.rounds < 1 or not 0 < args.every <= args.episodes:
         raise SystemExit(

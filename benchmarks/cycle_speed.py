@@ -98,9 +98,9 @@ DEFAULT_CONTENDERS = (
 
 
 def _trainer(config: Any) -> Any:
-    from curious.env_batch import ProcessEnvs
-    from curious.envs import suite_env_fns
-    from curious.train import Trainer
+    from curious.envs.batch import ProcessEnvs
+    from curious.envs.goal_env import suite_env_fns
+    from curious.runs.trainer import Trainer
 
     fns = suite_env_fns(config.variant, config.seed, config.n_workers)
     if config.processes > 1:

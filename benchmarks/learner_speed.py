@@ -3,7 +3,7 @@
 All three at the authors' sizes (minibatch 256, actor and critic 3 x 256 ReLU) and the suite's
 input (49 state + 21 goal + 7 task = 77 numbers, 4 actions), on the same threads:
 
-* ours: `curious.learner.Learner.update` on a fixed minibatch (one critic and one actor step,
+* ours: `curious.agent.learner.Learner.update` on a fixed minibatch (one critic and one actor step,
   Adam, no sampling) with the default backend (autograd, the readable reference); `workspace` and
   `compiled` the same update with the other backends (`Config.learner_backend`);
   `ours_with_replay` adds relabelled sampling from a filled replay and input normalisation to the
@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from curious.config import Config, resolve
-from curious.envs import EnvSpec
+from curious.envs.goal_env import EnvSpec
 
 STATE, GOAL, TASKS, ACTIONS = 49, 21, 7, 4
 
@@ -180,10 +180,10 @@ class _SyntheticGoals:
 def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
     """Our update alone, and the training loop's step (sample + encode + update); the time
     of one relabelled sample in ms."""
-    from curious.agent import Agent
-    from curious.inputs import GoalBox
-    from curious.learner import Learner
-    from curious.replay import EpisodeReplay
+    from curious.agent.agent import Agent
+    from curious.agent.inputs import GoalBox
+    from curious.agent.learner import Learner
+    from curious.agent.replay import EpisodeReplay
 
     config = _config(args)
     dev = torch.device(args.device)
@@ -297,10 +297,10 @@ def peer_step(args: argparse.Namespace) -> tuple[Any, str]:
 def measure_cycles(args: argparse.Namespace) -> dict[str, Any]:
     """Wall-clock of one training cycle of the quick and laptop presets on the suite."""
     try:
-        from curious.envs import make_suite_envs
+        from curious.envs.goal_env import make_suite_envs
     except ImportError as exc:  # pragma: no cover - the suite is part of the package
         return {"cycle_note": f"suite not importable: {exc}"}
-    from curious.train import Trainer
+    from curious.runs.trainer import Trainer
 
     out: dict[str, Any] = {}
     for preset in ("quick", "laptop"):

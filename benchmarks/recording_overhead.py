@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from curious.config import resolve
-from curious.run_folder import RunFolder
+from curious.runs.folder import RunFolder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -45,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _settings(args: argparse.Namespace) -> Any:
-    from curious.recording import RecorderSettings
+    from curious.watching.recording import RecorderSettings
 
     if args.rollout_every is None:
         return RecorderSettings()
@@ -54,9 +54,9 @@ def _settings(args: argparse.Namespace) -> Any:
 
 def _timed_run(config: Any, out: Path, record: bool, settings: Any) -> float:
     """Seconds of one `train()` call (environments built inside, as in `curious train`)."""
-    from curious.recording import RunRecorder
-    from curious.recording.rollouts import attach_rollout_recording
-    from curious.run import train
+    from curious.runs.driver import train
+    from curious.watching.recording import RunRecorder
+    from curious.watching.recording.rollout_capture import attach_rollout_recording
 
     def make_recorder(trainer: Any, folder: Any) -> RunRecorder:
         recorder = RunRecorder(folder.path, trainer.spec.module_names, settings=settings)
@@ -71,8 +71,8 @@ def _timed_run(config: Any, out: Path, record: bool, settings: Any) -> float:
 
 def _fixed_bytes(variant: str, settings: Any, folder: Path) -> int:
     """Size of a recording that holds only the scene's geometry and the layout."""
-    from curious.envs import SuiteEnv
-    from curious.recording import RolloutCapture, RunRecorder
+    from curious.envs.goal_env import SuiteEnv
+    from curious.watching.recording import RolloutCapture, RunRecorder
 
     env = SuiteEnv(variant)
     capture = RolloutCapture(env.dm_env.physics.model.ptr, 1)

@@ -49,8 +49,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     """ours, bound, peer (episodes/s) and the rate of every process count."""
     from benchmarks.cycle_speed import physics_episodes_per_second
     from curious.config import resolve
-    from curious.env_batch import LocalEnvs, ProcessEnvs
-    from curious.envs import suite_env_fns
+    from curious.envs.batch import LocalEnvs, ProcessEnvs
+    from curious.envs.goal_env import suite_env_fns
 
     config = resolve(args.preset, overrides=dict(progress=False))
     cores = os.cpu_count() or 1

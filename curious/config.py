@@ -156,7 +156,8 @@ class Config:
     critic_lr: float = 1e-3
     """Adam learning rate of the critic, in (0, 1]. Authors: Q_lr 1e-3. A rate within the range
     may still make training diverge: the first non-finite loss or action stops the run with an
-    error naming both rates, its last checkpoint intact (`curious.train.TrainingDiverged`)."""
+    error naming both rates, its last checkpoint intact
+    (`curious.runs.trainer.TrainingDiverged`)."""
     gamma: float = 0.98
     """Discount; targets are clipped to [-1/(1-gamma), 0] (rewards are -1 or 0). Authors:
     1 - 1/T = 0.98 with clip_return."""

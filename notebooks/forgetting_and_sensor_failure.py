@@ -39,8 +39,8 @@ import pandas as pd
 from IPython.display import display
 
 from curious import analysis
-from curious.experiments import get_budget
-from curious.run_folder import METRICS_FILE
+from curious.reproduction.experiments import get_budget
+from curious.runs.folder import METRICS_FILE
 from pipelines.resources import OutputLayout
 
 # %% tags=["parameters"]

@@ -1,6 +1,6 @@
 """The Dagster assets of one budget, one asset group per experiment.
 
-For every experiment E (`curious.experiments`), in group E:
+For every experiment E (`curious.reproduction.experiments`), in group E:
 
 * `E/runs`: the training runs, partitioned by `condition` x `seed` (one partition = one run
   folder). One Dagster run materialises a whole range of partitions (single-run backfill
@@ -28,7 +28,7 @@ import dagster as dg
 import pandas as pd
 from dagster import AssetExecutionContext
 
-from curious.experiments import Experiment
+from curious.reproduction.experiments import Experiment
 from pipelines.resources import Reproduction
 from pipelines.training import FINISHED
 

@@ -26,7 +26,7 @@ import os
 
 import dagster as dg
 
-from curious.experiments import DEFAULT_BUDGET, ExperimentError, get_budget
+from curious.reproduction.experiments import DEFAULT_BUDGET, ExperimentError, get_budget
 from pipelines.assets import RESOURCE, all_assets
 from pipelines.executors import make_pool
 from pipelines.resources import OutputLayout, Reproduction

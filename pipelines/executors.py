@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from curious.experiments import RunSpec
+from curious.reproduction.experiments import RunSpec
 from pipelines.training import PartitionResult, episodes_logged, run_folder, run_partition
 
 RAY_CONNECT_TIMEOUT_S = 30.0

@@ -1,6 +1,7 @@
 """Shipped runs in place of trained ones: `curious reproduce --from-data DATA`.
 
-A shipped data folder (`curious.shipped`, written by `curious ship`) is laid out as a
+A shipped data folder (`curious.reproduction.shipped_folder`, written by `curious ship`) is laid
+out as a
 reproduction's runs root, so the pipeline reads it as one (`OutputLayout.runs_root`): the `runs`
 asset checks that every partition's run is there and finished instead of training it, and the
 metrics, figures and report are built from its tables as from any run folders. Nothing is ever
@@ -26,8 +27,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from curious.experiments import Experiment, ReproduceBudget, RunSpec
-from curious.shipped import ShippedError, ShippedFolder, ShippedManifest
+from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
+from curious.reproduction.shipped_folder import ShippedError, ShippedFolder, ShippedManifest
 from pipelines.training import FINISHED, NEW, PARTIAL, RunFolderMismatch
 
 
@@ -55,7 +56,7 @@ class ShippedData:
 
     def state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished` (see the module docstring)."""
-        from curious.run_folder import RunFolder, RunFolderError
+        from curious.runs.folder import RunFolder, RunFolderError
 
         entry = self.manifest.get(spec.relative_path)
         if entry is None:

@@ -24,8 +24,8 @@ import pandas as pd
 
 from curious import analysis
 from curious.analysis.palette import condition_label, module_label
-from curious.experiments import Experiment
-from curious.run_folder import RunFolder, RunFolderError
+from curious.reproduction.experiments import Experiment
+from curious.runs.folder import RunFolder, RunFolderError
 from pipelines.resources import Reproduction
 
 FIGURE_TEXT: dict[str, str] = {

@@ -34,8 +34,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from curious.experiments import Experiment, ExperimentError, ReproduceBudget, get_budget
-from curious.shipped import ShippedFolder
+from curious.reproduction.experiments import (
+    Experiment,
+    ExperimentError,
+    ReproduceBudget,
+    get_budget,
+)
+from curious.reproduction.shipped_folder import ShippedFolder
 from pipelines.resources import OutputLayout, Reproduction
 from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy
 
@@ -294,8 +299,8 @@ def _shipped_data(
 def _reproduction_lock(layout: OutputLayout) -> Iterator[None]:
     """Hold OUT's lock for the whole reproduction: a second `curious reproduce` of the same
     folder is refused at once (`ReproduceError`) while the first goes on; nothing is left
-    behind (`curious.run_folder.folder_lock`)."""
-    from curious.run_folder import RunFolderBusy, RunFolderError, folder_lock
+    behind (`curious.runs.folder.folder_lock`)."""
+    from curious.runs.folder import RunFolderBusy, RunFolderError, folder_lock
 
     with contextlib.ExitStack() as stack:
         try:

@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from curious.experiments import Experiment, ReproduceBudget, RunSpec
-from curious.shipped import ShippedFolder
+from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
+from curious.reproduction.shipped_folder import ShippedFolder
 from pipelines.executors import Job, Pool, run_all
 from pipelines.training import (
     FINISHED,
@@ -61,8 +61,8 @@ class OutputLayout:
     @classmethod
     def open(cls, out: str | Path) -> OutputLayout:
         """The layout of an existing output folder; its runs_dir comes from reproduce.json. A
-        shipped data folder (`curious.shipped`) opens too, as its own runs root: the notebooks
-        take either as their `out`.
+        shipped data folder (`curious.reproduction.shipped_folder`) opens too, as its own runs
+        root: the notebooks take either as their `out`.
 
         A relative `out` that does not exist here is also looked for from the parent folders
         (a notebook runs in notebooks/, the default output lies in the repository's root).

@@ -7,7 +7,7 @@ state          what happens
 =============  ===================================================================
 ``new``        no folder, or an empty one: train from episode 0
 ``partial``    config.json of the same run and fewer episodes than the budget (a run
-               that was interrupted): `curious.run.train(..., resume=True)` goes on
+               that was interrupted): `curious.runs.driver.train(..., resume=True)` goes on
                from its last checkpoint
 ``finished``   a checkpoint at the budget and every episode in metrics.parquet:
                nothing is done
@@ -36,7 +36,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from curious.experiments import RunSpec
+from curious.reproduction.experiments import RunSpec
 
 FINISHED, PARTIAL, NEW = "finished", "partial", "new"
 
@@ -76,7 +76,7 @@ def run_folder(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
 
 def episodes_logged(folder: Path) -> int:
     """Episodes in a run folder's metrics.parquet (0 when there is none yet)."""
-    from curious.run_folder import RunFolder
+    from curious.runs.folder import RunFolder
 
     return RunFolder(folder).episodes_logged()
 
@@ -85,9 +85,9 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
     """`new`, `partial` or `finished` (see the module docstring); raises `RunFolderMismatch`.
 
     Whether the folder holds (a part of) the run is the check a resume makes
-    (`curious.run_folder.RunFolder.check_resumable`)."""
+    (`curious.runs.folder.RunFolder.check_resumable`)."""
     from curious.config import ConfigError
-    from curious.run_folder import ConfigMismatch, RunFolder, RunFolderError
+    from curious.runs.folder import ConfigMismatch, RunFolder, RunFolderError
 
     folder = RunFolder(run_folder(spec, runs_root))
     if folder.path.exists() and not folder.path.is_dir():
@@ -129,14 +129,14 @@ def _make_recorder(spec: RunSpec, record: bool, resume: bool):
     `curious train` makes it, or none."""
     if not record:
         return None
-    from curious.recording.rollouts import recorder_factory
+    from curious.watching.recording.rollout_capture import recorder_factory
 
     return recorder_factory(resume, run_name=spec.label)
 
 
 def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
-    """The lock file beside a run folder (`curious.run_folder.lock_path`)."""
-    from curious.run_folder import lock_path as folder_lock_path
+    """The lock file beside a run folder (`curious.runs.folder.lock_path`)."""
+    from curious.runs.folder import lock_path as folder_lock_path
 
     return folder_lock_path(run_folder(spec, runs_root))
 
@@ -145,10 +145,10 @@ def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
 def training_lock(
     spec: RunSpec, runs_root: str | os.PathLike, claim: bool = True
 ) -> Iterator[None]:
-    """Hold the run's lock (`curious.run_folder.folder_lock`, the one `train` takes while it
+    """Hold the run's lock (`curious.runs.folder.folder_lock`, the one `train` takes while it
     trains); raise `RunFolderBusy` if another process holds it."""
-    from curious.run_folder import RunFolderBusy as Busy
-    from curious.run_folder import folder_lock
+    from curious.runs.folder import RunFolderBusy as Busy
+    from curious.runs.folder import folder_lock
 
     with contextlib.ExitStack() as stack:
         try:
@@ -173,7 +173,7 @@ def run_partition(
     stop_after_cycles: int | None = None,
 ) -> PartitionResult:
     """Bring one partition's run folder to its budget (see the module docstring)."""
-    from curious.run_folder import RunFolderBusy as Busy
+    from curious.runs.folder import RunFolderBusy as Busy
 
     os.environ.setdefault("MUJOCO_GL", "disable")
     try:  # `train` holds the folder's lock while it trains
@@ -203,7 +203,7 @@ def _run_partition(
             runner_name(),
         )
 
-    from curious.run import train
+    from curious.runs.driver import train
 
     config = spec.config(overrides)
     resume = state == PARTIAL

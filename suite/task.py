@@ -33,10 +33,10 @@ from suite import layout
 from suite.arena import TableArena
 from suite.cube import Cube, cube_colour
 from suite.distractors import DistractorWalk, start_positions
-from suite.evaluation import ModuleEvaluator
 from suite.features import StateLayout, StateReader
 from suite.fetch import FetchArm
 from suite.modules import TaskModule, module_index
+from suite.outcomes import ModuleEvaluator
 
 N_REACHABLE = 2
 """Reachable cubes of the paper's env (cube 1 manipulated, cube 2 the base): the default."""

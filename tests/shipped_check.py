@@ -22,9 +22,9 @@ import pytest
 
 from curious import analysis
 from curious.cli import main as curious_cli
-from curious.experiments import get_budget
-from curious.run_folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE
-from curious.shipped import MANIFEST_FILE, ShippedFolder
+from curious.reproduction.experiments import get_budget
+from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
+from curious.runs.folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE
 from pipelines.from_data import ShippedData, ShippedDataError
 
 

@@ -7,8 +7,8 @@ import torch
 from torch.utils.flop_counter import FlopCounterMode
 
 from benchmarks.learner_speed import add_arguments, measure, update_gemms
+from curious.agent.learner import Learner
 from curious.config import resolve
-from curious.learner import Learner
 
 
 @pytest.mark.parametrize("algorithm_sizes", [(256, 77, 4, 256, 3), (32, 10, 2, 16, 2)])

@@ -7,13 +7,13 @@ import pyarrow.parquet as pq
 import pytest
 from toy_env import ToyGoalEnv, make_toy_envs
 
-from curious.conditions import HER, MGTE, MUVFA, Curious, HolisticGoals
+from curious.agent.conditions import HER, MGTE, MUVFA, Curious, HolisticGoals
+from curious.agent.learning_progress import CompetenceTracker
 from curious.config import PRESETS, ConfigError, resolve
-from curious.envs import EnvSpec
-from curious.learning_progress import CompetenceTracker
-from curious.rollouts import EpisodeData
-from curious.run import train
-from curious.train import Trainer
+from curious.envs.goal_env import EnvSpec
+from curious.envs.rollout import EpisodeData
+from curious.runs.driver import train
+from curious.runs.trainer import Trainer
 
 SPEC = ToyGoalEnv.spec
 

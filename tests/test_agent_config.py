@@ -21,10 +21,10 @@ def test_settings_of_the_config_are_stated_once_in_it():
     by a second default that drifted."""
     import inspect
 
-    from curious.conditions import CONDITION_CLASSES
-    from curious.learning_progress import CompetenceTracker, lp_probabilities
-    from curious.recording.cost import synthetic_episodes
-    from curious.replay import EpisodeReplay
+    from curious.agent.conditions import CONDITION_CLASSES
+    from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
+    from curious.agent.replay import EpisodeReplay
+    from curious.watching.recording.cost import synthetic_episodes
 
     uses = [(EpisodeReplay.sample, "her_p"), (lp_probabilities, "eps")]
     uses += [(CompetenceTracker.p_lp, "eps"), (CompetenceTracker.__init__, "window")]

@@ -9,11 +9,11 @@ import torch
 from toy_env import ToyGoalEnv
 
 import suite
+from curious.agent.inputs import GoalBox, GoalInput
 from curious.config import ConfigError, resolve
-from curious.envs import SuiteEnv
-from curious.inputs import GoalBox, GoalInput
-from curious.run import train
-from curious.train import Trainer
+from curious.envs.goal_env import SuiteEnv
+from curious.runs.driver import train
+from curious.runs.trainer import Trainer
 from suite import layout
 
 GRID = np.array(list(itertools.product([-1.0, -0.5, 0.0, 0.5, 1.0], repeat=3)))
@@ -107,9 +107,9 @@ def test_a_goal_map_that_is_not_affine_is_refused():
 
 
 def test_a_replay_that_cannot_fit_is_refused_before_anything_is_written(tmp_path, monkeypatch):
-    import curious.resources
+    import curious.runs.memory
 
-    monkeypatch.setattr(curious.resources, "available_memory", lambda: 2**20)
+    monkeypatch.setattr(curious.runs.memory, "available_memory", lambda: 2**20)
     config = resolve("smoke", overrides={"progress": False, "total_episodes": 100_000})
     with pytest.raises(ConfigError, match="buffer_episodes"):
         train(config, tmp_path / "run", make_envs=lambda c: [ToyGoalEnv(i) for i in range(2)])
@@ -151,8 +151,8 @@ def test_the_goal_input_drawn_for_episodes_is_the_networks_goal_and_task_input(c
     and the encoder reads exactly it: the practised module's scaled slot and its one-hot task
     descriptor, zero in every other slot (modular conditions); every slot and no descriptor
     (the flat `her`)."""
-    from curious.conditions import make_condition
-    from curious.inputs import InputEncoder
+    from curious.agent.conditions import make_condition
+    from curious.agent.inputs import InputEncoder
 
     env = ToyGoalEnv()
     spec = env.spec

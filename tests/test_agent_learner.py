@@ -9,11 +9,11 @@ import pytest
 import torch
 from toy_env import ToyGoalEnv
 
+from curious.agent.inputs import GoalBox, GoalInput, InputEncoder
+from curious.agent.learner import Learner
+from curious.agent.networks import Actor, Critic
+from curious.agent.normalizer import RunningNormalizer
 from curious.config import resolve
-from curious.inputs import GoalBox, GoalInput, InputEncoder
-from curious.learner import Learner
-from curious.networks import Actor, Critic
-from curious.normalizer import RunningNormalizer
 
 torch.set_num_threads(1)
 
@@ -259,8 +259,8 @@ def test_the_workspace_backend_steps_the_networks_and_optimisers_it_is_given(alg
     """`WorkspaceUpdate` needs no `Learner`: handed networks laid out by `fold_parameters`,
     their Adam optimisers and the settings, it takes the reference's steps, the actor's only when
     told to (TD3's delay is the caller's), and reports no actor loss when it did not step it."""
-    from curious.learner import _adam
-    from curious.mlp_workspace import WorkspaceUpdate, fold_parameters
+    from curious.agent.learner import _adam
+    from curious.agent.mlp_workspace import WorkspaceUpdate, fold_parameters
 
     config = small_config(algorithm=algorithm, td3_policy_delay=2)
     reference = Learner(10, 4, config, seed=5)
@@ -299,17 +299,17 @@ def test_the_workspace_backend_steps_the_networks_and_optimisers_it_is_given(alg
 
 
 def test_the_workspace_backend_does_not_depend_on_the_learner():
-    """One-way dependency: `curious.learner` picks and drives the written-out backend; the
+    """One-way dependency: `curious.agent.learner` picks and drives the written-out backend; the
     backend's module imports nothing of the learner (not even for type checking)."""
     import ast
     import inspect
 
-    import curious.mlp_workspace
+    import curious.agent.mlp_workspace
 
-    tree = ast.parse(inspect.getsource(curious.mlp_workspace))
+    tree = ast.parse(inspect.getsource(curious.agent.mlp_workspace))
     imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
-    assert "curious.learner" not in imported
+    assert "curious.agent.learner" not in imported
 
 
 def test_encode_pair_equals_two_encodes():
@@ -327,8 +327,8 @@ def test_encode_pair_equals_two_encodes():
 
 
 def test_direct_adam_step_gives_the_same_bits_as_optimizer_step():
-    from curious.learner import _adam
-    from curious.mlp_workspace import _adam_step
+    from curious.agent.learner import _adam
+    from curious.agent.mlp_workspace import _adam_step
 
     torch.manual_seed(0)
     params = [torch.nn.Parameter(torch.randn(1000)) for _ in range(2)]

@@ -9,7 +9,7 @@ import torch
 from toy_env import make_toy_envs
 
 from curious.config import resolve
-from curious.train import Trainer
+from curious.runs.trainer import Trainer
 
 TOY = dict(
     total_episodes=1200,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from curious.learning_progress import CompetenceTracker, lp_probabilities
+from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
 
 
 def test_competence_and_lp_follow_hand_computed_sequence():

@@ -5,8 +5,8 @@ import pytest
 from scipy import stats
 from toy_env import ToyGoalEnv
 
-from curious.conditions import MUVFA, HolisticGoals
-from curious.replay import GOAL_OWN, EpisodeReplay
+from curious.agent.conditions import MUVFA, HolisticGoals
+from curious.agent.replay import GOAL_OWN, EpisodeReplay
 
 SPEC = ToyGoalEnv.spec
 T = SPEC.episode_length
@@ -231,7 +231,7 @@ def test_sampling_errors_are_clear():
 
 @pytest.fixture(scope="module")
 def suite_env():
-    from curious.envs import SuiteEnv
+    from curious.envs.goal_env import SuiteEnv
 
     return SuiteEnv("default", seed=0)
 

@@ -14,13 +14,13 @@ import pytest
 import torch
 from toy_env import make_toy_envs
 
-from curious.agent import Agent
-from curious.checkpoint import list_checkpoints
+from curious.agent.agent import Agent
 from curious.cli import main
 from curious.config import resolve
-from curious.run import train
-from curious.run_folder import RunFolderError
-from curious.train import TrainingDiverged
+from curious.runs.checkpoint import list_checkpoints
+from curious.runs.driver import train
+from curious.runs.folder import RunFolderError
+from curious.runs.trainer import TrainingDiverged
 
 SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)
 """smoke with 2 workers: 4 episodes a cycle, an epoch of 2 cycles, a checkpoint every 3."""

@@ -17,13 +17,13 @@ import pytest
 import torch
 from toy_env import make_toy_envs
 
-from curious.checkpoint import CheckpointError, list_checkpoints
+from curious.agent.inputs import GoalInput
+from curious.agent.learning_progress import CompetenceTracker
 from curious.cli import main
 from curious.config import ConfigError, resolve
-from curious.inputs import GoalInput
-from curious.learning_progress import CompetenceTracker
-from curious.run import train
-from curious.run_folder import RunFolderError
+from curious.runs.checkpoint import CheckpointError, list_checkpoints
+from curious.runs.driver import train
+from curious.runs.folder import RunFolderError
 
 TESTS = Path(__file__).resolve().parent
 SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)
@@ -208,7 +208,7 @@ KILL_SCRIPT = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     from toy_env import make_toy_envs
     from curious.config import resolve
-    from curious.run import train
+    from curious.runs.driver import train
     config = resolve("smoke", "curious", 0, dict(
         total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
         buffer_episodes=64))
@@ -306,6 +306,29 @@ def test_the_sub_commands_import_nothing_from_the_command_line_that_loads_them()
         imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
         imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
         assert "curious.cli" not in imported, name
+
+
+@pytest.mark.parametrize("command", [[], ["bench"], ["progress"], ["ship"], ["reproduce"]])
+def test_help_imports_nothing_heavy(command):
+    """`curious --help` builds every sub-command's parser; it and the sub-commands' own help
+    import none of the libraries that take seconds to load (a benchmark's module, with torch
+    and MuJoCo, is imported only for `curious bench NAME`)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from curious.cli import main\n"
+        "try:\n"
+        f"    main({[*command, '--help']!r})\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = ('torch', 'mujoco', 'dm_control', 'pandas', 'dagster', 'rerun', 'matplotlib')\n"
+        "print([m for m in heavy if m in sys.modules], file=sys.stderr)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.strip().splitlines()[-1] == "[]", (command, done.stderr)
 
 
 def test_without_a_display_the_commands_that_do_not_render_say_nothing_of_gl():
@@ -429,8 +452,8 @@ def test_a_run_written_before_a_setting_existed_is_refused_clearly(tmp_path):
 
 
 def sensor_failure_trainer(**changes):
-    from curious.envs import make_suite_envs
-    from curious.train import Trainer
+    from curious.envs.goal_env import make_suite_envs
+    from curious.runs.trainer import Trainer
 
     config = resolve("smoke", "curious", 0, {"variant": "sensor_failure", **changes})
     envs = make_suite_envs(config.variant, 0, config.n_workers)
@@ -476,7 +499,7 @@ def test_sensory_failure_settings_are_checked(tmp_path):
 
 
 def test_a_second_process_cannot_train_in_a_folder_being_trained(tmp_path):
-    from curious.run_folder import RunFolderBusy
+    from curious.runs.folder import RunFolderBusy
 
     out = tmp_path / "run"
     holder = subprocess.Popen(
@@ -484,7 +507,7 @@ def test_a_second_process_cannot_train_in_a_folder_being_trained(tmp_path):
             sys.executable,
             "-c",
             "import sys, time\n"
-            "from curious.run_folder import folder_lock\n"
+            "from curious.runs.folder import folder_lock\n"
             f"with folder_lock({str(out)!r}):\n"
             "    print('held', flush=True)\n"
             "    time.sleep(60)\n",
@@ -536,7 +559,7 @@ def test_a_damaged_newest_checkpoint_falls_back_to_the_one_before(tmp_path):
 def test_a_checkpoint_that_cannot_be_written_is_a_clear_error(tmp_path, monkeypatch):
     import errno
 
-    from curious import checkpoint
+    from curious.runs import checkpoint
 
     def full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -553,9 +576,9 @@ RECORDED_KILL_SCRIPT = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     from toy_env import make_toy_envs
     from curious.config import resolve
-    from curious.recording import RecorderSettings
-    from curious.recording.rollouts import recorder_factory
-    from curious.run import train
+    from curious.watching.recording import RecorderSettings
+    from curious.watching.recording.rollout_capture import recorder_factory
+    from curious.runs.driver import train
     config = resolve("smoke", "curious", 0, dict(
         total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
         buffer_episodes=64))
@@ -568,7 +591,7 @@ RECORDED_KILL_SCRIPT = textwrap.dedent(
 
 def recorded_episodes(path: Path) -> np.ndarray:
     """Every episode the recording holds a module point for (one per episode)."""
-    from curious.recording.reader import read_scalars
+    from curious.watching.recording.reader import read_scalars
 
     names = ("T1-reach", "dial", "beacon")  # entity parts: the paper's T1 leads (the legend)
     found = [read_scalars(path, f"module/{name}")[0] for name in names]
@@ -576,8 +599,8 @@ def recorded_episodes(path: Path) -> np.ndarray:
 
 
 def test_sigkill_leaves_a_whole_recording_that_a_resume_continues_without_a_gap(tmp_path):
-    from curious.recording import RecorderSettings
-    from curious.recording.rollouts import recorder_factory
+    from curious.watching.recording import RecorderSettings
+    from curious.watching.recording.rollout_capture import recorder_factory
 
     out = tmp_path / "killed"
     saved = kill_after_a_checkpoint(
@@ -599,8 +622,8 @@ def test_sigkill_leaves_a_whole_recording_that_a_resume_continues_without_a_gap(
 
 
 def test_a_damaged_recording_does_not_stop_a_resume(tmp_path):
-    from curious.recording import RecorderSettings
-    from curious.recording.rollouts import recorder_factory
+    from curious.watching.recording import RecorderSettings
+    from curious.watching.recording.rollout_capture import recorder_factory
 
     settings = RecorderSettings(rollout_every=0)
     config = resolve("smoke", "curious", 0, {**SMALL, "total_episodes": 16})
@@ -626,8 +649,8 @@ def test_a_damaged_recording_does_not_stop_a_resume(tmp_path):
 def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_path, monkeypatch):
     """With overlap_rollouts, the next cycle's episodes are collected during this cycle's
     updates by a copy of the policy taken before them: acting lags learning by one cycle."""
-    from curious.agent import Agent
-    from curious.train import Trainer
+    from curious.agent.agent import Agent
+    from curious.runs.trainer import Trainer
 
     copies = []
     original = Agent.acting_copy
@@ -663,8 +686,8 @@ def test_a_full_disk_under_the_recording_is_a_clear_error_and_the_run_resumes(
     import errno
     import shutil
 
-    from curious.recording import RecorderSettings, rrd_files
-    from curious.recording.rollouts import recorder_factory
+    from curious.watching.recording import RecorderSettings, rrd_files
+    from curious.watching.recording.rollout_capture import recorder_factory
 
     settings = RecorderSettings(rollout_every=0)
     config = resolve(
@@ -695,7 +718,7 @@ def test_a_sink_that_dies_on_a_full_disk_is_named_as_one(tmp_path, monkeypatch):
     import errno
     from collections import namedtuple
 
-    from curious.recording import rrd_files
+    from curious.watching.recording import rrd_files
 
     class DeadSink:
         def flush(self, timeout_sec):
@@ -733,7 +756,7 @@ def test_an_acting_copy_on_another_device_acts_as_the_agent(tmp_path):
     """`act_on_cpu` hands the rollouts a CPU copy of the actors: it picks the same actions
     (here from a CPU agent; on CUDA, float rounding aside) and stays put while the agent
     learns. A run with the setting on a CPU is the same run (the setting is for CUDA)."""
-    from curious.train import Trainer
+    from curious.runs.trainer import Trainer
 
     config = resolve("smoke", "curious", 0, SMALL)
     trainer = Trainer(config, toy_envs(config))

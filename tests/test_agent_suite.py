@@ -6,11 +6,11 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from curious.agent.replay import EpisodeReplay
 from curious.cli import main
 from curious.config import resolve
-from curious.envs import SuiteEnv, make_suite_envs
-from curious.replay import EpisodeReplay
-from curious.train import Trainer
+from curious.envs.goal_env import SuiteEnv, make_suite_envs
+from curious.runs.trainer import Trainer
 
 
 @pytest.fixture(scope="module")
@@ -141,8 +141,8 @@ def test_her_places_its_goals_above_cube2_where_cube2_is(env):
     """The flat baseline's goals of cube1_above_cube2 and stack follow cube 2 as every
     condition's do (docs/agent.md, "her's goals of the modules that follow cube 2"): its score
     compares the outcome with the goals placed where cube 2 is at the final step."""
-    from curious.conditions import HER
-    from curious.rollouts import EpisodeData
+    from curious.agent.conditions import HER
+    from curious.envs.rollout import EpisodeData
 
     spec = env.spec
     her = HER(spec, 0.4, "released", 10)

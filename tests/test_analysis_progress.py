@@ -18,7 +18,7 @@ from curious.analysis.progress import (
 )
 from curious.cli import main as curious_cli
 from curious.commands.progress import BEGIN, END
-from curious.experiments import get_budget
+from curious.reproduction.experiments import get_budget
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +111,7 @@ def test_a_copied_run_is_listed_once(campaign, tmp_path):
 
 
 def test_a_reproduction_lists_the_runs_its_budget_has_not_started(campaign, tmp_path):
-    from curious.experiments import get_budget
+    from curious.reproduction.experiments import get_budget
 
     out = tmp_path / "out"
     out.mkdir()
@@ -127,7 +127,7 @@ def test_a_reproduction_lists_the_runs_its_budget_has_not_started(campaign, tmp_
 
 def test_a_reproduction_with_its_runs_elsewhere_reads_them_there(campaign, tmp_path):
     """`curious reproduce --runs-dir` keeps the runs outside OUT; reproduce.json says where."""
-    from curious.experiments import get_budget
+    from curious.reproduction.experiments import get_budget
 
     out, runs = tmp_path / "out", tmp_path / "elsewhere"
     out.mkdir()
@@ -144,7 +144,7 @@ def test_a_shipped_folder_stands_for_the_runs_a_reproduction_beside_it_has_not_s
     campaign, tmp_path, capsys
 ):
     """A machine that came back empty: main/curious/seed-0 is shipped, its folder is gone."""
-    from curious.shipping import ship
+    from curious.reproduction.shipping import ship
 
     out, held = tmp_path / "out", tmp_path / "held"
     out.mkdir()
@@ -173,7 +173,7 @@ def test_a_run_both_shipped_and_in_the_reproduction_is_listed_once(
 ):
     """A finished run shipped while its folder is still on the machine: one row, from the
     folder (its checkpoint), marked shipped only if the shipped copy holds all its episodes."""
-    from curious.shipping import ship
+    from curious.reproduction.shipping import ship
 
     out = tmp_path / "out"
     out.mkdir()

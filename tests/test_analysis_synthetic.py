@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from curious import metrics as run_tables
+from curious.runs import metrics as run_tables
 
 DEFAULT_MODULES: tuple[str, ...] = (
     "reach",

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from test_agent_replay import filled_replay
 
-from curious import checkpoint
-from curious.checkpoint import CheckpointError, list_checkpoints
-from curious.replay import EpisodeReplay
+from curious.agent.replay import EpisodeReplay
+from curious.runs import checkpoint
+from curious.runs.checkpoint import CheckpointError, list_checkpoints
 
 
 def grown(n: int, evicted: bool = False) -> dict:

@@ -73,3 +73,59 @@ def test_every_place_the_table_names_exists_where_it_says():
             else:  # a method named bare after its class (`encode_pair`), or a setting
                 owners = [_resolve(c, homes) for c in named_classes] + [Config]
                 assert any(hasattr(o, name) for o in owners), (concept, name)
+
+
+def _modules(package: str) -> set[str]:
+    """The module files of a package, relative to it (`recording/recorder.py`), without
+    `__init__.py`."""
+    base = ROOT / package
+    return {p.relative_to(base).as_posix() for p in base.rglob("*.py") if p.name != "__init__.py"}
+
+
+def test_no_two_modules_share_a_name():
+    """One name, one module: a reader who meets `trainer` or `folder` knows which file it is.
+    Sub-commands are named after their command (`curious/commands/train.py`), so they may
+    share a name with the module that does the work."""
+    seen: dict[str, str] = {}
+    for package in ("curious", "suite", "pipelines"):
+        for relative in sorted(_modules(package)):
+            path = f"{package}/{relative}"
+            if path.startswith("curious/commands/"):
+                continue
+            name = Path(relative).name
+            assert name not in seen, f"{path} and {seen[name]} share the name {name}"
+            seen[name] = path
+
+
+def _layout_rows() -> dict[str, str]:
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    section = text.split("## The layout of `curious`", 1)[1].split("\n## ", 1)[0]
+    rows = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 3 and cells[0].startswith("`curious/"):
+            rows[cells[0].strip("`")] = cells[2]
+    return rows
+
+
+def test_the_layout_table_lists_every_module_where_it_lies():
+    rows = _layout_rows()
+    listed = set()
+    for package, modules in rows.items():
+        names = re.findall(r"`([\w/]+\.py)`", modules)
+        subfolders = re.findall(r"`(\w+)/`", modules)
+        for name in names:
+            owner = next(
+                (f"{package}{s}/" for s in subfolders if (ROOT / package / s / name).exists()),
+                package,
+            )
+            assert (ROOT / owner / name).is_file(), f"{owner}{name} is in the table, not on disk"
+            listed.add(f"{owner}{name}")
+    on_disk = {
+        f"curious/{m}"
+        for m in _modules("curious")
+        if not m.startswith("analysis/figures/")  # the figures are listed as `figures/`
+    }
+    assert on_disk == listed, (
+        f"missing {sorted(on_disk - listed)}, stale {sorted(listed - on_disk)}"
+    )

@@ -12,11 +12,11 @@ import pytest
 
 from curious.cli import main
 from curious.config import resolve
-from curious.env_batch import LocalEnvs, ProcessEnvs
-from curious.envs import suite_env_fns
-from curious.recording.reader import read_component
-from curious.run import _environments
-from curious.run_folder import RECORDING_FILE
+from curious.envs.batch import LocalEnvs, ProcessEnvs
+from curious.envs.goal_env import suite_env_fns
+from curious.runs.driver import _environments
+from curious.runs.folder import RECORDING_FILE
+from curious.watching.recording.reader import read_component
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 

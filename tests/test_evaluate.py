@@ -16,7 +16,7 @@ import pytest
 import torch
 
 from curious.cli import main as curious_cli
-from curious.evaluation import evaluate, evaluation_table, wilson_interval
+from curious.watching.evaluation import evaluate, evaluation_table, wilson_interval
 
 
 @pytest.fixture(scope="module")
@@ -159,8 +159,8 @@ def _files(folder):
 
 def test_record_writes_the_episodes_in_3d_beside_not_into_the_run(runs, tmp_path, monkeypatch):
     from curious.commands.evaluate import DEFAULT_FILE
-    from curious.recording import evaluation as recording
-    from curious.recording.reader import read_component, read_scalars, summarize
+    from curious.watching.recording import evaluation as recording
+    from curious.watching.recording.reader import read_component, read_scalars, summarize
 
     assert DEFAULT_FILE == recording.DEFAULT_FILE == "evaluation.rrd"
     run = runs / "curious"

@@ -17,7 +17,7 @@ import nbformat
 import pytest
 from nbclient import NotebookClient
 
-from curious.experiments import DEFAULT_BUDGET, get_budget
+from curious.reproduction.experiments import DEFAULT_BUDGET, get_budget
 
 NOTEBOOKS = Path(__file__).resolve().parent.parent / "notebooks"
 NAMES = (

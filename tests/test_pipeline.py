@@ -21,9 +21,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from curious.cli import main as curious_cli
-from curious.experiments import get_budget
-from curious.recording.reader import summarize
-from curious.run_folder import machine, machine_text
+from curious.reproduction.experiments import get_budget
+from curious.runs.folder import machine, machine_text
+from curious.watching.recording.reader import summarize
 from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
 from pipelines.reproduce import ReproduceError, check_output_folder, reproduce
@@ -464,7 +464,7 @@ def test_ctrl_c_stops_a_reproduction_in_one_line_and_every_worker_with_it(tmp_pa
 
 
 def test_a_second_reproduction_of_a_folder_is_refused_at_once(tmp_path, capsys):
-    from curious.run_folder import folder_lock
+    from curious.runs.folder import folder_lock
 
     out = tmp_path / "out"
     with folder_lock(out, activity="reproduced"):  # as the first `curious reproduce` holds it
@@ -702,7 +702,7 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
 
 
 def test_definitions_refuse_the_old_curious_preset_variable(tmp_path, monkeypatch):
-    from curious.experiments import ExperimentError
+    from curious.reproduction.experiments import ExperimentError
     from pipelines.definitions import reproduction_from_environment
 
     monkeypatch.delenv("CURIOUS_BUDGET", raising=False)

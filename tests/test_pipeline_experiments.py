@@ -1,4 +1,4 @@
-"""The experiment definitions of the budgets (curious/experiments.py)."""
+"""The experiment definitions of the budgets (curious/reproduction/experiments.py)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from curious.experiments import (
+from curious.reproduction.experiments import (
     BUDGETS,
     DEFAULT_BUDGET,
     EXPERIMENTS,

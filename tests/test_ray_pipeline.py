@@ -18,7 +18,7 @@ import time
 import pyarrow.parquet as pq
 import pytest
 
-from curious.experiments import get_budget
+from curious.reproduction.experiments import get_budget
 from pipelines.executors import RayPool, RayUnavailable, check_cluster, resolve_ray_address
 from pipelines.reproduce import reproduce
 from pipelines.training import FINISHED, folder_state, run_folder

@@ -1,7 +1,7 @@
 """The run recording: what the training loop logs comes back out of `recording.rrd`.
 
 Recordings are read back with Rerun's own reader (`rerun.chunk.RrdReader`, through
-`curious.recording.reader`), so these tests check the file a user opens, not our buffers.
+`curious.watching.recording.reader`), so these tests check the file a user opens, not our buffers.
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from rerun.chunk import RrdReader
 
 from curious.analysis.palette import module_entity, module_label, module_rgb
 from curious.commands.view import viewer_command
-from curious.recording import (
+from curious.runs.folder import RECORDING_FILE
+from curious.watching.recording import (
     APPLICATION_ID,
     RecorderSettings,
     RolloutCapture,
@@ -30,9 +31,8 @@ from curious.recording import (
     SceneLayout,
     wxyz_to_xyzw,
 )
-from curious.recording.cost import fetch_model, measure_logging_cost, synthetic_episodes
-from curious.recording.reader import read_component, read_scalars, summarize
-from curious.run_folder import RECORDING_FILE
+from curious.watching.recording.cost import fetch_model, measure_logging_cost, synthetic_episodes
+from curious.watching.recording.reader import read_component, read_scalars, summarize
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 

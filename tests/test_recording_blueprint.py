@@ -13,9 +13,9 @@ import numpy as np
 import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
-from curious.recording import RunRecorder, default_blueprint
-from curious.recording.blueprint import LEGEND_CORNER, UNIT_RANGE
-from curious.run_folder import RECORDING_FILE
+from curious.runs.folder import RECORDING_FILE
+from curious.watching.recording import RunRecorder, default_blueprint
+from curious.watching.recording.blueprint import LEGEND_CORNER, UNIT_RANGE
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 WITH_LEGEND = ("/competence", "/test", "/success/eval", "/success/train", "/module")

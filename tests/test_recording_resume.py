@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from curious.recording import RecorderSettings, RunRecorder
-from curious.recording.cost import synthetic_episodes
-from curious.recording.reader import read_points
-from curious.run_folder import RECORDING_FILE, list_checkpoints
+from curious.runs.folder import RECORDING_FILE, list_checkpoints
+from curious.watching.recording import RecorderSettings, RunRecorder
+from curious.watching.recording.cost import synthetic_episodes
+from curious.watching.recording.reader import read_points
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 SETTINGS = RecorderSettings(rollout_every=0, stats_keyframe_every=50)
@@ -121,7 +121,7 @@ TRAIN = [*SMOKE, "--rollout-every", "1"]  # every evaluation episode in 3-D: the
 KILLED_AT_A_CHECKPOINT = textwrap.dedent(
     """
     import os, signal, sys
-    from curious import checkpoint
+    from curious.runs import checkpoint
     from curious.cli import main
 
     save = checkpoint.save
@@ -188,10 +188,10 @@ def test_a_full_disk_never_replaces_the_last_good_recording(
     `recording.rrd`). The recording stays whole, and the resume continues it without a gap."""
     from toy_env import make_toy_envs
 
-    from curious import checkpoint
     from curious.config import resolve
-    from curious.recording.rollouts import recorder_factory
-    from curious.run import train
+    from curious.runs import checkpoint
+    from curious.runs.driver import train
+    from curious.watching.recording.rollout_capture import recorder_factory
 
     config = resolve(
         "smoke", "curious", 0, dict(total_episodes=48, n_workers=2, episodes_per_worker=2)
@@ -265,8 +265,8 @@ def test_a_checkpoint_on_a_full_disk_is_one_line_saying_so(
     fills under state.pt; the user reads that the disk is full, and which file, in one line."""
     import builtins
 
-    from curious import checkpoint
     from curious.cli import main
+    from curious.runs import checkpoint
 
     def small_disk(path, mode="r", *args, **kwargs):
         handle = builtins.open(path, mode, *args, **kwargs)
@@ -291,7 +291,7 @@ def test_a_checkpoint_on_a_real_full_disk_says_so(tmp_path: Path) -> None:
     """The same on a real 1 MiB disk, where torch's own message comes back."""
     import torch
 
-    from curious import checkpoint
+    from curious.runs import checkpoint
 
     disk = tmp_path / "disk"
     disk.mkdir()
@@ -313,9 +313,9 @@ def test_a_resume_removes_the_checkpoint_a_kill_left_over(tmp_path: Path) -> Non
     checkpoints; the resumed run keeps the two newest (even with nothing left to train)."""
     from toy_env import make_toy_envs
 
-    from curious.checkpoint import list_checkpoints
     from curious.config import resolve
-    from curious.run import train
+    from curious.runs.checkpoint import list_checkpoints
+    from curious.runs.driver import train
 
     config = resolve("smoke", "curious", 0, dict(total_episodes=24, progress=False))
     envs = lambda c: make_toy_envs(c.seed, c.n_workers)  # noqa: E731

@@ -1,7 +1,7 @@
 """3-D rollouts in the recording of a training run on the real suite.
 
 `curious train` records every K-th evaluation episode in 3D; the recording is read back with
-Rerun's reader (`curious.recording.reader`), so these tests check the file a user opens.
+Rerun's reader (`curious.watching.recording.reader`), so these tests check the file a user opens.
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ import pytest
 from curious.analysis.palette import module_entity, module_label
 from curious.cli import main
 from curious.config import resolve
-from curious.recording import RecorderSettings, RunRecorder
-from curious.recording.reader import read_component, summarize
-from curious.recording.rollouts import RolloutObserver, attach_rollout_recording
-from curious.run import train
-from curious.run_folder import RECORDING_FILE
+from curious.runs.driver import train
+from curious.runs.folder import RECORDING_FILE
+from curious.watching.recording import RecorderSettings, RunRecorder
+from curious.watching.recording.reader import read_component, summarize
+from curious.watching.recording.rollout_capture import RolloutObserver, attach_rollout_recording
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 

@@ -9,7 +9,7 @@ import pytest
 
 from curious.cli import main
 from curious.commands import view
-from curious.run_folder import RECORDING_FILE
+from curious.runs.folder import RECORDING_FILE
 
 RRD_HEADER = b"RRF2\x00\x29\x00\x00\x01\x02\x00\x00"
 """The first 12 bytes of a recording that rerun-sdk 0.41 wrote: magic, version, options."""
@@ -30,8 +30,8 @@ def no_display(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def test_the_view_command_opens_the_file_the_recorder_writes(tmp_path: Path) -> None:
-    from curious.recording import RunRecorder
-    from curious.run_folder import RunFolder
+    from curious.runs.folder import RunFolder
+    from curious.watching.recording import RunRecorder
 
     RunRecorder(tmp_path / "run", ("reach",)).close()
     assert view.recording_paths([str(tmp_path / "run")]) == [

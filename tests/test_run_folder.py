@@ -1,4 +1,4 @@
-"""The run folder's format (curious.run_folder): what config.json records, how every version of it
+"""The run folder's format (curious.runs.folder): what config.json records, how every version of it
 reads, and the one check of whether a config goes on with the run in a folder."""
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import pytest
 from toy_env import ToyGoalEnv
 
 from curious.config import resolve
-from curious.envs import SuiteEnv
-from curious.experiments import get_budget
-from curious.run_folder import (
+from curious.envs.goal_env import SuiteEnv
+from curious.reproduction.experiments import get_budget
+from curious.runs.folder import (
     RUN_ENTRIES,
     ConfigMismatch,
     RunFolder,
@@ -96,7 +96,7 @@ def test_config_json_records_the_machine_of_every_start(tmp_path, monkeypatch):
     assert json.loads(run.config_path.read_text())["machine"] == here
     assert run.read_info().machines == (machine_text(here),)
     elsewhere = {"cpu": "Other CPU", "cores": 64, "system": "Linux", "gpu": "NVIDIA H100"}
-    monkeypatch.setattr("curious.run_folder.machine", lambda device="cpu": elsewhere)
+    monkeypatch.setattr("curious.runs.folder.machine", lambda device="cpu": elsewhere)
     run.write_config(resolve("smoke", "curious", 0), SuiteEnv("default", seed=0).spec)
     data = json.loads(run.config_path.read_text())
     assert data["machine"] == here and data["resumed"][-1]["machine"] == elsewhere
@@ -192,7 +192,7 @@ def test_checkpoints_are_listed_by_their_names(tmp_path):
 
 
 def test_only_the_run_folder_module_spells_the_file_names():
-    """Every reader and writer of a run folder takes the names from `curious.run_folder`."""
+    """Every reader and writer of a run folder takes the names from `curious.runs.folder`."""
     spelled = []
     for top in ("curious", "pipelines", "notebooks", "benchmarks"):
         for path in sorted((ROOT / top).rglob("*.py")):

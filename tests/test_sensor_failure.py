@@ -1,4 +1,4 @@
-"""The sensory-failure schedule (`curious.sensor_failure.FailureSchedule`) on its own: when the
+"""The sensory-failure schedule (`curious.runs.sensor_failure.FailureSchedule`) on its own: when the
 failure starts, which episodes run with it, and that a resumed run keeps its onset."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from toy_env import ToyGoalEnv
 
+from curious.agent.learning_progress import CompetenceTracker
 from curious.config import ConfigError, resolve
-from curious.env_batch import LocalEnvs
-from curious.learning_progress import CompetenceTracker
-from curious.sensor_failure import FailureSchedule
-from curious.train import Trainer
+from curious.envs.batch import LocalEnvs
+from curious.runs.sensor_failure import FailureSchedule
+from curious.runs.trainer import Trainer
 
 SMALL = dict(total_episodes=40, n_workers=2, episodes_per_worker=2, progress=False)
 

@@ -22,8 +22,8 @@ from shipped_check import check_shipped_folder, files_of
 
 from curious import analysis
 from curious.cli import main as curious_cli
-from curious.run_folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE, RunFolder
-from curious.shipped import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
+from curious.reproduction.shipped_folder import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
+from curious.runs.folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE, RunFolder
 from pipelines.resources import OutputLayout
 
 EXPERIMENTS = ("main", "distractors", "sensor_failure")

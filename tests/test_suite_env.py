@@ -218,7 +218,7 @@ def test_bad_input_raises_a_clear_error_and_the_env_stays_usable(kind, value, me
 def test_the_agent_names_modules_by_the_suites_rule(module, message):
     """The agent's `EnvSpec.module_index` is the suite's: the same index for a name, and the
     same one-line ValueError (the command line's kind) for what names no module."""
-    from curious.envs import EnvSpec
+    from curious.envs.goal_env import EnvSpec
 
     task = suite.load("default", seed=0).task
     names = task.module_names

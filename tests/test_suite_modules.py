@@ -8,8 +8,8 @@ import pytest
 
 import suite
 from suite import layout
-from suite.evaluation import ModuleEvaluator
 from suite.modules import TaskModule, affine_slot, within_distance
+from suite.outcomes import ModuleEvaluator
 
 MODULES = suite.standard_modules(3)
 N_CUBES = 5

@@ -19,8 +19,8 @@ import pytest
 import torch
 
 from curious.cli import main as curious_cli
-from curious.evaluation import evaluate
-from curious.video import Caption, burn_caption, kept_steps, output_kind, real_time_fps
+from curious.watching.evaluation import evaluate
+from curious.watching.video import Caption, burn_caption, kept_steps, output_kind, real_time_fps
 
 
 @functools.cache

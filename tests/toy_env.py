@@ -1,4 +1,4 @@
-"""A small multi-module goal environment in numpy, implementing `curious.envs.GoalEnv`.
+"""A small multi-module goal environment in numpy, implementing `curious.envs.goal_env.GoalEnv`.
 
 A point "hand" moves in [-1, 1]^3 (actions 0-2, 0.25 per step), a "dial" turns in [-1, 1]
 (action 3, 0.25 per step) and a "beacon" drifts on its own far away. Three modules:
@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from curious.envs import EnvSpec, Obs
+from curious.envs.goal_env import EnvSpec, Obs
 
 THRESHOLD = 0.15
 STEP = 0.25

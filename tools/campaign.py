@@ -37,8 +37,13 @@ from pathlib import Path
 
 import curious
 from curious.config import parse_overrides
-from curious.experiments import RunSpec, get_budget
-from curious.shipped import ShippedFolder
+
+try:
+    from curious.reproduction.experiments import RunSpec, get_budget
+    from curious.reproduction.shipped_folder import ShippedFolder
+except ModuleNotFoundError:  # a campaign commit from before the sub-packages (9972821)
+    from curious.experiments import RunSpec, get_budget
+    from curious.shipped import ShippedFolder
 from pipelines.executors import Job, LocalPool, run_all
 from pipelines.reproduce import _write_manifest, check_output_folder
 from pipelines.resources import OutputLayout

@@ -38,6 +38,12 @@ import importlib
 import importlib.util
 from typing import Any
 
+DEFAULT_TEST_EPOCHS = 5
+"""How many of a run's last epochs its current test success pools (`curious progress`, the
+milestones); defined here, where nothing heavy is imported, so that `curious progress --help`
+shows it without loading pandas. A `laptop` epoch tests each module about 40 / N times, too
+few alone to read."""
+
 _PUBLIC_MODULES = ("loading", "statistics", "milestones", "perturbation", "figures")
 """The submodules whose ``__all__`` make this package's names, looked up in this order."""
 

@@ -8,13 +8,14 @@ every column of ``metrics.parquet``. `load_tests` reads the same folders' ``test
 one row per (run, test rollout), with the same identity columns; a run without test rollouts (one
 trained before they were logged, or with ``test_rollouts_per_worker=0``) is an `AnalysisError`.
 
-A shipped data folder (`curious.shipped`, written by ``curious ship``: a reproduction's runs
+A shipped data folder (`curious.reproduction.shipped_folder`, written by ``curious ship``: a
+reproduction's runs
 reduced to what the analysis reads, e.g. the repository's ``data/laptop``) is a folder of run
 folders too, and loads wherever run folders do: ``load_runs("data/laptop/main")``. Its tables
 lack the columns shipping leaves out (the goals, the worker, the raw self-evaluations and the
 tests' clock; their parquet metadata says which), and every column they keep is the run's own.
 
-What ``config.json`` says about a run is read by `curious.run_folder.RunFolder.read_info`, which
+What ``config.json`` says about a run is read by `curious.runs.folder.RunFolder.read_info`, which
 knows every version of the file (`read_run_info` here raises its errors as `AnalysisError`).
 
 Identity columns of the table (the same on every row of a run):
@@ -44,8 +45,8 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from curious.metrics import tests_schema
-from curious.run_folder import (
+from curious.reproduction.shipped_folder import ShippedError, shipped_drops
+from curious.runs.folder import (
     CONFIG_FILE,
     METRICS_FILE,
     TESTS_FILE,
@@ -53,7 +54,7 @@ from curious.run_folder import (
     RunFolderError,
     RunInfo,
 )
-from curious.shipped import ShippedError, shipped_drops
+from curious.runs.metrics import tests_schema
 
 __all__ = [
     "IDENTITY_COLUMNS",
@@ -111,7 +112,7 @@ PathsOrRoot = str | PathLike[str] | Iterable[str | PathLike[str]]
 class AnalysisError(ValueError):
     """A folder is not a readable run folder, or a set of runs cannot be analysed together.
 
-    (Training's own folder errors are `curious.run_folder.RunFolderError`.)"""
+    (Training's own folder errors are `curious.runs.folder.RunFolderError`.)"""
 
 
 def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
@@ -199,7 +200,7 @@ def run_path_below(path: Path, root: Path) -> PurePosixPath:
 
 def read_run_info(path: str | PathLike[str]) -> RunInfo:
     """What a run folder's ``config.json`` says about its run (identity, modules, sensory
-    failure), checked (`curious.run_folder.RunFolder.read_info`); an `AnalysisError` naming the
+    failure), checked (`curious.runs.folder.RunFolder.read_info`); an `AnalysisError` naming the
     file and the problem otherwise."""
     try:
         return RunFolder(path).read_info()
@@ -208,7 +209,8 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
 
 
 def _shipped_drops(path: Path) -> tuple[str, ...]:
-    """The columns a shipped run's table leaves out (`curious.shipped`); none for a run's own."""
+    """The columns a shipped run's table leaves out (`curious.reproduction.shipped_folder`); none
+    for a run's own."""
     try:
         return shipped_drops(pq.read_schema(path).metadata)
     except ShippedError as exc:

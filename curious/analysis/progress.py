@@ -29,16 +29,17 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
+from curious.analysis import DEFAULT_TEST_EPOCHS
 from curious.analysis.loading import (
     AnalysisError,
     read_run_info,
     run_path_below,
     search_run_folders,
 )
-from curious.run_folder import CONFIG_FILE, RunFolder, RunInfo
+from curious.runs.folder import CONFIG_FILE, RunFolder, RunInfo
 
 if TYPE_CHECKING:
-    from curious.experiments import ReproduceBudget
+    from curious.reproduction.experiments import ReproduceBudget
 
 __all__ = [
     "DEFAULT_TEST_EPOCHS",
@@ -50,10 +51,6 @@ __all__ = [
     "progress_table",
     "summary_markdown",
 ]
-
-DEFAULT_TEST_EPOCHS = 5
-"""Test success is pooled over this many of a run's last epochs: a `laptop` epoch tests each
-module about 40 / N times, too few alone to read."""
 
 
 @dataclass(frozen=True)
@@ -181,7 +178,7 @@ def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> Run
 def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
     """The budget and runs folder of a reproduction's output folder (one with
     `reproduce.json`; its runs lie under `runs/` or where `--runs-dir` put them), else None."""
-    from curious.experiments import ExperimentError, get_budget
+    from curious.reproduction.experiments import ExperimentError, get_budget
 
     manifest = root / "reproduce.json"
     if not manifest.is_file():
@@ -235,7 +232,7 @@ def progress_table(
     paths = [Path(roots)] if isinstance(roots, (str, PathLike)) else [Path(r) for r in roots]
     if not paths:
         raise AnalysisError("no folder given")
-    from curious.shipped import ShippedFolder
+    from curious.reproduction.shipped_folder import ShippedFolder
 
     planned: dict[str, RunProgress] = {}
     found: dict[Path, tuple[Path, bool]] = {}  # run folder -> (its root, shipped)

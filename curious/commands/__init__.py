@@ -30,7 +30,7 @@ def _suite_modules() -> str:
 
 
 def _rollout_every() -> str:
-    from curious.recording import RecorderSettings
+    from curious.watching.recording import RecorderSettings
 
     return str(RecorderSettings().rollout_every)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
+from typing import Any
 
 BENCHMARKS: dict[str, tuple[str, str]] = {
     "env": (
@@ -40,6 +41,26 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
 }
 
 
+class _BenchmarkParser(argparse.ArgumentParser):
+    """A benchmark's parser, which imports the benchmark's module for its options only when the
+    command line names that benchmark: `curious --help` and `curious bench --help` import no
+    benchmark (they import torch and MuJoCo)."""
+
+    def __init__(self, *args: Any, module_name: str | None = None, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._module_name = module_name
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        if self._module_name is not None:
+            name, self._module_name = self._module_name, None
+            try:
+                importlib.import_module(name).add_arguments(self)
+            except ModuleNotFoundError as exc:
+                if exc.name != name:
+                    raise
+        return super().parse_known_args(args, namespace)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious bench` and one sub-command per benchmark."""
     parser = sub.add_parser(
@@ -47,16 +68,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="speed benchmarks (ours vs bound vs peer)",
         description="Speed benchmarks, each measured side by side with its bound and a peer.",
     )
-    bench_sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
+    bench_sub = parser.add_subparsers(
+        dest="benchmark", metavar="BENCHMARK", required=True, parser_class=_BenchmarkParser
+    )
     for name, (module_name, help_text) in BENCHMARKS.items():
-        p = bench_sub.add_parser(name, help=help_text, description=help_text)
+        p = bench_sub.add_parser(
+            name, help=help_text, description=help_text, module_name=module_name
+        )
         p.add_argument("--json", action="store_true", help="print one JSON object")
         p.set_defaults(func=_run, module_name=module_name)
-        try:
-            importlib.import_module(module_name).add_arguments(p)
-        except ModuleNotFoundError as exc:
-            if exc.name != module_name:
-                raise
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -29,7 +29,7 @@ import argparse
 import json
 import sys
 
-from curious.run_folder import EVALUATION_RECORDING_FILE as DEFAULT_FILE
+from curious.runs.folder import EVALUATION_RECORDING_FILE as DEFAULT_FILE
 
 RECORD_EPISODES = 2
 """`--record-episodes` unless given: each module's first episodes kept in 3-D."""
@@ -93,7 +93,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from curious.evaluation import evaluate, evaluation_table
+    from curious.watching.evaluation import evaluate, evaluation_table
 
     if args.record is None:
         if args.record_episodes is not None:
@@ -119,9 +119,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _evaluate_and_record(args: argparse.Namespace):
-    """`evaluate` with its episodes recorded in 3-D (`curious.recording.evaluation`)."""
-    from curious.evaluation import open_run
-    from curious.recording.evaluation import EvaluationRecording, check_target
+    """`evaluate` with its episodes recorded in 3-D
+    (`curious.watching.recording.evaluation_rrd`)."""
+    from curious.watching.evaluation import open_run
+    from curious.watching.recording.evaluation_rrd import EvaluationRecording, check_target
 
     target = check_target(args.record, args.run)
     per_module = RECORD_EPISODES if args.record_episodes is None else args.record_episodes

@@ -25,7 +25,7 @@ END = "<!-- progress:end -->"
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious progress`."""
-    from curious.analysis.progress import DEFAULT_TEST_EPOCHS
+    from curious.analysis import DEFAULT_TEST_EPOCHS
 
     parser = sub.add_parser(
         "progress",

@@ -126,7 +126,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _check(args: argparse.Namespace) -> str:
     """Refuses bad arguments before anything loads; returns the output format."""
     from curious.config import MAX_SEED
-    from curious.video import check_writer, output_kind
+    from curious.watching.video import check_writer, output_kind
 
     kind = output_kind(args.out)
     check_writer(kind, args.width, args.height)
@@ -155,7 +155,7 @@ def _check(args: argparse.Namespace) -> str:
 
 def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tuple[int, float, int]:
     """(every, fps, hold frames) of the output."""
-    from curious.video import real_time_fps
+    from curious.watching.video import real_time_fps
 
     every = args.every if args.every is not None else (10 if kind == "png" else 1)
     fps = args.fps if args.fps is not None else real_time_fps(control_timestep, every, args.speed)
@@ -181,8 +181,8 @@ def run(args: argparse.Namespace) -> int:
 def _render_run(args: argparse.Namespace, kind: str) -> int:
     """The run's trained agent, through `curious evaluate`'s episodes."""
     from curious.analysis.palette import module_label
-    from curious.evaluation import open_run
-    from curious.video import GREEN, RED, WHITE, EpisodeFilm, goal_text, open_writer
+    from curious.watching.evaluation import open_run
+    from curious.watching.video import GREEN, RED, WHITE, EpisodeFilm, goal_text, open_writer
 
     with open_run(args.run, args.episodes, args.variant, args.seed, processes=1) as session:
         modules = session.modules(args.module)
@@ -244,7 +244,7 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
 
     import suite
     from curious.analysis.palette import module_label
-    from curious.video import burn_caption, open_writer
+    from curious.watching.video import burn_caption, open_writer
     from suite.render import check_gl_backend, render_episode
 
     check_gl_backend()
@@ -304,7 +304,7 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
 
 def _policy_caption(label: str, raw: Any, policy: str, j: int, episodes: int) -> Any:
     """The caption of an episode of the random or still arm."""
-    from curious.video import WHITE, goal_text
+    from curious.watching.video import WHITE, goal_text
 
     where = f"episode {j + 1}/{episodes}"
     return [(f"{label} | {goal_text(raw)}", WHITE), (f"{policy} arm | {where}", WHITE)]

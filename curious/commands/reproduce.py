@@ -34,7 +34,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from curious.commands import add_set_option
-from curious.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
+from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
 
 if TYPE_CHECKING:
     from pipelines.reproduce import ReproduceResult
@@ -162,7 +162,7 @@ def placement_overrides(items: list[str]) -> dict[str, object]:
 
 def run(args: argparse.Namespace) -> int:
     from curious.config import ConfigError
-    from curious.experiments import ExperimentError
+    from curious.reproduction.experiments import ExperimentError
 
     options = (("--out", args.out), ("--runs-dir", args.runs_dir), ("--from-data", args.from_data))
     for option, value in options:
@@ -243,8 +243,8 @@ _TRAINING_OPTIONS = {
 
 def _from_data(args: argparse.Namespace) -> int:
     """`--from-data`: the report and figures from shipped runs; nothing is trained."""
-    from curious.experiments import ExperimentError
-    from curious.shipped import ShippedError, ShippedFolder
+    from curious.reproduction.experiments import ExperimentError
+    from curious.reproduction.shipped_folder import ShippedError, ShippedFolder
     from pipelines.reproduce import ReproduceError, reproduce
     from pipelines.training import RunFolderMismatch
 

@@ -7,7 +7,8 @@
 
 ROOT is a `curious reproduce` output folder (its run folders are found where its reproduce.json
 says, and its budget is recorded) or any folder of run folders. The data folder holds each
-run's config.json and its tables without the columns no analysis reads (`curious.shipped`);
+run's config.json and its tables without the columns no analysis reads
+(`curious.reproduction.shipped_folder`);
 no checkpoint, no recording. By default only finished runs are shipped; `--unfinished` ships the
 others too, marked as unfinished in shipped.json. An --out holding an earlier ship of the same
 budget is replaced, or with `--keep` added to: the runs it holds stay unless this ship writes
@@ -54,9 +55,9 @@ def _megabytes(n: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from curious.run_folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE
-    from curious.shipped import MANIFEST_FILE
-    from curious.shipping import ship
+    from curious.reproduction.shipped_folder import MANIFEST_FILE
+    from curious.reproduction.shipping import ship
+    from curious.runs.folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE
     from pipelines.resources import OutputLayout
 
     root = Path(args.root)

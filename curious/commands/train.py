@@ -84,8 +84,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from curious.checkpoint import CheckpointError
-    from curious.run_folder import RunFolderError
+    from curious.runs.checkpoint import CheckpointError
+    from curious.runs.folder import RunFolderError
 
     try:
         if not args.out.strip():
@@ -108,13 +108,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 2
 
-    from curious.run import train
-    from curious.train import TrainingDiverged
+    from curious.runs.driver import train
+    from curious.runs.trainer import TrainingDiverged
 
     make_recorder = None
     if not args.no_record:
-        from curious.recording import RecorderSettings
-        from curious.recording.rollouts import recorder_factory
+        from curious.watching.recording import RecorderSettings
+        from curious.watching.recording.rollout_capture import recorder_factory
 
         settings = RecorderSettings()
         if args.rollout_every is not None:

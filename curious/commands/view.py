@@ -20,8 +20,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from curious.display import has_display
-from curious.run_folder import RunFolder
+from curious.runs.folder import RunFolder
+from curious.watching.display import has_display
 
 RRD_MAGIC = b"RRF"
 """How every Rerun recording file begins (`RRF2` today, with the format's version after it)."""

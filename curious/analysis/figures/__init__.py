@@ -26,9 +26,9 @@ labels of modules and conditions come from `curious.analysis.palette`.
 from __future__ import annotations
 
 from curious.analysis.figures.distracting import distractors
+from curious.analysis.figures.failure_recovery import forgetting
 from curious.analysis.figures.fig2 import fig2a, fig2b, fig2c, table1
 from curious.analysis.figures.parts import CONDITION_ORDER
-from curious.analysis.figures.sensor_failure import forgetting
 from curious.analysis.style import save_figure
 
 __all__ = [

@@ -1,0 +1,360 @@
+"""The conditions the paper compares, as small strategies the training loop asks: which modules
+the next episodes practise or evaluate and with which goals, how an episode is scored, which
+modules relabelled transitions are replayed as, and which expert acts or learns. Everything else
+(networks, learner, replay, rollouts) is shared.
+
+Self-evaluations. Every `eval_every`-th episode is a self-evaluation without exploration noise;
+its final success goes to that module's competence queue. Which module it evaluates, and which
+the practice episodes practise, follows `Config.eval_modules` in the single-policy conditions:
+
+* `released` (the authors' code, flowersteam/curious baselines/her/rollout.py, which made the
+  paper's figures): there, rank 0 draws the module of every worker's episodes from its own
+  selection probabilities, and a worker that self-evaluates keeps the module it was given; only
+  rank 0's own self-evaluations (probability 0.1 per call of `generate_rollouts`) switch its
+  probabilities to uniform, and then for every worker. One such call is one of our cycles (19
+  workers x 2 episodes = our `n_workers` x `episodes_per_worker`), the 0.1 is our
+  1 / `eval_every`, so once per cycle, with that probability, every module of the cycle is drawn
+  uniformly, and otherwise every one from the practice probabilities (`lead_draw`, `modules`).
+  Evaluations and practice then both follow about 0.9 p + 0.1 uniform: the module in focus
+  refills its competence queue many times faster than a neglected one, which sharpens its LP and
+  slows the notice of forgetting elsewhere. (The released code also made rank 0's own
+  evaluations, 1/19 of all, always uniform; ours keep the fixed evaluation schedule, so that
+  share follows the cycle's draw like the others: docs/agent.md.)
+* `uniform` (the paper's text, §6.2: the agent "evaluates itself on random tasks"): evaluations
+  on modules drawn uniformly, practice from the practice probabilities, so that every module's
+  queue fills at the same rate.
+
+The conditions:
+
+* `curious`: one E-UVFA policy; the next module and the module each relabelled transition is
+  replayed as (task replay, `curious.agent.replay`) are drawn from p_LP, the latter over the modules
+  that have an episode to replay (the authors' buffers with something in them, ddpg.py
+  `sample_batch`: eps / n + (1 - eps) LP / sum LP over those n modules).
+* `m-uvfa`: the same policy with uniform module selection and uniform task replay over the
+  modules that have an episode to replay (the later paper's ablation of learning progress).
+* `mg-te`: one expert policy per module (each with the E-UVFA input, whose task part is then
+  constant), sharing one replay buffer. Epoch e belongs to module e mod N: expert e mod N plays
+  every episode of the epoch on its module, self-evaluations included (the authors' task-expert
+  workers keep their one-hot selection probabilities when they self-evaluate, rollout.py), and
+  only that expert trains, replaying relabelled transitions as its module (with HER goals). Its
+  competence queue fills during its epochs only. The test rollouts evaluate module m with
+  expert m (the authors' evaluator).
+* `her`: one policy over the holistic goal space (`HolisticGoals`): every episode draws a goal
+  for every module at once, and both its reward and its success are one Euclidean distance over
+  all the modules' goal coordinates at once, within the success distance (gym_flowers
+  multi_task_fetch_arm_v0.py `compute_reward` with `set_flat_env`, reached through her.py), with
+  no stack guard. No holistic goal corresponds to a real situation, which is why the paper's HER
+  line stays flat. The task descriptor is zero. It never self-evaluates (the authors' flat
+  workers never exploit, rollout.py), so it has no competence (NaN in metrics.parquet). Each
+  episode still names one module, drawn uniformly, whose part of the goal is recorded in the
+  tables (g0..g2); `module_success` of tests.parquet says whether that module's own reward was
+  met at the final step, a per-module view that is never the paper's score.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from curious.agent.inputs import GoalInput
+from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
+from curious.envs.goal_env import EnvSpec, GoalEnv
+
+if TYPE_CHECKING:
+    from curious.config import Config
+    from curious.envs.rollout import EpisodeData
+
+
+class HolisticGoals:
+    """The flat baseline's goal space: one goal over every module's goal slot at once.
+
+    A goal is (N, G): a slot per module, placed at each step as every condition's goals are
+    (`place`: the suite's cube1_above_cube2 and stack goals follow cube 2). What it is compared
+    with is every module's hindsight outcome (the first G numbers of its outcome,
+    `EnvSpec.hindsight_columns`), and a goal is met
+    when the Euclidean distance over all N x G coordinates is within `spec.success_distance`
+    (gym_flowers multi_task_fetch_arm_v0.py, `compute_reward` in its flat branch:
+    `-(d > distance_threshold)`). Vectorised over any leading axes.
+    """
+
+    def __init__(self, spec: EnvSpec) -> None:
+        self.spec = spec
+        self.columns = spec.hindsight_columns()  # (N, G)
+        self.threshold = float(spec.success_distance)
+
+    def draw(
+        self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        """(n, N, G) goal slots: every module's drawn uniformly in [-1, 1]^G from `rng` (one
+        draw over the union of the goal spaces, as the authors' flat goal), except that each
+        episode's named module keeps its `raw` goal (n, G)."""
+        n, n_mod, g = len(modules), self.spec.n_modules, self.spec.goal_dim
+        raw_all = rng.uniform(-1.0, 1.0, (n, n_mod, g))
+        raw_all[np.arange(n), modules] = raw
+        goals = np.empty((n, n_mod, g), np.float32)
+        for k in range(n_mod):
+            goals[:, k] = env.goal_slot(k, raw_all[:, k])
+        return goals
+
+    def place(self, env: GoalEnv, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        """(n, N, G) the goals that slots (n, N, G) stand for given outcomes (n, achieved_dim)
+        of one step (`GoalEnv.goal`: the suite's cube1_above_cube2 and stack goals follow cube
+        2, as every condition's do)."""
+        placed = np.empty_like(slots)
+        for k in range(self.spec.n_modules):
+            placed[:, k] = env.goal(k, slots[:, k], achieved)
+        return placed
+
+    def hindsight(self, achieved: np.ndarray) -> np.ndarray:
+        """(..., N, G): the holistic goal that outcomes (..., achieved_dim) achieve."""
+        return np.asarray(achieved)[..., self.columns]
+
+    def distance(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(...,) Euclidean distance between outcomes (..., achieved_dim) and goals (..., N, G)
+        over all N x G coordinates at once."""
+        diff = self.hindsight(achieved) - np.asarray(goals)
+        return np.sqrt(np.square(diff, dtype=np.float64).sum(axis=(-2, -1)))
+
+    def success(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(...,) bool: the goal is met (distance within the threshold)."""
+        return self.distance(achieved, goals) <= self.threshold
+
+    def reward(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(...,) float32 sparse reward: 0 where `success`, -1 elsewhere."""
+        return np.where(self.success(achieved, goals), 0.0, -1.0).astype(np.float32)
+
+
+class Condition:
+    """Base strategy: one policy, per-module goals, uniform choices."""
+
+    name = "base"
+    self_evaluates = True
+    """Whether every `eval_every`-th episode is a noise-free self-evaluation."""
+    follows_lead = True
+    """Whether `Config.eval_modules` = `released` draws this condition's modules (see the
+    module docstring)."""
+
+    def __init__(self, spec: EnvSpec, lp_eps: float, eval_modules: str, eval_every: int) -> None:
+        """`lp_eps`, `eval_modules`, `eval_every`: the `Config` settings (`make_condition`)."""
+        self.spec = spec
+        self.n_modules = spec.n_modules
+        self.lp_eps = lp_eps
+        self.eval_modules = eval_modules
+        self.eval_every = eval_every
+        self.goal_space: HolisticGoals | None = None
+        """The holistic goal space of a flat condition (None: one module per episode)."""
+
+    @property
+    def n_experts(self) -> int:
+        """Number of actor-critic pairs the condition trains."""
+        return 1
+
+    def uniform(self) -> np.ndarray:
+        return np.full(self.n_modules, 1.0 / self.n_modules)
+
+    # -- which modules ------------------------------------------------------------------------
+    def practice_probs(self, tracker: CompetenceTracker, epoch: int) -> np.ndarray:
+        """(N,) probabilities of the module practised in the next training episode (p_lp in
+        metrics.parquet)."""
+        return self.uniform()
+
+    def lead_draw(self, rng: np.random.Generator) -> bool | None:
+        """Drawn once at the start of every cycle: whether the cycle's modules are all uniform
+        (the released code's rank 0 self-evaluates, probability 1 / `eval_every`); None, with
+        nothing drawn, where that rule does not apply."""
+        if self.eval_modules != "released" or not self.follows_lead:
+            return None
+        return bool(rng.random() < 1.0 / self.eval_every)
+
+    def modules(
+        self,
+        evaluation: np.ndarray,
+        tracker: CompetenceTracker,
+        epoch: int,
+        rng: np.random.Generator,
+        lead: bool | None,
+    ) -> np.ndarray:
+        """(n,) module of each of a round's episodes (`evaluation` (n,) marks the
+        self-evaluations; `lead` is the cycle's `lead_draw`)."""
+        n, n_mod = len(evaluation), self.n_modules
+        practice = self.practice_probs(tracker, epoch)
+        if lead is not None:  # `released`: one distribution for the whole cycle
+            return rng.choice(n_mod, size=n, p=self.uniform() if lead else practice)
+        return np.where(
+            evaluation, rng.integers(n_mod, size=n), rng.choice(n_mod, size=n, p=practice)
+        )
+
+    # -- goals and scores ---------------------------------------------------------------------
+    def goals(
+        self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
+    ) -> GoalInput[np.ndarray]:
+        """The goal input of n episodes of `modules` (n,) with goals `raw` (n, G) in
+        [-1, 1]^G: the practised module's slot, mask and task descriptor only."""
+        n, n_mod, g = len(modules), self.n_modules, self.spec.goal_dim
+        goals = np.zeros((n, n_mod, g), np.float32)
+        for k in np.unique(modules):
+            sel = np.flatnonzero(modules == k)
+            goals[sel, k] = env.goal_slot(int(k), raw[sel])
+        return GoalInput.modular(goals, modules)
+
+    def module_success(
+        self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        """(n,) bool: whether each episode's module met its own goal slot at the final step."""
+        n = len(modules)
+        if self.goal_space is None:
+            return data.final_success[np.arange(n), modules]
+        final = data.achieved[:, -1]
+        out = np.zeros(n, bool)
+        for k in np.unique(modules):
+            sel = np.flatnonzero(modules == k)
+            goal = env.goal(int(k), goals[sel, k], final[sel])
+            out[sel] = env.reward(int(k), final[sel], goal) == 0
+        return out
+
+    def success(
+        self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        """(n,) bool: the condition's score of each episode at its final step (what competence,
+        metrics.parquet and Fig. 2a read)."""
+        return self.module_success(env, data, modules, goals)
+
+    # -- replay and experts -------------------------------------------------------------------
+    def replay_probs(
+        self, tracker: CompetenceTracker, epoch: int, replayable: np.ndarray
+    ) -> np.ndarray | None:
+        """(N,) probabilities of the module relabelled transitions are replayed as (None:
+        holistic). `replayable` (N,) bool marks the modules with an episode to replay; the
+        others get none of the minibatch (the authors' empty buffers)."""
+        return _over(replayable, lambda mask: np.full(mask.sum(), 1.0 / mask.sum()))
+
+    def acting_experts(self, modules: np.ndarray, epoch: int) -> np.ndarray:
+        """(W,) index of the expert that acts in each episode."""
+        return np.zeros(len(modules), np.int64)
+
+    def trained_expert(self, epoch: int) -> int:
+        """The expert whose networks this epoch's updates train."""
+        return 0
+
+
+def _over(replayable: np.ndarray, probs_of: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """(N,) probabilities that `probs_of(mask)` gives over the modules of `mask`: the
+    `replayable` ones (zero elsewhere), or every module while none is replayable."""
+    mask = np.asarray(replayable, bool)
+    if not mask.any():
+        mask = np.ones_like(mask)
+    out = np.zeros(mask.shape, np.float64)
+    out[mask] = probs_of(mask)
+    return out
+
+
+class Curious(Condition):
+    name = "curious"
+
+    def practice_probs(self, tracker: CompetenceTracker, epoch: int) -> np.ndarray:
+        return tracker.p_lp(self.lp_eps)
+
+    def replay_probs(
+        self, tracker: CompetenceTracker, epoch: int, replayable: np.ndarray
+    ) -> np.ndarray:
+        lp = tracker.learning_progress()
+        return _over(replayable, lambda mask: lp_probabilities(lp[mask], self.lp_eps))
+
+
+class MUVFA(Condition):
+    name = "m-uvfa"
+
+
+class MGTE(Condition):
+    name = "mg-te"
+    follows_lead = False
+
+    @property
+    def n_experts(self) -> int:
+        return self.n_modules
+
+    def active(self, epoch: int) -> int:
+        return epoch % self.n_modules
+
+    def practice_probs(self, tracker: CompetenceTracker, epoch: int) -> np.ndarray:
+        p = np.zeros(self.n_modules)
+        p[self.active(epoch)] = 1.0
+        return p
+
+    def modules(
+        self,
+        evaluation: np.ndarray,
+        tracker: CompetenceTracker,
+        epoch: int,
+        rng: np.random.Generator,
+        lead: bool | None,
+    ) -> np.ndarray:
+        # Every episode of the epoch, self-evaluations included, is the active module's.
+        return np.full(len(evaluation), self.active(epoch), np.int64)
+
+    def replay_probs(
+        self, tracker: CompetenceTracker, epoch: int, replayable: np.ndarray
+    ) -> np.ndarray:
+        # Always the trained expert's module; while it has no episode to replay, the replay
+        # draws from every episode (docs/agent.md).
+        return self.practice_probs(tracker, epoch)
+
+    def acting_experts(self, modules: np.ndarray, epoch: int) -> np.ndarray:
+        # Training episodes are the active module's (its expert acts); a test rollout of module
+        # m uses expert m.
+        return np.asarray(modules, np.int64).copy()
+
+    def trained_expert(self, epoch: int) -> int:
+        return self.active(epoch)
+
+
+class HER(Condition):
+    """The flat baseline, whole: its goal space, its score, no self-evaluation, no task replay."""
+
+    name = "her"
+    self_evaluates = False
+    follows_lead = False
+
+    def __init__(self, spec: EnvSpec, lp_eps: float, eval_modules: str, eval_every: int) -> None:
+        super().__init__(spec, lp_eps, eval_modules, eval_every)
+        self.goal_space = HolisticGoals(spec)
+
+    def modules(
+        self,
+        evaluation: np.ndarray,
+        tracker: CompetenceTracker,
+        epoch: int,
+        rng: np.random.Generator,
+        lead: bool | None,
+    ) -> np.ndarray:
+        # The module an episode names (its recorded goal part) is uniform.
+        return rng.integers(self.n_modules, size=len(evaluation))
+
+    def goals(
+        self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
+    ) -> GoalInput[np.ndarray]:
+        assert self.goal_space is not None
+        return GoalInput.holistic(self.goal_space.draw(env, modules, raw, rng))
+
+    def success(
+        self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        assert self.goal_space is not None
+        final = data.achieved[:, -1]
+        return self.goal_space.success(final, self.goal_space.place(env, goals, final))
+
+    def replay_probs(self, tracker: CompetenceTracker, epoch: int, replayable: np.ndarray) -> None:
+        return None
+
+
+CONDITION_CLASSES: dict[str, type[Condition]] = {c.name: c for c in (Curious, MUVFA, MGTE, HER)}
+
+
+def make_condition(config: Config, spec: EnvSpec) -> Condition:
+    """The strategy of `config.condition` over the modules of `spec`."""
+    name = config.condition
+    if name not in CONDITION_CLASSES:
+        raise KeyError(f"unknown condition {name!r}; choose one of {', '.join(CONDITION_CLASSES)}")
+    return CONDITION_CLASSES[name](spec, config.lp_eps, config.eval_modules, config.eval_every)

@@ -1,0 +1,285 @@
+"""A training run in a run folder: `train()` runs a `curious.runs.trainer.Trainer` cycle after
+cycle.
+
+It prepares the folder (`curious.runs.folder`), builds the environment copies (the training
+ones and the test rollouts' own), appends each cycle's rows to `metrics.parquet` and
+`tests.parquet`, writes a checkpoint every `checkpoint_every_cycles` cycles (with no rounds in
+flight) and at the end, resumes from the newest one (`resume=True`, after `resume_checks`),
+shows a progress bar and hands every cycle to an optional recorder (`curious.runs.hooks.Recorder`).
+`curious train` and the reproduction pipeline call it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+import pyarrow.compute as pc
+
+from curious.agent.conditions import make_condition
+from curious.config import Config, ConfigError
+from curious.envs.batch import EnvBatch, ProcessEnvs
+from curious.envs.goal_env import GoalEnv
+from curious.runs import checkpoint
+from curious.runs.folder import RunFolder, RunFolderError, folder_lock
+from curious.runs.hooks import Recorder
+from curious.runs.memory import SUITE_COPY_BYTES, check_memory
+from curious.runs.metrics import MetricsLog, TableLog, TestsLog
+from curious.runs.trainer import CycleResult, Trainer
+
+
+def train(
+    config: Config,
+    out: str | Path,
+    resume: bool = False,
+    make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
+    stop_after_cycles: int | None = None,
+    restart: bool = False,
+) -> Trainer:
+    """Train `config` in the run folder `out` (created, continued with `resume=True`, or started
+    over with `restart=True`, which removes the run the folder held once every check passed).
+
+    `make_envs(config)` builds the `n_workers` environment copies (default: the suite variant
+    `config.variant`); it is called a second time for the test rollouts' copies (the default
+    seeds those from a stream of their own). `make_recorder(trainer, folder)`, called once the
+    folder is ready (and a resumed trainer is at its checkpoint's episode), returns the recorder
+    the loop logs to.
+    `stop_after_cycles` ends this call early (after a checkpoint), which is how tests interrupt
+    a run. Errors about the folder, the checkpoint or what the run needs (memory) are raised
+    before anything in the folder is written (`resume_checks` says what a resume refuses);
+    while it trains, the folder is locked against a second process (`RunFolderBusy`).
+    """
+    with folder_lock(out):
+        return _train(config, out, resume, restart, make_envs, make_recorder, stop_after_cycles)
+
+
+def _train(
+    config: Config,
+    out: str | Path,
+    resume: bool,
+    restart: bool,
+    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
+    stop_after_cycles: int | None,
+) -> Trainer:
+    folder = RunFolder.prepare(out, config, resume, restart)
+    trainer = Trainer(config, *_environments(config, make_envs))
+    with contextlib.closing(trainer):  # the environment workers stop with the run
+        return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles)
+
+
+def _environments(
+    config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
+) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None]:
+    """The training copies and the test rollouts' copies of a run (see `train`)."""
+    tests_wanted = config.test_rollouts_per_worker > 0
+    if make_envs is not None:
+        if config.processes > 1:
+            raise ConfigError(
+                "env_processes > 1 builds the suite's environments in worker processes; a "
+                "custom make_envs runs in this process (env_processes=1)"
+            )
+        return make_envs(config), make_envs(config) if tests_wanted else None
+    from curious.envs.goal_env import suite_env_fns
+
+    train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
+    test_fns = suite_env_fns(config.variant, config.seed, config.n_workers, stream=1)
+    # One copy first: its spec sizes the run, checked before the others are built.
+    first = (test_fns if tests_wanted else train_fns)[0]()
+    condition = make_condition(config, first.spec)
+    check_memory(config, first.spec, condition.n_experts, SUITE_COPY_BYTES)
+    if config.processes > 1:
+        # The test copies step in worker processes too: stepped in this process, a `paper`
+        # epoch's 190 test rollouts took about 8 s, a third of its 950 training episodes'
+        # 24 s (16 cores and an H100, 2026-11-26; docs/scaling.md).
+        train = ProcessEnvs(train_fns, config.processes)
+        if not tests_wanted:
+            return train, None
+        try:
+            return train, ProcessEnvs(test_fns, config.processes)
+        except BaseException:
+            train.close()
+            raise
+    tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
+    if tests_wanted:
+        return [fn() for fn in train_fns], tests
+    return [first, *(fn() for fn in train_fns[1:])], None
+
+
+def resume_checks(
+    trainer: Trainer,
+    folder: RunFolder,
+    metrics: TableLog,
+    tests: TableLog,
+    from_checkpoint: bool,
+) -> None:
+    """Refuse (`RunFolderError`) a resume that would lose or leave out part of the run.
+
+    Without a checkpoint, a run starts over from episode 0: right for a run stopped before its
+    first checkpoint was written (its rows, at most one checkpoint interval, are redone as rows
+    after any checkpoint are), but a folder holding more rows than that had checkpoints, which
+    were removed, and starting over would replace the whole run. With one, the tables must hold
+    every row the checkpoint's own counters say the run wrote (a deleted or older
+    metrics.parquet or tests.parquet would leave a gap)."""
+    config, episodes = trainer.config, trainer.episodes
+    if not from_checkpoint:
+        interval = config.checkpoint_every_cycles * config.episodes_per_cycle
+        if metrics.n_rows > interval:
+            kept = [f"{metrics.n_rows:,} episodes in {metrics.path.name}"]
+            kept += [f"{tests.n_rows:,} test rollouts in {tests.path.name}"] if tests.n_rows else []
+            kept += [folder.recording_path.name] if folder.recording_path.exists() else []
+            raise RunFolderError(
+                f"cannot resume {folder.path}: no checkpoint is left in {folder.checkpoints}, so "
+                f"the run would start over from episode 0 and replace {', '.join(kept)}; "
+                "restore the checkpoints, or pass --restart instead of --resume to start the "
+                "run over"
+            )
+        return
+    if metrics.n_rows < episodes:
+        raise RunFolderError(
+            f"{folder.metrics_path} holds {metrics.n_rows:,} rows but the checkpoint is at "
+            f"episode {episodes:,}: the run's rows are missing, so going on would leave a gap; "
+            "restore metrics.parquet, or start the run over with --restart"
+        )
+    # Test rollouts ran after every finished epoch, n_workers x test_rollouts_per_worker each.
+    epochs = trainer.cycles // config.n_cycles
+    expected = epochs * config.n_workers * config.test_rollouts_per_worker
+    table = tests.table()
+    have = int(pc.sum(pc.less_equal(table["episode"], episodes)).as_py() or 0)
+    if have < expected:
+        raise RunFolderError(
+            f"{folder.tests_path} holds {have:,} test rollouts up to episode {episodes:,}, but the "
+            f"run had run {expected:,} by its checkpoint ({epochs:,} epochs): they are missing, "
+            "so going on would leave the run without them; restore tests.parquet, or start the "
+            "run over with --restart"
+        )
+
+
+def _run(
+    trainer: Trainer,
+    folder: RunFolder,
+    resume: bool,
+    restart: bool,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
+    stop_after_cycles: int | None,
+) -> Trainer:
+    from tqdm.auto import tqdm
+
+    config = trainer.config
+    latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None
+    if latest is not None:
+        trainer.load_state_dict(*latest[1:])  # raises on another config, before any write
+        trainer.last_checkpoint = latest[0]
+    tables: list[TableLog] = []
+    if resume:  # read before anything is written: a bad table is an error with nothing changed
+        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
+        tables.append(TestsLog(folder.tests_path))
+        resume_checks(trainer, folder, *tables, from_checkpoint=latest is not None)
+
+    if restart:
+        folder.clear()
+    folder.write_config(config, trainer.spec)
+    checkpoint.remove_partial(folder.checkpoints)
+    checkpoint.prune(folder.checkpoints, spare=latest[0] if latest is not None else None)
+    if not tables:
+        tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
+        tables.append(TestsLog(folder.tests_path))
+    metrics, tests = tables
+    for table in tables:
+        if table.n_rows:
+            rows_before = table.n_rows
+            table.truncate(trainer.episodes)  # rows logged after the checkpoint are redone
+            if table.n_rows != rows_before:
+                table.flush()
+
+    recorder = make_recorder(trainer, folder) if make_recorder is not None else None
+    bar = tqdm(
+        total=config.total_episodes,
+        initial=trainer.episodes,
+        unit="ep",
+        disable=not config.progress,
+        dynamic_ncols=True,
+        desc=f"{config.condition} seed {config.seed}",
+    )
+    cycles_here = 0
+    try:
+        while not trainer.done:
+            every = config.checkpoint_every_cycles
+            drain = (trainer.cycles + 1) % every == 0 or (
+                stop_after_cycles is not None and cycles_here + 1 >= stop_after_cycles
+            )
+            result = trainer.cycle(drain=drain)
+            cycles_here += 1
+            metrics.append(result.rows)
+            if result.tests is not None:
+                tests.append(result.tests)
+            if recorder is not None and len(result.module_index):
+                _log_cycle(recorder, trainer, result)
+            bar.update(len(result.rows.get("episode", ())))
+            bar.set_postfix(_progress_text(trainer), refresh=False)
+            stop_now = stop_after_cycles is not None and cycles_here >= stop_after_cycles
+            if trainer.done or stop_now or trainer.cycles % config.checkpoint_every_cycles == 0:
+                trainer.ensure_finite()  # a diverged run writes none of this checkpoint
+                metrics.flush()
+                if config.test_rollouts_per_worker:
+                    tests.flush()
+                if recorder is not None:
+                    recorder.checkpoint()
+                trainer.save_checkpoint(folder.checkpoints)
+            if stop_now:
+                break
+    except BaseException:
+        if recorder is not None:
+            recorder.close_after_error()  # never hides the error that stopped training
+        raise
+    finally:
+        bar.close()
+    if recorder is not None:
+        recorder.close()
+    return trainer
+
+
+def _log_cycle(recorder: Recorder, trainer: Trainer, result: CycleResult) -> None:
+    """Hand one cycle to a recorder (the calls: `curious.runs.hooks`)."""
+    rows = result.rows
+    recorder.log_episodes(
+        episode=rows["episode"],
+        module=result.module_index,
+        success=rows["success"],
+        eval=rows["eval"],
+        competence=result.competence,
+        lp=result.lp,
+        p_lp=result.p_lp,
+        wall_time=rows["wall_time"],
+    )
+    losses = result.losses
+    if result.tests is not None:
+        tests = result.tests
+        recorder.log_tests(
+            int(tests["episode"][0]), tests["module"], tests["success"], tests["wall_time"][0]
+        )
+    if result.replay_counts.sum() > 0:
+        recorder.log_replay(trainer.episodes, result.replay_counts)
+    if "critic_loss" in losses:
+        recorder.log_learner(
+            trainer.episodes,
+            losses={"critic": losses["critic_loss"], "actor": losses["actor_loss"]},
+            q={"target_mean": losses["q_target_mean"]},
+        )
+
+
+def _progress_text(trainer: Trainer) -> dict[str, str]:
+    """The progress bar's text: mean competence over the achievable modules and p_LP."""
+    spec = trainer.spec
+    if not trainer.condition.self_evaluates:
+        return {}  # no competence to show (her)
+    competence = trainer.tracker.competence()
+    achievable = np.array(spec.achievable, bool)
+    success = competence[achievable].mean() if achievable.any() else float("nan")
+    p = trainer.condition.practice_probs(trainer.tracker, trainer.epoch)
+    short = [name.replace("cube", "c").replace("_", "") for name in spec.module_names]
+    p_text = " ".join(f"{name}:{v:.2f}" for name, v in zip(short, p, strict=True))
+    return {"success": f"{success:.2f}", "p_LP": p_text}

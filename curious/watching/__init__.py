@@ -1,0 +1,1 @@
+"""Watching runs: evaluation of a checkpoint, Rerun recordings, videos."""

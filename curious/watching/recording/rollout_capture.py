@@ -1,0 +1,224 @@
+"""Rollouts of a training run in 3D: a round observer that captures evaluation episodes.
+
+`RolloutObserver` is a `Trainer.observer` (`curious.runs.hooks.RoundObserver`). In each round of
+parallel
+episodes it picks the evaluation episodes that the recorder wants in 3D (`rollout_due` of the
+episode's evaluation count), copies the body poses out of those environments' MuJoCo physics at
+every step into a preallocated `RolloutCapture`, together with the grip site (the gripper
+position every module uses) and the active module's goal in the world frame (goals set in a
+cube's frame follow that cube), and hands each finished episode, with its final success, to
+`RunRecorder.log_rollout` at the end of the round. Rounds without such an episode cost one
+comparison per episode.
+
+Evaluation episodes are those with `episode % eval_every == eval_every - 1`, so an episode's
+evaluation count is `episode // eval_every`: it is the same in a resumed run as in one that was
+never interrupted. (The `her` condition has no self-evaluations; its episodes at those places,
+which explore, are captured instead, so that its runs have rollouts to look at too.)
+
+The observer hands every call on to `inner` (another observer), so observers chain.
+
+    observer = attach_rollout_recording(trainer, recorder)   # trainer.observer now records
+    train(config, out, make_recorder=recorder_factory(resume))   # what `curious train` does
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from curious.watching.recording.scene import RolloutCapture
+
+__all__ = ["RolloutObserver", "attach_rollout_recording", "recorder_factory"]
+
+
+@dataclass
+class _Slot:
+    """One environment copy's capture buffers (kept across rounds, rebuilt on a new model)."""
+
+    capture: RolloutCapture
+    grip_site: int  # site id of the grip site in the capture's model
+    gripper: np.ndarray  # (T + 1, 3) grip-site positions
+    goal: np.ndarray  # (T + 1, 3) the active module's goal in the world frame
+
+
+@dataclass
+class _Active:
+    """An episode being captured in the current round."""
+
+    worker: int  # position of its environment in the round
+    episode: int
+    module: int
+    env: Any
+    slot: _Slot | None = None  # set after the reset (t = 0)
+    physics: Any = None
+    task: Any = None
+
+
+def _suite_parts(env: Any) -> tuple[Any, Any]:
+    """(physics, task) of a suite environment copy; a clear error for anything else."""
+    dm_env = getattr(env, "dm_env", None)
+    if dm_env is None:
+        raise TypeError(
+            f"{type(env).__name__} is not a suite environment: 3-D rollouts read the MuJoCo "
+            "physics of curious.envs.goal_env.SuiteEnv copies"
+        )
+    return dm_env.physics, dm_env.task
+
+
+class RolloutObserver:
+    """A `Trainer` round observer that records due evaluation episodes in 3D.
+
+    Args:
+        recorder: the run's recorder; needs `rollout_due(eval_index)` and `log_rollout(...)`
+            (`curious.watching.recording.RunRecorder`).
+        eval_every: the run's `Config.eval_every` (every eval_every-th episode is an evaluation).
+        episode_length: steps per episode (the capture holds episode_length + 1 rows).
+        inner: another observer that gets every call after this one, or None.
+    """
+
+    def __init__(
+        self, recorder: Any, eval_every: int, episode_length: int, inner: Any = None
+    ) -> None:
+        if eval_every < 1:
+            raise ValueError(f"eval_every must be >= 1, got {eval_every}")
+        if episode_length < 1:
+            raise ValueError(f"episode_length must be >= 1, got {episode_length}")
+        self.recorder = recorder
+        self.eval_every = int(eval_every)
+        self.rows = int(episode_length) + 1
+        self.inner = inner
+        self._slots: dict[int, _Slot] = {}
+        self._active: list[_Active] = []
+        self.logged = 0  # rollouts handed to the recorder so far
+
+    def _slot(self, worker: int, physics: Any, task: Any) -> _Slot:
+        model = physics.model.ptr
+        slot = self._slots.get(worker)
+        if slot is None or slot.capture.model is not model:
+            site = int(physics.bind(task.robot.grip_site).element_id)
+            slot = _Slot(
+                capture=RolloutCapture(model, self.rows),
+                grip_site=site,
+                gripper=np.zeros((self.rows, 3)),
+                goal=np.zeros((self.rows, 3)),
+            )
+            self._slots[worker] = slot
+        return slot
+
+    def _due(self, episodes: np.ndarray, evaluation: np.ndarray) -> list[int]:
+        """Positions in the round of the evaluation episodes due for a 3-D capture. The
+        episodes are those of the evaluation schedule, which are the self-evaluations, except
+        in `her`, which has none: its exploring episodes in their places are captured."""
+        episodes = np.asarray(episodes)
+        scheduled = episodes % self.eval_every == self.eval_every - 1
+        return [
+            int(i)
+            for i in np.flatnonzero(scheduled)
+            if self.recorder.rollout_due(int(episodes[i]) // self.eval_every)
+        ]
+
+    def watched(self, episodes: np.ndarray, evaluation: np.ndarray) -> list[int]:
+        """The copies whose simulators this round's captures read (and the inner observer's)."""
+        mine = self._due(episodes, evaluation)
+        if self.inner is not None:
+            mine = sorted(set(mine) | set(self.inner.watched(episodes, evaluation)))
+        return mine
+
+    def begin_round(
+        self,
+        episodes: np.ndarray,
+        modules: np.ndarray,
+        goals: np.ndarray,
+        evaluation: np.ndarray,
+        envs: Sequence[Any],
+    ) -> None:
+        """Chooses the round's episodes to capture (evaluations whose count is due)."""
+        self._active = []
+        for i in self._due(episodes, evaluation):
+            _suite_parts(envs[i])  # fails here, before the round runs, for other envs
+            self._active.append(_Active(i, int(episodes[i]), int(modules[i]), envs[i]))
+        if self.inner is not None:
+            self.inner.begin_round(episodes, modules, goals, evaluation, envs)
+
+    def after_step(self, t: int) -> None:
+        """Copies the captured episodes' poses, grip site and goal of step t (0 = after reset)."""
+        for a in self._active:
+            if t == 0:
+                # Read after the reset: a composer env may build a new physics when it resets.
+                a.physics, a.task = _suite_parts(a.env)
+                a.slot = self._slot(a.worker, a.physics, a.task)
+                a.slot.capture.reset()
+            data = a.physics.data
+            a.slot.capture.record(data)
+            a.slot.gripper[t] = data.site_xpos[a.slot.grip_site]
+            a.slot.goal[t] = a.task.goal_positions()[a.module]
+        if self.inner is not None:
+            self.inner.after_step(t)
+
+    def end_round(self, info: Any) -> None:
+        """Logs every captured episode with its final success."""
+        for a in self._active:
+            if a.slot is None or a.slot.capture.n_steps == 0:
+                continue  # the round ended before its first step
+            n = a.slot.capture.n_steps
+            self.recorder.log_rollout(
+                a.episode,
+                a.module,
+                a.slot.capture,
+                goal=a.slot.goal[:n],
+                gripper=a.slot.gripper[:n],
+                success=bool(info.success[a.worker]),
+            )
+            self.logged += 1
+        self._active = []
+        if self.inner is not None:
+            self.inner.end_round(info)
+
+
+def attach_rollout_recording(trainer: Any, recorder: Any) -> RolloutObserver:
+    """Installs a `RolloutObserver` on `trainer`, chaining the observer it already has."""
+    observer = RolloutObserver(
+        recorder,
+        trainer.config.eval_every,
+        trainer.spec.episode_length,
+        inner=trainer.observer,
+    )
+    trainer.observer = observer
+    return observer
+
+
+def recorder_factory(
+    resume: bool,
+    settings: Any = None,
+    spawn: bool = False,
+    run_name: str | None = None,
+) -> Callable[[Any, Any], Any]:
+    """The `make_recorder` hook of `curious.runs.driver.train`: a run's `RunRecorder`, with the
+    observer that records evaluation episodes in 3D installed when `settings.rollout_every > 0`.
+
+    `curious train` and the reproduction pipeline both record their runs through it.
+    """
+    from curious.watching.recording.recorder import RecorderSettings, RunRecorder
+
+    settings = settings if settings is not None else RecorderSettings()
+
+    def make(trainer: Any, folder: Any) -> RunRecorder:
+        # A run killed before its first checkpoint starts over, its recording too.
+        resumed = resume and trainer.episodes > 0
+        recorder = RunRecorder(
+            folder.path,
+            trainer.spec.module_names,
+            settings=settings,
+            run_name=run_name,
+            spawn=spawn,
+            resume=resumed,
+            resume_from_episode=trainer.episodes if resumed else None,
+        )
+        if settings.rollout_every > 0:
+            attach_rollout_recording(trainer, recorder)
+        return recorder
+
+    return make
