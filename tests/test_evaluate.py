@@ -159,7 +159,7 @@ def _files(folder):
 
 def test_record_writes_the_episodes_in_3d_beside_not_into_the_run(runs, tmp_path, monkeypatch):
     from curious.commands.evaluate import DEFAULT_FILE
-    from curious.watching.recording import evaluation as recording
+    from curious.watching.recording import evaluation_rrd as recording
     from curious.watching.recording.reader import read_component, read_scalars, summarize
 
     assert DEFAULT_FILE == recording.DEFAULT_FILE == "evaluation.rrd"

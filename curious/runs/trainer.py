@@ -36,7 +36,7 @@ import contextlib
 import functools
 import math
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -52,12 +52,12 @@ from curious.agent.replay import EpisodeReplay
 from curious.config import Config, ConfigError
 from curious.envs.batch import EnvBatch, LocalEnvs
 from curious.envs.goal_env import GoalEnv
-from curious.envs.rollout import run_episodes
 from curious.runs import checkpoint
 from curious.runs.folder import config_differences
 from curious.runs.hooks import RolloutInfo, RoundObserver
 from curious.runs.memory import check_memory
 from curious.runs.overlap import Minibatches, RoundsAhead
+from curious.runs.play import Act, goal_policy, play_round
 from curious.runs.sensor_failure import FailureSchedule
 
 
@@ -114,23 +114,6 @@ class _Timings:
 def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
     """A list of copies becomes a `LocalEnvs`; an `EnvBatch` stays as it is."""
     return LocalEnvs(envs) if isinstance(envs, Sequence) else envs
-
-
-def goal_policy(
-    env: GoalEnv,
-    agent: Agent,
-    goal: GoalInput[np.ndarray],
-    experts: np.ndarray,
-    explore: np.ndarray,
-    rng: np.random.Generator,
-) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
-    """`act(states, achieved, t)` of a round of episodes with this goal input, experts and
-    noise: the agent sees each slot's goal where it is at step t (`GoalInput.placed`)."""
-
-    def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
-        return agent.act(states, goal.placed(env, achieved), experts, explore, rng)
-
-    return act
 
 
 class TrainingDiverged(RuntimeError):
@@ -288,24 +271,17 @@ class Trainer:
         evaluation &= condition.self_evaluates
         modules = condition.modules(evaluation, self.tracker, epoch, self.rng, lead)
         raw = self.rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-        goal = condition.goals(self.env, modules, raw, self.rng)
-        goals = goal.slots
-        experts = self.condition.acting_experts(modules, epoch)
-        explore = ~evaluation
-        act = self._policy(agent, goal, experts, explore, self.rng, start)
-
         failing = self.failure.apply(self.envs, episodes)
-        observer = self.observer
-        if observer is not None:
-            views = self.envs.observed(observer.watched(episodes, evaluation))
-            observer.begin_round(episodes, modules, goals, evaluation, views[:n])
-        step_hook = observer.after_step if observer else None
-        data = run_episodes(self.envs, modules, raw, act, step_hook)
-        success = condition.success(self.env, data, modules, goals)
-        info = RolloutInfo(episodes, modules, raw, goals, evaluation, success, data, failing)
-        if observer is not None:
-            observer.end_round(info)
-        return _Collected(info, epoch)
+        explore = ~evaluation
+
+        def policy_for(goal: GoalInput[np.ndarray], experts: np.ndarray) -> Act:
+            return self._policy(agent, goal, experts, explore, self.rng, start)
+
+        played = play_round(
+            self.envs, condition, modules, raw, self.rng, epoch, policy_for,
+            episodes, evaluation, failing, self.observer,
+        )  # fmt: skip
+        return _Collected(played.info, epoch)
 
     def _policy(
         self,
@@ -315,7 +291,7 @@ class Trainer:
         explore: np.ndarray,
         rng: np.random.Generator,
         episode: int,
-    ) -> Callable[[np.ndarray, np.ndarray, int], np.ndarray]:
+    ) -> Act:
         """`goal_policy` for a round of episodes from episode `episode` on, which raises
         `TrainingDiverged` when it gives a non-finite action."""
         policy = goal_policy(self.env, agent, goal, experts, explore, rng)
@@ -418,24 +394,28 @@ class Trainer:
         """
         cfg, spec = self.config, self.spec
         envs, n = self.test_envs, len(self.test_envs)
-        self.failure.apply(envs, np.full(n, self.episodes))
-        explore = np.zeros(n, bool)
+        episodes = np.full(n, self.episodes)
+        failing = self.failure.apply(envs, episodes)
+        explore, evaluation = np.zeros(n, bool), np.ones(n, bool)
         condition, env = self.condition, self.env
+
+        def policy_for(goal: GoalInput[np.ndarray], experts: np.ndarray) -> Act:
+            return self._policy(self.agent, goal, experts, explore, self.test_rng, self.episodes)
+
         names = ("worker", "module", "raw", "ok", "module_ok")
         parts: dict[str, list[np.ndarray]] = {k: [] for k in names}
         for _ in range(cfg.test_rollouts_per_worker):
             modules = self.test_rng.integers(spec.n_modules, size=n)
             raw = self.test_rng.uniform(-1.0, 1.0, (n, spec.goal_dim))
-            goal = condition.goals(env, modules, raw, self.test_rng)
-            goals = goal.slots
-            experts = condition.acting_experts(modules, self.epoch)
-            act = self._policy(self.agent, goal, experts, explore, self.test_rng, self.episodes)
-            data = run_episodes(envs, modules, raw, act)
+            info = play_round(
+                envs, condition, modules, raw, self.test_rng, self.epoch, policy_for,
+                episodes, evaluation, failing,
+            ).info  # fmt: skip
             parts["worker"].append(np.arange(n, dtype=np.int32))
             parts["module"].append(modules)
             parts["raw"].append(raw.astype(np.float32))
-            parts["ok"].append(condition.success(env, data, modules, goals))
-            parts["module_ok"].append(condition.module_success(env, data, modules, goals))
+            parts["ok"].append(info.success)
+            parts["module_ok"].append(condition.module_success(env, info.data, modules, info.goals))
         raw = np.concatenate(parts["raw"])
         rows = len(raw)
         return {

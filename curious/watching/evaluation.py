@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,15 +30,10 @@ import numpy as np
 
 if TYPE_CHECKING:
     from curious.agent.inputs import GoalInput
+    from curious.runs.play import Act, PolicyFor
 
 EVAL_STREAM = 2
 """`suite_env_fns` stream of the evaluation copies (0: training, 1: test rollouts)."""
-
-Policy = Callable[[np.ndarray, np.ndarray, int], np.ndarray]
-"""`act(states, achieved, t)` -> actions, as `run_episodes` calls it."""
-
-PolicyFor = Callable[["GoalInput[np.ndarray]", np.ndarray], Policy]
-"""`policy(goal, experts)` -> the `act` of a batch with that goal input and acting experts."""
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -164,9 +159,7 @@ class EvaluationSession:
         `evaluate`'s."""
         from tqdm.auto import tqdm
 
-        from curious.envs.rollout import run_episodes
-        from curious.runs.hooks import RolloutInfo
-        from curious.runs.trainer import goal_policy
+        from curious.runs.play import goal_policy, play_round
 
         if episodes < 1:
             raise ValueError(f"--episodes must be at least 1, got {episodes}")
@@ -181,6 +174,12 @@ class EvaluationSession:
             dynamic_ncols=True,
             desc=f"evaluate {self.config.condition}",
         )
+
+        def policy_for(goal: GoalInput[np.ndarray], experts: np.ndarray) -> Act:
+            if policy is not None:
+                return policy(goal, experts)
+            return goal_policy(env, self.agent, goal, experts, explore[: len(experts)], rng)
+
         results = []
         try:
             for position, name in enumerate(chosen):
@@ -193,28 +192,14 @@ class EvaluationSession:
                     size = min(n, episodes - start)
                     mods = np.full(size, m, np.int64)
                     raw = rng.uniform(-1.0, 1.0, (size, spec.goal_dim))
-                    goal = condition.goals(env, mods, raw, rng)
-                    goals = goal.slots
-                    experts = condition.acting_experts(mods, self.epoch)
-                    if policy is not None:
-                        act = policy(goal, experts)
-                    else:
-                        act = goal_policy(env, self.agent, goal, experts, explore[:size], rng)
                     numbers = position * episodes + start + np.arange(size)
-                    evaluation = np.ones(size, bool)
-                    if observer is not None:
-                        views = self.envs.observed(observer.watched(numbers, evaluation))
-                        observer.begin_round(numbers, mods, goals, evaluation, views[:size])
-                    step_hook = observer.after_step if observer is not None else None
-                    data = run_episodes(self.envs, mods, raw, act, step_hook)
+                    played = play_round(
+                        self.envs, condition, mods, raw, rng, self.epoch, policy_for,
+                        numbers, np.ones(size, bool), np.zeros(size, bool), observer,
+                    )  # fmt: skip
+                    data, goals, success = played.info.data, played.info.goals, played.info.success
+                    experts = played.experts
                     final = data.achieved[:, -1]
-                    success = condition.success(env, data, mods, goals)
-                    if observer is not None:
-                        info = RolloutInfo(
-                            numbers, mods, raw, goals, evaluation, success, data,
-                            np.zeros(size, bool),
-                        )  # fmt: skip
-                        observer.end_round(info)
                     parts["success"].append(success)
                     parts["module_success"].append(condition.module_success(env, data, mods, goals))
                     parts["distance"].append(
