@@ -8,7 +8,9 @@ run's own clock, the commits it ran from, and its test success over the last epo
 `her` baseline is its holistic goal), and, for a variant with a sensory failure, whether the failure
 has started (the first episode ``metrics.parquet`` flags) or how far the perturbed module's
 competence is from the run's threshold. A run that has written its config but no episode yet is
-listed with 0 episodes. A root may also be a shipped data folder (`curious ship`): its runs are
+listed with 0 episodes; so is a run a reproduction's budget plans that has not started, or one of
+the seeds a campaign adds beyond the budget's (`tools/campaign.py --seeds` writes them into
+`reproduce.json`). A root may also be a shipped data folder (`curious ship`): its runs are
 listed as shipped (no checkpoint), and they stand for the runs of the same path that a reproduction
 given beside it has not started, so that a campaign whose machine lost the folders of the runs it
 shipped still counts them. A run that both hold is listed once, from the reproduction's folder
