@@ -18,14 +18,18 @@ versions add settings.
 An experiment of several variants whose runs DATA holds finished for some variants only stands
 for those (`ShippedData.stands_for`): a campaign that trained `distractors_7` alone rebuilds the
 distractors' figure and report for 7 distracting modules, and the report names the variants left
-out.
+out. Seeds beyond the budget's count too: a seed of which DATA holds every run of an experiment
+(each condition of each variant it stands for) shipped finished is added to the experiment
+(`Experiment.with_seeds`), so that a campaign that trained seeds 3 and 4 of the main comparison
+from the same protocol is read with all five, and the report says which seeds are beyond the
+budget's. A seed shipped for some of those runs only is left out until the others are shipped.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
 from curious.reproduction.shipped_folder import ShippedError, ShippedFolder, ShippedManifest
@@ -122,7 +126,9 @@ class ShippedData:
         """`budget` as DATA can stand for it: an experiment of several variants whose runs DATA
         holds finished for some variants only (a campaign that trained `distractors_7` alone) is
         cut to those variants (`Experiment.with_variants`, the others named as left out); every
-        other experiment stays whole, and `select` says what it lacks."""
+        other experiment stays whole, and `select` says what it lacks. Then each experiment gets
+        the seeds beyond the budget's whose runs (of the variants it stands for) DATA holds all
+        finished (`extra_seeds`)."""
         experiments = {}
         for name, experiment in budget.experiments.items():
             if len(experiment.variants) > 1:
@@ -133,8 +139,25 @@ class ShippedData:
                 ]
                 if 0 < len(complete) < len(experiment.variants):
                     experiment = experiment.with_variants(complete)
-            experiments[name] = experiment
+            extra = [
+                seed
+                for seed in self.seeds_beyond(experiment)
+                if not self.missing(replace(experiment, seeds=(seed,), extra_seeds=()))
+            ]
+            experiments[name] = experiment.with_seeds(extra)
         return replace(budget, experiments=experiments)
+
+    def seeds_beyond(self, experiment: Experiment) -> list[int]:
+        """The seeds, in order, of the runs DATA holds finished in `experiment`'s folder that are
+        not among its seeds (the path's last part, `seed-<s>`)."""
+        seeds = set()
+        for run in self.manifest.runs:
+            parts = PurePosixPath(run.run).parts
+            if run.finished and len(parts) == 3 and parts[0] == experiment.name:
+                seed = parts[2].removeprefix("seed-")
+                if parts[2].startswith("seed-") and seed.isdigit():
+                    seeds.add(int(seed))
+        return sorted(seeds - set(experiment.seeds))
 
     def select(self, budget: ReproduceBudget, names: Sequence[str] | None) -> list[Experiment]:
         """The experiments to build from DATA: those named (each complete in DATA, else a

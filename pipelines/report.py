@@ -84,6 +84,14 @@ def _figure(repro: Reproduction, name: str) -> list[str]:
     return [f"![{name}]({rel})", "", f"{FIGURE_TEXT[name]} ([SVG]({svg}))", ""]
 
 
+def _seeds(e: Experiment) -> str:
+    """An experiment's seeds, with those beyond the budget's named."""
+    seeds = ", ".join(map(str, e.seeds))
+    if not e.extra_seeds:
+        return seeds
+    return f"{seeds} ({len(e.seeds)}; {', '.join(map(str, e.extra_seeds))} beyond the budget's)"
+
+
 def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
     rows = []
     for e in experiments:
@@ -93,7 +101,7 @@ def _budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
                 e.name,
                 ", ".join(e.conditions),
                 ", ".join(e.variants),
-                ", ".join(map(str, e.seeds)),
+                _seeds(e),
                 f"{e.total_episodes:,}",
                 e.sensor_failure_text,
                 f"`{e.train_preset}`: {config.n_workers} workers x {config.episodes_per_worker} "
@@ -542,6 +550,14 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
                 f"Variants left out: {', '.join(e.left_out_variants)}, whose runs the data this "
                 f"report was built from does not hold finished; read from "
                 f"{', '.join(e.variants)} alone.",
+                "",
+            ]
+        if e.extra_seeds:
+            extra, own = e.extra_seeds, e.budget_seeds
+            lines += [
+                f"Seeds beyond the budget's: {', '.join(map(str, extra))} (the budget trains "
+                f"{', '.join(map(str, own))}), trained with the budget's settings in all but the "
+                f"seed; read with the others, {len(e.seeds)} seeds of every condition.",
                 "",
             ]
         lines += SECTIONS[e.name](repro, e, by_experiment[e.name])

@@ -57,3 +57,37 @@ def shipped(smoke, tmp_path_factory) -> ShippedSmoke:
     data = tmp_path_factory.mktemp("smoke_shipped") / "smoke"
     seconds, stdout, _ = _run(["ship", str(smoke.out), "--out", str(data)])
     return ShippedSmoke(smoke, data, seconds, stdout)
+
+
+@dataclass(frozen=True)
+class ExtraSeed:
+    out: Path
+    """The campaign's output folder: main's runs of seed 2 only."""
+    data: Path
+    """The smoke ship with main's seed 2 shipped beside it (not in a git repository)."""
+    stdout: str
+
+
+@pytest.fixture(scope="session")
+def extra_seed(shipped, tmp_path_factory) -> ExtraSeed:
+    """Main's seed 2, beyond the smoke budget's 0 and 1, trained by `tools/campaign.py --seeds
+    main=2` into a new output folder and shipped (`--ship`) into a copy of the smoke ship."""
+    import importlib.util
+    import shutil
+
+    root = tmp_path_factory.mktemp("extra_seed")
+    data = root / "data" / "smoke"
+    shutil.copytree(shipped.data, data)
+    spec = importlib.util.spec_from_file_location(
+        "campaign", Path(__file__).resolve().parents[1] / "tools" / "campaign.py"
+    )
+    campaign = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(campaign)
+    out = root / "out"
+    args = ["--budget", "smoke", "--out", str(out), "--shipped", str(data), "--ship"]
+    args += ["--only", "main/*", "--seeds", "main=2", "--set", "torch_threads=1"]
+    os.environ.setdefault("MUJOCO_GL", "disable")
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout):
+        assert campaign.main(args) == 0
+    return ExtraSeed(out, data, stdout.getvalue())

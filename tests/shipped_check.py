@@ -5,7 +5,9 @@ tests (test_shipped.py) and on whatever the repository ships in data/ (test_ship
 loads with `curious.analysis` with the episodes and test rollouts the manifest says (a finished
 run: its whole budget); and `curious reproduce --from-data` builds the report from it, the
 combined tables behind the report being the shipped tables, and the report's per-run numbers
-(episodes, final competence, final test success) those computed from them. A folder with no
+(episodes, final competence, final test success) those computed from them; the runs read are
+those the folder stands for (`ShippedData.stands_for`: the variants shipped whole, and the seeds
+beyond the budget's whose runs are all shipped finished, which the report names). A folder with no
 experiment whose runs are all shipped finished (a progress snapshot, or a campaign shipped run by
 run as its runs finish) has no report: once its runs are loaded, the check is skipped with that
 reason.
@@ -61,7 +63,8 @@ def check_shipped_folder(data: Path, out: Path) -> str:
     if manifest.budget is None:
         pytest.skip(f"{data} was not shipped from a reproduction: it has no report to build")
     try:
-        ShippedData.open(data).select(get_budget(manifest.budget), None)
+        stands_for = ShippedData.open(data).stands_for(get_budget(manifest.budget))
+        ShippedData.open(data).select(stands_for, None)
     except ShippedDataError as exc:
         pytest.skip(f"{data} loads; no report is built until an experiment is shipped whole: {exc}")
     stderr = io.StringIO()
@@ -76,13 +79,22 @@ def check_shipped_folder(data: Path, out: Path) -> str:
     for experiment in built:
         combined = pd.read_parquet(out / "metrics" / f"{experiment}.parquet")
         # An experiment shipped whole for some variants only is built from those (the others
-        # are named as left out): its runs of other variants are not the report's.
-        variants = set(combined["variant"])
+        # are named as left out), and a seed beyond the budget's is read once all its runs of
+        # those variants are shipped finished: the other runs shipped are not the report's.
+        chosen = stands_for.experiments[experiment]
+        paths = {str(data.resolve().joinpath(*s.relative_path.parts)) for s in chosen.runs()}
+        assert set(combined["run"].astype(str)) == paths, f"{experiment}: the runs read"
+        seeds = combined.groupby("seed")["run"].nunique()
+        per_seed = len(chosen.conditions) * len(chosen.variants)
+        assert (seeds == per_seed).all(), f"{experiment}: every seed a whole comparison"
+        if chosen.extra_seeds:
+            beyond = ", ".join(map(str, chosen.extra_seeds))
+            assert f"Seeds beyond the budget's: {beyond} (" in report, "extra seeds named"
         runs = analysis.load_runs(data / experiment)
-        runs = runs[runs["variant"].isin(variants)].reset_index(drop=True)
+        runs = runs[runs["run"].astype(str).isin(paths)].reset_index(drop=True)
         pd.testing.assert_frame_equal(combined, runs, check_categorical=False, check_like=True)
         tests = analysis.load_tests(data / experiment)
-        tests = tests[tests["variant"].isin(variants)].reset_index(drop=True)
+        tests = tests[tests["run"].astype(str).isin(paths)].reset_index(drop=True)
         final_test = analysis.final_success(analysis.epoch_success(tests)).set_index("run")
         final_competence = analysis.final_competence(runs).set_index("run")["value"]
         for run, rows in runs.groupby("run", observed=True):

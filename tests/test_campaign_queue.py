@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import importlib.util
 import io
@@ -63,6 +64,113 @@ def test_once_distractors_7_is_shipped_the_default_queue_goes_on_with_4_then_0(c
         for seed in (0, 1)
         for c in ("curious", "m-uvfa")
     ]
+
+
+LAPTOP_17 = (
+    [f"main/{c}/seed-{s}" for s in (0, 1, 2) for c in ("curious", "mg-te", "her")]
+    + [f"sensor_failure/{c}/seed-{s}" for s in (0, 1) for c in ("curious", "m-uvfa")]
+    + [f"distractors/{c}@distractors_7/seed-{s}" for s in (0, 1) for c in ("curious", "m-uvfa")]
+)
+
+
+def test_issue_51s_queue_goes_on_after_the_budgets_with_main_seeds_3_and_4_then_distractors_2(
+    campaign,
+):
+    """The laptop campaign's default queue once distractors_4 seed 0 is shipped: the budget's
+    runs left (distractors_4 seed 1, then distractors_0, in flight when the seeds were added, so
+    a restart resumes them first), then main's seeds 3 and 4 seed by seed, then the distractors'
+    seed 2 of every variant."""
+    done = {*LAPTOP_17, *(f"distractors/{c}@distractors_4/seed-0" for c in ("curious", "m-uvfa"))}
+    assert set(paths(campaign.queue("laptop", campaign.DEFAULT_ONLY[:3], set()))) <= done
+    seeds = campaign.DEFAULT_SEEDS["laptop"]
+    assert seeds == {"main": (0, 1, 2, 3, 4), "distractors": (0, 1, 2)}
+    distractor = "distractors/{}@distractors_{}/seed-{}"
+    assert paths(campaign.queue("laptop", campaign.DEFAULT_ONLY, done, seeds)) == [
+        *(distractor.format(c, 4, 1) for c in ("curious", "m-uvfa")),
+        *(distractor.format(c, 0, s) for s in (0, 1) for c in ("curious", "m-uvfa")),
+        *(f"main/{c}/seed-{s}" for s in (3, 4) for c in ("curious", "mg-te", "her")),
+        *(distractor.format(c, n, 2) for n in (7, 4, 0) for c in ("curious", "m-uvfa")),
+    ]
+    # without the seeds, the budget's queue as before
+    assert (
+        paths(campaign.queue("laptop", campaign.DEFAULT_ONLY, done))
+        == paths(campaign.queue("laptop", campaign.DEFAULT_ONLY, done, seeds))[:6]
+    )
+
+
+def test_a_run_beyond_the_budgets_seeds_is_the_budgets_run_but_for_the_seed(campaign):
+    budget = {str(s.relative_path): s for s in campaign.get_budget("laptop").runs()}
+    extra = campaign.queue("laptop", ("*",), set(budget), campaign.DEFAULT_SEEDS["laptop"])
+    assert len(extra) == 2 * 3 + 3 * 2
+    for spec in extra:
+        assert spec.seed not in campaign.get_budget("laptop").experiments[spec.experiment].seeds
+        twin = budget[str(spec.relative_path).replace(f"seed-{spec.seed}", "seed-0")]
+        assert dataclasses.replace(spec, seed=0) == twin
+        assert spec.config().seed == spec.seed
+
+
+BOTH = "37 runs queued (beyond the budget's: main seeds 3, 4; distractors seed 2)"
+
+
+@pytest.mark.parametrize(
+    "args, queued",
+    [
+        (["--seeds", "main=0-4"], "31 runs queued (beyond the budget's: main seeds 3, 4)"),
+        (["--seeds", "main=3,4", "--seeds", "distractors=0-2"], BOTH),
+        (["--seeds", "none"], "25 runs queued"),
+        ([], BOTH),
+    ],
+)
+def test_seeds_options_add_to_the_budgets_and_the_default_is_issue_51s(
+    campaign, args, queued, tmp_path, capsys
+):
+    out = tmp_path / "out"
+    assert campaign.main(["--out", str(out), "--dry-run", *args]) == 0
+    assert capsys.readouterr().out.splitlines()[0].endswith(f"; {queued}")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "value, why",
+    [
+        ("main", "write EXPERIMENT=SEEDS"),
+        ("main=a-b", "write them as 0-4 or 0,2,5"),
+        ("elsewhere=3", "budget laptop trains no elsewhere"),
+    ],
+)
+def test_a_bad_seeds_option_is_refused(campaign, value, why, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        campaign.main(["--out", str(tmp_path / "out"), "--dry-run", "--seeds", value])
+    assert why in capsys.readouterr().err
+
+
+def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extra_seed, tmp_path):
+    """`--seeds main=2` on the smoke budget, whose main has seeds 0 and 1 shipped: main's seed 2
+    is trained, shipped beside the runs held, and recorded in reproduce.json, whose plan
+    `curious progress` lists before the runs start."""
+    from curious.analysis.progress import progress_table
+    from curious.reproduction.shipped_folder import ShippedFolder
+
+    seed_2 = [f"main/{c}/seed-2" for c in ("curious", "mg-te", "her")]
+    assert "3 runs queued (beyond the budget's: main seed 2)" in extra_seed.stdout
+    assert extra_seed.stdout.count("kept from the earlier ship") == 3
+    manifest = json.loads((extra_seed.out / "reproduce.json").read_text())
+    assert manifest["budget"] == "smoke" and manifest["extra_seeds"] == {"main": [2]}
+    shipped = ShippedFolder(extra_seed.data).read_manifest()
+    assert len(shipped.runs) == 14 + 3
+    assert all(shipped.get(run).finished for run in seed_2)
+
+    rows = progress_table([extra_seed.out, extra_seed.data])
+    assert len(rows) == 17 and all(r.shipped and r.done == 1 for r in rows)
+    assert [(r.name, r.checkpoint) for r in rows if r.seed == 2] == [
+        (run, 24) for run in sorted(seed_2)
+    ]
+    planned = tmp_path / "planned"
+    planned.mkdir()
+    shutil.copy(extra_seed.out / "reproduce.json", planned)
+    rows = progress_table(planned)
+    assert len(rows) == 17 and not any(r.episodes for r in rows)
+    assert sorted(r.name for r in rows if r.seed == 2) == sorted(seed_2)
 
 
 def test_a_dry_run_leaves_out_what_the_data_folder_holds_finished_and_writes_nothing(

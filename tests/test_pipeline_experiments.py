@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 
 import pytest
 
@@ -104,6 +105,26 @@ def test_an_experiment_cut_to_some_variants_names_the_same_run_folders():
         whole.with_variants(["distractors_9"])
     with pytest.raises(ExperimentError, match="at least one variant"):
         whole.with_variants([])
+
+
+def test_seeds_beyond_the_budgets_are_its_runs_but_for_the_seed_and_named():
+    """What a campaign that adds seeds trains and a shipped data folder holding them stands for:
+    the budget's runs with another seed, after the budget's own, named in `extra_seeds`."""
+    main = get_budget("laptop").experiments["main"]
+    more = main.with_seeds([3, 1, 4, 3])
+    assert more.seeds == (0, 1, 2, 3, 4) and more.extra_seeds == (3, 4)
+    assert more.budget_seeds == main.seeds and main.with_seeds([2]) is main
+    runs = more.runs()
+    assert [str(r.relative_path) for r in runs[9:12]] == [
+        f"main/{c}/seed-3" for c in ("curious", "mg-te", "her")
+    ]
+    assert runs[:9] == main.runs()
+    assert [replace(r, seed=r.seed - 3) for r in runs[9:]] == main.runs()[:6]
+    assert more.with_seeds([5]).extra_seeds == (3, 4, 5)
+    cut = get_budget("laptop").experiments["distractors"].with_variants(["distractors_7"])
+    assert cut.with_seeds([2]).runs()[-1].partition_key == "m-uvfa@distractors_7|2"
+    with pytest.raises(ExperimentError, match="not among its seeds"):
+        replace(main, extra_seeds=(7,))
 
 
 def test_the_quick_budget_is_the_default_and_small():

@@ -208,6 +208,34 @@ def test_shipped_runs_of_some_variants_rebuild_those_variants_figures_and_number
     assert set(metrics["variant"].astype(str)) == {"distractors_7"}
 
 
+def test_a_seed_beyond_the_budgets_is_read_with_its_seeds_once_all_its_runs_are_shipped(
+    extra_seed, tmp_path
+):
+    """Main's seed 2, beyond the smoke budget's 0 and 1, shipped by a campaign
+    (`tools/campaign.py --seeds main=2`): `--from-data` reads main with its three seeds and the
+    report says which seed is beyond the budget's; the repository's data check passes. Shipped
+    for two of its three conditions, the seed is left out until the third is shipped."""
+    report = check_shipped_folder(extra_seed.data, tmp_path / "out")
+    assert "| main | curious, mg-te, her | default | 0, 1, 2 (3; 2 beyond the budget's) |" in report
+    assert "Seeds beyond the budget's: 2 (the budget trains 0, 1)" in report
+    assert "| main/her/seed-2 | her | default | 2 | 24 |" in report
+    assert report.count("beyond the budget's") == 2  # main only: the others are the budget's
+    metrics = pd.read_parquet(tmp_path / "out" / "metrics" / "main.parquet")
+    assert sorted(metrics["seed"].unique()) == [0, 1, 2]
+    assert metrics.groupby("seed", observed=True)["condition"].nunique().tolist() == [3, 3, 3]
+
+    data = tmp_path / "data" / "smoke"
+    shutil.copytree(extra_seed.data, data)
+    shutil.rmtree(data / "main" / "her" / "seed-2")
+    folder = ShippedFolder(data)
+    manifest = folder.read_manifest()
+    runs = tuple(r for r in manifest.runs if r.run != "main/her/seed-2")
+    folder.write_manifest(type(manifest)("smoke", runs))
+    report = check_shipped_folder(data, tmp_path / "partial")
+    assert "beyond the budget's" not in report and "seed-2" not in report
+    assert "| main | curious, mg-te, her | default | 0, 1 |" in report
+
+
 def test_the_shipped_smoke_folder_passes_the_repository_data_check(shipped, tmp_path):
     """The check test_shipped_data.py applies to data/, on a folder known to be good."""
     report = check_shipped_folder(shipped.data, tmp_path / "out")

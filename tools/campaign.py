@@ -19,6 +19,16 @@ Run it from the campaign's worktree, so that the code that trains is the campaig
         python /work/main/tools/campaign.py --out ~/curious-runs/laptop \
         --shipped /work/main/data/laptop --set torch_threads=1
 
+With `--seeds EXPERIMENT=SEEDS` an experiment gets seeds beyond the budget's: runs identical to
+the budget's in every setting but the seed (`dataclasses.replace` of the budget's experiment, so
+that the campaign's commit, which has no other way to add seeds, builds them), queued after all of
+the budget's runs, pattern by pattern of `--only` again and seed by seed. The default for the
+`laptop` budget (`DEFAULT_SEEDS`) is issue 51's campaign: the main comparison to five seeds, as
+the paper's, and the distractors to three. Their seeds are written in the folder's
+`reproduce.json` (`extra_seeds`), so that `curious progress` lists those not started as it lists
+the budget's; `curious ship` ships them, and `curious reproduce --from-data` reads a seed beyond the
+budget's once every run of it in an experiment is shipped finished.
+
 With `--ship`, each run that finishes is shipped at once into the `--shipped` folder (`curious
 ship --keep`, by the checkout this file lies in) and committed there, so that a machine that comes
 back empty loses only the runs in flight. Stopped (Ctrl-C, or the machine's session ending), the
@@ -28,7 +38,9 @@ queue is started again with the same command.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import fnmatch
+import json
 import os
 import subprocess
 import sys
@@ -61,6 +73,56 @@ distractors' `distractors_7` variant, then, as far as the compute allows, `distr
 `distractors_0`, which C4's claim of a smaller degradation needs."""
 
 
+DEFAULT_SEEDS: dict[str, dict[str, tuple[int, ...]]] = {
+    "laptop": {"main": (0, 1, 2, 3, 4), "distractors": (0, 1, 2)},
+}
+"""Budget -> experiment -> its seeds in the campaign, the budget's and beyond (`--seeds`): for
+`laptop`, issue 51's campaign, main's seeds 3 and 4 (five seeds, as the paper's, so that C1's
+per-bin Welch tests do not hang on one seed) and the distractors' seed 2 of every variant (three
+seeds a side for C4), trained from the commit of seeds 0-2 (9972821) so that all are one
+protocol."""
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """`0-4` -> (0, 1, 2, 3, 4); `0,2,5` -> (0, 2, 5); ranges and single seeds mix."""
+    seeds: list[int] = []
+    for part in text.split(","):
+        first, dash, last = part.strip().partition("-")
+        if not first.isdigit() or (dash and not last.isdigit()):
+            raise ValueError(f"seeds {text!r}: write them as 0-4 or 0,2,5")
+        seeds += range(int(first), int(last) + 1) if dash else [int(first)]
+    return tuple(dict.fromkeys(seeds))
+
+
+def parse_seed_options(values: list[str]) -> dict[str, tuple[int, ...]]:
+    """`--seeds` values (`main=0-4`, repeatable; `none`, alone: the budget's seeds only) as
+    experiment -> seeds."""
+    seeds: dict[str, tuple[int, ...]] = {}
+    for value in (v for v in values if v != "none"):
+        name, equals, text = value.partition("=")
+        if not equals or not name.strip():
+            raise ValueError(f"--seeds {value!r}: write EXPERIMENT=SEEDS, e.g. main=0-4")
+        seeds[name.strip()] = seeds.get(name.strip(), ()) + parse_seeds(text)
+    return seeds
+
+
+def beyond(budget: str, seeds: dict[str, tuple[int, ...]]) -> dict[str, tuple[int, ...]]:
+    """Experiment -> the seeds among `seeds` (experiment -> seeds) that its budget lacks, in
+    the order given; a `ValueError` for an experiment the budget does not train."""
+    experiments = get_budget(budget).experiments
+    if strangers := sorted(set(seeds) - set(experiments)):
+        raise ValueError(
+            f"--seeds: budget {budget} trains no {', '.join(strangers)} "
+            f"(its experiments: {', '.join(experiments)})"
+        )
+    added = {
+        name: tuple(s for s in seeds[name] if s not in experiments[name].seeds)
+        for name in experiments
+        if name in seeds
+    }
+    return {name: extra for name, extra in added.items() if extra}
+
+
 def shipped_finished(data: Path | None) -> set[str]:
     """The runs (`<experiment>/<condition>/seed-<s>`) that the shipped folder holds finished."""
     if data is None:
@@ -71,21 +133,46 @@ def shipped_finished(data: Path | None) -> set[str]:
     return {run.run for run in folder.read_manifest().runs if run.finished}
 
 
-def queue(budget: str, only: tuple[str, ...], shipped: set[str]) -> list[RunSpec]:
+def queue(
+    budget: str,
+    only: tuple[str, ...],
+    shipped: set[str],
+    seeds: dict[str, tuple[int, ...]] | None = None,
+) -> list[RunSpec]:
     """The runs to train without the shipped ones: pattern by pattern of `only`, and in the
-    budget's order (experiment by experiment, seed by seed) within a pattern."""
-    specs = [
-        spec
-        for experiment in get_budget(budget).experiments.values()
-        for spec in experiment.runs()
-        if str(spec.relative_path) not in shipped
+    budget's order (experiment by experiment, seed by seed) within a pattern; then the runs of
+    the seeds `seeds` (experiment -> seeds) adds beyond the budget's, in the same way. A run that
+    several patterns match is queued at the first."""
+    experiments = get_budget(budget).experiments
+    added = beyond(budget, seeds or {})
+    phases = [
+        [spec for experiment in experiments.values() for spec in experiment.runs()],
+        [
+            spec
+            for name, extra in added.items()
+            for spec in dataclasses.replace(experiments[name], seeds=extra).runs()
+        ],
     ]
-    return [
-        spec
-        for pattern in only
-        for spec in specs
-        if fnmatch.fnmatchcase(str(spec.relative_path), pattern)
-    ]
+    queued: dict[str, RunSpec] = {}
+    for specs in phases:
+        for pattern in only:
+            for spec in specs:
+                path = str(spec.relative_path)
+                if path not in shipped and fnmatch.fnmatchcase(path, pattern):
+                    queued.setdefault(path, spec)
+    return list(queued.values())
+
+
+def record_seeds(layout: OutputLayout, added: dict[str, tuple[int, ...]]) -> None:
+    """Write the seeds beyond the budget's into the folder's reproduce.json (`extra_seeds`),
+    which `curious progress` reads; nothing where none is added."""
+    if not added:
+        return
+    data = json.loads(layout.manifest.read_text())
+    data["extra_seeds"] = {name: list(extra) for name, extra in added.items()}
+    tmp = layout.manifest.with_name(f".{layout.manifest.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=2) + "\n")
+    os.replace(tmp, layout.manifest)
 
 
 CHECKOUT = Path(__file__).resolve().parents[1]
@@ -130,6 +217,15 @@ def main(argv: list[str] | None = None) -> int:
         f"(default: {' '.join(DEFAULT_ONLY)})",
     )
     parser.add_argument(
+        "--seeds",
+        action="append",
+        metavar="EXPERIMENT=SEEDS",
+        help="an experiment's seeds, the budget's and beyond (0-4 or 0,2,5), repeatable; "
+        "'none': the budget's only (default for laptop: "
+        + " ".join(f"{k}={min(v)}-{max(v)}" for k, v in DEFAULT_SEEDS["laptop"].items())
+        + ", issue 51's campaign)",
+    )
+    parser.add_argument(
         "--shipped", type=Path, help="a shipped data folder: its finished runs are not trained"
     )
     parser.add_argument(
@@ -150,15 +246,31 @@ def main(argv: list[str] | None = None) -> int:
     layout = OutputLayout.at(args.out)
     check_output_folder(layout, budget)
     overrides = parse_overrides(args.set)
+    try:
+        seeds = parse_seed_options(args.seeds) if args.seeds else DEFAULT_SEEDS.get(budget.name, {})
+        added = beyond(budget.name, seeds)
+    except ValueError as exc:
+        parser.error(str(exc))
     shipped = shipped_finished(args.shipped)
-    specs = queue(budget.name, tuple(args.only or DEFAULT_ONLY), shipped)
+    specs = queue(budget.name, tuple(args.only or DEFAULT_ONLY), shipped, seeds)
+    for spec in specs:
+        spec.config(overrides)  # a bad setting or seed fails before anything is written
 
-    print(f"curious from {Path(curious.__file__).parent}; {len(specs)} runs queued", flush=True)
+    beyond_text = "; ".join(
+        f"{name} seed{'s' * (len(extra) > 1)} {', '.join(map(str, extra))}"
+        for name, extra in added.items()
+    )
+    print(
+        f"curious from {Path(curious.__file__).parent}; {len(specs)} runs queued"
+        + (f" (beyond the budget's: {beyond_text})" if added else ""),
+        flush=True,
+    )
     for spec in specs:
         print(f"  {spec.relative_path} ({spec.total_episodes:,} episodes)", flush=True)
     if args.dry_run:
         return 0
     _write_manifest(layout, budget)
+    record_seeds(layout, added)
     jobs = [Job(spec, str(layout.runs_root), overrides) for spec in specs]
     tic = time.time()
     pool = LocalPool(args.workers)

@@ -8,7 +8,9 @@ run's own clock, the commits it ran from, and its test success over the last epo
 `her` baseline is its holistic goal), and, for a variant with a sensory failure, whether the failure
 has started (the first episode ``metrics.parquet`` flags) or how far the perturbed module's
 competence is from the run's threshold. A run that has written its config but no episode yet is
-listed with 0 episodes. A root may also be a shipped data folder (`curious ship`): its runs are
+listed with 0 episodes; so is a run a reproduction's budget plans that has not started, or one of
+the seeds a campaign adds beyond the budget's (`tools/campaign.py --seeds` writes them into
+`reproduce.json`). A root may also be a shipped data folder (`curious ship`): its runs are
 listed as shipped (no checkpoint), and they stand for the runs of the same path that a reproduction
 given beside it has not started, so that a campaign whose machine lost the folders of the runs it
 shipped still counts them. A run that both hold is listed once, from the reproduction's folder
@@ -177,7 +179,9 @@ def _progress(path: Path, epochs: int, root: Path, shipped: bool = False) -> Run
 
 def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
     """The budget and runs folder of a reproduction's output folder (one with
-    `reproduce.json`; its runs lie under `runs/` or where `--runs-dir` put them), else None."""
+    `reproduce.json`; its runs lie under `runs/` or where `--runs-dir` put them), else None.
+    The seeds a campaign plans beyond the budget's (`extra_seeds`: experiment -> seeds, which
+    `tools/campaign.py --seeds` writes) are added to its experiments (`Experiment.with_seeds`)."""
     from curious.reproduction.experiments import ExperimentError, get_budget
 
     manifest = root / "reproduce.json"
@@ -187,9 +191,16 @@ def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
         data = json.loads(manifest.read_text(encoding="utf-8"))
         budget = get_budget(str(data.get("budget", data.get("preset"))))
         runs_dir = data.get("runs_dir")
-    except (json.JSONDecodeError, AttributeError, ExperimentError) as exc:
+        extra = data.get("extra_seeds") or {}
+        if not isinstance(extra, dict) or not set(extra) <= set(budget.experiments):
+            raise ExperimentError(f"extra_seeds {extra!r} names no experiment of {budget.name}")
+        experiments = {
+            name: e.with_seeds(int(s) for s in extra.get(name, ()))
+            for name, e in budget.experiments.items()
+        }
+    except (json.JSONDecodeError, AttributeError, TypeError, ValueError) as exc:
         raise AnalysisError(f"{manifest} is damaged: {exc}") from exc
-    return budget, (Path(runs_dir) if runs_dir else root / "runs")
+    return replace(budget, experiments=experiments), (Path(runs_dir) if runs_dir else root / "runs")
 
 
 def _planned(budget: ReproduceBudget, runs_root: Path) -> list[RunProgress]:

@@ -137,6 +137,10 @@ class Experiment:
     left_out_variants: tuple[str, ...] = ()
     """The budget's variants of this experiment that it lacks (`with_variants`): a shipped data
     folder that holds only some variants' runs finished stands for those alone."""
+    extra_seeds: tuple[int, ...] = ()
+    """The seeds among `seeds` that are not the budget's (`with_seeds`): runs of the same
+    protocol trained beyond it (a campaign that adds seeds), which a shipped data folder or a
+    campaign's output folder holds."""
 
     def __post_init__(self) -> None:
         if self.name not in EXPERIMENTS:
@@ -168,6 +172,10 @@ class Experiment:
             raise ExperimentError(f"{self.name}: compares {self.compare} outside its conditions")
         if set(self.left_out_variants) & set(self.variants):
             raise ExperimentError(f"{self.name}: variants both kept and left out")
+        if not set(self.extra_seeds) <= set(self.seeds):
+            raise ExperimentError(
+                f"{self.name}: extra seeds {self.extra_seeds} not among its seeds"
+            )
 
     @property
     def condition_keys(self) -> tuple[str, ...]:
@@ -216,6 +224,20 @@ class Experiment:
         kept = tuple(v for v in self.variants if v in wanted)
         dropped = tuple(v for v in self.variants if v not in wanted)
         return replace(self, variants=kept, left_out_variants=self.left_out_variants + dropped)
+
+    def with_seeds(self, seeds: Iterable[int]) -> Experiment:
+        """This experiment with `seeds` added after its own (in the order given, those it has
+        already left out), named in `extra_seeds`: their runs are the budget's in every setting
+        but the seed, so that they extend its comparison rather than start another."""
+        added = tuple(dict.fromkeys(int(s) for s in seeds if int(s) not in self.seeds))
+        if not added:
+            return self
+        return replace(self, seeds=self.seeds + added, extra_seeds=self.extra_seeds + added)
+
+    @property
+    def budget_seeds(self) -> tuple[int, ...]:
+        """Its seeds less `extra_seeds`: the budget's own."""
+        return tuple(s for s in self.seeds if s not in self.extra_seeds)
 
     def run(self, partition_key: str) -> RunSpec:
         """The run of a partition key (`condition|seed`), with a clear error for a stranger."""
