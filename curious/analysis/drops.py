@@ -54,7 +54,25 @@ measures it), so callers leave those runs out or read them apart.
 
 from __future__ import annotations
 
-__all__ = ["DESCENT_BAND", "DROP_DEPTH", "MASTERED", "MASTERY_HOLD"]
+import math
+
+import numpy as np
+import pandas as pd
+
+from curious.analysis.loading import require_runs
+from curious.analysis.perturbation import _shift
+from curious.analysis.statistics import FLOAT32_SLACK, RUN_COLUMNS
+
+__all__ = [
+    "DESCENT_BAND",
+    "DROP_COLUMNS",
+    "DROP_DEPTH",
+    "MASTERED",
+    "MASTERY_COLUMNS",
+    "MASTERY_HOLD",
+    "mastery",
+    "mastery_drops",
+]
 
 MASTERED = 0.9
 """Competence, over a full window of the module's self-evaluations, at which it is mastered (and,
@@ -67,3 +85,213 @@ DROP_DEPTH = 0.2
 DESCENT_BAND = 0.1
 """A drop's descent starts after the last episode whose competence was within this of the
 peak."""
+
+DROP_COLUMNS: tuple[str, ...] = (
+    *RUN_COLUMNS,
+    "module",
+    "mastered_episode",
+    "peak",
+    "start_episode",
+    "drop_episode",
+    "trough_episode",
+    "trough",
+    "depth",
+    "recovered",
+    "recovery_episode",
+    "recovery_episodes",
+    "span_episodes",
+    "lp_before",
+    "lp_after",
+    "lp_trough",
+    "p_lp_before",
+    "p_lp_after",
+    "practice_before",
+    "practice_after",
+)
+"""The columns of `mastery_drops`: one row per drop."""
+
+MASTERY_COLUMNS: tuple[str, ...] = (
+    *RUN_COLUMNS,
+    "module",
+    "evaluated",
+    "mastered_episode",
+    "n_drops",
+    "n_recovered",
+)
+"""The columns of `mastery`: one row per (run, achievable module)."""
+
+
+def _check(mastered: float, hold: float, depth: float, band: float) -> None:
+    if not 0 < mastered <= 1:
+        raise ValueError(f"mastered must be a competence in (0, 1], got {mastered}")
+    if not 0 < hold <= 1:
+        raise ValueError(f"hold must be a fraction of the window in (0, 1], got {hold}")
+    if not 0 < band < depth <= 1:
+        raise ValueError(f"need 0 < band < depth <= 1, got band {band}, depth {depth}")
+
+
+def _first(mask: np.ndarray, start: int = 0) -> int | None:
+    """The first index >= ``start`` where ``mask`` holds, or None."""
+    hit = np.flatnonzero(mask[start:])
+    return int(hit[0]) + start if hit.size else None
+
+
+def _mastered_from(
+    competence: np.ndarray, evaluated: np.ndarray, start: int, level: float, hold: int
+) -> int | None:
+    """The first row >= ``start`` at which the module has had ``hold`` consecutive
+    self-evaluations (from ``start`` on) with competence at or above ``level``."""
+    rows = np.flatnonzero(evaluated[start:]) + start
+    ok = competence[rows] >= level - FLOAT32_SLACK  # NaN (window not full): not ok
+    index = np.arange(rows.size)
+    last_bad = np.maximum.accumulate(np.where(ok, -1, index))
+    held = _first(index - last_bad >= hold)
+    return None if held is None else int(rows[held])
+
+
+def _drops(
+    episodes: np.ndarray,
+    values: np.ndarray,
+    evaluated: np.ndarray,
+    window: int,
+    rule: tuple[float, float, float, float],
+) -> tuple[int | None, list[dict]]:
+    """One module of one run: its first mastery's episode and its drops (see the module doc).
+    ``values`` holds competence, LP, p_LP and the practised flag per row, episodes ascending."""
+    level, hold, depth, band = rule
+    competence = np.where(np.cumsum(evaluated) >= window, values[:, 0], np.nan)
+    lp, p_lp, practised = values[:, 1], values[:, 2], values[:, 3]
+    n = len(episodes)
+    first_mastery, drops, start = None, [], 0
+    while start < n:
+        m = _mastered_from(competence, evaluated, start, level, max(1, math.ceil(hold * window)))
+        if m is None:
+            break
+        first_mastery = episodes[m] if first_mastery is None else first_mastery
+        peak = np.maximum.accumulate(competence[m:])
+        d = _first(competence[m:] <= peak - depth + FLOAT32_SLACK)
+        if d is None:
+            break
+        d += m
+        top = float(peak[d - m])
+        s = m + int(np.flatnonzero(competence[m:d] >= top - band - FLOAT32_SLACK)[-1]) + 1
+        r = _first(competence >= level - FLOAT32_SLACK, d + 1)
+        end = n if r is None else r
+        t = d + int(np.argmin(competence[d:end]))
+        end_episode = episodes[-1] + 1 if r is None else episodes[r]
+        span = int(end_episode - episodes[s])
+        shift = _shift(episodes[m:], lp[m:], p_lp[m:], int(episodes[s]), span)
+        before = (episodes[m:s] >= episodes[s] - span).nonzero()[0] + m
+        drops.append(
+            {
+                "mastered_episode": int(episodes[m]),
+                "peak": top,
+                "start_episode": int(episodes[s]),
+                "drop_episode": int(episodes[d]),
+                "trough_episode": int(episodes[t]),
+                "trough": float(competence[t]),
+                "depth": top - float(competence[t]),
+                "recovered": r is not None,
+                "recovery_episode": None if r is None else int(episodes[r]),
+                "recovery_episodes": np.nan if r is None else float(episodes[r] - episodes[d]),
+                "span_episodes": span,
+                "lp_before": shift["lp_before"],
+                "lp_after": shift["lp_after"],
+                "lp_trough": float(lp[t]),
+                "p_lp_before": shift["p_lp_before"],
+                "p_lp_after": shift["p_lp_after"],
+                "practice_before": float(practised[before].mean()) if before.size else np.nan,
+                "practice_after": float(practised[s:end].mean()),
+            }
+        )
+        if r is None:
+            break
+        start = r
+    return (None if first_mastery is None else int(first_mastery)), drops
+
+
+def _scan(
+    df: pd.DataFrame, mastered: float, hold: float, depth: float, band: float
+) -> tuple[list[dict], list[dict]]:
+    """Every (run, achievable module): its `mastery` row and its `mastery_drops` rows."""
+    require_runs(df)
+    _check(mastered, hold, depth, band)
+    all_episodes = df["episode"].to_numpy()
+    practised = df["module"].astype(str).to_numpy()
+    evaluated = df["eval"].to_numpy(bool)
+    columns: dict[str, np.ndarray] = {}  # module -> its competence, LP and p_LP, every row
+    modules, drops = [], []
+    for rows in df.groupby("run", observed=True, sort=True).indices.values():
+        rows = rows[np.argsort(all_episodes[rows], kind="stable")]
+        first = rows[0]
+        lp_window = df["lp_window"].iat[first]
+        window = 1 if pd.isna(lp_window) else int(lp_window)
+        identity = {c: df[c].iat[first] for c in RUN_COLUMNS}
+        for module in (m for m in str(df["achievable_modules"].iat[first]).split(",") if m):
+            if module not in columns:
+                names = [f"{p}{module}" for p in ("competence/", "lp/", "p_lp/")]
+                columns[module] = df[names].to_numpy(np.float64)
+            own = practised[rows] == module
+            values = np.column_stack([columns[module][rows], own])
+            first_mastery, found = _drops(
+                all_episodes[rows],
+                values,
+                evaluated[rows] & own,
+                window,
+                (mastered, hold, depth, band),
+            )
+            modules.append(
+                {
+                    **identity,
+                    "module": module,
+                    "evaluated": bool(np.isfinite(values[:, 0]).any()),
+                    "mastered_episode": first_mastery,
+                    "n_drops": len(found),
+                    "n_recovered": sum(d["recovered"] for d in found),
+                }
+            )
+            drops += [{**identity, "module": module, **d} for d in found]
+    return modules, drops
+
+
+_INT_COLUMNS = ("mastered_episode", "start_episode", "drop_episode", "trough_episode")
+
+
+def mastery_drops(
+    df: pd.DataFrame,
+    mastered: float = MASTERED,
+    hold: float = MASTERY_HOLD,
+    depth: float = DROP_DEPTH,
+    band: float = DESCENT_BAND,
+) -> pd.DataFrame:
+    """Every drop of a mastered achievable module's competence in the runs of ``df`` (a
+    `load_runs` table), by the rule of the module doc; the keyword arguments are its constants.
+    Returns one row per drop with `DROP_COLUMNS`, by run, module and episode: the mastery it
+    broke (``mastered_episode``, ``peak``), where it started, was detected, bottomed out and
+    recovered (``*_episode``; ``recovery_episode`` NA where it did not), ``depth``, the episodes
+    from the drop to the recovery, the length of the spans compared (``span_episodes``) and the
+    response over them (LP, p_LP and practice share before and after; LP at the trough)."""
+    _, drops = _scan(df, mastered, hold, depth, band)
+    out = pd.DataFrame(drops, columns=list(DROP_COLUMNS))
+    for c in (*_INT_COLUMNS, "recovery_episode", "span_episodes"):
+        out[c] = out[c].astype("Int64")
+    out["recovered"] = out["recovered"].astype(bool)
+    return out
+
+
+def mastery(
+    df: pd.DataFrame,
+    mastered: float = MASTERED,
+    hold: float = MASTERY_HOLD,
+    depth: float = DROP_DEPTH,
+    band: float = DESCENT_BAND,
+) -> pd.DataFrame:
+    """Per run of ``df`` and achievable module (`MASTERY_COLUMNS`): whether the run has
+    self-evaluations of it (``evaluated``: any competence; ``her`` has none), the episode at
+    which it was first mastered (NA: never), and how many drops `mastery_drops` finds in it and
+    how many of those recovered; the arguments are `mastery_drops`'."""
+    modules, _ = _scan(df, mastered, hold, depth, band)
+    out = pd.DataFrame(modules, columns=list(MASTERY_COLUMNS))
+    out["mastered_episode"] = out["mastered_episode"].astype("Int64")
+    out[["n_drops", "n_recovered"]] = out[["n_drops", "n_recovered"]].astype(np.int64)
+    return out
