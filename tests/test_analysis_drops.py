@@ -125,13 +125,22 @@ def test_mastery_lists_every_module_with_its_drops_and_runs_without_competence(r
     assert list(mastery(runs).columns) == list(MASTERY_COLUMNS)
     assert table["evaluated"].all()
     assert table.loc["reach", ["n_drops", "n_recovered"]].tolist() == [2, 1]
+    # read as mastered from each mastery to its drop; its deepest fall is the first drop's
+    (first, second) = mastery_drops(runs).itertuples()
+    stretches = first.drop_episode - first.mastered_episode
+    stretches += second.drop_episode - second.mastered_episode
+    assert table.loc["reach", "mastered_episodes"] == stretches
+    assert table.loc["reach", "deepest_fall"] == pytest.approx(first.peak - 0.77, abs=0.01)
     # push_cube1 fell by 0.3, but was never mastered: its 300 episodes at 0.95 are too few
     # self-evaluations to count
     assert pd.isna(table.loc["push_cube1", "mastered_episode"])
     assert table.loc["push_cube1", "n_drops"] == 0
+    assert table.loc["push_cube1", "mastered_episodes"] == 0
+    assert np.isnan(table.loc["push_cube1", "deepest_fall"])
     # cube1_above_cube2 is mastered, and its wiggle of 0.16 is no drop
     assert not pd.isna(table.loc["cube1_above_cube2", "mastered_episode"])
     assert table.loc["cube1_above_cube2", "n_drops"] == 0
+    assert table.loc["cube1_above_cube2", "deepest_fall"] == pytest.approx(0.16, abs=0.005)
     # a run without self-evaluations (HER's competence is NaN): nothing mastered, nothing found
     blind = runs.copy()
     for module in MODULES:

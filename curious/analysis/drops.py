@@ -46,8 +46,10 @@ measures at each episode) and the practised ``module`` of each episode:
    too, then the competence back.
 
 Runs without self-evaluations (``her``: its competence columns are NaN) and modules never
-mastered have no drop; `mastery` lists every (run, achievable module) with its first mastery and
-its drops so that "none seen" is visible. Runs whose sensory failure started are perturbed on
+mastered have no drop; `mastery` lists every (run, achievable module) with its first mastery, the
+episodes it was read as mastered, the deepest fall below its peak over those (how near a drop it
+came: a number to read the rule by, never part of it) and its drops, so that "none seen" is
+visible and weighed. Runs whose sensory failure started are perturbed on
 purpose: a drop of the perturbed module is the failure, not forgetting (`perturbation.recovery`
 measures it), so callers leave those runs out or read them apart.
 """
@@ -115,6 +117,8 @@ MASTERY_COLUMNS: tuple[str, ...] = (
     "module",
     "evaluated",
     "mastered_episode",
+    "mastered_episodes",
+    "deepest_fall",
     "n_drops",
     "n_recovered",
 )
@@ -155,14 +159,16 @@ def _drops(
     evaluated: np.ndarray,
     window: int,
     rule: tuple[float, float, float, float],
-) -> tuple[int | None, list[dict]]:
-    """One module of one run: its first mastery's episode and its drops (see the module doc).
+) -> tuple[dict, list[dict]]:
+    """One module of one run: its `mastery` numbers (first mastery, episodes mastered, deepest
+    fall) and its drops (see the module doc).
     ``values`` holds competence, LP, p_LP and the practised flag per row, episodes ascending."""
     level, hold, depth, band = rule
     competence = np.where(np.cumsum(evaluated) >= window, values[:, 0], np.nan)
     lp, p_lp, practised = values[:, 1], values[:, 2], values[:, 3]
     n = len(episodes)
     first_mastery, drops, start = None, [], 0
+    exposure = {"mastered_episodes": 0, "deepest_fall": np.nan}
     while start < n:
         m = _mastered_from(competence, evaluated, start, level, max(1, math.ceil(hold * window)))
         if m is None:
@@ -170,6 +176,11 @@ def _drops(
         first_mastery = episodes[m] if first_mastery is None else first_mastery
         peak = np.maximum.accumulate(competence[m:])
         d = _first(competence[m:] <= peak - depth + FLOAT32_SLACK)
+        held = n - m if d is None else d + 1  # the stretch read: to the drop, or the run's end
+        fall = float(np.max(peak[:held] - competence[m : m + held]))
+        exposure["deepest_fall"] = np.fmax(exposure["deepest_fall"], fall)
+        stop = episodes[-1] + 1 if d is None else episodes[m + d]
+        exposure["mastered_episodes"] += int(stop - episodes[m])
         if d is None:
             break
         d += m
@@ -207,7 +218,8 @@ def _drops(
         if r is None:
             break
         start = r
-    return (None if first_mastery is None else int(first_mastery)), drops
+    mastered = None if first_mastery is None else int(first_mastery)
+    return {"mastered_episode": mastered, **exposure}, drops
 
 
 def _scan(
@@ -233,7 +245,7 @@ def _scan(
                 columns[module] = df[names].to_numpy(np.float64)
             own = practised[rows] == module
             values = np.column_stack([columns[module][rows], own])
-            first_mastery, found = _drops(
+            read, found = _drops(
                 all_episodes[rows],
                 values,
                 evaluated[rows] & own,
@@ -245,7 +257,7 @@ def _scan(
                     **identity,
                     "module": module,
                     "evaluated": bool(np.isfinite(values[:, 0]).any()),
-                    "mastered_episode": first_mastery,
+                    **read,
                     "n_drops": len(found),
                     "n_recovered": sum(d["recovered"] for d in found),
                 }
@@ -288,10 +300,15 @@ def mastery(
 ) -> pd.DataFrame:
     """Per run of ``df`` and achievable module (`MASTERY_COLUMNS`): whether the run has
     self-evaluations of it (``evaluated``: any competence; ``her`` has none), the episode at
-    which it was first mastered (NA: never), and how many drops `mastery_drops` finds in it and
-    how many of those recovered; the arguments are `mastery_drops`'."""
+    which it was first mastered (NA: never), the episodes it was read as mastered for
+    (``mastered_episodes``: from each mastery to its drop or the run's end; 0: never), the
+    deepest fall of its competence below the peak over those stretches (``deepest_fall``, a
+    drop's own fall included, so at least ``depth`` where there is one; NaN: never mastered),
+    and how many drops `mastery_drops` finds in it and how many of those recovered; the
+    arguments are `mastery_drops`'."""
     modules, _ = _scan(df, mastered, hold, depth, band)
     out = pd.DataFrame(modules, columns=list(MASTERY_COLUMNS))
     out["mastered_episode"] = out["mastered_episode"].astype("Int64")
-    out[["n_drops", "n_recovered"]] = out[["n_drops", "n_recovered"]].astype(np.int64)
+    counts = ["mastered_episodes", "n_drops", "n_recovered"]
+    out[counts] = out[counts].astype(np.int64)
     return out
