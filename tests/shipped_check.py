@@ -5,12 +5,13 @@ tests (test_shipped.py) and on whatever the repository ships in data/ (test_ship
 loads with `curious.analysis` with the episodes and test rollouts the manifest says (a finished
 run: its whole budget); and `curious reproduce --from-data` builds the report from it, the
 combined tables behind the report being the shipped tables, and the report's per-run numbers
-(episodes, final competence, final test success) those computed from them; the runs read are
-those the folder stands for (`ShippedData.stands_for`: the variants shipped whole, and the seeds
-beyond the budget's whose runs are all shipped finished, which the report names). A folder with no
-experiment whose runs are all shipped finished (a progress snapshot, or a campaign shipped run by
-run as its runs finish) has no report: once its runs are loaded, the check is skipped with that
-reason.
+(episodes, final competence, final test success) those computed from them, with a section on
+spontaneous forgetting in each experiment that nothing perturbs, saying "no drop" exactly where
+`analysis.mastery_drops` finds none; the runs read are those the folder stands for
+(`ShippedData.stands_for`: the variants shipped whole, and the seeds beyond the budget's whose
+runs are all shipped finished, which the report names). A folder with no experiment whose runs
+are all shipped finished (a progress snapshot, or a campaign shipped run by run as its runs
+finish) has no report: once its runs are loaded, the check is skipped with that reason.
 """
 
 from __future__ import annotations
@@ -76,6 +77,10 @@ def check_shipped_folder(data: Path, out: Path) -> str:
     report = (out / "report.md").read_text(encoding="utf-8")
     built = sorted(p.stem for p in (out / "metrics").glob("*.parquet") if ".tests" not in p.name)
     assert built, "the report covers at least one experiment"
+    # spontaneous forgetting is read in every experiment that nothing perturbs
+    unperturbed = [e for e in built if e != "sensor_failure"]
+    assert report.count("### Spontaneous forgetting") == len(unperturbed)
+    without_drops = 0
     for experiment in built:
         combined = pd.read_parquet(out / "metrics" / f"{experiment}.parquet")
         # An experiment shipped whole for some variants only is built from those (the others
@@ -109,4 +114,7 @@ def check_shipped_folder(data: Path, out: Path) -> str:
                 else "–"
             )
             assert cells[7] == tested, f"{relative}: test success and its rollouts"
+        if experiment != "sensor_failure":
+            without_drops += analysis.mastery_drops(runs).empty
+    assert report.count("No drop of a mastered module in these runs.") == without_drops
     return report

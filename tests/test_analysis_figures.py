@@ -233,7 +233,7 @@ def test_palette_is_fixed_and_rerun_ready():
 def test_public_names_resolve_and_the_palette_imports_alone():
     import importlib
 
-    for sub in ("loading", "statistics", "perturbation", "figures"):
+    for sub in ("loading", "statistics", "perturbation", "drops", "figures"):
         module = importlib.import_module(f"curious.analysis.{sub}")
         for name in module.__all__:
             assert getattr(analysis, name) is getattr(module, name), name

@@ -296,6 +296,47 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
     assert f"| {mean:,.0f} |" in row
 
 
+def test_spontaneous_drops_are_reported_per_run_with_their_response(tmp_path):
+    """The forgetting section of the main comparison: a row per run (HER: no self-evaluations)
+    and a row per drop, its numbers those of `analysis.mastery_drops`."""
+    import numpy as np
+    from test_analysis_drops import _reach, _unmastered, _wiggle
+    from test_analysis_synthetic import write_run
+
+    from curious import analysis
+    from pipelines.report import _forgetting
+
+    curves = {"reach": _reach(), "push_cube1": _unmastered(), "cube1_above_cube2": _wiggle()}
+    write_run(
+        tmp_path / "curious", condition="curious", seed=0, competence=curves, achievable=[True] * 3
+    )
+    flat = {m: np.full(len(c), 0.02) for m, c in curves.items()}
+    write_run(tmp_path / "her", condition="her", seed=0, competence=flat, achievable=[True] * 3)
+    table = analysis.load_runs(tmp_path)
+    for column in [c for c in table.columns if c.startswith("competence/")]:
+        table.loc[table["condition"] == "her", column] = np.nan  # HER never self-evaluates
+    lines = _forgetting(get_budget("laptop").experiments["main"], table)
+    text = "\n".join(lines)
+    assert lines[0] == "### Spontaneous forgetting"
+    assert "for 25 consecutive self-evaluations (a window: 50)" in text
+    drops = analysis.mastery_drops(table)
+    read = analysis.mastery(table).set_index(["condition", "module"])
+    curious = next(line for line in lines if line.startswith("| CURIOUS | 0 |"))
+    reach = read.loc[("curious", "reach")]
+    assert f"| {int(reach.mastered_episode):,} ({reach.deepest_fall:.2f}) |" in curious
+    assert curious.endswith("| 2 |") and "| – |" in curious  # push_cube1 never mastered
+    her = next(line for line in lines if line.startswith("| HER | 0 |"))
+    assert her.endswith("| no self-evaluations |")
+    rows = [line for line in lines if line.startswith("| CURIOUS | 0 | T1 reach |")]
+    assert len(rows) == len(drops) == 2
+    first = drops.iloc[0]
+    assert f"| {int(first.drop_episode):,} |" in rows[0]
+    assert f"| {first.peak:.2f} → {first.trough:.2f} at {int(first.trough_episode):,} |" in rows[0]
+    assert f"| {first.recovery_episodes:,.0f} |" in rows[0]
+    assert rows[1].endswith("| not by the run's end |")
+    assert "No drop of a mastered module" not in text
+
+
 # ------------------------------------------------------------------------------ interruption
 
 

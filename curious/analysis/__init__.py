@@ -15,6 +15,7 @@ analysis.fig2a(tests, out_dir="figures/")           # figures/fig2a.png and figu
 runs = analysis.load_runs("runs/")                  # one row per (run, training episode)
 analysis.fig2b(runs)                                # competence per module, one run
 analysis.recovery(runs)                             # after the sensory failure, where measurable
+analysis.mastery_drops(runs)                        # spontaneous drops of mastered modules
 analysis.episodes_to_test_success(tests)            # per module: episodes to 0.5 and 0.9
 analysis.learning_order(analysis.competence_crossings(runs))  # which module was learned when
 ```
@@ -23,12 +24,14 @@ Fig. 2a's "success" is, as in the paper, the success of the noise-free test roll
 every epoch, pooled over those on the run's achievable modules; Fig. 2b/2c, Table 1, the
 distractors figure and the recovery read the competence (the moving success rate of the agent's
 self-evaluations, which drives learning progress). `curious.analysis.statistics` defines both
-precisely, `curious.analysis.milestones` when each module is learned, and
-`curious.analysis.perturbation` the recovery after the sensory failure. Module and condition
-colours live in `curious.analysis.palette`, shared with the Rerun recordings.
+precisely, `curious.analysis.milestones` when each module is learned,
+`curious.analysis.perturbation` the recovery after the sensory failure, and
+`curious.analysis.drops` the spontaneous drops of mastered modules (forgetting with nothing
+perturbed). Module and condition colours live in `curious.analysis.palette`, shared with the
+Rerun recordings.
 
-The public names are those of `loading`, `statistics`, `milestones`, `perturbation` and
-`figures` (each module's ``__all__``), imported on first use, so that ``import
+The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `drops`
+and `figures` (each module's ``__all__``), imported on first use, so that ``import
 curious.analysis.palette`` (the recording code does) does not pull in pandas, scipy and matplotlib.
 """
 
@@ -44,7 +47,14 @@ milestones); defined here, where nothing heavy is imported, so that `curious pro
 shows it without loading pandas. A `laptop` epoch tests each module about 40 / N times, too
 few alone to read."""
 
-_PUBLIC_MODULES = ("loading", "statistics", "milestones", "perturbation", "figures")
+_PUBLIC_MODULES = (
+    "loading",
+    "statistics",
+    "milestones",
+    "perturbation",
+    "drops",
+    "figures",
+)
 """The submodules whose ``__all__`` make this package's names, looked up in this order."""
 
 
