@@ -32,6 +32,9 @@ CASES: dict[str, list[str]] = {
     "curious": ["--condition", "curious"],
     "curious-workspace": ["--condition", "curious", "--set", "learner_backend=workspace"],
     "m-uvfa": ["--condition", "m-uvfa"],
+    "curious-lp": [
+        "--condition", "curious", "--set", "total_episodes=96", "--set", "lp_window=2",
+    ],
     "mg-te": ["--condition", "mg-te"],
     "mg-te-workspace": ["--condition", "mg-te", "--set", "learner_backend=workspace"],
     "her": ["--condition", "her"],
@@ -41,7 +44,9 @@ CASES: dict[str, list[str]] = {
     ],
     "distractors-4": ["--condition", "m-uvfa", "--variant", "distractors_4"],
 }  # fmt: skip
-"""Name -> `curious train` options (besides the preset, the seed and the folder)."""
+"""Name -> `curious train` options (besides the preset, the seed and the folder). In 24 smoke
+episodes no module has two windows of self-evaluations, so no learning progress: CURIOUS plays
+as M-UVFA; `curious-lp` runs long enough, with a short window, for p_LP to choose."""
 
 LEFT_OUT = ("elapsed", "wall_time", "created", "resumed", "time", "torch_rng")
 """Keys of the checkpoint's state left out of the hash: clocks, and the state of torch's global

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.compute as pc
 
-from curious.agent.conditions import make_condition
+from curious.agent.conditions import Condition, make_condition
 from curious.config import Config, ConfigError
 from curious.envs.batch import EnvBatch, ProcessEnvs
 from curious.envs.goal_env import GoalEnv
@@ -66,15 +66,18 @@ def _train(
     stop_after_cycles: int | None,
 ) -> Trainer:
     folder = RunFolder.prepare(out, config, resume, restart)
-    trainer = Trainer(config, *_environments(config, make_envs))
+    envs, test_envs, condition = _environments(config, make_envs)
+    trainer = Trainer(config, envs, test_envs, condition)
     with contextlib.closing(trainer):  # the environment workers stop with the run
         return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles)
 
 
 def _environments(
     config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
-) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None]:
-    """The training copies and the test rollouts' copies of a run (see `train`)."""
+) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None, Condition | None]:
+    """The training copies and the test rollouts' copies of a run (see `train`), and the run's
+    condition where it was built here to check the memory before the copies (the suite's
+    copies; with `make_envs`, the trainer builds and checks it)."""
     tests_wanted = config.test_rollouts_per_worker > 0
     if make_envs is not None:
         if config.processes > 1:
@@ -82,7 +85,7 @@ def _environments(
                 "env_processes > 1 builds the suite's environments in worker processes; a "
                 "custom make_envs runs in this process (env_processes=1)"
             )
-        return make_envs(config), make_envs(config) if tests_wanted else None
+        return make_envs(config), make_envs(config) if tests_wanted else None, None
     from curious.envs.goal_env import suite_env_fns
 
     train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
@@ -97,16 +100,16 @@ def _environments(
         # 24 s (16 cores and an H100, 2026-11-26; docs/scaling.md).
         train = ProcessEnvs(train_fns, config.processes)
         if not tests_wanted:
-            return train, None
+            return train, None, condition
         try:
-            return train, ProcessEnvs(test_fns, config.processes)
+            return train, ProcessEnvs(test_fns, config.processes), condition
         except BaseException:
             train.close()
             raise
     tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
     if tests_wanted:
-        return [fn() for fn in train_fns], tests
-    return [first, *(fn() for fn in train_fns[1:])], None
+        return [fn() for fn in train_fns], tests, condition
+    return [first, *(fn() for fn in train_fns[1:])], None, condition
 
 
 def resume_checks(

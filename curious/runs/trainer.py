@@ -45,7 +45,7 @@ import numpy as np
 import torch
 
 from curious.agent.agent import Agent
-from curious.agent.conditions import make_condition
+from curious.agent.conditions import Condition, make_condition
 from curious.agent.inputs import GoalBox, GoalInput
 from curious.agent.learning_progress import CompetenceTracker
 from curious.agent.replay import EpisodeReplay
@@ -139,11 +139,14 @@ class Trainer:
         config: Config,
         envs: Sequence[GoalEnv] | EnvBatch,
         test_envs: Sequence[GoalEnv] | EnvBatch | None = None,
+        condition: Condition | None = None,
     ) -> None:
         """`envs`: the `n_workers` training copies (a list, stepped in this process, or an
         `EnvBatch`); `test_envs`: as many copies for the test rollouts (default: the training
         copies, whose random streams the tests then advance; `curious.runs.driver.train` gives
-        copies of their own)."""
+        copies of their own). `condition`: the run's, where the caller built it and checked the
+        run's memory with it before building the copies (`curious.runs.driver.train` does);
+        else it is built, and the memory checked, here."""
         config.validate()
         self.config = config
         self.envs = _as_batch(envs)
@@ -163,8 +166,10 @@ class Trainer:
         if config.device == "cuda" and not torch.cuda.is_available():
             raise ConfigError("device 'cuda' was asked for but torch sees no CUDA device")
         n = self.spec.n_modules
-        self.condition = make_condition(config, self.spec)
-        check_memory(config, self.spec, self.condition.n_experts)  # before the big allocations
+        if condition is None:
+            condition = make_condition(config, self.spec)
+            check_memory(config, self.spec, condition.n_experts)  # before the big allocations
+        self.condition = condition
         self.agent = Agent(self.spec, config, GoalBox.of(self.env), self.condition.n_experts)
         self.replay = EpisodeReplay(
             self.spec,
