@@ -259,8 +259,8 @@ def test_the_workspace_backend_steps_the_networks_and_optimisers_it_is_given(alg
     """`WorkspaceUpdate` needs no `Learner`: handed networks laid out by `fold_parameters`,
     their Adam optimisers and the settings, it takes the reference's steps, the actor's only when
     told to (TD3's delay is the caller's), and reports no actor loss when it did not step it."""
-    from curious.agent.learner import _adam
     from curious.agent.mlp_workspace import WorkspaceUpdate, fold_parameters
+    from curious.agent.update_backends import adam as _adam
 
     config = small_config(algorithm=algorithm, td3_policy_delay=2)
     reference = Learner(10, 4, config, seed=5)
@@ -327,8 +327,8 @@ def test_encode_pair_equals_two_encodes():
 
 
 def test_direct_adam_step_gives_the_same_bits_as_optimizer_step():
-    from curious.agent.learner import _adam
     from curious.agent.mlp_workspace import _adam_step
+    from curious.agent.update_backends import adam as _adam
 
     torch.manual_seed(0)
     params = [torch.nn.Parameter(torch.randn(1000)) for _ in range(2)]

@@ -16,15 +16,11 @@ clipped Gaussian smoothing noise on the target action, and an actor step every
 `td3_policy_delay` critic steps, through the stepped critics. The target schedule stays the
 cycle's.
 
-`Learner.update` is the one place that says which steps an update takes; the steps themselves
-run on one of the backends `Config.learner_backend` picks. `autograd` (the default) is the
-reference, written with autograd below; `compiled` runs the same functions through
-`torch.compile` (on CUDA in `reduce-overhead` mode: CUDA graphs with a capturable Adam; DDPG's
-step with its backward traced into the graph, `compile_step`);
-`workspace` is `curious.agent.mlp_workspace.WorkspaceUpdate`, the same update with both passes
-written
-out into preallocated buffers, the fastest on a CPU, which is handed the networks and optimisers
-and is tested against the reference. docs/benchmarks.md has the speed of each.
+`Learner.update` is the one place that says which steps an update takes (`ddpg_step`, or TD3's
+`critic_step` and `actor_step`); they run on the backend `Config.learner_backend` picks
+(`curious.agent.update_backends`: the reference with autograd, the same functions compiled, or
+the same update written out into preallocated buffers), which also keeps each network's
+parameters in one flat tensor. docs/benchmarks.md has the speed of each.
 
 Inputs arrive normalised (`curious.agent.inputs.InputEncoder`); the learner only does arithmetic on
 tensors of its device.
@@ -33,76 +29,15 @@ tensors of its device.
 from __future__ import annotations
 
 import copy
-import functools
-from collections.abc import Callable
 from typing import Any
 
 import torch
 from torch import nn
 from torch.func import functional_call
 
-from curious.agent.mlp_workspace import WorkspaceUpdate, fold_parameters
 from curious.agent.networks import Actor, Critic
+from curious.agent.update_backends import UpdateBackend
 from curious.config import Config
-
-StepLosses = tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]
-"""What one backend's step returns, detached: the critic loss, the actor loss (None where the
-actor was not stepped) and the mean TD target."""
-
-
-def flatten_parameters(module: nn.Module, grads: bool) -> torch.Tensor:
-    """Moves all of `module`'s parameters into one flat tensor and returns it; each parameter
-    stays the module's, as a contiguous view of it. With `grads`, the tensor is a Parameter whose
-    one flat `.grad` holds the parameters' gradients as views. One tensor per network lets Adam
-    and the Polyak update run once per network."""
-    params = list(module.parameters())
-    flat = torch.cat([p.detach().reshape(-1) for p in params])
-    if grads:
-        flat = nn.Parameter(flat)
-        flat.grad = torch.zeros_like(flat)
-    offset = 0
-    for p in params:
-        n = p.numel()
-        p.data = flat.data[offset : offset + n].view_as(p)
-        if grads:
-            p.grad = flat.grad[offset : offset + n].view_as(p)
-        offset += n
-    return flat
-
-
-def _adam(params: list[nn.Parameter], lr: float, capturable: bool = False) -> torch.optim.Adam:
-    """Adam with the fastest implementation this torch offers for the device; `capturable`
-    keeps its step count on the device, so that a CUDA graph can replay the step."""
-    if capturable:
-        return torch.optim.Adam(params, lr=lr, foreach=True, capturable=True)
-    try:
-        return torch.optim.Adam(params, lr=lr, fused=True)
-    except (RuntimeError, TypeError):  # fused not available for this device / build
-        return torch.optim.Adam(params, lr=lr, foreach=True)
-
-
-def compile_step(
-    step: Callable[..., Any], mode: str | None, trace_backward: bool
-) -> Callable[..., Any]:
-    """`torch.compile(step, mode=mode)`; with `trace_backward`, the step's `backward()` is traced
-    into the graph of its losses where this torch can (dynamo's `trace_autograd_ops`, set while
-    the step runs: dynamo reads its settings when it compiles, and recompiles where they
-    differ). DDPG's step then runs as the losses-and-gradients graph and Adam's, instead of the
-    losses' graph, the autograd engine's kernels one by one, and Adam's (docs/benchmarks.md: 0.87
-    against 1.30 ms an update on an H100). TD3's steps keep the break: traced, torch 2.11 on CUDA
-    skipped the critic step's CUDA graph (its gradients are mutated inputs) and failed in the
-    actor step. A torch without the setting compiles the step with the break."""
-    compiled = torch.compile(step, mode=mode)
-    if not trace_backward or not hasattr(torch._dynamo.config, "trace_autograd_ops"):
-        return compiled
-    traced = torch._dynamo.config.patch(trace_autograd_ops=True)
-
-    @functools.wraps(step)
-    def run(*args: Any) -> Any:
-        with traced:
-            return compiled(*args)
-
-    return run
 
 
 class Learner:
@@ -124,44 +59,14 @@ class Learner:
         torch.set_rng_state(cpu_rng_state)
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self.critics_target = copy.deepcopy(self.critics).requires_grad_(False)
-        # one flat tensor per network; the workspace needs each layer as a [W | b] block
-        flatten = fold_parameters if config.learner_backend == "workspace" else flatten_parameters
-        self._online = [flatten(net, grads=True) for net in (self.actor, self.critics)]
-        nets = (self.actor_target, self.critics_target)
-        self._targets = [flatten(net, grads=False) for net in nets]
-        compiled = config.learner_backend == "compiled"
-        graphs = compiled and self.device.type == "cuda"  # the whole step as one CUDA graph
-        self.actor_opt = _adam([self._online[0]], config.actor_lr, capturable=graphs)
-        self.critic_opt = _adam([self._online[1]], config.critic_lr, capturable=graphs)
-        self.generator = torch.Generator(device=self.device)
-        self.generator.manual_seed(seed + 1)
         self.clip_return = 1.0 / (1.0 - config.gamma)
         self.n_updates = 0
         self.input_dim = input_dim
         self._last_actor_loss = torch.zeros((), device=self.device)
-        # the backend's step: (x, a, r, x', step_actor) -> StepLosses
-        self._backend: Callable[..., StepLosses] = self._autograd_step
-        if config.learner_backend == "workspace":
-            self._backend = WorkspaceUpdate(
-                actor=self.actor,
-                critics=self.critics,
-                actor_target=self.actor_target,
-                critics_target=self.critics_target,
-                actor_opt=self.actor_opt,
-                critic_opt=self.critic_opt,
-                config=config,
-                generator=self.generator,
-            ).update
-        steps = (self._ddpg_step, self._critic_step, self._actor_step)
-        if compiled:  # losses, backward and Adam in one compiled function each
-            mode = "reduce-overhead" if graphs else None
-            steps = (
-                compile_step(self._ddpg_step, mode, trace_backward=True),
-                compile_step(self._critic_step, mode, trace_backward=False),
-                compile_step(self._actor_step, mode, trace_backward=False),
-            )
-        self._steps = steps
-        self._graphs = graphs
+        # flat parameters, Adam, the generator and the backend that runs the steps below
+        self.backend = UpdateBackend(self, config, seed)
+        self.actor_opt, self.critic_opt = self.backend.actor_opt, self.backend.critic_opt
+        self.generator = self.backend.generator
 
     # -------------------------------------------------------------------------------------------
     @torch.no_grad()
@@ -219,7 +124,7 @@ class Learner:
         """
         self.n_updates += 1
         step_actor = not self.td3 or self.n_updates % self.config.td3_policy_delay == 0
-        critic_loss, actor_loss, q_target = self._backend(x, action, reward, x_next, step_actor)
+        critic_loss, actor_loss, q_target = self.backend.step(x, action, reward, x_next, step_actor)
         if actor_loss is not None:
             self._last_actor_loss = actor_loss
         return {
@@ -228,42 +133,7 @@ class Learner:
             "q_target_mean": q_target,
         }
 
-    def _autograd_step(
-        self,
-        x: torch.Tensor,
-        action: torch.Tensor,
-        reward: torch.Tensor,
-        x_next: torch.Tensor,
-        step_actor: bool,
-    ) -> StepLosses:
-        """The reference backend (and the compiled one): DDPG's step, or TD3's critic step and,
-        when `step_actor`, its actor step through the stepped critics."""
-        ddpg_step, critic_step, actor_step = self._steps
-        actor_flat, critics_flat = self._online
-        if self._graphs:  # a new replay of the captured graphs begins
-            torch.compiler.cudagraph_mark_step_begin()
-        # Gradients are zeroed here, outside the steps: a compiled step that wrote into a tensor
-        # it was handed would not be captured as a CUDA graph ("mutated inputs").
-        if not self.td3:
-            actor_flat.grad.zero_()
-            critics_flat.grad.zero_()
-            critic_loss, actor_loss, q_target = self._kept(ddpg_step(x, action, reward, x_next))
-            return critic_loss, actor_loss, q_target
-        critics_flat.grad.zero_()
-        noise = self.target_noise(len(x))
-        critic_loss, q_target = self._kept(critic_step(x, action, reward, x_next, noise))
-        actor_loss = None
-        if step_actor:
-            actor_flat.grad.zero_()
-            actor_loss = self._kept((actor_step(x),))[0]
-        return critic_loss, actor_loss, q_target
-
-    def _kept(self, outputs: tuple[torch.Tensor, ...]) -> tuple[torch.Tensor, ...]:
-        """A step's outputs, copied out of the CUDA graph's buffers (its next replay
-        overwrites them); as they are otherwise."""
-        return tuple(t.clone() for t in outputs) if self._graphs else outputs
-
-    def _ddpg_step(
+    def ddpg_step(
         self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Both losses from the current networks, both gradients (into zeroed `.grad`s), both Adam
@@ -284,7 +154,7 @@ class Learner:
         actor_loss = self.actor_loss(x)
         return critic_loss + actor_loss, critic_loss.detach(), actor_loss.detach()
 
-    def _critic_step(
+    def critic_step(
         self,
         x: torch.Tensor,
         action: torch.Tensor,
@@ -299,7 +169,7 @@ class Learner:
         self.critic_opt.step()
         return critic_loss.detach(), target.mean()
 
-    def _actor_step(self, x: torch.Tensor) -> torch.Tensor:
+    def actor_step(self, x: torch.Tensor) -> torch.Tensor:
         """TD3: the actor's loss through the stepped critic, its gradient and Adam step."""
         actor_loss = self.actor_loss(x)
         actor_loss.backward()
@@ -309,7 +179,7 @@ class Learner:
     @torch.no_grad()
     def update_targets(self) -> None:
         """target <- polyak * target + (1 - polyak) * online."""
-        for target, online in zip(self._targets, self._online, strict=True):
+        for target, online in zip(self.backend.targets, self.backend.online, strict=True):
             target.lerp_(online, 1.0 - self.config.polyak)
 
     # -------------------------------------------------------------------------------------------
