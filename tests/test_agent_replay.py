@@ -40,8 +40,7 @@ def filled_replay(n=60, holistic=False, seed=0, **kwargs):
         env = ToyGoalEnv(seed)
         raw = np.random.default_rng(seed + 1).uniform(-1, 1, (n, 3, 3))
         goals = np.stack([env.goal_slot(k, raw[:, k]) for k in range(3)], axis=1)
-    goal_space = HolisticGoals(SPEC) if holistic else None
-    replay = EpisodeReplay(SPEC, capacity=200, goal_space=goal_space, **kwargs)
+    replay = EpisodeReplay(SPEC, capacity=200, **kwargs)
     replay.store(states, achieved, actions, modules, goals)
     return replay, success
 
@@ -172,7 +171,7 @@ def test_holistic_reward_is_one_distance_over_every_goal_coordinate():
     between the whole outcome and the whole goal is within the success distance."""
     replay, _ = filled_replay(holistic=True)
     env = ToyGoalEnv()
-    batch = replay.sample(3000, np.random.default_rng(11), env, None, her_p=0.8)
+    batch = replay.sample_holistic(HolisticGoals(SPEC), 3000, np.random.default_rng(11), env, 0.8)
     assert np.all(batch.goal.mask == 1) and np.all(batch.goal.task == 0)
     assert np.all(batch.module == -1)
     nxt = replay.achieved[batch.episode, batch.step + 1]

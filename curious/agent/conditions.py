@@ -63,6 +63,7 @@ from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
 from curious.envs.goal_env import EnvSpec, GoalEnv
 
 if TYPE_CHECKING:
+    from curious.agent.replay import EpisodeReplay, Transitions
     from curious.config import Config
     from curious.envs.rollout import EpisodeData
 
@@ -143,8 +144,6 @@ class Condition:
         self.lp_eps = lp_eps
         self.eval_modules = eval_modules
         self.eval_every = eval_every
-        self.goal_space: HolisticGoals | None = None
-        """The holistic goal space of a flat condition (None: one module per episode)."""
 
     @property
     def n_experts(self) -> int:
@@ -203,16 +202,14 @@ class Condition:
         self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
     ) -> np.ndarray:
         """(n,) bool: whether each episode's module met its own goal slot at the final step."""
-        n = len(modules)
-        if self.goal_space is None:
-            return data.final_success[np.arange(n), modules]
-        final = data.achieved[:, -1]
-        out = np.zeros(n, bool)
-        for k in np.unique(modules):
-            sel = np.flatnonzero(modules == k)
-            goal = env.goal(int(k), goals[sel, k], final[sel])
-            out[sel] = env.reward(int(k), final[sel], goal) == 0
-        return out
+        return data.final_success[np.arange(len(modules)), modules]
+
+    def holistic_distance(
+        self, env: GoalEnv, goals: np.ndarray, final: np.ndarray
+    ) -> np.ndarray | None:
+        """(n,) distance of the final outcomes to the whole goal, where the condition scores
+        one (the flat baseline); None where it scores one module per episode."""
+        return None
 
     def success(
         self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
@@ -222,6 +219,19 @@ class Condition:
         return self.module_success(env, data, modules, goals)
 
     # -- replay and experts -------------------------------------------------------------------
+    def sample(
+        self,
+        replay: EpisodeReplay,
+        batch_size: int,
+        rng: np.random.Generator,
+        env: GoalEnv,
+        module_probs: np.ndarray | None,
+        her_p: float,
+    ) -> Transitions:
+        """A relabelled minibatch from `replay` (`module_probs`: this cycle's `replay_probs`):
+        task replay and HER goals, per module."""
+        return replay.sample(batch_size, rng, env, module_probs, her_p)
+
     def replay_probs(
         self, tracker: CompetenceTracker, epoch: int, replayable: np.ndarray
     ) -> np.ndarray | None:
@@ -320,6 +330,7 @@ class HER(Condition):
     def __init__(self, spec: EnvSpec, lp_eps: float, eval_modules: str, eval_every: int) -> None:
         super().__init__(spec, lp_eps, eval_modules, eval_every)
         self.goal_space = HolisticGoals(spec)
+        """The holistic goal space: one goal over every module's slot at once."""
 
     def modules(
         self,
@@ -335,15 +346,42 @@ class HER(Condition):
     def goals(
         self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
     ) -> GoalInput[np.ndarray]:
-        assert self.goal_space is not None
         return GoalInput.holistic(self.goal_space.draw(env, modules, raw, rng))
 
     def success(
         self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
     ) -> np.ndarray:
-        assert self.goal_space is not None
         final = data.achieved[:, -1]
         return self.goal_space.success(final, self.goal_space.place(env, goals, final))
+
+    def module_success(
+        self, env: GoalEnv, data: EpisodeData, modules: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        # The named module's own reward at the final step, from its slot of the holistic goal.
+        final = data.achieved[:, -1]
+        out = np.zeros(len(modules), bool)
+        for k in np.unique(modules):
+            sel = np.flatnonzero(modules == k)
+            goal = env.goal(int(k), goals[sel, k], final[sel])
+            out[sel] = env.reward(int(k), final[sel], goal) == 0
+        return out
+
+    def holistic_distance(
+        self, env: GoalEnv, goals: np.ndarray, final: np.ndarray
+    ) -> np.ndarray | None:
+        return self.goal_space.distance(final, self.goal_space.place(env, goals, final))
+
+    def sample(
+        self,
+        replay: EpisodeReplay,
+        batch_size: int,
+        rng: np.random.Generator,
+        env: GoalEnv,
+        module_probs: np.ndarray | None,
+        her_p: float,
+    ) -> Transitions:
+        # Episodes among all, HER goals over the whole goal vector, the flat reward.
+        return replay.sample_holistic(self.goal_space, batch_size, rng, env, her_p)
 
     def replay_probs(self, tracker: CompetenceTracker, epoch: int, replayable: np.ndarray) -> None:
         return None

@@ -22,9 +22,10 @@ built at sample time, with numpy indexing only (loops run over modules, never ov
 4. the reward is recomputed for each transition's module and goal with the environment's
    vectorised reward, one call per module present in the batch.
 
-The holistic `her` condition replays one goal over all modules (its `HolisticGoals`, given as
-`goal_space`): episodes are drawn among all, relabelled goals put every module's outcome at step f
-into its slot, and the reward is the goal space's (one distance over every slot at once).
+The holistic `her` condition replays one goal over all modules (`sample_holistic`, with its
+`HolisticGoals`; each condition picks its sampler, `Condition.sample`): episodes are drawn among
+all, relabelled goals put every module's outcome at step f into its slot, and the reward is the
+goal space's (one distance over every slot at once).
 """
 
 from __future__ import annotations
@@ -66,15 +67,11 @@ class EpisodeReplay:
         self,
         spec: EnvSpec,
         capacity: int,
-        goal_space: HolisticGoals | None = None,
         active_only: bool = True,
         moved_threshold: float = 1e-3,
     ) -> None:
-        """`goal_space`: the holistic goal space of a flat condition (None: every episode
-        practises one module)."""
         self.spec = spec
         self.capacity = int(capacity)
-        self.goal_space = goal_space
         self.active_only = active_only
         self.moved_threshold = moved_threshold
         T, n, g = spec.episode_length, spec.n_modules, spec.goal_dim
@@ -162,12 +159,9 @@ class EpisodeReplay:
         module_probs: np.ndarray | None,
         her_p: float,
     ) -> Transitions:
-        """A relabelled minibatch; `module_probs` (N,) is required unless holistic (None), and
-        `her_p` is `Config.her_p`."""
-        if self.size == 0:
-            raise RuntimeError("cannot sample from an empty replay")
-        if self.goal_space is not None:
-            return self._sample_holistic(self.goal_space, batch_size, rng, env, her_p)
+        """A relabelled minibatch of per-module goals: `module_probs` (N,), the probabilities of
+        the module each transition is replayed as; `her_p`, `Config.her_p`."""
+        self._check_filled()
         if module_probs is None:
             raise ValueError("module_probs are needed to substitute modules")
         spec = self.spec
@@ -210,7 +204,11 @@ class EpisodeReplay:
             goal_step=goal_step,
         )
 
-    def _sample_holistic(
+    def _check_filled(self) -> None:
+        if self.size == 0:
+            raise RuntimeError("cannot sample from an empty replay")
+
+    def sample_holistic(
         self,
         goal_space: HolisticGoals,
         batch_size: int,
@@ -221,6 +219,7 @@ class EpisodeReplay:
         """The flat baseline's minibatch (flowersteam/curious her.py,
         `make_sample_her_transitions`: episodes drawn among all, HER 'future' goals over the
         whole goal vector, the env's flat reward)."""
+        self._check_filled()
         T, B = self.spec.episode_length, batch_size
         episode = rng.integers(self.size, size=B)
         step = rng.integers(T, size=B)

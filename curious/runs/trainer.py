@@ -174,7 +174,6 @@ class Trainer:
         self.replay = EpisodeReplay(
             self.spec,
             config.replay_capacity,
-            goal_space=self.condition.goal_space,
             active_only=config.replay_active_only,
             moved_threshold=config.moved_threshold,
         )
@@ -367,8 +366,9 @@ class Trainer:
         stats: list[dict[str, torch.Tensor]] = []
         rewards = []
         draw = functools.partial(
-            self.replay.sample, cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p
-        )
+            self.condition.sample,
+            self.replay, cfg.batch_size, self.replay_rng, self.env, probs, cfg.her_p,
+        )  # fmt: skip
         for batch, waited in self._minibatches(draw, cfg.n_updates):
             timings.add("sample", waited)
             with timings("update"):

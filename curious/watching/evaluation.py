@@ -207,9 +207,9 @@ class EvaluationSession:
                     )
                     parts["expert"].append(np.asarray(experts, np.int64))
                     parts["goal"].append(raw)
-                    if condition.goal_space is not None:
-                        space = condition.goal_space
-                        parts["hol"].append(space.distance(final, space.place(env, goals, final)))
+                    holistic = condition.holistic_distance(env, goals, final)
+                    if holistic is not None:
+                        parts["hol"].append(holistic)
                     bar.update(size)
                 per = {k: np.concatenate(v) for k, v in parts.items() if v}
                 hol = per.pop("hol", None)
