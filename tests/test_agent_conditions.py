@@ -354,3 +354,14 @@ def test_task_replay_leaves_out_modules_with_nothing_to_replay():
     )
     # mg-te replays its trained expert's module whatever is valid
     np.testing.assert_array_equal(mgte.replay_probs(_LP(lp), 6, valid), [0, 0, 1, 0])
+
+
+def test_the_condition_names_and_classes_are_one_list():
+    """`curious.config.CONDITIONS` (what validation and the command line accept, without torch)
+    and `CONDITION_CLASSES` (what `make_condition` builds) name the same conditions, in order,
+    each class under its own `name`."""
+    from curious.agent.conditions import CONDITION_CLASSES
+    from curious.config import CONDITIONS
+
+    assert tuple(CONDITION_CLASSES) == CONDITIONS
+    assert all(cls.name == name for name, cls in CONDITION_CLASSES.items())

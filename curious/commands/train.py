@@ -41,13 +41,17 @@ def register(sub: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument(
-        "--condition", default="curious", help="curious, m-uvfa, mg-te or her (default curious)"
+        "--condition",
+        default="curious",
+        help=f"{', '.join(CONDITIONS[:-1])} or {CONDITIONS[-1]} (default curious)",
     )
     parser.add_argument(
         "--seed", type=int, default=0, help="seeds networks, rollouts and replay (default 0)"
     )
     parser.add_argument(
-        "--preset", default="quick", help="smoke, quick, laptop or paper (default quick)"
+        "--preset",
+        default="quick",
+        help=f"{', '.join(list(PRESETS)[:-1])} or {list(PRESETS)[-1]} (default quick)",
     )
     parser.add_argument("--out", required=True, help="run folder (must be empty unless --resume)")
     add_set_option(parser, "override one setting (repeatable), e.g. --set n_workers=8")
