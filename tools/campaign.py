@@ -23,7 +23,7 @@ With `--seeds EXPERIMENT=SEEDS` an experiment gets seeds beyond the budget's: ru
 the budget's in every setting but the seed (`dataclasses.replace` of the budget's experiment, so
 that the campaign's commit, which has no other way to add seeds, builds them), queued after all of
 the budget's runs, pattern by pattern of `--only` again and seed by seed. The default for the
-`laptop` budget (`DEFAULT_SEEDS`) is issue 51's campaign: the main comparison to five seeds, as
+`laptop` budget (`DEFAULT_SEEDS`) is the evidence campaign's: the main comparison to five seeds, as
 the paper's, and the distractors to three. Their seeds are written in the folder's
 `reproduce.json` (`extra_seeds`), so that `curious progress` lists those not started as it lists
 the budget's; `curious ship` ships them, and `curious reproduce --from-data` reads a seed beyond the
@@ -77,7 +77,7 @@ DEFAULT_SEEDS: dict[str, dict[str, tuple[int, ...]]] = {
     "laptop": {"main": (0, 1, 2, 3, 4), "distractors": (0, 1, 2)},
 }
 """Budget -> experiment -> its seeds in the campaign, the budget's and beyond (`--seeds`): for
-`laptop`, issue 51's campaign, main's seeds 3 and 4 (five seeds, as the paper's, so that C1's
+`laptop`, the evidence campaign's: main's seeds 3 and 4 (five seeds, as the paper's, so that C1's
 per-bin Welch tests do not hang on one seed) and the distractors' seed 2 of every variant (three
 seeds a side for C4), trained from the commit of seeds 0-2 (9972821) so that all are one
 protocol."""
@@ -223,7 +223,7 @@ def main(argv: list[str] | None = None) -> int:
         help="an experiment's seeds, the budget's and beyond (0-4 or 0,2,5), repeatable; "
         "'none': the budget's only (default for laptop: "
         + " ".join(f"{k}={min(v)}-{max(v)}" for k, v in DEFAULT_SEEDS["laptop"].items())
-        + ", issue 51's campaign)",
+        + ", the evidence campaign)",
     )
     parser.add_argument(
         "--shipped", type=Path, help="a shipped data folder: its finished runs are not trained"

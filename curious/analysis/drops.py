@@ -16,8 +16,8 @@ measures at each episode) and the practised ``module`` of each episode:
    which its competence has stood at or above `MASTERED` (0.9) for `MASTERY_HOLD` (half a window,
    rounded up) of its consecutive self-evaluations: nine in ten of its last evaluations succeed,
    and have for a while, so a competence hovering at the line is not called mastered by one
-   lucky reading. 0.9 is the level the issue that asks for this analysis names for "mastered"
-   and the higher of the report's two test-success milestones (`milestones.LEVELS`).
+   lucky reading. 0.9 is the higher of the report's two test-success milestones
+   (`milestones.LEVELS`).
 2. **Drop.** After mastery, the *peak* is the highest competence since the module was mastered.
    A *drop* is detected at the first episode whose competence is `DROP_DEPTH` (0.2) or more below
    the peak. Why 0.2: the competence of a module succeeding with probability 0.9 over a window of

@@ -7,7 +7,7 @@ for one epoch's rate to say whether a module is learned. A module's test success
 therefore its success rate over the test rollouts of the last ``window`` epochs pooled (5 by
 default, as `curious progress` reads "test success, last 5 epochs"), defined once the run has
 ``window`` epochs of tests. `episodes_to_test_success` gives the training episodes done at the
-first epoch where that rate reaches each level (the issue's C1: 0.5 and 0.9 per seed). ``success``
+first epoch where that rate reaches each level (C1's reading: 0.5 and 0.9 per seed). ``success``
 is what Fig. 2a reads: in ``her``, the holistic goal met, so HER reaches a level only if it meets
 its whole goal on that module's tests.
 
