@@ -51,7 +51,8 @@ def test_the_test_rollouts_copies_step_where_the_training_copies_do(processes: i
     """With env_processes > 1 the test copies step in worker processes of their own as well
     (at `paper` size, stepped in the training process, they took a third of an epoch)."""
     config = resolve("smoke", overrides=dict(n_workers=3, env_processes=processes))
-    train, tests = _environments(config, None)
+    train, tests, condition = _environments(config, None)
+    assert condition is not None and condition.name == config.condition  # built once, here
     try:
         kind = ProcessEnvs if processes > 1 else list
         assert isinstance(train, kind) and isinstance(tests, kind)
