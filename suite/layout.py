@@ -1,4 +1,4 @@
-"""The numbers of the Multi-Task Fetch Arm scene (paper §2 and §6.2; DESIGN §2).
+"""The numbers of the Multi-Task Fetch Arm scene (paper §2 and §6.2; docs/suite.md).
 
 Every length is in metres, in the world frame. The entities, the task modules and the
 distractor walk all read their geometry from here, so that a number is stated once.

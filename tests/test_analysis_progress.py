@@ -143,7 +143,7 @@ def test_a_reproduction_with_its_runs_elsewhere_reads_them_there(campaign, tmp_p
 def test_a_shipped_folder_stands_for_the_runs_a_reproduction_beside_it_has_not_started(
     campaign, tmp_path, capsys
 ):
-    """A machine that came back empty: main/curious/seed-0 is shipped, its folder is gone."""
+    """Run folders gone (a new machine): main/curious/seed-0 is shipped, its folder is gone."""
     from curious.reproduction.shipping import ship
 
     out, held = tmp_path / "out", tmp_path / "held"

@@ -1,4 +1,4 @@
-"""tools/campaign.py: the queue of a campaign that goes on after a machine came back empty."""
+"""tools/campaign.py: the queue of a campaign that goes on on a machine without its run folders."""
 
 from __future__ import annotations
 

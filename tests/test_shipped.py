@@ -298,7 +298,7 @@ def test_unfinished_runs_are_shipped_only_when_asked_and_marked(smoke, tmp_path,
 
 
 def test_keep_adds_to_an_earlier_ship_whose_run_folders_are_gone(smoke, shipped, tmp_path):
-    """A machine that came back empty: the data folder holds every smoke run shipped; the new runs
+    """Run folders gone (a new machine): the data folder holds every smoke run shipped; the new runs
     root holds only main's, one of them still training. `--keep` ships main's finished runs again
     (the same bytes), keeps every other run, and keeps the finished copy of the unfinished run."""
     out = tmp_path / "data" / "smoke"

@@ -2,8 +2,8 @@
 output folder.
 
 `curious reproduce` trains every run its experiments name that its output folder does not hold
-finished. A campaign whose machine came back empty has shipped some runs already (`curious ship`,
-committed under `data/`) and has lost their folders; `reproduce` would train those again. This
+finished. A campaign on a new machine has shipped some runs already (`curious ship`, committed
+under `data/`) whose folders are not there; `reproduce` would train those again. This
 queue trains the runs that match `--only`, in the budget's own order (experiment by experiment,
 seed by seed), leaving out every run that `--shipped` holds finished, with the same call
 `reproduce` makes for each partition (`pipelines.training.run_partition`: a new folder starts, a
@@ -30,9 +30,9 @@ the budget's; `curious ship` ships them, and `curious reproduce --from-data` rea
 budget's once every run of it in an experiment is shipped finished.
 
 With `--ship`, each run that finishes is shipped at once into the `--shipped` folder (`curious
-ship --keep`, by the checkout this file lies in) and committed there, so that a machine that comes
-back empty loses only the runs in flight. Stopped (Ctrl-C, or the machine's session ending), the
-queue is started again with the same command.
+ship --keep`, by the checkout this file lies in) and committed there, so that a machine that is lost
+loses only the runs in flight. Stopped (Ctrl-C, or the machine going away), the queue is started
+again with the same command.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@
 # 4. for each N of SIDE_BY_SIDE, N such runs side by side, each with 1/N of the cores, into
 #    OUT/N-runs/ (what several runs sharing one node give: docs/scaling.md's projections of the
 #    whole reproduction rest on it);
-# 5. (STEPS with "resume") one run stopped by a time limit, as a node's lease or a session ends it,
+# 5. (STEPS with "resume") one run stopped by a time limit, as a node's time limit ends it,
 #    then resumed from its last checkpoint with --resume and stopped again: OUT/resume/ holds its
 #    metrics, both logs and, after each stop, the checkpoints and replay segments it held
 #    (listings and each checkpoint's replay.json; the run folder itself stays in RESUME_DIR).

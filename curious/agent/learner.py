@@ -1,6 +1,6 @@
 """DDPG (the authors') and TD3 (an option) on E-UVFA inputs: one actor-critic and its update.
 
-The update, with the authors' settings (DESIGN §3), on a minibatch (x, a, r, x'):
+The update, with the authors' settings (docs/agent.md), on a minibatch (x, a, r, x'):
 
 * TD target: y = r + gamma * Q'(x', pi'(x')), clipped to [-1/(1-gamma), 0] (rewards are -1 or 0
   and episodes never terminate, so there is no done mask) (`td_target`);

@@ -13,7 +13,7 @@ no checkpoint, no recording. By default only finished runs are shipped; `--unfin
 others too, marked as unfinished in shipped.json. An --out holding an earlier ship of the same
 budget is replaced, or with `--keep` added to: the runs it holds stay unless this ship writes
 them again (a run shipped finished is never replaced by an unfinished one), so that runs whose
-folders are gone (a machine that came back empty) stay shipped. Prints what was shipped and the
+folders are gone (a new machine, say) stay shipped. Prints what was shipped and the
 size written.
 """
 

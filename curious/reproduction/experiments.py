@@ -27,8 +27,8 @@ run of every experiment:
 
 =========  ===============================================================================
 `smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
-`quick`    the README's job: `main` and `distractors` in minutes on 2 cores (README)
-`laptop`   about a day on 2 cores (hours on a workstation or a Ray cluster)
+`quick`    the README's job: `main` and `distractors` in about ten minutes on 2 cores
+`laptop`   a day and a half on 2 cores (hours on a workstation or a Ray cluster)
 `paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
 =========  ===============================================================================
 
@@ -410,12 +410,13 @@ def _budget(
 QUICK_WITHOUT_FAILURE = (
     f"the failure starts once push_cube3's competence reaches {LEARNED_COMPETENCE:g}, "
     "and with 1,000 episodes a run it reached that in none of the 4 runs of a quick "
-    "reproduction on 2026-11-23: no failure started, so no recovery could be measured; "
+    "reproduction (2 conditions x 2 seeds): no failure started, so no recovery could be measured; "
     "`curious reproduce --budget laptop --experiments sensor_failure` trains it on longer runs"
 )
-"""Why the `quick` budget has no `sensor_failure` experiment. Measured in a fresh clone's
-`curious reproduce` (commit 7f7554b, 2026-11-23), when `quick` still trained it: 2 conditions x 2
-seeds of 1,000 episodes, the failure started in none, and the report found no recovery to measure.
+"""Why the `quick` budget has no `sensor_failure` experiment: in a `quick` reproduction that
+trained it (2 conditions x 2 seeds of 1,000 episodes) the failure started in none of the runs,
+and the report found no recovery to measure (docs/benchmarks.md, "The quickstart's two
+commands", has the measurement with its commit and date).
 """
 
 
@@ -438,7 +439,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
         _budget(
             "quick",
             "the README's job: 12 runs over two experiments (main, distractors; no sensory "
-            "failure), in minutes on 2 cores",
+            "failure), about ten minutes on 2 cores",
             "Training preset `quick` (2 workers x 2 episodes and 20 updates of 256 per cycle). "
             "12 runs of 1,000 episodes over two experiments: main 3 conditions x 2 seeds, "
             "distractors 2 conditions x 3 settings x 1 seed; the sensory failure is left out "
@@ -455,8 +456,8 @@ BUDGETS: dict[str, ReproduceBudget] = {
             "laptop",
             "a day and a half on 2 cores (hours on more, or with --ray-address)",
             "Training preset `laptop` (4 workers x 2 episodes and 40 updates of 512 per cycle): "
-            "about 0.12 s per training episode on one core (a laptop run on a 2-core machine, "
-            "2026-11-23), and a fifth more for the test rollouts, so 1.74 M episodes in 25 runs "
+            "about 0.12 s per training episode on one core of a 2-core machine, and a fifth more "
+            "for the test rollouts, so 1.74 M episodes in 25 runs "
             "take about 35 h on 2 cores, 9 h on 8. The runs are independent: `--workers` runs "
             "them side by side, `--ray-address` across a cluster; an interrupted reproduction "
             "resumes.",

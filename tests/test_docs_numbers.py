@@ -1,0 +1,121 @@
+"""The numbers README.md and docs/results.md quote are those the shipped runs give.
+
+Each headline number of the README's results table (and the C1 bins table of docs/results.md) is
+computed here with `curious.analysis` from `data/laptop`, the budget's seeds only (the runs the
+pages read; a seed shipped beyond the budget's changes the report only once all its runs are
+there, and then these pages with it), formatted as the pages print it, and looked for in the
+page's text. A number that changes with the shipped data, or a page edited by hand away from the
+data, fails here.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from curious import analysis
+from curious.reproduction.experiments import get_budget
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "data" / "laptop"
+README = ROOT / "README.md"
+RESULTS = ROOT / "docs" / "results.md"
+
+pytestmark = pytest.mark.skipif(
+    not (DATA / "shipped.json").exists(), reason=f"{DATA} ships no runs"
+)
+
+
+def _text(path: Path) -> str:
+    """The page's text with its line breaks as spaces, so that a number may wrap."""
+    return re.sub(r"\s+", " ", path.read_text())
+
+
+def _runs(experiment: str, variant: str | None = None) -> list[Path]:
+    """The budget's run folders of `experiment` (of one `variant`), as shipped in data/laptop."""
+    runs = get_budget("laptop").experiments[experiment].runs()
+    paths = [DATA / r.relative_path for r in runs if variant is None or r.variant == variant]
+    missing = [p for p in paths if not p.is_dir()]
+    if missing:
+        pytest.skip(f"not shipped yet: {', '.join(str(p.relative_to(DATA)) for p in missing)}")
+    return paths
+
+
+def _mean_std(row) -> str:
+    return f"{row['mean']:.2f} ± {row['std']:.2f}"
+
+
+@pytest.fixture(scope="module")
+def main_bins():
+    """The main comparison's test success in 5,000-episode bins, and the Welch test per bin."""
+    points = analysis.epoch_success(analysis.load_tests(_runs("main")), bin_size=5_000)
+    means = analysis.across_seeds(points).set_index(["condition", "episodes"])
+    return means, analysis.welch_per_bin(points, "curious", "mg-te")
+
+
+def test_c1_final_test_success_and_significant_bins(main_bins):
+    means, welch = main_bins
+    final = ", ".join(
+        f"{name} {_mean_std(means.loc[(condition, 100_000)])}"
+        for name, condition in (("CURIOUS", "curious"), ("MG-TE", "mg-te"), ("HER", "her"))
+    )
+    significant = f"significant in {int(welch['significant'].sum())} of {len(welch)} bins"
+    for page in (README, RESULTS):
+        text = _text(page)
+        assert significant in text, (page.name, significant)
+    assert final in _text(README), final
+    ahead = (welch["mean_better"] > welch["mean_worse"]).all()
+    assert ahead and "CURIOUS ahead in every 5,000-episode bin" in _text(README)
+
+
+def test_c1_bins_table_of_results_md(main_bins):
+    """Every row of docs/results.md's C1 table: the bin ending at each 10,000 episodes."""
+    means, welch = main_bins
+    p = welch.set_index("episodes")["p"]
+    text = RESULTS.read_text()
+    for end in range(10_000, 100_001, 10_000):
+        cells = [_mean_std(means.loc[(c, end)]) for c in ("curious", "mg-te", "her")]
+        row = f"| {end:,} | {' | '.join(cells)} | {p[end]:.2g} |"
+        assert row in text, row
+
+
+def test_c2_order_of_learning_in_every_curious_seed():
+    runs = analysis.load_runs([p for p in _runs("main") if p.parent.name == "curious"])
+    order = analysis.learning_order(analysis.competence_crossings(runs))
+    seeds = len(order)
+    assert seeds == 3 and order["follows_paper"].all(), order
+    assert f"the same order in all {seeds} CURIOUS seeds" in _text(README)
+
+
+def test_c4_competence_at_seven_distractors():
+    runs = analysis.load_runs(_runs("distractors", "distractors_7"))
+    final = analysis.final_competence(runs)
+    means = analysis.across_seeds(final).set_index("condition")
+    p = float(analysis.welch_per_bin(final, "curious", "m-uvfa")["p"].iloc[0])
+    readme = (
+        f"CURIOUS {_mean_std(means.loc['curious'])}, M-UVFA {_mean_std(means.loc['m-uvfa'])} "
+        f"(p = {p:.3f}, 2 seeds)"
+    )
+    assert readme in _text(README), readme
+    results = (
+        f"| 7 | {_mean_std(means.loc['curious'])} (2 seeds) | "
+        f"{_mean_std(means.loc['m-uvfa'])} (2 seeds) |"
+    )
+    assert results in RESULTS.read_text() and f"| {p:.4f} |" in RESULTS.read_text(), results
+
+
+def test_c5_refocus_and_recoveries():
+    table = analysis.recovery(analysis.load_runs(_runs("sensor_failure")))
+    table = table.sort_values(["condition", "seed"]).set_index(["condition", "seed"])
+    readme, results = _text(README), RESULTS.read_text()
+    for seed in (0, 1):
+        row = table.loc[("curious", seed)]
+        refocus = f"{row['p_lp_before']:.2f} → {row['p_lp_after']:.2f}"
+        assert refocus in readme and refocus in results, refocus
+    recovered = table[table["recovered"]]["recovery_episodes"].astype(int)
+    for condition, seed in recovered.index:
+        episodes = f"{recovered[(condition, seed)]:,}"
+        assert f"{episodes} episodes" in results and episodes in readme, (condition, seed)
+    assert not table.loc[("m-uvfa", 0), "recovered"]
