@@ -15,8 +15,10 @@ See docs/architecture.md for the contract and docs/suite.md for the observation 
 
 from __future__ import annotations
 
-from suite.environment import SuiteEnvironment
-from suite.features import StateLayout
+import importlib
+from typing import Any
+
+from suite.catalog import all_variants, register
 from suite.modules import (
     TaskModule,
     affine_slot,
@@ -29,8 +31,17 @@ from suite.modules import (
     stack,
     standard_modules,
 )
-from suite.task import OBSERVATION_KEYS, MultiTaskFetch
-from suite.variants import all_variants, build, load, register
+
+_BUILDING: dict[str, str] = {
+    "SuiteEnvironment": "suite.environment",
+    "StateLayout": "suite.features",
+    "OBSERVATION_KEYS": "suite.task",
+    "MultiTaskFetch": "suite.task",
+    "build": "suite.variants",
+    "load": "suite.variants",
+}
+"""Names whose modules import dm_control and MuJoCo, imported on first use: `import suite` and
+its variant names and modules (`ALL_VARIANTS`, `suite.catalog`) stay light."""
 
 __all__ = [
     "ALL_VARIANTS",
@@ -55,8 +66,12 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     # ALL_VARIANTS is computed on access so that variants registered later are listed too.
     if name == "ALL_VARIANTS":
         return all_variants()
+    if name in _BUILDING:
+        value = getattr(importlib.import_module(_BUILDING[name]), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module 'suite' has no attribute {name!r}")

@@ -44,6 +44,8 @@ OBJECT_MIN_SEPARATION = 0.1
 # of the arm, inside the start region. A scene has at most one reachable cube per spot.
 REACHABLE_PARKING = np.array([[-0.1, -0.1], [0.1, 0.1], [0.1, -0.1]])
 MAX_REACHABLE = len(REACHABLE_PARKING)
+N_REACHABLE = 2
+"""Reachable cubes of the paper's environment: cube 1 (manipulated) and cube 2 (the base)."""
 
 # Distractors: start points (x, y), in the order the distractors (the cubes after the reachable
 # ones: cubes 3, 4, 5, ... in the paper's env) take them. The first three are the paper's; the

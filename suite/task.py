@@ -35,11 +35,10 @@ from suite.cube import Cube, cube_colour
 from suite.distractors import DistractorWalk, start_positions
 from suite.features import StateLayout, StateReader
 from suite.fetch import FetchArm
+from suite.layout import N_REACHABLE
 from suite.modules import TaskModule, module_index
 from suite.outcomes import ModuleEvaluator
 
-N_REACHABLE = 2
-"""Reachable cubes of the paper's env (cube 1 manipulated, cube 2 the base): the default."""
 OBSERVATION_KEYS = ("state", "achieved", "goal", "task", "success")
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _SETTLE_STEPS = 10  # control steps to settle the arm at construction, as the Fetch envs do

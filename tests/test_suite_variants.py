@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import suite
-from suite import layout, variants
+from suite import catalog, layout
 
 EXPECTED = {
     # variant: (n_modules, n_cubes, n_reachable, state size, achievable flags)
@@ -97,7 +97,7 @@ def test_unknown_variant_names_the_known_ones():
 
 
 def test_register_adds_a_variant_and_refuses_a_taken_name(monkeypatch):
-    monkeypatch.setattr(variants, "_REGISTRY", dict(variants._REGISTRY))
+    monkeypatch.setattr(catalog, "REGISTERED", dict(catalog.REGISTERED))
 
     @suite.register
     def two_distractors(seed=None, **kwargs):
