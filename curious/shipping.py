@@ -15,7 +15,8 @@ ship leaves `out` as it was; an `out` holding an earlier shipped folder is repla
 Nothing below `root` is written. Refused with a `ShippedError` before anything is written: a
 `root` that does not exist, holds no run folder, has no finished run (without `unfinished`), or
 is a shipped folder itself; an `out` that is a file, a folder holding anything but a shipped
-folder of the same budget, inside a run folder, or inside `root` (or holding it).
+folder of the same budget, inside a run folder, inside `root` (or holding it), or one beside
+which nothing can be written (its lock and the new folder are made there).
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from curious.run_folder import (
     RunFolder,
     RunFolderBusy,
     RunFolderError,
+    check_writable,
     folder_lock,
 )
 from curious.shipped import (
@@ -267,6 +269,10 @@ def ship(
     _check_root(root)
     _check_out(out, root)
     _check_out(out, runs)
+    try:  # the lock and the new folder are made beside `out`
+        check_writable(out, "--out")
+    except RunFolderError as exc:
+        raise ShippedError(str(exc)) from None
     _check_replaced(out, budget)
     found = find_runs(runs) if runs.is_dir() else []
     if not found:

@@ -184,3 +184,56 @@ def test_settings_outside_their_documented_range_are_refused(setting, message, t
     key, value = setting.split("=")
     with pytest.raises(ConfigError, match=key):
         resolve("smoke", overrides={key: float(value)})
+
+
+# ------------------------------------------------------------------------------ outputs
+
+
+@pytest.fixture
+def read_only(tmp_path):
+    """A folder nothing can be written in, for root too: immutable (`chattr +i`) where this
+    runs as root, whom permissions do not stop, else without write permission."""
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    if os.geteuid() == 0:
+        done = subprocess.run(["chattr", "+i", str(folder)], capture_output=True)
+        if done.returncode != 0:
+            pytest.skip("chattr +i is not available here")
+    else:
+        folder.chmod(0o555)
+    try:
+        (folder / "probe").touch()
+    except OSError:
+        pass
+    else:
+        pytest.skip("no folder here can be made read-only")
+    yield folder
+    if os.geteuid() == 0:
+        subprocess.run(["chattr", "-i", str(folder)], check=True)
+    else:
+        folder.chmod(0o755)
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["evaluate", "{tmp}/run", "--record", "{ro}/e.rrd"],
+        ["render", "--policy", "still", "--steps", "2", "--out", "{ro}/x.gif"],
+        ["render", "--policy", "still", "--steps", "2", "--out", "{ro}/frames"],
+        ["ship", "{tmp}/runs", "--out", "{ro}/s"],
+        ["reproduce", "--budget", "smoke", "--out", "{ro}/r"],
+        ["reproduce", "--budget", "smoke", "--runs-dir", "{ro}/runs", "--out", "{tmp}/r"],
+    ],
+    ids=["evaluate-record", "render-gif", "render-png", "ship", "reproduce", "reproduce-runs-dir"],
+)
+def test_a_read_only_output_is_refused_naming_the_option(
+    args, read_only, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    (tmp_path / "runs").mkdir()
+    option = next(args[i - 1] for i, a in enumerate(args) if a.startswith("{ro}"))
+    args = [a.format(tmp=tmp_path, ro=read_only) for a in args]
+    assert main(args) == 2
+    line = one_line(capsys.readouterr().err)
+    assert f"{option} {read_only}/" in line and "cannot be written" in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ro", "runs"]

@@ -126,10 +126,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _check(args: argparse.Namespace) -> str:
     """Refuses bad arguments before anything loads; returns the output format."""
     from curious.config import MAX_SEED
+    from curious.run_folder import check_writable
     from curious.video import check_writer, output_kind
 
     kind = output_kind(args.out)
     check_writer(kind, args.width, args.height)
+    check_writable(args.out, "--out", folder=kind == "png")
     if not 0 <= args.seed <= MAX_SEED:
         raise ValueError(f"--seed must be from 0 to {MAX_SEED:,}, got {args.seed}")
     if args.episodes < 1:

@@ -22,7 +22,7 @@ read.
 
 Errors about the input (unknown budget or experiment, an output folder made by another budget,
 a run folder holding another run, a Ray address that does not answer, an output folder that
-another `curious reproduce` is working in) are reported in one line, exit status 2, before
+another `curious reproduce` is working in, or one that cannot be written) are reported in one line, exit status 2, before
 anything is written. Ctrl-C stops every run at once with one line, exit status 130; the same
 command then goes on where they stopped.
 """
@@ -163,6 +163,7 @@ def placement_overrides(items: list[str]) -> dict[str, object]:
 def run(args: argparse.Namespace) -> int:
     from curious.config import ConfigError
     from curious.experiments import ExperimentError
+    from curious.run_folder import RunFolderError
 
     options = (("--out", args.out), ("--runs-dir", args.runs_dir), ("--from-data", args.from_data))
     for option, value in options:
@@ -184,7 +185,11 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         overrides = placement_overrides(args.overrides)
-    except ConfigError as exc:
+        if args.runs_dir is not None and args.ray_address is None:  # Ray's nodes may see another
+            from curious.run_folder import check_writable
+
+            check_writable(args.runs_dir, "--runs-dir", folder=True)
+    except (ConfigError, RunFolderError) as exc:
         print(f"curious reproduce: error: {exc}", file=sys.stderr)
         return 2
     if args.device:
