@@ -152,7 +152,7 @@ def test_refused_commands_leave_no_lock_file_and_no_folder(tmp_path, capsys):
         ("batch_per_worker=1000000000", "lower batch_per_worker"),
         ("n_workers=100000", "lower n_workers"),
         ("hidden=10000000", "lower hidden or layers"),
-        ("lp_window=100000000000", "lower lp_window"),
+        ("lp_window=10000000000", "lower lp_window"),
         ("total_episodes=10000000000", "lower buffer_episodes"),
     ],
 )
@@ -174,6 +174,14 @@ def test_a_run_that_would_exhaust_the_memory_is_refused_before_writing(
         ("td3_noise_clip=7", "td3_noise_clip must be in [0, 1]"),
         ("actor_lr=1e30", "actor_lr must be in (0, 1]"),
         ("critic_lr=2", "critic_lr must be in (0, 1]"),
+        ("eval_every=100000000000000000000", "eval_every must be at most 10,000,000,000"),
+        ("total_episodes=100000000000000000000", "total_episodes must be at most 10,000,000,000"),
+        ("n_updates=100000000000000000000", "n_updates must be at most 100,000"),
+        ("td3_policy_delay=1000000", "td3_policy_delay must be at most 100,000"),
+        ("torch_threads=100000000000000000000", "torch_threads must be at most 1,024"),
+        ("norm_eps=1e300", "norm_eps must be in [1e-08, 1000]"),
+        ("norm_eps=1e-300", "norm_eps must be in [1e-08, 1000]"),
+        ("norm_eps=nan", "norm_eps must be a finite number"),
     ],
 )
 def test_settings_outside_their_documented_range_are_refused(setting, message, tmp_path, capsys):
@@ -184,6 +192,19 @@ def test_settings_outside_their_documented_range_are_refused(setting, message, t
     key, value = setting.split("=")
     with pytest.raises(ConfigError, match=key):
         resolve("smoke", overrides={key: float(value)})
+
+
+def test_the_divergence_error_names_the_settings_set_apart_from_the_authors():
+    """A learning rate too high is the usual cause, but not the only one."""
+    from curious.train import diverged
+
+    plain = str(diverged(resolve("smoke"), 16, "the critic's loss is not finite"))
+    assert plain.endswith("(the authors': 1e-3)") and "set apart" not in plain
+    assert "(actor_lr=0.001, critic_lr=0.001)" in plain
+    config = resolve("smoke", overrides={"norm_eps": 1e-8, "gamma": 0.5})
+    message = str(diverged(config, 16, "the critic's loss is not finite"))
+    assert "set apart from the authors': norm_eps=1e-08, gamma=0.5)" in message
+    assert message.endswith("or these settings back to the authors'")
 
 
 # ------------------------------------------------------------------------------ outputs
