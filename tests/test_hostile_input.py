@@ -258,3 +258,59 @@ def test_a_read_only_output_is_refused_naming_the_option(
     line = one_line(capsys.readouterr().err)
     assert f"{option} {read_only}/" in line and "cannot be written" in line, line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ro", "runs"]
+
+
+# ------------------------------------------------------------------------------ numbers
+
+GIF = ["--policy", "still", "--steps", "2", "--out", "{tmp}/x.gif"]
+REPRODUCE = ["reproduce", "--budget", "smoke", "--out", "{tmp}/r", "--no-progress"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["evaluate", "{tmp}/run", "--episodes", "1000000000000000"], "--episodes must be from 1"),
+        (["evaluate", "{tmp}/run", "--episodes", "0"], "--episodes must be from 1 to 100,000"),
+        (["evaluate", "{tmp}/run", "--seed", "18446744073709551616"], "--seed must be from 0 to"),
+        (["evaluate", "{tmp}/run", "--seed", "-1"], "--seed must be from 0 to 4,294,967,295"),
+        (["render", "--episodes", "1000000000000000", *GIF], "--episodes must be from 1 to"),
+        (["render", "--fps", "inf", *GIF], "--fps must be a finite number, got inf"),
+        (["render", "--fps", "nan", *GIF], "--fps must be a finite number, got nan"),
+        (["render", "--fps", "1000", *GIF], "--fps 1000 videos play at 0.01 to 100 frames"),
+        (["render", "--speed", "1e300", *GIF], "--speed 1e+300 makes 2.5e+301 frames per second"),
+        (["render", "--speed", "1e-300", *GIF], "--speed 1e-300 makes"),
+        (["render", "--hold", "1e9", *GIF], "--hold must be at most 10 seconds, got 1e+09"),
+        (["render", "--width", "100000", "--height", "100000", *GIF], "--width must be from 16"),
+        (["render", "--height", "100000", *GIF], "--height must be from 16 to 4,096 pixels"),
+        (["view", "--web", "--web-port", "-1", "{tmp}"], "--web-port must be from 1 to 65535"),
+        (["view", "--web", "--web-port", "99999", "{tmp}"], "--web-port must be from 1 to 65535"),
+        (["view", "--web", "--grpc-port", "65536", "{tmp}"], "--grpc-port must be from 1 to"),
+        ([*REPRODUCE, "--cpus-per-run", "nan"], "--cpus-per-run must be a number > 0, got nan"),
+        ([*REPRODUCE, "--gpus-per-run", "nan"], "--gpus-per-run must be a number >= 0, got nan"),
+        ([*REPRODUCE, "--gpus-per-run", "inf"], "--gpus-per-run must be a number >= 0, got inf"),
+    ],
+)
+def test_numbers_past_what_a_command_can_hold_are_refused_naming_the_option(
+    args, message, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    args = [a.format(tmp=tmp_path) for a in args]
+    assert main(args) == 2
+    assert message in one_line(capsys.readouterr().err)
+    assert sorted(tmp_path.iterdir()) == []
+
+
+def test_the_bounds_of_render_are_its_help_and_its_edges_are_taken(tmp_path, capsys, monkeypatch):
+    """The range a refusal names is the range that passes: its edges are accepted."""
+    from curious.cli import build_parser
+    from curious.commands import render
+
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    parser = build_parser()
+    edges = ["--width", "4096", "--height", "16", "--fps", "100", "--hold", "10", "--episodes"]
+    args = parser.parse_args(["render", *edges, "100000", "--out", str(tmp_path / "x.gif")])
+    assert render._check(args) == "gif"
+    args = parser.parse_args(["render", "--fps", "0.01", "--out", str(tmp_path / "x.webp")])
+    assert render._check(args) == "webp"
+    assert sorted(tmp_path.iterdir()) == []
+
