@@ -314,3 +314,22 @@ def test_the_bounds_of_render_are_its_help_and_its_edges_are_taken(tmp_path, cap
     assert render._check(args) == "webp"
     assert sorted(tmp_path.iterdir()) == []
 
+
+# ------------------------------------------------------------------------------ folders
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["progress", "{file}"], "{file} is a file, not a folder: name a run folder"),
+        (["progress", "{tmp}", "{file}"], "{file} is a file, not a folder"),
+        (["reproduce", "--from-data", "{file}", "--out", "{tmp}/r"], "--from-data {file} is a"),
+    ],
+)
+def test_a_file_where_a_folder_is_read_is_one_line(args, message, tmp_path, capsys):
+    file = tmp_path / "notes.txt"
+    file.write_text("mine")
+    args = [a.format(tmp=tmp_path, file=file) for a in args]
+    assert main(args) == 2
+    assert message.format(file=file) in one_line(capsys.readouterr().err)
+    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
