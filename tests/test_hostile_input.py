@@ -282,6 +282,8 @@ REPRODUCE = ["reproduce", "--budget", "smoke", "--out", "{tmp}/r", "--no-progres
         (["render", "--hold", "1e9", *GIF], "--hold must be at most 10 seconds, got 1e+09"),
         (["render", "--width", "100000", "--height", "100000", *GIF], "--width must be from 16"),
         (["render", "--height", "100000", *GIF], "--height must be from 16 to 4,096 pixels"),
+        (["render", "--steps", "100000000000000000000", "--out", "{tmp}/x.gif"], "--steps must"),
+        (["train", "--rollout-every", "100000000000000000000", "--out", "{tmp}/r"], "from 0 to"),
         (["view", "--web", "--web-port", "-1", "{tmp}"], "--web-port must be from 1 to 65535"),
         (["view", "--web", "--web-port", "99999", "{tmp}"], "--web-port must be from 1 to 65535"),
         (["view", "--web", "--grpc-port", "65536", "{tmp}"], "--grpc-port must be from 1 to"),

@@ -143,7 +143,7 @@ def _check(args: argparse.Namespace) -> str:
     from curious.evaluation import check_episodes, check_seed
     from curious.run_folder import check_writable
     from curious.video import check_timing, check_writer, output_kind, real_time_fps
-    from suite.layout import CONTROL_TIMESTEP
+    from suite.layout import CONTROL_TIMESTEP, EPISODE_STEPS
 
     kind = output_kind(args.out)
     check_writer(kind, args.width, args.height)
@@ -152,6 +152,8 @@ def _check(args: argparse.Namespace) -> str:
     check_episodes(args.episodes)
     if args.every is not None and args.every < 1:
         raise ValueError(f"--every must be at least 1, got {args.every}")
+    if args.steps is not None and not 1 <= args.steps <= EPISODE_STEPS:
+        raise ValueError(f"--steps must be from 1 to {EPISODE_STEPS}, got {args.steps:,}")
     for option, value in (("--speed", args.speed), ("--fps", args.fps), ("--hold", args.hold)):
         if value is not None and not math.isfinite(value):
             raise ValueError(f"{option} must be a finite number, got {value}")
