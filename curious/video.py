@@ -97,9 +97,9 @@ def check_timing(fps: float, option: str, given: float, hold: float) -> None:
     video cannot play at `fps` frames per second (`MIN_FPS`, `MAX_FPS`), or naming --hold where
     `hold` is past `MAX_HOLD` seconds."""
     if not MIN_FPS <= fps <= MAX_FPS:
-        made = "" if option == "--fps" else f" makes {fps:g} frames per second, and"
+        made = "" if option == "--fps" else f" makes {fps:g} frames per second"
         raise ValueError(
-            f"{option} {given:g}{made} videos play at {MIN_FPS:g} to {MAX_FPS:g} frames per "
+            f"{option} {given:g}{made}: videos play at {MIN_FPS:g} to {MAX_FPS:g} frames per "
             "second (why: curious.video.MIN_FPS, MAX_FPS)"
         )
     if hold > MAX_HOLD:

@@ -276,7 +276,7 @@ REPRODUCE = ["reproduce", "--budget", "smoke", "--out", "{tmp}/r", "--no-progres
         (["render", "--episodes", "1000000000000000", *GIF], "--episodes must be from 1 to"),
         (["render", "--fps", "inf", *GIF], "--fps must be a finite number, got inf"),
         (["render", "--fps", "nan", *GIF], "--fps must be a finite number, got nan"),
-        (["render", "--fps", "1000", *GIF], "--fps 1000 videos play at 0.01 to 100 frames"),
+        (["render", "--fps", "1000", *GIF], "--fps 1000: videos play at 0.01 to 100 frames"),
         (["render", "--speed", "1e300", *GIF], "--speed 1e+300 makes 2.5e+301 frames per second"),
         (["render", "--speed", "1e-300", *GIF], "--speed 1e-300 makes"),
         (["render", "--hold", "1e9", *GIF], "--hold must be at most 10 seconds, got 1e+09"),

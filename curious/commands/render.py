@@ -147,7 +147,6 @@ def _check(args: argparse.Namespace) -> str:
 
     kind = output_kind(args.out)
     check_writer(kind, args.width, args.height)
-    check_writable(args.out, "--out", folder=kind == "png")
     check_seed(args.seed)
     check_episodes(args.episodes)
     if args.every is not None and args.every < 1:
@@ -178,6 +177,7 @@ def _check(args: argparse.Namespace) -> str:
         if args.steps is not None:
             raise ValueError("--steps is for the random and still arm: with --run episodes run "
                              "their full length")  # fmt: skip
+    check_writable(args.out, "--out", folder=kind == "png")
     return kind
 
 

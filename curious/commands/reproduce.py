@@ -20,11 +20,11 @@ variants, the report naming the others), with its budget unless --budget says ot
 builds the same report and figures into --out (default runs/<budget>-shipped). DATA is only
 read.
 
-Errors about the input (unknown budget or experiment, an output folder made by another budget, a run
-folder holding another run, a Ray address that does not answer, an output folder that another
-`curious reproduce` is working in, or one that cannot be written, a number out of its range) are
-reported in one line, exit status 2, before anything is written. Ctrl-C stops every run at once with
-one line, exit status 130; the same command then goes on where they stopped.
+Errors about the input (unknown budget or experiment, an output folder made by another budget, a
+run folder holding another run, a Ray address that does not answer, an output folder that
+another `curious reproduce` is working in, one that cannot be written, or a number out of its
+range) are reported in one line, exit status 2, before anything is written. Ctrl-C stops every
+run at once with one line, exit status 130; the same command then goes on where they stopped.
 """
 
 from __future__ import annotations
