@@ -335,3 +335,21 @@ def test_a_file_where_a_folder_is_read_is_one_line(args, message, tmp_path, caps
     assert main(args) == 2
     assert message.format(file=file) in one_line(capsys.readouterr().err)
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+def test_a_read_only_file_to_update_is_refused_before_the_tables(tmp_path, capsys):
+    """`curious progress --update FILE` rewrites FILE in place: read-only, it is refused in one
+    line before any run is read (the file immutable where this runs as root)."""
+    doc = tmp_path / "results.md"
+    doc.write_text("<!-- progress:begin -->\n<!-- progress:end -->\n")
+    if os.geteuid() == 0:
+        if subprocess.run(["chattr", "+i", str(doc)], capture_output=True).returncode:
+            pytest.skip("chattr +i is not available here")
+    else:
+        doc.chmod(0o444)
+    try:
+        assert main(["progress", str(tmp_path / "nothing"), "--update", str(doc)]) == 2
+        assert f"--update {doc} cannot be written" in one_line(capsys.readouterr().err)
+    finally:
+        if os.geteuid() == 0:
+            subprocess.run(["chattr", "-i", str(doc)], check=True)
