@@ -136,9 +136,9 @@ class Config:
     env_processes: int = 1
     """Worker processes that step the `n_workers` environment copies at the same time (each a
     share of them; 1 steps them in the training process, 0 takes one per core, at most
-    `n_workers`). Whatever the number, a run gives the same episodes. With more than 1,
-    `train()` builds the suite's copies in the workers, and the test rollouts' copies in as many
-    workers of their own."""
+    `n_workers`; at most `MAX_THREADS` asked). Whatever the number, a run gives the same
+    episodes. With more than 1, `train()` builds the suite's copies in the workers, and the test
+    rollouts' copies in as many workers of their own."""
     overlap_rollouts: bool = False
     """Collect the next cycle's episodes while this cycle's updates run (in a thread, with the
     policy as it was before them: acting lags learning by one cycle, and module choices follow
@@ -395,7 +395,7 @@ class Config:
             raise ConfigError(
                 f"norm_eps must be in [{MIN_NORM_EPS:g}, {MAX_NORM_EPS:g}], got {self.norm_eps:g}: "
                 "the floor of the normaliser's std, below which float32 rounding noise reaches "
-                "the clip, above which every normalised state is 0 (the authors' is 0.01)"
+                "the clip, above which every normalised state is about 0 (the authors' is 0.01)"
             )
         for name in ("actor_lr", "critic_lr"):
             if not 0.0 < getattr(self, name) <= MAX_LEARNING_RATE:
