@@ -46,6 +46,47 @@ MAX_SEED = 2**32 - 1
 """Seeds go from 0 to this: the suite seeds an episode with numpy's 32-bit `RandomState`
 (`curious render --seed`), and the learners' torch seeds, derived from the run's, must fit 64
 bits."""
+MAX_EPISODES = 10**10
+"""Upper bound of the settings that count episodes, rounds of episodes or cycles
+(`EPISODE_COUNTS`): ten billion episodes, 33,000 times the paper's 300,000, more than any
+machine trains in a year; past it a run would go on for ever in practice, and products of these
+counts (episodes x steps, cycles x episodes) would leave the 64-bit integers of the tables and
+of numpy, where Python's unbounded ints stop with an `OverflowError`."""
+EPISODE_COUNTS: tuple[str, ...] = (
+    "total_episodes",
+    "buffer_episodes",
+    "eval_every",
+    "sensor_failure_episode",
+    "n_cycles",
+    "checkpoint_every_cycles",
+    "episodes_per_worker",
+    "test_rollouts_per_worker",
+    "lp_window",
+    "n_workers",
+    "batch_per_worker",
+    "hidden",
+    "layers",
+)
+"""The integer settings bounded by `MAX_EPISODES` (those of sizes, `n_workers` to `layers`, are
+bounded by the memory check first, `curious.runs.memory`, this bound keeping the check's sums
+within 64 bits)."""
+MAX_UPDATES = 100_000
+"""Upper bound of `n_updates` (gradient steps per cycle) and `td3_policy_delay` (in gradient
+steps): 1,000 times the authors' 100; a cycle of more would spend hours on updates between two
+rounds of episodes, a run of them never ending."""
+MAX_THREADS = 1_024
+"""Upper bound of `torch_threads` and `env_processes`: more threads or processes than any
+machine has cores (torch takes the count as a C int)."""
+MIN_NORM_EPS = 1e-8
+"""Lower bound of `norm_eps`, the floor of the state normaliser's std: states are float32, whose
+rounding (about 1e-7 of a value) makes a coordinate that never varies differ from its mean by
+that much; divided by a floor far below it, rounding noise becomes a normalised value at the
+clip, and a floor below about 1e-19 squares to nothing in float32, where the normaliser divides
+by zero and training diverges."""
+MAX_NORM_EPS = 1e3
+"""Upper bound of `norm_eps`: states are positions (metres), velocities and angles of a few
+units at most; with a floor 1,000 times their size every normalised state is 0 to three
+decimals and the policy sees nothing (and a floor past 1e154 overflows when squared)."""
 MAX_LEARNING_RATE = 1.0
 """Upper bound of `actor_lr` and `critic_lr` (see `Config.validate`)."""
 MAX_NOISE = 1.0
@@ -85,7 +126,8 @@ class Config:
     """Suite variant (`suite.ALL_VARIANTS`) trained on."""
     total_episodes: int = 300_000
     """The run stops after exactly this many training episodes (self-evaluations included, test
-    rollouts not). Authors: 316 epochs x 950 = ~300k."""
+    rollouts not), at most `MAX_EPISODES` (ten billion), as every count of episodes, rounds or
+    cycles. Authors: 316 epochs x 950 = ~300k."""
 
     # --- rollouts ----------------------------------------------------------------------------
     n_workers: int = 19
@@ -94,9 +136,9 @@ class Config:
     env_processes: int = 1
     """Worker processes that step the `n_workers` environment copies at the same time (each a
     share of them; 1 steps them in the training process, 0 takes one per core, at most
-    `n_workers`). Whatever the number, a run gives the same episodes. With more than 1,
-    `train()` builds the suite's copies in the workers, and the test rollouts' copies in as many
-    workers of their own."""
+    `n_workers`; at most `MAX_THREADS` asked). Whatever the number, a run gives the same
+    episodes. With more than 1, `train()` builds the suite's copies in the workers, and the test
+    rollouts' copies in as many workers of their own."""
     overlap_rollouts: bool = False
     """Collect the next cycle's episodes while this cycle's updates run (in a thread, with the
     policy as it was before them: acting lags learning by one cycle, and module choices follow
@@ -169,7 +211,7 @@ class Config:
     """Transitions per worker per update; the minibatch is `batch_per_worker * n_workers`, which
     equals the authors' mean of per-worker gradients. Authors: 256 per worker."""
     n_updates: int = 100
-    """Gradient steps per cycle. Authors: n_batches 100."""
+    """Gradient steps per cycle, at most `MAX_UPDATES` (100,000). Authors: n_batches 100."""
     prefetch_minibatches: bool = False
     """Draw and relabel the next minibatch in a thread while the learner steps on this one. The
     same draws in the same order, so the same run; it pays where the update does not hold the
@@ -179,7 +221,8 @@ class Config:
     as many half-widths of their goal space. Authors: 5 (Baselines; unused by their default,
     which trained without normalisation)."""
     norm_eps: float = 0.01
-    """Lower bound of the state normaliser's std. Authors: 0.01."""
+    """Lower bound of the state normaliser's std, in [`MIN_NORM_EPS`, `MAX_NORM_EPS`] (1e-8 to
+    1e3). Authors: 0.01."""
     td3_target_noise: float = 0.2
     """TD3's target smoothing noise (std), in [0, 1] of the largest action."""
     td3_noise_clip: float = 0.5
@@ -232,7 +275,7 @@ class Config:
     after each cycle's updates, where a forward pass of `n_workers` rows per step may cost less
     than a round trip to the GPU (the same policy, float rounding aside; no effect on a CPU)."""
     torch_threads: int = 1
-    """torch intra-op threads (0 keeps torch's default)."""
+    """torch intra-op threads (0 keeps torch's default), at most `MAX_THREADS`."""
     checkpoint_every_cycles: int = 50
     """A checkpoint (and a metrics flush) every this many cycles, and at the end."""
     progress: bool = True
@@ -311,6 +354,19 @@ class Config:
             )
         if self.n_updates < 0 or self.torch_threads < 0:
             raise ConfigError("n_updates and torch_threads must be >= 0")
+        bounds = dict.fromkeys(EPISODE_COUNTS, ("MAX_EPISODES", MAX_EPISODES))
+        bounds.update(
+            dict.fromkeys(("n_updates", "td3_policy_delay"), ("MAX_UPDATES", MAX_UPDATES))
+        )
+        bounds.update(
+            dict.fromkeys(("torch_threads", "env_processes"), ("MAX_THREADS", MAX_THREADS))
+        )
+        for name, (constant, bound) in bounds.items():
+            if getattr(self, name) > bound:
+                raise ConfigError(
+                    f"{name} must be at most {bound:,}, got {getattr(self, name):,} (why: "
+                    f"curious.config.{constant})"
+                )
         if self.test_rollouts_per_worker < 0:
             raise ConfigError(
                 f"test_rollouts_per_worker must be >= 0, got {self.test_rollouts_per_worker}"
@@ -334,9 +390,14 @@ class Config:
             value = getattr(self, f.name)
             if isinstance(value, float) and not math.isfinite(value):
                 raise ConfigError(f"{f.name} must be a finite number, got {value}")
-        for name in ("norm_eps", "norm_clip"):
-            if getattr(self, name) <= 0:
-                raise ConfigError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.norm_clip <= 0:
+            raise ConfigError(f"norm_clip must be > 0, got {self.norm_clip}")
+        if not MIN_NORM_EPS <= self.norm_eps <= MAX_NORM_EPS:
+            raise ConfigError(
+                f"norm_eps must be in [{MIN_NORM_EPS:g}, {MAX_NORM_EPS:g}], got {self.norm_eps:g}: "
+                "the floor of the normaliser's std, below which float32 rounding noise reaches "
+                "the clip, above which every normalised state is about 0 (the authors' is 0.01)"
+            )
         for name in ("actor_lr", "critic_lr"):
             if not 0.0 < getattr(self, name) <= MAX_LEARNING_RATE:
                 raise ConfigError(

@@ -51,6 +51,11 @@ class ShippedData:
     def open(cls, path: str | Path) -> ShippedData:
         """The shipped folder at `path`; a `ShippedDataError` where it is not one."""
         folder = ShippedFolder(Path(path).resolve())
+        if folder.path.exists() and not folder.path.is_dir():
+            raise ShippedDataError(
+                f"--from-data {path} is a file, not a folder: name a shipped data folder "
+                "(`curious ship`, e.g. data/laptop)"
+            )
         if not folder.path.is_dir():
             raise ShippedDataError(f"--from-data {path} does not exist")
         try:

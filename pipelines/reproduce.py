@@ -272,6 +272,7 @@ def reproduce(
     else:
         selected = chosen.select(experiments)
         layout = OutputLayout.at(out or chosen.default_out, runs_dir)
+    _check_writable(layout)
     with _reproduction_lock(layout):
         return _reproduce(
             chosen, selected, layout, make_pool, overrides, record, progress, say, tic, data
@@ -292,6 +293,17 @@ def _shipped_data(
         budget = data.stands_for(budget)
         return data, budget, data.select(budget, experiments)
     except ShippedDataError as exc:
+        raise ReproduceError(str(exc)) from None
+
+
+def _check_writable(layout: OutputLayout) -> None:
+    """A `ReproduceError` naming `--out` where OUT (its lock beside it, its report and figures
+    in it) cannot be written, before anything is locked or trained."""
+    from curious.runs.folder import RunFolderError, check_writable
+
+    try:
+        check_writable(layout.out, "--out", folder=True)
+    except RunFolderError as exc:
         raise ReproduceError(str(exc)) from None
 
 

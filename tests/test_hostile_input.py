@@ -152,7 +152,7 @@ def test_refused_commands_leave_no_lock_file_and_no_folder(tmp_path, capsys):
         ("batch_per_worker=1000000000", "lower batch_per_worker"),
         ("n_workers=100000", "lower n_workers"),
         ("hidden=10000000", "lower hidden or layers"),
-        ("lp_window=100000000000", "lower lp_window"),
+        ("lp_window=10000000000", "lower lp_window"),
         ("total_episodes=10000000000", "lower buffer_episodes"),
     ],
 )
@@ -174,6 +174,14 @@ def test_a_run_that_would_exhaust_the_memory_is_refused_before_writing(
         ("td3_noise_clip=7", "td3_noise_clip must be in [0, 1]"),
         ("actor_lr=1e30", "actor_lr must be in (0, 1]"),
         ("critic_lr=2", "critic_lr must be in (0, 1]"),
+        ("eval_every=100000000000000000000", "eval_every must be at most 10,000,000,000"),
+        ("total_episodes=100000000000000000000", "total_episodes must be at most 10,000,000,000"),
+        ("n_updates=100000000000000000000", "n_updates must be at most 100,000"),
+        ("td3_policy_delay=1000000", "td3_policy_delay must be at most 100,000"),
+        ("torch_threads=100000000000000000000", "torch_threads must be at most 1,024"),
+        ("norm_eps=1e300", "norm_eps must be in [1e-08, 1000]"),
+        ("norm_eps=1e-300", "norm_eps must be in [1e-08, 1000]"),
+        ("norm_eps=nan", "norm_eps must be a finite number"),
     ],
 )
 def test_settings_outside_their_documented_range_are_refused(setting, message, tmp_path, capsys):
@@ -184,3 +192,164 @@ def test_settings_outside_their_documented_range_are_refused(setting, message, t
     key, value = setting.split("=")
     with pytest.raises(ConfigError, match=key):
         resolve("smoke", overrides={key: float(value)})
+
+
+def test_the_divergence_error_names_the_settings_set_apart_from_the_authors():
+    """A learning rate too high is the usual cause, but not the only one."""
+    from curious.runs.trainer import diverged
+
+    plain = str(diverged(resolve("smoke"), 16, "the critic's loss is not finite"))
+    assert plain.endswith("(the authors': 1e-3)") and "set apart" not in plain
+    assert "(actor_lr=0.001, critic_lr=0.001)" in plain
+    config = resolve("smoke", overrides={"norm_eps": 1e-8, "gamma": 0.5})
+    message = str(diverged(config, 16, "the critic's loss is not finite"))
+    assert "set apart from the authors': norm_eps=1e-08, gamma=0.5)" in message
+    assert message.endswith("or these settings back to the authors'")
+
+
+# ------------------------------------------------------------------------------ outputs
+
+
+@pytest.fixture
+def read_only(tmp_path):
+    """A folder nothing can be written in, for root too: immutable (`chattr +i`) where this
+    runs as root, whom permissions do not stop, else without write permission."""
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    if os.geteuid() == 0:
+        done = subprocess.run(["chattr", "+i", str(folder)], capture_output=True)
+        if done.returncode != 0:
+            pytest.skip("chattr +i is not available here")
+    else:
+        folder.chmod(0o555)
+    try:
+        (folder / "probe").touch()
+    except OSError:
+        pass
+    else:
+        pytest.skip("no folder here can be made read-only")
+    yield folder
+    if os.geteuid() == 0:
+        subprocess.run(["chattr", "-i", str(folder)], check=True)
+    else:
+        folder.chmod(0o755)
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["evaluate", "{tmp}/run", "--record", "{ro}/e.rrd"],
+        ["render", "--policy", "still", "--steps", "2", "--out", "{ro}/x.gif"],
+        ["render", "--policy", "still", "--steps", "2", "--out", "{ro}/frames"],
+        ["ship", "{tmp}/runs", "--out", "{ro}/s"],
+        ["reproduce", "--budget", "smoke", "--out", "{ro}/r"],
+        ["reproduce", "--budget", "smoke", "--runs-dir", "{ro}/runs", "--out", "{tmp}/r"],
+    ],
+    ids=["evaluate-record", "render-gif", "render-png", "ship", "reproduce", "reproduce-runs-dir"],
+)
+def test_a_read_only_output_is_refused_naming_the_option(
+    args, read_only, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    (tmp_path / "runs").mkdir()
+    option = next(args[i - 1] for i, a in enumerate(args) if a.startswith("{ro}"))
+    args = [a.format(tmp=tmp_path, ro=read_only) for a in args]
+    assert main(args) == 2
+    line = one_line(capsys.readouterr().err)
+    assert f"{option} {read_only}/" in line and "cannot be written" in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ro", "runs"]
+
+
+# ------------------------------------------------------------------------------ numbers
+
+GIF = ["--policy", "still", "--steps", "2", "--out", "{tmp}/x.gif"]
+REPRODUCE = ["reproduce", "--budget", "smoke", "--out", "{tmp}/r", "--no-progress"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["evaluate", "{tmp}/run", "--episodes", "1000000000000000"], "--episodes must be from 1"),
+        (["evaluate", "{tmp}/run", "--episodes", "0"], "--episodes must be from 1 to 100,000"),
+        (["evaluate", "{tmp}/run", "--seed", "18446744073709551616"], "--seed must be from 0 to"),
+        (["evaluate", "{tmp}/run", "--seed", "-1"], "--seed must be from 0 to 4,294,967,295"),
+        (["render", "--episodes", "1000000000000000", *GIF], "--episodes must be from 1 to"),
+        (["render", "--fps", "inf", *GIF], "--fps must be a finite number, got inf"),
+        (["render", "--fps", "nan", *GIF], "--fps must be a finite number, got nan"),
+        (["render", "--fps", "1000", *GIF], "--fps 1000: videos play at 0.01 to 100 frames"),
+        (["render", "--speed", "1e300", *GIF], "--speed 1e+300 makes 2.5e+301 frames per second"),
+        (["render", "--speed", "1e-300", *GIF], "--speed 1e-300 makes"),
+        (["render", "--hold", "1e9", *GIF], "--hold must be at most 10 seconds, got 1e+09"),
+        (["render", "--width", "100000", "--height", "100000", *GIF], "--width must be from 16"),
+        (["render", "--height", "100000", *GIF], "--height must be from 16 to 4,096 pixels"),
+        (["render", "--steps", "100000000000000000000", "--out", "{tmp}/x.gif"], "--steps must"),
+        (["train", "--rollout-every", "100000000000000000000", "--out", "{tmp}/r"], "from 0 to"),
+        (["view", "--web", "--web-port", "-1", "{tmp}"], "--web-port must be from 1 to 65535"),
+        (["view", "--web", "--web-port", "99999", "{tmp}"], "--web-port must be from 1 to 65535"),
+        (["view", "--web", "--grpc-port", "65536", "{tmp}"], "--grpc-port must be from 1 to"),
+        ([*REPRODUCE, "--cpus-per-run", "nan"], "--cpus-per-run must be a number > 0, got nan"),
+        ([*REPRODUCE, "--gpus-per-run", "nan"], "--gpus-per-run must be a number >= 0, got nan"),
+        ([*REPRODUCE, "--gpus-per-run", "inf"], "--gpus-per-run must be a number >= 0, got inf"),
+    ],
+)
+def test_numbers_past_what_a_command_can_hold_are_refused_naming_the_option(
+    args, message, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    args = [a.format(tmp=tmp_path) for a in args]
+    assert main(args) == 2
+    assert message in one_line(capsys.readouterr().err)
+    assert sorted(tmp_path.iterdir()) == []
+
+
+def test_the_bounds_of_render_are_its_help_and_its_edges_are_taken(tmp_path, capsys, monkeypatch):
+    """The range a refusal names is the range that passes: its edges are accepted."""
+    from curious.cli import build_parser
+    from curious.commands import render
+
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    parser = build_parser()
+    edges = ["--width", "4096", "--height", "16", "--fps", "100", "--hold", "10", "--episodes"]
+    args = parser.parse_args(["render", *edges, "100000", "--out", str(tmp_path / "x.gif")])
+    assert render._check(args) == "gif"
+    args = parser.parse_args(["render", "--fps", "0.01", "--out", str(tmp_path / "x.webp")])
+    assert render._check(args) == "webp"
+    assert sorted(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------------------ folders
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["progress", "{file}"], "{file} is a file, not a folder: name a run folder"),
+        (["progress", "{tmp}", "{file}"], "{file} is a file, not a folder"),
+        (["reproduce", "--from-data", "{file}", "--out", "{tmp}/r"], "--from-data {file} is a"),
+    ],
+)
+def test_a_file_where_a_folder_is_read_is_one_line(args, message, tmp_path, capsys):
+    file = tmp_path / "notes.txt"
+    file.write_text("mine")
+    args = [a.format(tmp=tmp_path, file=file) for a in args]
+    assert main(args) == 2
+    assert message.format(file=file) in one_line(capsys.readouterr().err)
+    assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
+
+
+def test_a_read_only_file_to_update_is_refused_before_the_tables(tmp_path, capsys):
+    """`curious progress --update FILE` rewrites FILE in place: read-only, it is refused in one
+    line before any run is read (the file immutable where this runs as root)."""
+    doc = tmp_path / "results.md"
+    doc.write_text("<!-- progress:begin -->\n<!-- progress:end -->\n")
+    if os.geteuid() == 0:
+        if subprocess.run(["chattr", "+i", str(doc)], capture_output=True).returncode:
+            pytest.skip("chattr +i is not available here")
+    else:
+        doc.chmod(0o444)
+    try:
+        assert main(["progress", str(tmp_path / "nothing"), "--update", str(doc)]) == 2
+        assert f"--update {doc} cannot be written" in one_line(capsys.readouterr().err)
+    finally:
+        if os.geteuid() == 0:
+            subprocess.run(["chattr", "-i", str(doc)], check=True)

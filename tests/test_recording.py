@@ -11,6 +11,7 @@ import os
 import signal
 import socket
 import subprocess
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -569,3 +570,60 @@ def test_capture_reads_dm_control_physics(tmp_path: Path) -> None:
         tmp_path / RECORDING_FILE, "scene/bodies/b", "Transform3D:translation", "rollout_frame"
     )
     assert z[-1][0] == pytest.approx(capture.xpos[3, 0].tolist())
+
+
+FULL_DISK_SCRIPT = """
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from curious.watching.recording import rrd_files
+import rerun as rr
+
+path = Path(sys.argv[1]) / "recording.rrd"
+stream = rr.RecordingStream("full", send_properties=False)
+stream.set_sinks(rr.FileSink(str(path)))
+for i in range(200):
+    stream.set_time("step", sequence=i)
+    stream.log("points", rr.Points3D(np.random.default_rng(i).random((500, 3))))
+try:
+    rrd_files.end_file(stream, path, timeout=20)
+except OSError as exc:
+    print(f"curious train: error: {exc}", file=sys.stderr)
+stream.disconnect()
+sys.stderr.flush()
+os._exit(0)  # a stream whose writer died may wait for it at the interpreter's exit
+"""
+
+
+def test_a_full_disk_under_the_recording_is_reported_by_curious_alone(tmp_path):
+    """Rerun's file writer logs its failure on a full disk in its own terms (`ERROR
+    re_log_encoding::rrd::file_sink`), then its stream; curious reports it in one line naming
+    the file (`RecordingWriteError`), and Rerun's lines are filtered out
+    (`curious.watching.recording.RERUN_LOG_FILTER`). A real full disk: a 64 kB tmpfs, mounted in
+    a mount namespace of this test's own."""
+    script, disk = tmp_path / "full.py", tmp_path / "disk"
+    script.write_text(FULL_DISK_SCRIPT)
+    disk.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "RUST_LOG"}
+    mount = f"mount -t tmpfs -o size=64k tmpfs {disk} || exit 99"
+    command = f"{mount}; exec {sys.executable} {script} {disk}"
+    try:
+        done = subprocess.run(
+            ["unshare", "--mount", "--map-root-user", "sh", "-c", command],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+    except FileNotFoundError:
+        pytest.skip("no unshare here")
+    if done.returncode == 99 or "unshare:" in done.stderr:
+        pytest.skip(f"no tmpfs can be mounted here: {done.stderr.strip()}")
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr[-2000:]
+    assert lines[0].startswith("curious train: error: [Errno 28] No space left on device")
+    assert f"{disk}/recording.rrd" in lines[0]

@@ -179,6 +179,51 @@ def test_a_run_killed_three_times_records_what_an_uninterrupted_run_does(
     assert len(list_checkpoints(out / "checkpoints")) == 2
 
 
+def float32_points(rows: list) -> list:
+    """Points with their values rounded to float32, the precision of the run's tables."""
+
+    def rounded(value: str) -> str:
+        numbers = eval(value, {"nan": float("nan"), "inf": float("inf")})  # a list of floats
+        return repr([float(np.float32(x)) for x in numbers]) if isinstance(numbers, list) else value
+
+    return [(episode, frame, rounded(value)) for episode, frame, value in rows]
+
+
+@pytest.mark.parametrize("damage", ["deleted", "cut", "overwritten"])
+def test_a_resume_rebuilds_a_missing_or_damaged_recording_from_the_tables(
+    tmp_path: Path, uninterrupted_run: Path, damage: str
+) -> None:
+    """Killed after its checkpoint at 24 with its recording then deleted, cut short or
+    overwritten, a run resumed holds every series its tables hold as an uninterrupted run does
+    (the statistics at float32), and says what it could not rebuild: the replay shares and
+    learner statistics then start after the resumed episode, and the 3-D rollouts at it."""
+    from curious.cli import main
+    from curious.watching.recording.resume import NOT_IN_TABLES
+
+    out = tmp_path / "killed"
+    train_killed_at(24, [*TRAIN, "--out", str(out)])
+    recording = out / RECORDING_FILE
+    if damage == "deleted":
+        recording.unlink()
+    elif damage == "cut":
+        recording.write_bytes(recording.read_bytes()[:200])
+    else:
+        recording.write_bytes(b"not a recording at all")
+    with pytest.warns(RuntimeWarning, match="rebuilt from metrics.parquet and tests.parquet"):
+        assert main([*TRAIN, "--out", str(out), "--resume"]) == 0
+    (got, got_static), (want, want_static) = read_points(recording), read_points(uninterrupted_run)
+    assert sorted(got) == sorted(want) and sorted(got_static) == sorted(want_static)
+    for (entity, component), rows in want.items():
+        mine = got[(entity, component)]
+        if entity.startswith("scene/"):  # the rest pose, then rollouts from episode 24 on
+            rollouts = [e for e, frame, _ in mine if frame != 0 and e is not None]
+            assert rollouts and min(rollouts) >= 24, entity
+        elif entity.startswith(NOT_IN_TABLES):  # logged after each cycle: from 24's next on
+            assert mine == [r for r in rows if r[0] > 24], entity
+        else:
+            assert float32_points(mine) == float32_points(rows), entity
+
+
 # ------------------------------------------------------------------------------ a full disk
 def test_a_full_disk_never_replaces_the_last_good_recording(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch

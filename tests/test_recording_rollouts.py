@@ -158,5 +158,5 @@ def test_spawn_viewer_and_rollouts_need_the_recording(tmp_path: Path, capsys) ->
         assert main(["train", "--preset", "smoke", "--out", out, "--no-record", *extra]) == 2
         assert "need the recording" in capsys.readouterr().err
     assert main(["train", "--preset", "smoke", "--out", out, "--rollout-every", "-1"]) == 2
-    assert "--rollout-every must be >= 0" in capsys.readouterr().err
+    assert "--rollout-every must be from 0 to 10,000,000,000, got -1" in capsys.readouterr().err
     assert not Path(out).exists()

@@ -11,8 +11,11 @@ import contextlib
 import hashlib
 import io
 import json
+import os
 import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -23,6 +26,7 @@ from shipped_check import check_shipped_folder, files_of
 from curious import analysis
 from curious.cli import main as curious_cli
 from curious.reproduction.shipped_folder import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
+from curious.reproduction.shipping import clean_leftovers
 from curious.runs.folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE, RunFolder
 from pipelines.resources import OutputLayout
 
@@ -143,6 +147,36 @@ def test_shipping_again_replaces_the_folder_with_the_same_bytes(smoke, shipped, 
     assert code == 0, stderr
     assert hashes(out) == hashes(shipped.data)  # deterministic: an unchanged run, an unchanged file
     assert sorted(p.name for p in out.parent.iterdir()) == ["smoke"]  # nothing left beside it
+
+
+def dead_pid() -> int:
+    """The id of a process that has ended."""
+    done = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], text=True,
+                          capture_output=True, check=True)  # fmt: skip
+    return int(done.stdout)
+
+
+def test_a_ship_cleans_what_a_killed_ship_left_beside_its_out(smoke, shipped, tmp_path):
+    """A ship killed while staging leaves `.<out>.shipping-PID`; killed while replacing, it
+    leaves `.<out>.old-PID` (with `out`, or in its place). The next ship removes them, puts an
+    earlier ship back where it had been set aside with no `out`, and leaves a running ship's."""
+    data = tmp_path / "data"
+    out, pid = data / "smoke", dead_pid()
+    shutil.copytree(shipped.data, data / f".smoke.old-{pid}")  # killed between the two renames
+    (data / f".smoke.shipping-{pid}" / "main").mkdir(parents=True)
+    (data / f".smoke.shipping-{os.getpid()}").mkdir()  # alive: this process's
+    (data / f".other.old-{pid}").mkdir()  # another out's
+    clean_leftovers(out)
+    assert hashes(out) == hashes(shipped.data)  # put back
+    names = sorted(p.name for p in data.iterdir())
+    assert names == [f".other.old-{pid}", f".smoke.shipping-{os.getpid()}", "smoke"]
+    (data / f".smoke.shipping-{os.getpid()}").rmdir()
+    (data / f".smoke.old-{pid}" / "main").mkdir(parents=True)  # killed before its last rmtree
+    (data / f".smoke.shipping-{pid}").mkdir()
+    code, _, stderr = cli(["ship", str(smoke.out), "--out", str(out)])
+    assert code == 0, stderr
+    assert sorted(p.name for p in data.iterdir()) == [f".other.old-{pid}", "smoke"]
+    assert hashes(out) == hashes(shipped.data)
 
 
 def test_the_default_out_of_a_reproduction_is_data_and_its_budget(smoke, tmp_path, monkeypatch):

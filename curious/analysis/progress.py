@@ -248,6 +248,12 @@ def progress_table(
     planned: dict[str, RunProgress] = {}
     found: dict[Path, tuple[Path, bool]] = {}  # run folder -> (its root, shipped)
     for root in paths:
+        if root.exists() and not root.is_dir():
+            raise AnalysisError(
+                f"{root} is a file, not a folder: name a run folder, a folder of them, or a "
+                "shipped data folder"
+            )
+    for root in paths:
         reproduction = _reproduction(root)
         mine = _planned(*reproduction) if reproduction else []
         planned.update((r.run, r) for r in mine)

@@ -38,6 +38,8 @@ RECORD_EPISODES = 2
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious evaluate`."""
     from curious.commands import HelpFormatter
+    from curious.config import MAX_SEED
+    from curious.watching.evaluation import MAX_EPISODES
 
     parser = sub.add_parser(
         "evaluate",
@@ -47,7 +49,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("run", metavar="RUN", help="run folder (as `curious train --out`)")
     parser.add_argument(
-        "--episodes", type=int, default=100, help="episodes per module (default: %(default)s)"
+        "--episodes",
+        type=int,
+        default=100,
+        help=f"episodes per module, at most {MAX_EPISODES:,} (default: %(default)s)",
     )
     parser.add_argument(
         "--modules",
@@ -64,7 +69,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--seed",
         type=int,
         default=0,
-        help="the evaluation's own seed: its goals and environment copies (default: %(default)s)",
+        help=f"the evaluation's own seed: its goals and environment copies, 0 to {MAX_SEED:,} "
+        "(default: %(default)s)",
     )
     parser.add_argument(
         "--processes",

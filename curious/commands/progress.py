@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import os
 import sys
 from pathlib import Path
 
@@ -92,18 +93,20 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--epochs must be at least 1, got {args.epochs}")
     if args.at_once < 1:
         raise ValueError(f"--at-once must be at least 1, got {args.at_once}")
+    path = Path(args.update) if args.update is not None else None
+    if path is not None and not path.is_file():
+        raise FileNotFoundError(f"{path} does not exist; create it with the two marker lines")
+    if path is not None and not os.access(path, os.W_OK):  # a read-only file or file system
+        raise ValueError(f"--update {path} cannot be written (read-only)")
     try:
         rows = progress_table(args.roots, args.epochs)
     except AnalysisError as exc:
         raise ValueError(str(exc)) from exc
     base = args.roots[0] if len(args.roots) == 1 else None
     table = progress_markdown(rows, base, args.epochs) + "\n" + summary_markdown(rows, args.at_once)
-    if args.update is None:
+    if path is None:
         sys.stdout.write(table)
         return 0
-    path = Path(args.update)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} does not exist; create it with the two marker lines")
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     roots = " ".join(str(r) for r in args.roots)
     at_once = f" --at-once {args.at_once}" if args.at_once != 1 else ""

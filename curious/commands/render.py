@@ -26,6 +26,7 @@ refused in one line before anything is drawn.
 from __future__ import annotations
 
 import argparse
+import math
 from typing import Any
 
 from curious.commands import HelpFormatter
@@ -33,6 +34,10 @@ from curious.commands import HelpFormatter
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious render`."""
+    from curious.config import MAX_SEED
+    from curious.watching.evaluation import MAX_EPISODES
+    from curious.watching.video import MAX_FPS, MAX_FRAME_SIDE, MAX_HOLD, MIN_FPS, MIN_FRAME_SIDE
+
     parser = sub.add_parser(
         "render",
         help="render episodes headless: a trained run's agent (--run) or a random arm, to "
@@ -55,7 +60,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--run, else push_cube1)",
     )
     parser.add_argument(
-        "--episodes", type=int, default=1, help="episodes per module (default: %(default)s)"
+        "--episodes",
+        type=int,
+        default=1,
+        help=f"episodes per module, at most {MAX_EPISODES:,} (default: %(default)s)",
     )
     parser.add_argument(
         "--variant", help="suite variant (default: the run's with --run, else default)"
@@ -71,8 +79,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--seed",
         type=int,
         default=0,
-        help="seed of the episodes: with --run, the goals and copies of `curious evaluate "
-        "--seed` (default: %(default)s)",
+        help=f"seed of the episodes, 0 to {MAX_SEED:,}: with --run, the goals and copies of "
+        "`curious evaluate --seed` (default: %(default)s)",
     )
     parser.add_argument(
         "--policy",
@@ -97,21 +105,28 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="the scene's front or top camera, or close: the reachable workspace, for small "
         "frames (default: %(default)s)",
     )
-    parser.add_argument("--width", type=int, default=640, help="pixels (default: %(default)s)")
-    parser.add_argument("--height", type=int, default=480, help="pixels (default: %(default)s)")
+    sides = f"pixels, {MIN_FRAME_SIDE} to {MAX_FRAME_SIDE:,} (default: %(default)s)"
+    parser.add_argument("--width", type=int, default=640, help=sides)
+    parser.add_argument("--height", type=int, default=480, help=sides)
     parser.add_argument(
         "--speed",
         type=float,
         default=1.0,
         help="video playback speed against the simulation's time (default: %(default)s, real "
-        "time: 1 / (control timestep x every) frames per second)",
+        "time: 1 / (control timestep x every) frames per second); the frames per second it "
+        f"makes must be from {MIN_FPS:g} to {MAX_FPS:g}",
     )
-    parser.add_argument("--fps", type=float, help="video frames per second (overrides --speed)")
+    parser.add_argument(
+        "--fps",
+        type=float,
+        help=f"video frames per second, {MIN_FPS:g} to {MAX_FPS:g} (overrides --speed)",
+    )
     parser.add_argument(
         "--hold",
         type=float,
         default=1.0,
-        help="video: seconds each episode's last frame stays on screen (default: %(default)s)",
+        help=f"video: seconds each episode's last frame stays on screen, at most {MAX_HOLD:g} "
+        "(default: %(default)s)",
     )
     parser.add_argument("--no-caption", action="store_true", help="video: no caption")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -125,21 +140,33 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> str:
     """Refuses bad arguments before anything loads; returns the output format."""
-    from curious.config import MAX_SEED
-    from curious.watching.video import check_writer, output_kind
+    from curious.runs.folder import check_writable
+    from curious.watching.evaluation import check_episodes, check_seed
+    from curious.watching.video import check_timing, check_writer, output_kind, real_time_fps
+    from suite.layout import CONTROL_TIMESTEP, EPISODE_STEPS
 
     kind = output_kind(args.out)
     check_writer(kind, args.width, args.height)
-    if not 0 <= args.seed <= MAX_SEED:
-        raise ValueError(f"--seed must be from 0 to {MAX_SEED:,}, got {args.seed}")
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be at least 1, got {args.episodes}")
+    check_seed(args.seed)
+    check_episodes(args.episodes)
     if args.every is not None and args.every < 1:
         raise ValueError(f"--every must be at least 1, got {args.every}")
+    if args.steps is not None and not 1 <= args.steps <= EPISODE_STEPS:
+        raise ValueError(f"--steps must be from 1 to {EPISODE_STEPS}, got {args.steps:,}")
+    for option, value in (("--speed", args.speed), ("--fps", args.fps), ("--hold", args.hold)):
+        if value is not None and not math.isfinite(value):
+            raise ValueError(f"{option} must be a finite number, got {value}")
     if args.speed <= 0 or (args.fps is not None and args.fps <= 0):
         raise ValueError("--speed and --fps must be positive")
     if args.hold < 0:
         raise ValueError(f"--hold must be >= 0 seconds, got {args.hold}")
+    if kind != "png":
+        every = args.every if args.every is not None else 1
+        if args.fps is not None:
+            check_timing(args.fps, "--fps", args.fps, args.hold)
+        else:
+            fps = real_time_fps(CONTROL_TIMESTEP, every, args.speed)
+            check_timing(fps, "--speed", args.speed, args.hold)
     if args.run is not None:
         for name, given in (("--policy", args.policy), ("--goal", args.goal)):
             if given is not None:
@@ -150,6 +177,7 @@ def _check(args: argparse.Namespace) -> str:
         if args.steps is not None:
             raise ValueError("--steps is for the random and still arm: with --run episodes run "
                              "their full length")  # fmt: skip
+    check_writable(args.out, "--out", folder=kind == "png")
     return kind
 
 

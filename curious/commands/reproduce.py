@@ -20,16 +20,17 @@ variants, the report naming the others), with its budget unless --budget says ot
 builds the same report and figures into --out (default runs/<budget>-shipped). DATA is only
 read.
 
-Errors about the input (unknown budget or experiment, an output folder made by another budget,
-a run folder holding another run, a Ray address that does not answer, an output folder that
-another `curious reproduce` is working in) are reported in one line, exit status 2, before
-anything is written. Ctrl-C stops every run at once with one line, exit status 130; the same
-command then goes on where they stopped.
+Errors about the input (unknown budget or experiment, an output folder made by another budget, a
+run folder holding another run, a Ray address that does not answer, an output folder that
+another `curious reproduce` is working in, one that cannot be written, or a number out of its
+range) are reported in one line, exit status 2, before anything is written. Ctrl-C stops every
+run at once with one line, exit status 130; the same command then goes on where they stopped.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import TYPE_CHECKING
 
@@ -163,6 +164,7 @@ def placement_overrides(items: list[str]) -> dict[str, object]:
 def run(args: argparse.Namespace) -> int:
     from curious.config import ConfigError
     from curious.reproduction.experiments import ExperimentError
+    from curious.runs.folder import RunFolderError
 
     options = (("--out", args.out), ("--runs-dir", args.runs_dir), ("--from-data", args.from_data))
     for option, value in options:
@@ -175,16 +177,25 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         print("curious reproduce: error: --workers must be >= 1", file=sys.stderr)
         return 2
-    if args.cpus_per_run <= 0 or args.gpus_per_run < 0:
-        print(
-            "curious reproduce: error: --cpus-per-run must be > 0 and --gpus-per-run >= 0",
-            file=sys.stderr,
-        )
-        return 2
+    resources = (
+        ("--cpus-per-run", args.cpus_per_run, args.cpus_per_run > 0, "> 0"),
+        ("--gpus-per-run", args.gpus_per_run, args.gpus_per_run >= 0, ">= 0"),
+    )
+    for option, value, fits, bound in resources:
+        if not (fits and math.isfinite(value)):
+            print(
+                f"curious reproduce: error: {option} must be a number {bound}, got {value}",
+                file=sys.stderr,
+            )
+            return 2
 
     try:
         overrides = placement_overrides(args.overrides)
-    except ConfigError as exc:
+        if args.runs_dir is not None and args.ray_address is None:  # Ray's nodes may see another
+            from curious.runs.folder import check_writable
+
+            check_writable(args.runs_dir, "--runs-dir", folder=True)
+    except (ConfigError, RunFolderError) as exc:
         print(f"curious reproduce: error: {exc}", file=sys.stderr)
         return 2
     if args.device:

@@ -19,7 +19,14 @@ import argparse
 import sys
 
 from curious.commands import HelpFormatter, add_set_option
-from curious.config import CONDITIONS, PRESETS, ConfigError, parse_overrides, resolve
+from curious.config import (
+    CONDITIONS,
+    MAX_EPISODES,
+    PRESETS,
+    ConfigError,
+    parse_overrides,
+    resolve,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -106,8 +113,11 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(
                 "--spawn-viewer and --rollout-every need the recording: drop --no-record"
             )
-        if args.rollout_every is not None and args.rollout_every < 0:
-            raise ConfigError(f"--rollout-every must be >= 0, got {args.rollout_every}")
+        if args.rollout_every is not None and not 0 <= args.rollout_every <= MAX_EPISODES:
+            raise ConfigError(
+                f"--rollout-every must be from 0 to {MAX_EPISODES:,}, got {args.rollout_every:,} "
+                "(why: curious.config.MAX_EPISODES)"
+            )
     except ConfigError as exc:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 2

@@ -29,6 +29,9 @@ RRD_HEADER_BYTES = 12
 """The file header: the magic and version (4 bytes), Rerun's version (4), options (4)."""
 DEFAULT_WEB_PORT = 9090
 DEFAULT_GRPC_PORT = 9876
+MAX_PORT = 65_535
+"""Ports go from 1 to this: a TCP port is a 16-bit number, and 0 asks the system for any free
+one, which no browser could be told in advance."""
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -54,10 +57,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="serve the recordings over HTTP/gRPC from here (for a browser or a remote viewer)",
     )
     parser.add_argument(
-        "--web-port", type=int, default=DEFAULT_WEB_PORT, help="web viewer port (with --web)"
+        "--web-port",
+        type=int,
+        default=DEFAULT_WEB_PORT,
+        help=f"web viewer port, 1 to {MAX_PORT} (with --web)",
     )
     parser.add_argument(
-        "--grpc-port", type=int, default=DEFAULT_GRPC_PORT, help="gRPC port (with --web)"
+        "--grpc-port",
+        type=int,
+        default=DEFAULT_GRPC_PORT,
+        help=f"gRPC port, 1 to {MAX_PORT} (with --web)",
     )
     parser.set_defaults(func=run)
 
@@ -191,6 +200,10 @@ def run_viewer(command: list[str]) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Open (or serve) the recordings; exit status 2 when a run has no recording."""
+    for port, flag in ((args.web_port, "--web-port"), (args.grpc_port, "--grpc-port")):
+        if not 1 <= port <= MAX_PORT:
+            print(f"curious view: {flag} must be from 1 to {MAX_PORT}, got {port}", file=sys.stderr)
+            return 2
     try:
         paths = recording_paths(args.runs)
     except FileNotFoundError as exc:

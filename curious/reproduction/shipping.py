@@ -13,16 +13,20 @@ replaced by an unfinished one of the same path).
 The new folder is written beside `out`, loaded back with `curious.analysis` (every run, its
 episodes and test rollouts counted), and only then put in `out`'s place, so a refused or failed
 ship leaves `out` as it was; an `out` holding an earlier shipped folder is replaced as a whole.
+What a ship killed before its end left beside `out` (its staging folder, the earlier ship it had
+set aside) is cleaned by the next ship to the same `out` (`clean_leftovers`).
 Nothing below `root` is written. Refused with a `ShippedError` before anything is written: a
 `root` that does not exist, holds no run folder, has no finished run (without `unfinished`), or
 is a shipped folder itself; an `out` that is a file, a folder holding anything but a shipped
-folder of the same budget, inside a run folder, or inside `root` (or holding it).
+folder of the same budget, inside a run folder, inside `root` (or holding it), or one beside
+which nothing can be written (its lock and the new folder are made there).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import time
 from collections.abc import Iterator
@@ -51,6 +55,7 @@ from curious.runs.folder import (
     RunFolder,
     RunFolderBusy,
     RunFolderError,
+    check_writable,
     folder_lock,
 )
 
@@ -268,6 +273,10 @@ def ship(
     _check_root(root)
     _check_out(out, root)
     _check_out(out, runs)
+    try:  # the lock and the new folder are made beside `out`
+        check_writable(out, "--out")
+    except RunFolderError as exc:
+        raise ShippedError(str(exc)) from None
     _check_replaced(out, budget)
     found = find_runs(runs) if runs.is_dir() else []
     if not found:
@@ -285,6 +294,7 @@ def ship(
             f"none of the {len(found)} run(s) below {runs} is finished ({detail}){hint}"
         )
     with _locked(out):
+        clean_leftovers(out)
         _check_out(out, root)  # again, now that no other ship can write it
         _check_replaced(out, budget)
         earlier = ShippedFolder(out)
@@ -313,6 +323,50 @@ def ship(
         time.perf_counter() - tic,
         tuple(r.run for r in kept),
     )
+
+
+def _alive(pid: int) -> bool:
+    """Whether process `pid` runs on this machine (this one does)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
+
+
+def clean_leftovers(out: Path) -> list[Path]:
+    """Remove what ships killed before their end left beside `out`, and return it: their
+    staging folders (`.<out>.shipping-PID`) and the earlier ships they had set aside
+    (`.<out>.old-PID`), of processes no longer running. An earlier ship set aside where `out` is
+    missing (a ship killed between the two renames of `_replace`) is put back in `out`'s place
+    instead, as a failed ship leaves `out`: the newest such, where there are several. Called
+    with `out`'s lock held, so that no running ship's folders are touched."""
+    if not out.parent.is_dir():
+        return []
+    pattern = re.compile(rf"\.{re.escape(out.name)}\.(shipping|old)-(\d+)")
+    leftovers = []
+    for path in out.parent.iterdir():
+        match = pattern.fullmatch(path.name)
+        if match and not _alive(int(match.group(2))):
+            leftovers.append((match.group(1), path))
+    set_aside = sorted(
+        (p for kind, p in leftovers if kind == "old" and p.is_dir()),
+        key=lambda p: p.stat().st_mtime,
+        reverse=True,
+    )
+    if set_aside and not out.exists():
+        set_aside[0].rename(out)
+        leftovers = [(kind, p) for kind, p in leftovers if p != set_aside[0]]
+    for _, path in leftovers:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+    return [p for _, p in leftovers]
 
 
 def _replace(staging: Path, out: Path) -> None:

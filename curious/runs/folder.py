@@ -50,6 +50,7 @@ import re
 import shutil
 import socket
 import subprocess
+import tempfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from importlib import metadata
@@ -97,6 +98,27 @@ class ConfigMismatch(RunFolderError):
         super().__init__(message)
         self.differences = differences
         """Setting -> (value in config.json, value given); None for a side that lacks it."""
+
+
+def check_writable(path: str | os.PathLike, option: str, folder: bool = False) -> None:
+    """A `RunFolderError` naming `option` where nothing could be written at `path`: the nearest
+    folder on the way to it that exists (`path` itself, with `folder`, where it is a folder that
+    exists) is a file, or takes no new file (a read-only file system, a folder without write
+    permission). Checked by making an empty file there and removing it, the one test that sees
+    all of them (`os.access` answers for the permissions alone), before any work is done."""
+    target = Path(path).absolute()
+    start = target if folder else target.parent
+    existing = next(p for p in (start, *start.parents) if p.exists())
+    if not existing.is_dir():
+        raise RunFolderError(f"{option} {path}: {existing} is a file, not a folder")
+    try:
+        handle, probe = tempfile.mkstemp(prefix=".curious-write-check-", dir=existing)
+    except OSError as exc:
+        raise RunFolderError(
+            f"{option} {path} cannot be written: {existing}: {exc.strerror or exc}"
+        ) from None
+    os.close(handle)
+    os.unlink(probe)
 
 
 def lock_path(folder: str | os.PathLike) -> Path:

@@ -118,16 +118,41 @@ def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
 
 class TrainingDiverged(RuntimeError):
     """The networks stopped giving finite numbers (a loss, an action or a weight): the learning
-    rates are too high for this run. Nothing of the diverged state is written."""
+    rates are too high for this run, or a setting of `DIVERGENCE_SETTINGS` is far from the
+    authors'. Nothing of the diverged state is written."""
+
+
+DIVERGENCE_SETTINGS: tuple[str, ...] = (
+    "norm_eps",
+    "norm_clip",
+    "gamma",
+    "polyak",
+    "action_l2",
+    "td3_target_noise",
+    "td3_noise_clip",
+)
+"""Settings besides the learning rates that decide whether the learner's numbers stay finite
+(the normaliser's floor and clip, the targets' discount and averaging, the actor's penalty, TD3's
+noises): the divergence error names those set apart from the authors' values."""
 
 
 def diverged(config: Config, episode: int, what: str) -> TrainingDiverged:
-    """The error for a run whose `what` stopped being finite at `episode`."""
+    """The error for a run whose `what` stopped being finite at `episode`: it names the
+    learning rates, the usual cause, and the `DIVERGENCE_SETTINGS` set apart from the authors'
+    values, which may be the cause instead."""
+    authors = Config()
+    changed = [
+        f"{name}={getattr(config, name):g}"
+        for name in DIVERGENCE_SETTINGS
+        if getattr(config, name) != getattr(authors, name)
+    ]
+    others = f"; set apart from the authors': {', '.join(changed)}" if changed else ""
+    back = ", or these settings back to the authors'" if changed else ""
     return TrainingDiverged(
         f"training diverged at episode {episode:,}: {what} (actor_lr={config.actor_lr:g}, "
-        f"critic_lr={config.critic_lr:g}); nothing after the run's last checkpoint was written; "
-        "start the run over with lower rates: --restart --set actor_lr=... --set critic_lr=... "
-        "(the authors': 1e-3)"
+        f"critic_lr={config.critic_lr:g}{others}); nothing after the run's last checkpoint was "
+        "written; start the run over with lower rates: --restart --set actor_lr=... --set "
+        f"critic_lr=... (the authors': 1e-3){back}"
     )
 
 

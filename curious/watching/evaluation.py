@@ -32,6 +32,12 @@ if TYPE_CHECKING:
     from curious.agent.inputs import GoalInput
     from curious.runs.play import Act, PolicyFor
 
+MAX_EPISODES = 100_000
+"""Upper bound of the episodes per module of an evaluation (`curious evaluate --episodes`,
+`curious render --episodes`): 1,000 times the default 100, where the 95 % interval of a success
+rate is at most 0.6 points wide (2 x 1.96 x sqrt(0.25 / 100,000)); more only plays for longer,
+days on a laptop, without saying anything more."""
+
 EVAL_STREAM = 2
 """`suite_env_fns` stream of the evaluation copies (0: training, 1: test rollouts)."""
 
@@ -161,8 +167,7 @@ class EvaluationSession:
 
         from curious.runs.play import goal_policy, play_round
 
-        if episodes < 1:
-            raise ValueError(f"--episodes must be at least 1, got {episodes}")
+        check_episodes(episodes)
         chosen = self.modules(modules)
         env, spec, condition, n = self.envs.reference, self.spec, self.condition, self.copies
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0xE7A1]))
@@ -240,6 +245,24 @@ class EvaluationSession:
         )
 
 
+def check_episodes(episodes: int) -> None:
+    """A `ValueError` naming `--episodes` outside 1 to `MAX_EPISODES`."""
+    if not 1 <= episodes <= MAX_EPISODES:
+        raise ValueError(
+            f"--episodes must be from 1 to {MAX_EPISODES:,} per module, got {episodes:,} "
+            "(why: curious.watching.evaluation.MAX_EPISODES)"
+        )
+
+
+def check_seed(seed: int) -> None:
+    """A `ValueError` naming `--seed` outside 0 to `curious.config.MAX_SEED`, the seeds the
+    suite's episodes take (as `curious render --seed`, which plays the same episodes)."""
+    from curious.config import MAX_SEED
+
+    if not 0 <= seed <= MAX_SEED:
+        raise ValueError(f"--seed must be from 0 to {MAX_SEED:,}, got {seed}")
+
+
 def open_run(
     run: str | Path,
     episodes: int = 100,
@@ -262,8 +285,8 @@ def open_run(
     from curious.runs import checkpoint
     from curious.runs.folder import RunFolder
 
-    if episodes < 1:
-        raise ValueError(f"--episodes must be at least 1, got {episodes}")
+    check_episodes(episodes)
+    check_seed(seed)
     folder = RunFolder(run)
     info = folder.read_info()  # a RunFolderError naming what is missing or damaged
     config = folder.read_config()

@@ -31,6 +31,22 @@ import numpy as np
 
 VIDEO_SUFFIXES: dict[str, str] = {".mp4": "mp4", ".gif": "gif", ".webp": "webp"}
 """Suffixes of `--out` that make a video, and the format of each."""
+MIN_FRAME_SIDE = 16
+"""Smallest --width and --height: the caption's two lines need about that many pixels."""
+MAX_FRAME_SIDE = 4096
+"""Largest --width and --height (4K): the GL backend renders into a buffer of that size, which
+some implementations cap at 4,096 or 8,192 pixels a side (`GL_MAX_RENDERBUFFER_SIZE`), and an
+episode's 51 frames of 4096 x 4096 already hold 2.5 GB."""
+MIN_FPS = 0.01
+"""Slowest video: a frame on screen for at most 100 s (GIF stores a frame's duration in
+hundredths of a second in 16 bits: 655 s at most)."""
+MAX_FPS = 100.0
+"""Fastest video: GIF stores a frame's duration in hundredths of a second, so no GIF plays
+faster (shorter durations round to 0, which players replace by a pace of their own); MP4 and
+WebP keep the same range."""
+MAX_HOLD = 10.0
+"""Longest --hold, in seconds: long enough to read how an episode ended; the last frame is
+repeated hold x fps times in the video (and kept in memory that often for GIF and WebP)."""
 MP4_HINT = "writing MP4 needs imageio-ffmpeg: pip install 'curious[video]' (or write .gif/.webp)"
 
 Caption = list[tuple[str, tuple[int, int, int]]]
@@ -59,8 +75,12 @@ def output_kind(out: str | os.PathLike[str]) -> str:
 
 def check_writer(kind: str, width: int, height: int) -> None:
     """Refuse, before anything is rendered, what the writer could not write."""
-    if width < 16 or height < 16:
-        raise ValueError(f"frames must be at least 16x16 pixels, got {width}x{height}")
+    for option, side in (("--width", width), ("--height", height)):
+        if not MIN_FRAME_SIDE <= side <= MAX_FRAME_SIDE:
+            raise ValueError(
+                f"{option} must be from {MIN_FRAME_SIDE} to {MAX_FRAME_SIDE:,} pixels, got "
+                f"{side:,} (why: curious.watching.video.MAX_FRAME_SIDE)"
+            )
     if kind == "mp4":
         try:
             import imageio_ffmpeg  # noqa: F401
@@ -70,6 +90,23 @@ def check_writer(kind: str, width: int, height: int) -> None:
             raise ValueError(
                 f"MP4 (H.264) needs an even --width and --height, got {width}x{height}"
             )
+
+
+def check_timing(fps: float, option: str, given: float, hold: float) -> None:
+    """A `ValueError` naming `option` (--fps or --speed, whose value `given` made `fps`) where a
+    video cannot play at `fps` frames per second (`MIN_FPS`, `MAX_FPS`), or naming --hold where
+    `hold` is past `MAX_HOLD` seconds."""
+    if not MIN_FPS <= fps <= MAX_FPS:
+        made = "" if option == "--fps" else f" makes {fps:g} frames per second"
+        raise ValueError(
+            f"{option} {given:g}{made}: videos play at {MIN_FPS:g} to {MAX_FPS:g} frames per "
+            "second (why: curious.watching.video.MIN_FPS, MAX_FPS)"
+        )
+    if hold > MAX_HOLD:
+        raise ValueError(
+            f"--hold must be at most {MAX_HOLD:g} seconds, got {hold:g} (why: "
+            "curious.video.MAX_HOLD)"
+        )
 
 
 def real_time_fps(control_timestep: float, every: int = 1, speed: float = 1.0) -> float:

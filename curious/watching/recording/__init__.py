@@ -6,17 +6,31 @@ the resulting `recording.rrd` files (named by the run folder's format,
 `curious.runs.folder.RECORDING_FILE`); `curious.watching.recording.reader` reads them back.
 """
 
-from curious.watching.recording.blueprint import default_blueprint
-from curious.watching.recording.recorder import (
+import os
+
+RERUN_LOG_FILTER = (
+    "warn,re_log_encoding::rrd::file_sink=off,re_log_encoding::rrd::encoder=off,"
+    "re_sdk::recording_stream=off"
+)
+"""Rerun's own log lines kept (its `RUST_LOG` filter, read once, when rerun is imported; a
+`RUST_LOG` set by the user wins): warnings and errors, except those of its file writer and of
+the recording stream about its sinks, which say in Rerun's terms what `curious` reports itself
+in one line, naming the file (a full disk:
+`curious.watching.recording.rrd_files.RecordingWriteError`)."""
+os.environ.setdefault("RUST_LOG", RERUN_LOG_FILTER)
+
+from curious.watching.recording.blueprint import default_blueprint  # noqa: E402
+from curious.watching.recording.recorder import (  # noqa: E402
     APPLICATION_ID,
     RecorderSettings,
     RunRecorder,
     compact_recording,
 )
-from curious.watching.recording.scene import RolloutCapture, SceneLayout, wxyz_to_xyzw
+from curious.watching.recording.scene import RolloutCapture, SceneLayout, wxyz_to_xyzw  # noqa: E402
 
 __all__ = [
     "APPLICATION_ID",
+    "RERUN_LOG_FILTER",
     "RecorderSettings",
     "RolloutCapture",
     "RunRecorder",

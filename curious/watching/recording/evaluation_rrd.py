@@ -33,7 +33,12 @@ import numpy as np
 import rerun as rr
 
 from curious.analysis.palette import module_entity
-from curious.runs.folder import CONFIG_FILE, EVALUATION_RECORDING_FILE, RECORDING_FILE
+from curious.runs.folder import (
+    CONFIG_FILE,
+    EVALUATION_RECORDING_FILE,
+    RECORDING_FILE,
+    check_writable,
+)
 from curious.watching.recording.recorder import RecorderSettings, RunRecorder
 from curious.watching.recording.rollout_capture import RolloutObserver
 
@@ -43,8 +48,8 @@ DEFAULT_FILE = EVALUATION_RECORDING_FILE
 
 
 def check_target(path: str | os.PathLike[str], run: str | os.PathLike[str]) -> Path:
-    """The recording's path, refused in one line where it would be no recording or would
-    replace a run's training recording."""
+    """The recording's path, refused in one line where it would be no recording, would
+    replace a run's training recording, or cannot be written (`check_writable`)."""
     target = Path(path)
     if target.suffix.lower() != ".rrd":
         raise ValueError(f"--record writes a Rerun .rrd file, got {str(path)!r}")
@@ -58,6 +63,7 @@ def check_target(path: str | os.PathLike[str], run: str | os.PathLike[str]) -> P
             f"--record {path} is a run's training recording; name another file "
             f"(default: ./{DEFAULT_FILE})"
         )
+    check_writable(target, "--record")
     return target
 
 

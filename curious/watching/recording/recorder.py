@@ -31,12 +31,14 @@ Durability: the recorder writes to a working file beside the recording
 it and copies it over `recording.rrd` atomically, and `close()` writes the final, compacted
 `recording.rrd` (the file helpers are in `curious.watching.recording.rrd_files`). So `recording.rrd`
 always holds a whole recording, up to the last checkpoint of a run killed at any moment, and a
-resumed run starts from it, cut at the checkpoint (`curious.watching.recording.resume`): after any
-kills and
-resumes the recording holds the points of an uninterrupted run, no more, no fewer. A write that
-fails (a full disk) never replaces `recording.rrd`
-(`curious.watching.recording.rrd_files.end_file`). A
-recording that cannot be read is set aside with a warning, never a reason a run cannot resume.
+resumed run starts from it, cut at the checkpoint (`curious.watching.recording.resume`): after
+any kills and resumes the recording holds the points of an uninterrupted run, no more, no fewer.
+A write that fails (a full disk) never replaces `recording.rrd`
+(`curious.watching.recording.rrd_files.end_file`). A recording that cannot be read is set aside
+with a warning, never a reason a run cannot resume;
+`curious.watching.recording.rollout_capture.recorder_factory` then rebuilds, as where the
+recording is missing, what the run's tables hold
+(`curious.watching.recording.resume.rebuild_from_tables`).
 
 Module colours and labels come from `curious.analysis.palette`, shared with the figures.
 A rollout's frames go on a third timeline, `rollout_frame` (dense: the recorded rollouts follow
@@ -254,10 +256,13 @@ class RunRecorder:
                 os.replace(self.path, aside)
                 warnings.warn(
                     f"{self.path} could not be read ({exc}); it is kept as {aside.name} and the "
-                    "recording starts again from this episode",
+                    "recording starts again (`curious train --resume` rebuilds what the run's "
+                    "tables hold)",
                     RuntimeWarning,
                     stacklevel=2,
                 )
+        self.started_over = resume and previous is None
+        """A resume that found no readable recording to continue: a new one was started."""
         self.recording_id = str(recording_id or uuid.uuid4())
         self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=self.recording_id)
 
@@ -301,6 +306,12 @@ class RunRecorder:
             self._take_over(previous)
             self.stream.send_chunks(previous.chunks)
         self._log_styles()
+
+    def continue_clock(self, seconds: float) -> None:
+        """Wall times logged without one go on from `seconds` (where a rebuilt recording ends),
+        as a resumed recording's go on from where it ends."""
+        self._t0 = time.perf_counter() - seconds
+        self._last_wall = seconds
 
     def _take_over(self, previous: PreviousRecording) -> None:
         """Continue from a resumed recording: the next rollout frame, the clock, the series

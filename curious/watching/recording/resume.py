@@ -14,11 +14,20 @@ what an uninterrupted run had logged at the checkpoint, and picks up the state i
   written at (for the keyframes). The points `close()` adds to carry a held value to the end of
   a run are not part of the run it continues (a finished run extended, or a run stopped early):
   they are dropped, and the resumed run writes its own when it ends.
+
+A recording that is missing, or that could not be read (set aside), is rebuilt from the run's
+tables instead (`rebuild_from_tables`): every series `metrics.parquet` and `tests.parquet` hold
+(competence, LP and p_LP, success, module, test success), logged cycle by cycle as the run logged
+them, so that they come out as an uninterrupted run's (the statistics at the float32 precision
+of the tables). The tables do not hold the 3-D rollouts, the replay shares and the learner
+statistics: those start at the resumed episode, and a warning says so.
 """
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterable
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -27,7 +36,17 @@ from rerun.chunk import Chunk
 
 from curious.watching.recording.rrd_files import PreviousRecording
 
-__all__ = ["PER_CYCLE", "last_episode_kept", "take_held_values"]
+__all__ = [
+    "NOT_IN_TABLES",
+    "PER_CYCLE",
+    "last_episode_kept",
+    "rebuild_from_tables",
+    "take_held_values",
+]
+
+NOT_IN_TABLES = ("scene/", "replay/", "losses/", "q/")
+"""Entity prefixes a recording rebuilt from the run's tables lacks before the resumed episode:
+the 3-D rollouts, the replay shares and the learner statistics, which no table keeps."""
 
 PER_CYCLE = ("losses/", "q/", "replay/", "test/")
 """Entity prefixes logged once a cycle, at the episode count after it."""
@@ -107,3 +126,56 @@ def take_held_values(
                 chunks.extend(Chunk.from_record_batch(batch.filter(pa.array(keep))))
         previous.chunks = chunks
     return held
+
+
+def rebuild_from_tables(
+    recorder: Any, metrics: pa.Table, tests: pa.Table, episodes_done: int, episodes_per_cycle: int
+) -> int:
+    """Log into `recorder` (a `RunRecorder` that starts a new recording) the rows of the run's
+    tables up to `episodes_done`, the checkpoint's episode count, as the run logged them: the
+    episodes cycle by cycle (`episodes_per_cycle` a cycle: written-where-it-changes statistics
+    and their keyframes depend on it), each epoch's test rollouts at its episode count. Returns
+    the episodes logged."""
+    metrics = metrics.filter(pc.less(metrics["episode"], episodes_done)).sort_by("episode")
+    tests = tests.filter(pc.less_equal(tests["episode"], episodes_done)).sort_by("episode")
+    names = recorder.module_names
+    stats = {
+        kind: np.column_stack(
+            [metrics[f"{kind}/{name}"].to_numpy().astype(np.float64) for name in names]
+        )
+        if metrics.num_rows
+        else np.zeros((0, len(names)))
+        for kind in ("competence", "lp", "p_lp")
+    }
+    episode = metrics["episode"].to_numpy()
+    module = np.asarray(metrics["module"].to_pylist(), dtype=object)
+    success = metrics["success"].to_numpy(zero_copy_only=False)
+    is_eval = metrics["eval"].to_numpy(zero_copy_only=False)
+    wall = metrics["wall_time"].to_numpy()
+    test_episode = tests["episode"].to_numpy()
+    test_module = np.asarray(tests["module"].to_pylist(), dtype=object)
+    test_success = tests["success"].to_numpy(zero_copy_only=False)
+    test_wall = tests["wall_time"].to_numpy()
+    cycle = episode // episodes_per_cycle
+    starts = np.flatnonzero(np.r_[True, cycle[1:] != cycle[:-1]]) if episode.size else []
+    bounds = [*starts, episode.size]
+    for a, b in itertools.pairwise(bounds):
+        sl = slice(a, b)
+        recorder.log_episodes(
+            episode=episode[sl],
+            module=module[sl],
+            success=success[sl],
+            eval=is_eval[sl],
+            competence=stats["competence"][sl],
+            lp=stats["lp"][sl],
+            p_lp=stats["p_lp"][sl],
+            wall_time=wall[sl],
+        )
+        end = int(episode[b - 1]) + 1
+        mine = test_episode == end  # the epoch's tests ran after this cycle
+        if mine.any():
+            first = int(np.argmax(mine))
+            recorder.log_tests(end, test_module[mine], test_success[mine], test_wall[first])
+    if episode.size:
+        recorder.continue_clock(float(wall[-1]))
+    return int(episode.size)

@@ -217,8 +217,42 @@ def recorder_factory(
             resume=resumed,
             resume_from_episode=trainer.episodes if resumed else None,
         )
+        if recorder.started_over:
+            _rebuild(recorder, trainer, folder)
         if settings.rollout_every > 0:
             attach_rollout_recording(trainer, recorder)
         return recorder
 
     return make
+
+
+def _rebuild(recorder: Any, trainer: Any, folder: Any) -> None:
+    """A resumed run's recording that was missing or unreadable, rebuilt from its tables
+    (`curious.watching.recording.resume.rebuild_from_tables`), with a warning saying what could
+    not be."""
+    import warnings
+
+    import pyarrow.parquet as pq
+
+    from curious.runs.metrics import metrics_schema, tests_schema
+    from curious.watching.recording.resume import NOT_IN_TABLES, rebuild_from_tables
+
+    def read(path: Any, schema: Any) -> Any:
+        return pq.read_table(path) if path.exists() else schema.empty_table()
+
+    metrics = read(folder.metrics_path, metrics_schema(trainer.spec.module_names))
+    tests = read(folder.tests_path, tests_schema())
+    episodes = trainer.episodes
+    logged = rebuild_from_tables(
+        recorder, metrics, tests, episodes, trainer.config.episodes_per_cycle
+    )
+    lacking = ", ".join(f"{p}..." for p in NOT_IN_TABLES)
+    warnings.warn(
+        f"{recorder.path} had no readable recording to resume: its series of episodes 0 to "
+        f"{episodes - 1:,} were rebuilt from {folder.metrics_path.name} and "
+        f"{folder.tests_path.name} ({logged:,} episodes); what those tables do not hold "
+        f"({lacking}: the 3-D rollouts, replay shares and learner statistics) starts at episode "
+        f"{episodes:,}",
+        RuntimeWarning,
+        stacklevel=3,
+    )
