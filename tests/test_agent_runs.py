@@ -310,7 +310,17 @@ def test_the_sub_commands_import_nothing_from_the_command_line_that_loads_them()
 
 @pytest.mark.parametrize(
     "command",
-    [[], ["bench"], ["progress"], ["ship"], ["reproduce"], ["render"], ["evaluate"], ["view"]],
+    [
+        [],
+        ["train"],
+        ["bench"],
+        ["progress"],
+        ["ship"],
+        ["reproduce"],
+        ["render"],
+        ["evaluate"],
+        ["view"],
+    ],
 )
 def test_help_imports_nothing_heavy(command):
     """`curious --help` builds every sub-command's parser; it and the sub-commands' own help

@@ -19,14 +19,21 @@ in one line, naming the file (a full disk:
 `curious.watching.recording.rrd_files.RecordingWriteError`)."""
 os.environ.setdefault("RUST_LOG", RERUN_LOG_FILTER)
 
-from curious.watching.recording.blueprint import default_blueprint  # noqa: E402
-from curious.watching.recording.recorder import (  # noqa: E402
-    APPLICATION_ID,
-    RecorderSettings,
-    RunRecorder,
-    compact_recording,
-)
-from curious.watching.recording.scene import RolloutCapture, SceneLayout, wxyz_to_xyzw  # noqa: E402
+import importlib  # noqa: E402
+from typing import Any  # noqa: E402
+
+_HOMES = {
+    "APPLICATION_ID": "recorder",
+    "RecorderSettings": "settings",
+    "RunRecorder": "recorder",
+    "compact_recording": "recorder",
+    "RolloutCapture": "scene",
+    "SceneLayout": "scene",
+    "wxyz_to_xyzw": "scene",
+    "default_blueprint": "blueprint",
+}
+"""Where each public name lives; imported on first use, so that `RecorderSettings` (the command
+line's help) does not load Rerun and MuJoCo."""
 
 __all__ = [
     "APPLICATION_ID",
@@ -39,3 +46,11 @@ __all__ = [
     "default_blueprint",
     "wxyz_to_xyzw",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _HOMES:
+        value = getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
