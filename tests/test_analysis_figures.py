@@ -101,20 +101,48 @@ def test_every_caption_ends_with_the_note_it_is_given(name, studies):
 
 
 def test_fig2a_dots_are_the_significant_points_of_the_test_rollouts(studies):
-    points = analysis.epoch_success(studies["tests"])
+    points = analysis.binned_success(studies["tests"])
     test = analysis.welch_per_bin(points, "curious", "mg-te")
     assert 0 < test["significant"].sum() < len(test)  # the made-up data leave both kinds
     fig = analysis.fig2a(studies["tests"])
     (dots,) = [line for line in fig.axes[0].lines if line.get_label().startswith("p < 0.01")]
     np.testing.assert_array_equal(dots.get_xdata(), test.loc[test["significant"], "episodes"])
-    # one point per epoch (every 20 episodes), at the training episodes done when it ran
+    # one point per comparison bin (600 episodes: bins of 20), at the bin's end
+    assert points.attrs["bin_size"] == analysis.comparison_bin_size(600) == 20
     assert sorted(points["episodes"].unique()) == list(range(20, 601, 20))
     curve = next(line for line in fig.axes[0].lines if line.get_label() == "CURIOUS")
     mean = analysis.across_seeds(points).query("condition == 'curious'")
     np.testing.assert_allclose(curve.get_ydata(), mean["mean"])
     caption = _caption(fig)
     assert "3 seeds (0–2)" in caption and "600 episodes per run" in caption
-    assert "test success" in caption and "one point per epoch" in caption
+    assert "test success" in caption.lower() and "each 20-episode bin" in caption
+    n = int(test["significant"].sum())
+    assert f"significant in {n} of {len(test)} bins" in caption
+    assert f"({n} of {len(test)} bins)" in dots.get_label()
+
+
+def test_fig2a_draws_the_comparison_bins_with_every_seed_and_the_counts_the_report_quotes(
+    studies,
+):
+    """Fig. 2a is drawn from `main_comparison`, the numbers the report quotes: its points are
+    the bins of the Welch tests, each seed has its own thin line, and the caption counts the
+    significant bins as `main_comparison` does."""
+    tests = studies["tests"]
+    numbers = analysis.main_comparison(tests, "curious", "mg-te", bin_size=100)
+    fig = analysis.fig2a(tests, bin_size=100)
+    lines = fig.axes[0].lines
+    seeds = [line for line in lines if line.get_label() == "_seed"]
+    assert len(seeds) == 9  # 3 conditions x 3 seeds
+    assert all(list(line.get_xdata()) == list(range(100, 601, 100)) for line in seeds)
+    (dots,) = [line for line in lines if line.get_label().startswith("p < 0.01")]
+    welch = numbers["welch"]
+    np.testing.assert_array_equal(dots.get_xdata(), welch.loc[welch["significant"], "episodes"])
+    assert numbers["n_bins"] == 6 and numbers["bin_size"] == 100
+    text = f"significant in {numbers['n_significant']} of 6 bins"
+    assert text in _caption(fig)
+    final = numbers["final_summary"].set_index("condition")
+    assert set(final.index) == {"curious", "mg-te", "her"} and (final["n"] == 3).all()
+    assert (final["episodes"] == 600).all()
 
 
 def test_fig2a_from_the_competence_table_or_without_test_rollouts_is_refused(studies, tmp_path):

@@ -190,8 +190,10 @@ def test_runs_of(tests: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def draw_mean_std(ax: Axes, s: pd.DataFrame, color: str, width: float, label: str | None) -> None:
-    """One condition's mean curve and, with several seeds, its ± std band."""
+def draw_mean_std(
+    ax: Axes, s: pd.DataFrame, color: str, width: float, label: str | None, alpha: float = 0.2
+) -> None:
+    """One condition's mean curve and, with several seeds, its ± std band (opacity ``alpha``)."""
     ax.plot(s["episodes"], s["mean"], color=color, linewidth=width, label=label)
     if (s["n"] > 1).any():
         ax.fill_between(
@@ -199,6 +201,6 @@ def draw_mean_std(ax: Axes, s: pd.DataFrame, color: str, width: float, label: st
             s["mean"] - s["std"],
             s["mean"] + s["std"],
             color=color,
-            alpha=0.2,
+            alpha=alpha,
             linewidth=0,
         )
