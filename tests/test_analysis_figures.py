@@ -6,6 +6,7 @@ import hashlib
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -212,6 +213,31 @@ def test_forgetting_follows_the_perturbed_module_and_states_recovery_times(studi
     # x counts episodes since the failure: the curves cross 0 where the failure started
     line = fig.axes[0].lines[0]
     assert line.get_xdata().min() < 0 < line.get_xdata().max()
+
+
+SHIPPED = Path(__file__).resolve().parents[1] / "data" / "laptop"
+
+
+@pytest.mark.skipif(not (SHIPPED / "sensor_failure").is_dir(), reason="no shipped runs")
+def test_forgetting_draws_every_run_over_its_whole_recovery():
+    """The shipped sensory-failure runs: one line per run, an x axis reaching past every
+    recovery (5,998 and 6,918 episodes after the onset), and the run that never recovered
+    (M-UVFA seed 0, which ends 5,328 episodes after its failure) shown with a cross."""
+    df = analysis.load_runs(SHIPPED / "sensor_failure")
+    fig, per_run = analysis.forgetting(df)
+    top, bottom = fig.axes[:2]
+    recovered = per_run.loc[per_run["recovered"], "recovery_episodes"]
+    assert top.get_xlim()[1] > recovered.max() > 6_000
+    labels = [t.get_text() for t in bottom.get_legend().get_texts()]
+    assert len(labels) == len(per_run) == 4
+    assert "M-UVFA seed 0: not regained by its end (5,328 after)" in labels
+    assert "CURIOUS seed 0: 90% regained after 6,918" in labels
+    runs = [line for line in top.lines if len(line.get_xdata()) > 10]
+    assert len(runs) == 4
+    crosses = [line for line in top.lines if line.get_marker() == "X"]
+    circles = [line for line in top.lines if line.get_marker() == "o"]
+    assert len(crosses) == 1 and len(circles) == 3
+    assert sorted(x for c in circles for x in c.get_xdata()) == sorted(recovered.astype(int))
 
 
 def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies):
