@@ -251,6 +251,25 @@ def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies
     np.testing.assert_allclose(line.get_ydata(), means.loc["curious"].to_numpy())
 
 
+def test_distractors_names_what_it_plots_and_shows_each_settings_seeds(studies):
+    """The y axis says self-evaluated competence (not "final success"); a setting of the
+    paper's without runs keeps its tick, saying so; each tick says how many seeds it has."""
+    df = studies["distractors"]
+    fig = analysis.distractors(df[df["n_distractors"] != 0])
+    ax = fig.axes[0]
+    assert ax.get_ylabel().startswith("self-evaluated competence")
+    assert "final success" not in ax.get_ylabel() + fig._suptitle.get_text()
+    assert [t.get_text() for t in ax.get_xticklabels()] == [
+        "0\n(no runs)",
+        "4\n(2 seeds)",
+        "7\n(2 seeds)",
+    ]
+    assert "no runs with 0, which the paper also compares" in _caption(fig)
+    one = df[(df["seed"] == 0) | (df["n_distractors"] == 7)]
+    labels = [t.get_text() for t in analysis.distractors(one).axes[0].get_xticklabels()]
+    assert labels == ["0\n(1 seed)", "4\n(1 seed)", "7\n(2 seeds)"]
+
+
 def test_episode_ticks_read_in_thousands():
     assert [format_episodes(v) for v in (0, 950, 1500, 150_000, 1_200_000)] == [
         "0",

@@ -63,8 +63,18 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
         assert experiment.title in report
     assert "Welch's t-test" in report and "24 episodes" in report
     # the main comparison's numbers come from the test rollouts, as Fig. 2a's
-    assert "Test success over achievable modules after 24 episodes" in report
-    assert "per epoch's test success" in report and "final test success" in report
+    assert (
+        "Test success over achievable modules in the last 1-episode bin (to 24 episodes" in report
+    )
+    assert "Welch's t-test per 1-episode bin" in report and "significant in 0 of 2 bins" in report
+    assert "computation, `curious.analysis.main_comparison`" in report
+    assert "test success at the last epoch" in report
+    # what the report was built from, counted from its tables; the whole budget beside it
+    assert "This report was built from 14 runs, 336 training episodes in all: main 6 runs" in report
+    assert (
+        "The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains 14 runs"
+        in report
+    )
     # the smoke failure starts at episode 12 on an unlearned module: no recovery is claimed
     assert "The failure starts at episode 12. It started at episode 12 in every run." in report
     assert "nothing to forget" in report and "No recovery can be measured" in report
@@ -89,6 +99,11 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "Order of learning: the first episode at which each module's competence" in report
     # C3/C5: the drop, the LP and p_LP before and after the failure, per run
     assert "| LP before → after | p_LP before → after | recovery (episodes) |" in report
+    # two levels before the failure, named apart
+    assert (
+        "| competence at the onset | pre-failure mean | drop from the pre-failure mean |" in report
+    )
+    assert "competence then" not in report and "competence before" not in report
     # the command ends by saying where the products are
     assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
     assert json.loads((out / "reproduce.json").read_text())["budget"] == "smoke"

@@ -110,7 +110,8 @@ def forgetting(
             f"failure perturbs. {text} A recovery is measured only where the failure started and "
             f"{shown} was learned before it (competence just before it at least {learned_text}): "
             f"the episodes from the failure until the competence, after its lowest point, is back "
-            f"at {fraction:.0%} of its level before.",
+            f"at {fraction:.0%} of its pre-failure mean (its mean over the last p/10 episodes "
+            "before a failure at episode p).",
             note,
         )
     return finish(fig, out_dir, name), per_run
@@ -288,8 +289,8 @@ def _draw_aligned(
         f"Each run is aligned on the first episode run with the failure "
         f"({_onset_text(per_run, onsets)}) and drawn as its own line (line style: seed) up to "
         f"its end or {after:,} episodes after the failure, sampled every "
-        f"{episodes_text(step)}. A circle: where a run regained {fraction:.0%} of its competence "
-        f"before the failure.{ended}"
+        f"{episodes_text(step)}. A circle: where a run regained {fraction:.0%} of its pre-failure "
+        f"mean.{ended}"
     )
 
 
@@ -354,7 +355,7 @@ def _recovery_label(condition: str, runs: pd.DataFrame, fraction: float) -> str:
         )
     rest = "" if m == n else f"; {n - m} of {n} seeds not measurable"
     if not measured["dropped"].any():
-        return f"{name}: never fell below {fraction:.0%} of its level before ({m} seeds{rest})"
+        return f"{name}: never fell below {fraction:.0%} of its pre-failure mean ({m} seeds{rest})"
     back = measured[measured["recovered"]]
     if back.empty:
         return f"{name}: {fraction:.0%} not regained by the end (0/{m} seeds{rest})"
