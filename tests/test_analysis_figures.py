@@ -185,6 +185,28 @@ def test_module_figures_use_the_palette(studies):
         analysis.fig2b(studies["main"], seed=9)
 
 
+def test_lp_axes_fit_the_curves_they_draw(studies):
+    """Fig. 2c's and Table 1's LP axes end just above the highest LP drawn, not at a spike
+    between two samples."""
+    fig = analysis.fig2c(studies["main"], seed=1)
+    ax = fig.axes[0]
+    drawn = max(float(np.nanmax(line.get_ydata())) for line in ax.lines)
+    assert ax.get_ylim()[1] == pytest.approx(max(0.05, drawn * 1.08))
+    table = analysis.table1(studies["main"])
+    right = table.axes[1::2]
+    drawn = max(float(np.nanmax(line.get_ydata())) for ax in right for line in ax.lines)
+    assert all(ax.get_ylim()[1] == pytest.approx(max(0.05, drawn * 1.08)) for ax in right)
+    # a spike between two samples (bins of 2 episodes sample episodes 1, 3, 5, ...) is not drawn
+    # and does not stretch the axis
+    from curious.analysis.figures.parts import drawn_ceiling, lp_ceiling
+
+    main = studies["main"]
+    run = main[main["run"] == main["run"].iat[0]].sort_values("episode").copy()
+    run.loc[run["episode"] == 4, "lp/reach"] = 5.0
+    assert lp_ceiling(run) == pytest.approx(5.0)
+    assert drawn_ceiling(run, "lp/", 2) < 1.0
+
+
 def test_table1_has_a_row_per_seed(studies):
     fig = analysis.table1(studies["main"])
     assert len(fig.axes) == 2 * 3

@@ -18,12 +18,12 @@ from curious.analysis.figures.parts import (
     curve_bin,
     draw_mean_std,
     draw_modules,
+    drawn_ceiling,
     episodes_text,
     finish,
     legend_right,
     line_width,
     lp_axis,
-    lp_ceiling,
     one_run,
     ordered_conditions,
     restrict,
@@ -201,7 +201,7 @@ def _one_run_figure(
         if prefix == "competence/":
             competence_axis(ax)
         else:
-            lp_axis(ax, lp_ceiling(run))
+            lp_axis(ax, drawn_ceiling(run, prefix, bin_size))
         ax.set_xlim(0, None)
         legend_right(ax)
         seed_value = int(runs["seed"].iat[0])
@@ -281,7 +281,10 @@ def table1(
     n = len(runs)
     n_episodes = int(runs["n_episodes"].max())
     bin_size = curve_bin(n_episodes)
-    top = lp_ceiling(rows)
+    top = max(
+        drawn_ceiling(rows[rows["run"] == r].sort_values("episode"), "lp/", bin_size)
+        for r in runs.index
+    )
     with figure_style():
         fig = new_figure(8.0, 1.25 + 1.55 * n)
         axes = fig.subplots(n, 2, sharex=True, squeeze=False)
