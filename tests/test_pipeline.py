@@ -174,6 +174,58 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
         instance.dispose()
 
 
+def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_each_shows(
+    smoke, shipped, tmp_path, monkeypatch, capsys
+):
+    """`curious reproduce` on a budget with a shipped campaign beside it (the README's quick
+    job and data/laptop; here the smoke budget and its shipped smoke runs): after its own
+    training it builds the shipped campaign's report and figures into <campaign>-shipped beside
+    OUT, from the shipped runs alone, and ends by saying where each output is and what each
+    can show. --no-shipped leaves the campaign out."""
+    import shutil
+
+    from curious.commands import reproduce as command
+
+    out = tmp_path / "runs" / "smoke"
+    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns("*.lock"))  # all finished
+    monkeypatch.setattr(command, "SHIPPED_BESIDE", {"smoke": "smoke"})
+    monkeypatch.setattr(command, "shipped_data_folder", lambda name: shipped.data)
+    args = ["reproduce", "--budget", "smoke", "--out", str(out), "--no-progress"]
+    assert curious_cli(args) == 0
+    stdout = capsys.readouterr().out
+    beside = tmp_path / "runs" / "smoke-shipped"
+    assert (beside / "report.md").read_bytes() == (smoke.out / "report.md").read_bytes()
+    assert sorted(p.name for p in (beside / "figures").iterdir()) == sorted(
+        p.name for p in (smoke.out / "figures").iterdir()
+    )
+    assert "0 run(s) trained, 14 already finished" in stdout
+    assert "14 shipped run(s) read, none trained" in stdout
+    closing = stdout[stdout.index("What each output can show:") :]
+    assert f"{out / 'report.md'} and {out / 'figures'}/" in closing
+    assert "it cannot show the paper's claims" in closing
+    assert f"{beside / 'report.md'} and {beside / 'figures'}/" in closing
+    assert f"the shipped `smoke` campaign, 14 runs read from {shipped.data}" in closing
+    assert "C1, CURIOUS learns faster than MG-TE" in closing and "C3/C5" in closing
+    assert "C4" in closing
+
+    shutil.rmtree(beside)
+    assert curious_cli([*args, "--no-shipped"]) == 0
+    stdout = capsys.readouterr().out
+    assert not beside.exists() and "shipped run(s) read" not in stdout
+    assert "What each output can show:" in stdout and "smoke-shipped" not in stdout
+
+
+def test_the_readme_job_builds_the_repositorys_shipped_laptop_campaign():
+    """The quick budget's campaign beside it is data/laptop, which a clone holds."""
+    from curious.commands import reproduce as command
+
+    assert command.SHIPPED_BESIDE == {"quick": "laptop"}
+    data = Path(__file__).resolve().parents[1] / "data" / "laptop"
+    if not (data / "shipped.json").is_file():
+        pytest.skip("no data/laptop in this checkout")
+    assert command.shipped_data_folder("laptop") == data
+
+
 def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smoke):
     import logging
 
