@@ -254,11 +254,11 @@ beside it: the quick runs cannot show the paper's claims, the shipped campaign's
 CLAIMS: dict[str, str] = {
     "main": "C1, CURIOUS learns faster than MG-TE (Fig. 2a, with its Welch test per bin); "
     "C2, the order of learning (Fig. 2b/2c, Table 1)",
-    "distractors": "C4, CURIOUS against M-UVFA with distracting modules (the distractors figure)",
     "sensor_failure": "C3/C5, forgetting and recovery after a sensory failure (the forgetting "
     "figure)",
+    "distractors": "C4, CURIOUS against M-UVFA with distracting modules (the distractors figure)",
 }
-"""What each experiment's figures and numbers test, in the paper's claims."""
+"""What each experiment's figures and numbers test, in the paper's claims (in their order)."""
 
 
 def shipped_data_folder(name: str) -> Path | None:
@@ -311,12 +311,12 @@ def _what_each_shows(result: ReproduceResult, shipped: ReproduceResult | None) -
     print("\nWhat each output can show:")
     print(
         f"  {result.layout.report} and {result.layout.figures}/\n"
-        f"    budget `{result.budget}`, trained here: {budget.description}. It checks that "
+        f"    budget `{result.budget}`, trained here ({budget.description}). It checks that "
         "training, the analysis and the figures run on this machine; it cannot show the "
         f"paper's claims. {budget.caption_note}"
     )
     if shipped is not None:
-        claims = "; ".join(CLAIMS[e] for e in shipped.experiments if e in CLAIMS)
+        claims = "; ".join(text for e, text in CLAIMS.items() if e in shipped.experiments)
         print(
             f"  {shipped.layout.report} and {shipped.layout.figures}/\n"
             f"    the shipped `{shipped.budget}` campaign, {len(shipped.results)} runs read from "
