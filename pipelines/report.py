@@ -640,7 +640,7 @@ def _built_from(budget: ReproduceBudget, tables: dict[str, pd.DataFrame]) -> lis
     trains = (
         f"The budget `{budget.name}` as a whole (`curious reproduce --budget {budget.name}`) "
         f"trains {len(specs)} runs, {_episodes_count(sum(s.total_episodes for s in specs))} "
-        f"episodes in all: {budget.description}."
+        f"episodes in all — {budget.description}."
     )
     if not tables:
         return [trains, ""]
