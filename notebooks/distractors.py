@@ -56,7 +56,8 @@ final.groupby(["n_distractors", "condition"], observed=True)["value"].agg(
 # %% [markdown]
 # ## Welch's t-test per setting
 #
-# One-tailed, `better` > `worse`, on the final success (needs at least two seeds a side).
+# One-tailed, `better` > `worse`, on the competence at the end of the runs (needs at least two
+# seeds a side).
 
 # %%
 pd.concat(

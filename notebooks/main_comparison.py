@@ -17,7 +17,7 @@
 # Average success over the achievable modules for each condition, measured as the paper did on
 # the test rollouts: after every epoch, noise-free episodes on modules drawn uniformly
 # (`tests.parquet`), their success pooled over those on reach, push, pick-and-place and stack.
-# Mean ± std over seeds per epoch, and a one-tailed Welch's t-test per epoch (alpha = 0.01) of
+# Mean ± std over seeds per episode bin, and a one-tailed Welch's t-test per bin (alpha = 0.01) of
 # CURIOUS > MG-TE.
 #
 # The paper's claim: CURIOUS rises faster than MG-TE (about 150k against 300k episodes), and
@@ -37,7 +37,7 @@ from pipelines.resources import OutputLayout
 
 # %% tags=["parameters"]
 out = "runs/quick"
-bin_size = None  # episodes per point; None: one point per epoch
+bin_size = None  # episodes per bin; None: the comparison's bins (analysis.comparison_bin_size)
 better, worse = "curious", "mg-te"
 
 # %%
@@ -54,13 +54,13 @@ fig = analysis.fig2a(tests, compare=(better, worse), bin_size=bin_size)
 display(fig)
 
 # %% [markdown]
-# ## Mean ± std over seeds, per epoch
+# ## Mean ± std over seeds, per episode bin
 #
-# A run's value at an epoch is the success rate of that epoch's test rollouts on achievable
-# modules (`n_tests` of them per run); `n` is the number of seeds.
+# A run's value in a bin is the success rate of the test rollouts, on achievable modules, of the
+# epochs in that bin (`n_tests` of them per run); `n` is the number of seeds.
 
 # %%
-points = analysis.epoch_success(tests, bin_size=bin_size)
+points = analysis.binned_success(tests, bin_size=bin_size)
 summary = analysis.across_seeds(points)
 table = summary.pivot(index="episodes", columns="condition", values="mean")
 table.iloc[:: max(1, len(table) // 10)].round(3)
@@ -69,7 +69,7 @@ table.iloc[:: max(1, len(table) // 10)].round(3)
 points.groupby("condition", observed=True)["n_tests"].describe()[["mean", "min", "max"]]
 
 # %% [markdown]
-# ## Welch's t-test per epoch
+# ## Welch's t-test per episode bin
 #
 # One-tailed (alternative: the first condition's mean is greater), unequal variances. A point
 # with fewer than two seeds on a side, or no variance at all, has no p-value.
@@ -78,7 +78,7 @@ points.groupby("condition", observed=True)["n_tests"].describe()[["mean", "min",
 welch = analysis.welch_per_bin(points, better, worse)
 print(
     f"{better} > {worse} at p < {analysis.ALPHA}: {int(welch['significant'].sum())} of "
-    f"{len(welch)} points; first significant point: "
+    f"{len(welch)} bins; first significant bin: "
     + (
         f"{int(welch.loc[welch['significant'], 'episodes'].iloc[0]):,} episodes"
         if welch["significant"].any()

@@ -143,6 +143,16 @@ def run_folders(repro: Reproduction, experiment: Experiment) -> list[Path]:
     return [root.joinpath(*s.relative_path.parts) for s in experiment.runs()]
 
 
+def left_out_runs(repro: Reproduction, experiment: Experiment) -> list[Path]:
+    """The run folders of the variants the experiment leaves out that shipped data holds
+    finished for every condition (`ShippedData.left_out_runs`; none when training): the
+    distractors figure and the report show them beside the experiment's, untested."""
+    if repro.data is None:
+        return []
+    root = repro.layout.runs_root
+    return [root.joinpath(*s.relative_path.parts) for s in repro.data.left_out_runs(experiment)]
+
+
 def load_tests(repro: Reproduction, experiment: Experiment) -> pd.DataFrame:
     """The combined test rollouts the `metrics` asset wrote; where it wrote none (a run without
     test rollouts), reading the run folders raises the `AnalysisError` that names that run."""
@@ -230,6 +240,9 @@ def _draw(
         elif name in ("fig2b", "fig2c", "table1"):
             fig = getattr(analysis, name)(table, condition="curious", note=note, out_dir=out_dir)
         elif name == "distractors":
+            extra_runs = left_out_runs(repro, experiment)
+            if extra_runs:  # the settings shipped with too few runs for the statistics
+                table = analysis.load_runs(run_folders(repro, experiment) + extra_runs)
             fig = analysis.distractors(table, note=note, out_dir=out_dir)
         elif name == "forgetting":
             fig, per_run = analysis.forgetting(table, note=note, out_dir=out_dir)

@@ -152,6 +152,27 @@ class ShippedData:
             experiments[name] = experiment.with_seeds(extra)
         return replace(budget, experiments=experiments)
 
+    def left_out_runs(self, experiment: Experiment) -> list[RunSpec]:
+        """The finished runs DATA holds of the variants `experiment` leaves out
+        (`Experiment.left_out_variants`), for each such variant that has at least one of every
+        condition: runs too few for the experiment's statistics that its figure still draws
+        (the distractors for 4 distracting modules, shipped for seed 0 alone), in partition
+        order."""
+        if not experiment.left_out_variants:
+            return []
+        others = replace(
+            experiment,
+            variants=experiment.left_out_variants,
+            left_out_variants=experiment.variants,
+            extra_seeds=(),
+        )
+        out = []
+        for variant in others.variants:
+            specs = [s for s in others.runs() if s.variant == variant and self.state(s) == FINISHED]
+            if {s.condition for s in specs} == set(experiment.conditions):
+                out += specs
+        return out
+
     def seeds_beyond(self, experiment: Experiment) -> list[int]:
         """The seeds, in order, of the runs DATA holds finished in `experiment`'s folder that are
         not among its seeds (the path's last part, `seed-<s>`)."""

@@ -26,19 +26,21 @@ import pandas as pd
 
 from curious import analysis
 from curious.analysis.palette import condition_label, module_label
-from curious.reproduction.experiments import Experiment
+from curious.reproduction.experiments import BUDGETS, Experiment, ReproduceBudget, get_budget
 from curious.runs.folder import RunFolder, RunFolderError
 from pipelines.resources import Reproduction
 
 FIGURE_TEXT: dict[str, str] = {
-    "fig2a": "Average test success over the achievable modules per condition (paper Fig. 2a).",
+    "fig2a": "Average test success over the achievable modules per condition, in the episode "
+    "bins of the statistics below (paper Fig. 2a).",
     "fig2b": "Competence of every module over one CURIOUS run (paper Fig. 2b).",
     "fig2c": "Absolute learning progress of every module over the same run (paper Fig. 2c).",
     "table1": "Competence and learning progress of every CURIOUS seed (paper Table 1).",
-    "distractors": "Final success over achievable modules against the number of distractors.",
-    "forgetting": "Competence and LP of the perturbed module around the sensory failure.",
+    "distractors": "Self-evaluated competence over the achievable modules at the end of the "
+    "runs against the number of distracting modules.",
+    "forgetting": "Competence and LP of the perturbed module around the sensory failure, one "
+    "line per run.",
 }
-MAX_WELCH_ROWS = 12
 ORDER_LEVEL = 0.5
 """The competence at which the order of learning counts a module as learned."""
 
@@ -195,7 +197,7 @@ def _runs_table(tables: _Tables) -> list[str]:
         "final competence",
     ]
     if tested is not None:
-        header.append("final test success (test rollouts)")
+        header.append("test success at the last epoch (test rollouts)")
     return _table(header, rows)
 
 
@@ -209,27 +211,30 @@ def _tested_cell(tested: pd.DataFrame, run: object) -> str:
     return f"{_fmt(value)} ({int(n)})"
 
 
-def _final_by_condition(e: Experiment, points: pd.DataFrame) -> list[str]:
-    final = analysis.final_success(points)
-    episodes = int(final["episodes"].iat[0])
+def _final_by_condition(e: Experiment, numbers: dict) -> list[str]:
+    """The test success of each condition in the last bin of `analysis.main_comparison`."""
+    final = numbers["final"]
+    episodes = int(final["episodes"].max())
     parts = [
         f"{condition_label(c)} {_mean_std(final.loc[final['condition'] == c, 'value'])}"
         for c in e.conditions
     ]
     return [
-        f"Test success over achievable modules after {episodes:,} episodes (mean ± std over "
-        f"seeds): {'; '.join(parts)}.",
+        f"Test success over achievable modules in the last {numbers['bin_size']:,}-episode bin "
+        f"(to {episodes:,} episodes; mean ± std over seeds): {'; '.join(parts)}.",
         "",
     ]
 
 
-def _welch_summary(test: pd.DataFrame, better: str, worse: str, what: str) -> list[str]:
+def _welch_summary(
+    test: pd.DataFrame, better: str, worse: str, what: str, unit: str = ""
+) -> list[str]:
     """One sentence on a table of `analysis.welch_per_bin` results."""
     tested = int(test["p"].notna().sum())
     text = (
         f"One-tailed Welch's t-test per {what}, {condition_label(better)} > "
         f"{condition_label(worse)}, alpha = {analysis.ALPHA:g}: significant in "
-        f"{int(test['significant'].sum())} of {len(test)}"
+        f"{int(test['significant'].sum())} of {len(test)}{unit}"
     )
     if tested == 0 and len(test):
         few = int(min(test["n_better"].min(), test["n_worse"].min())) < 2
@@ -249,20 +254,12 @@ def _p(value: float) -> str:
     return "–" if not math.isfinite(value) else f"{value:.3g}"
 
 
-def _welch_points(points: pd.DataFrame, better: str, worse: str) -> list[str]:
-    test = analysis.welch_per_bin(points, better, worse)
+def _welch_points(numbers: dict, better: str, worse: str) -> list[str]:
+    """The Welch test per bin of `analysis.main_comparison`, every bin a row."""
+    test = numbers["welch"]
     if test.empty:
-        return ["No test point is shared by both conditions.", ""]
-    lines = _welch_summary(test, better, worse, "epoch's test success")
-    shown = test
-    if len(test) > MAX_WELCH_ROWS:
-        picks = np.unique(np.linspace(0, len(test) - 1, MAX_WELCH_ROWS).round().astype(int))
-        shown = test.iloc[sorted(set(picks) | set(np.flatnonzero(test["significant"])))]
-        lines += [
-            f"Points shown: {len(shown)} of {len(test)} (evenly spaced, and every significant "
-            "one).",
-            "",
-        ]
+        return ["No bin is shared by both conditions.", ""]
+    lines = _welch_summary(test, better, worse, f"{numbers['bin_size']:,}-episode bin", " bins")
     rows = [
         (
             f"{int(r.episodes):,}",
@@ -272,10 +269,18 @@ def _welch_points(points: pd.DataFrame, better: str, worse: str) -> list[str]:
             _p(r.p),
             "yes" if r.significant else "no",
         )
-        for r in shown.itertuples()
+        for r in test.itertuples()
     ]
-    header = ("episodes", condition_label(better), condition_label(worse), "t", "p", "p < alpha")
-    return lines + _table(header, rows)
+    header = ("bin end (episodes)", condition_label(better), condition_label(worse), "t", "p")
+    return lines + _table((*header, "p < alpha"), rows)
+
+
+MAIN_COMPARISON = (
+    "The numbers below and Fig. 2a come from one computation, `curious.analysis."
+    "main_comparison`: each run's test rollouts pooled per {bin:,}-episode bin "
+    "(`analysis.binned_success`, {n} bins), the mean ± std across seeds per bin, "
+    "the last bin every run completed, and a one-tailed Welch's t-test per bin."
+)
 
 
 NO_TESTS = (
@@ -449,9 +454,13 @@ def _main(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
     if tables.tests is None or points is None:  # both or neither
         lines += [NO_TESTS, ""]
     else:
-        lines += _final_by_condition(e, points)
+        compare = e.compare if e.compare is not None else (None, None)
+        numbers = analysis.main_comparison(tables.tests, *compare)
+        n_bins = numbers["points"]["episodes"].nunique()
+        lines += [MAIN_COMPARISON.format(bin=numbers["bin_size"], n=n_bins), ""]
+        lines += _final_by_condition(e, numbers)
         if e.compare is not None:
-            lines += _welch_points(points, *e.compare)
+            lines += _welch_points(numbers, *e.compare)
         lines += _episodes_to_success(e, tables.tests)
     for name in ("fig2b", "fig2c", "table1"):
         lines += _figure(repro, name)
@@ -469,12 +478,23 @@ def _distractors(repro: Reproduction, e: Experiment, tables: _Tables) -> list[st
         for n_d, group in final.groupby("n_distractors", observed=True):
             tests.append(analysis.welch_per_bin(group, *e.compare).assign(n_distractors=n_d))
     test = pd.concat(tests, ignore_index=True).set_index("n_distractors") if tests else None
+    from pipelines.assets import left_out_runs
+
+    extra = left_out_runs(repro, e)
+    if extra:  # settings shipped with too few runs for the test: shown, not tested
+        final = pd.concat(
+            [final, analysis.final_competence(analysis.load_runs(extra))], ignore_index=True
+        )
     rows = []
-    for n_d, group in final.groupby("n_distractors", observed=True):
+    for n_d, group in final.groupby("n_distractors", observed=True, sort=True):
         row: list[object] = [int(n_d)]
         row += [_mean_std(group.loc[group["condition"] == c, "value"]) for c in e.conditions]
-        if test is not None and n_d in test.index:
-            row += [_fmt(test.loc[n_d, "t"]), _p(test.loc[n_d, "p"])]
+        if test is not None:
+            row += (
+                [_fmt(test.loc[n_d, "t"]), _p(test.loc[n_d, "p"])]
+                if n_d in test.index
+                else ["–", "– (not tested: too few runs shipped)"]
+            )
         rows.append(row)
     header: tuple[str, ...] = ("distracting modules", *map(condition_label, e.conditions))
     if test is not None:
@@ -486,7 +506,7 @@ def _distractors(repro: Reproduction, e: Experiment, tables: _Tables) -> list[st
         *_table(header, rows),
     ]
     if test is not None:
-        lines += _welch_summary(test, *e.compare, "setting (final success)")
+        lines += _welch_summary(test, *e.compare, "setting (competence at the end)")
     return lines + _forgetting(e, tables.metrics)
 
 
@@ -543,6 +563,7 @@ def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list
             r.seed,
             "never" if pd.isna(r.perturbation_episode) else f"{int(r.perturbation_episode):,}",
             _fmt(r.onset_competence),
+            _fmt(r.pre_competence),
             _fmt(r.competence_drop),
             f"{_fmt(r.lp_before)} → {_fmt(r.lp_after)}",
             f"{_fmt(r.p_lp_before)} → {_fmt(r.p_lp_after)}",
@@ -555,18 +576,22 @@ def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list
         "condition",
         "seed",
         "failure from episode",
-        "competence then",
-        "drop",
+        "competence at the onset",
+        "pre-failure mean",
+        "drop from the pre-failure mean",
         "LP before → after",
         "p_LP before → after",
         "recovery (episodes)",
         "outcome",
     )
     lines += [
-        "Per run: the competence just before the failure, its drop to the trough, the module's "
-        "mean absolute LP and mean probability of being practised (p_LP; uniform in M-UVFA) over "
-        "the episodes before the failure and as many from it on (a tenth of those before it), "
-        "and the episodes to regain 90 % of the competence before (0: it never fell below).",
+        "Per run, two levels before the failure: the competence at the onset (its last value "
+        "before the failure, the level that started it) and the pre-failure mean (the mean "
+        "competence over the last p/10 episodes before a failure at episode p); then the drop from "
+        "the pre-failure mean to the trough, the module's mean absolute LP and mean probability "
+        "of being practised (p_LP; uniform in M-UVFA) over those episodes before the failure and "
+        "as many from it on, and the episodes to regain 90 % of the pre-failure mean (0: it "
+        "never fell below).",
         "",
     ]
     lines += _table(header, rows)
@@ -578,8 +603,8 @@ def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list
         "measured runs",
         "dropped",
         "recovered",
-        "competence before",
-        "threshold (90 %)",
+        "pre-failure mean",
+        "threshold (90 % of it)",
         "mean recovery (episodes)",
         "std",
     )
@@ -602,6 +627,53 @@ def _versions(table: pd.DataFrame) -> str:
     return text
 
 
+def _episodes_count(n: int) -> str:
+    """``"1.46 M"`` from a million on, else ``"24,000"``."""
+    return f"{n / 1e6:.2f} M" if n >= 1_000_000 else f"{n:,}"
+
+
+def _built_from(budget: ReproduceBudget, tables: dict[str, pd.DataFrame]) -> list[str]:
+    """What the report was built from, counted from its tables (runs, training episodes, per
+    experiment), beside what the whole budget trains."""
+    whole = get_budget(budget.name) if budget.name in BUDGETS else budget
+    specs = whole.runs()
+    trains = (
+        f"The budget `{budget.name}` as a whole (`curious reproduce --budget {budget.name}`) "
+        f"trains {len(specs)} runs, {_episodes_count(sum(s.total_episodes for s in specs))} "
+        f"episodes in all — {budget.description}."
+    )
+    if not tables:
+        return [trains, ""]
+    per_run = {
+        name: t.groupby("run", observed=True)["episode"].max() + 1 for name, t in tables.items()
+    }
+    n_runs = sum(len(v) for v in per_run.values())
+    n_episodes = int(sum(int(v.sum()) for v in per_run.values()))
+    parts = ", ".join(
+        f"{name} {len(v)} runs ({_episodes_count(int(v.sum()))} episodes)"
+        for name, v in per_run.items()
+    )
+    return [
+        f"This report was built from {n_runs} runs, {_episodes_count(n_episodes)} training "
+        f"episodes in all: {parts}. {trains}",
+        "",
+    ]
+
+
+def _shown_anyway(repro: Reproduction, e: Experiment) -> str:
+    """The runs of left-out variants the figure and the table still show, in a sentence."""
+    from pipelines.assets import left_out_runs
+
+    extra = left_out_runs(repro, e)
+    if not extra:
+        return ""
+    names = ", ".join("/".join(p.parts[-3:]) for p in extra)
+    return (
+        f" The finished runs shipped of those ({names}) are drawn in the figure and listed in "
+        "the table below, without a test."
+    )
+
+
 def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
     """Write report.md for every experiment whose metrics table exists; returns (path, names)."""
     layout, budget = repro.layout, repro.budget
@@ -621,8 +693,7 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
     lines = [
         f"# CURIOUS reproduction — budget `{budget.name}`",
         "",
-        f"Made by `curious reproduce --budget {budget.name}`: {budget.description}.",
-        "",
+        *_built_from(budget, tables),
         budget.notes,
         "",
     ]
@@ -651,7 +722,7 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
             lines += [
                 f"Variants left out: {', '.join(e.left_out_variants)}, whose runs the data this "
                 f"report was built from does not hold finished; read from "
-                f"{', '.join(e.variants)} alone.",
+                f"{', '.join(e.variants)} alone.{_shown_anyway(repro, e)}",
                 "",
             ]
         if e.extra_seeds:

@@ -81,8 +81,15 @@ def check_shipped_folder(data: Path, out: Path) -> str:
     unperturbed = [e for e in built if e != "sensor_failure"]
     assert report.count("### Spontaneous forgetting") == len(unperturbed)
     without_drops = 0
+    n_runs = 0
     for experiment in built:
         combined = pd.read_parquet(out / "metrics" / f"{experiment}.parquet")
+        n_runs += combined["run"].nunique()
+        # runs of variants too few for the statistics are shown, untested (`left_out_runs`)
+        shown = ShippedData.open(data).left_out_runs(stands_for.experiments[experiment])
+        for n in sorted({int(s.variant.rsplit("_", 1)[-1]) for s in shown}):
+            row = next(x for x in report.splitlines() if x.startswith(f"| {n} |"))
+            assert row.endswith("| – | – (not tested: too few runs shipped) |"), row
         # An experiment shipped whole for some variants only is built from those (the others
         # are named as left out), and a seed beyond the budget's is read once all its runs of
         # those variants are shipped finished: the other runs shipped are not the report's.
@@ -117,4 +124,5 @@ def check_shipped_folder(data: Path, out: Path) -> str:
         if experiment != "sensor_failure":
             without_drops += analysis.mastery_drops(runs).empty
     assert report.count("No drop of a mastered module in these runs.") == without_drops
+    assert f"This report was built from {n_runs} runs, " in report, "the header counts its runs"
     return report

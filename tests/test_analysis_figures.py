@@ -6,6 +6,7 @@ import hashlib
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -101,20 +102,48 @@ def test_every_caption_ends_with_the_note_it_is_given(name, studies):
 
 
 def test_fig2a_dots_are_the_significant_points_of_the_test_rollouts(studies):
-    points = analysis.epoch_success(studies["tests"])
+    points = analysis.binned_success(studies["tests"])
     test = analysis.welch_per_bin(points, "curious", "mg-te")
     assert 0 < test["significant"].sum() < len(test)  # the made-up data leave both kinds
     fig = analysis.fig2a(studies["tests"])
     (dots,) = [line for line in fig.axes[0].lines if line.get_label().startswith("p < 0.01")]
     np.testing.assert_array_equal(dots.get_xdata(), test.loc[test["significant"], "episodes"])
-    # one point per epoch (every 20 episodes), at the training episodes done when it ran
+    # one point per comparison bin (600 episodes: bins of 20), at the bin's end
+    assert points.attrs["bin_size"] == analysis.comparison_bin_size(600) == 20
     assert sorted(points["episodes"].unique()) == list(range(20, 601, 20))
     curve = next(line for line in fig.axes[0].lines if line.get_label() == "CURIOUS")
     mean = analysis.across_seeds(points).query("condition == 'curious'")
     np.testing.assert_allclose(curve.get_ydata(), mean["mean"])
     caption = _caption(fig)
     assert "3 seeds (0–2)" in caption and "600 episodes per run" in caption
-    assert "test success" in caption and "one point per epoch" in caption
+    assert "test success" in caption.lower() and "each 20-episode bin" in caption
+    n = int(test["significant"].sum())
+    assert f"significant in {n} of {len(test)} bins" in caption
+    assert f"({n} of {len(test)} bins)" in dots.get_label()
+
+
+def test_fig2a_draws_the_comparison_bins_with_every_seed_and_the_counts_the_report_quotes(
+    studies,
+):
+    """Fig. 2a is drawn from `main_comparison`, the numbers the report quotes: its points are
+    the bins of the Welch tests, each seed has its own thin line, and the caption counts the
+    significant bins as `main_comparison` does."""
+    tests = studies["tests"]
+    numbers = analysis.main_comparison(tests, "curious", "mg-te", bin_size=100)
+    fig = analysis.fig2a(tests, bin_size=100)
+    lines = fig.axes[0].lines
+    seeds = [line for line in lines if line.get_label() == "_seed"]
+    assert len(seeds) == 9  # 3 conditions x 3 seeds
+    assert all(list(line.get_xdata()) == list(range(100, 601, 100)) for line in seeds)
+    (dots,) = [line for line in lines if line.get_label().startswith("p < 0.01")]
+    welch = numbers["welch"]
+    np.testing.assert_array_equal(dots.get_xdata(), welch.loc[welch["significant"], "episodes"])
+    assert numbers["n_bins"] == 6 and numbers["bin_size"] == 100
+    text = f"significant in {numbers['n_significant']} of 6 bins"
+    assert text in _caption(fig)
+    final = numbers["final_summary"].set_index("condition")
+    assert set(final.index) == {"curious", "mg-te", "her"} and (final["n"] == 3).all()
+    assert (final["episodes"] == 600).all()
 
 
 def test_fig2a_from_the_competence_table_or_without_test_rollouts_is_refused(studies, tmp_path):
@@ -156,6 +185,28 @@ def test_module_figures_use_the_palette(studies):
         analysis.fig2b(studies["main"], seed=9)
 
 
+def test_lp_axes_fit_the_curves_they_draw(studies):
+    """Fig. 2c's and Table 1's LP axes end just above the highest LP drawn, not at a spike
+    between two samples."""
+    fig = analysis.fig2c(studies["main"], seed=1)
+    ax = fig.axes[0]
+    drawn = max(float(np.nanmax(line.get_ydata())) for line in ax.lines)
+    assert ax.get_ylim()[1] == pytest.approx(max(0.05, drawn * 1.08))
+    table = analysis.table1(studies["main"])
+    right = table.axes[1::2]
+    drawn = max(float(np.nanmax(line.get_ydata())) for ax in right for line in ax.lines)
+    assert all(ax.get_ylim()[1] == pytest.approx(max(0.05, drawn * 1.08)) for ax in right)
+    # a spike between two samples (bins of 2 episodes sample episodes 1, 3, 5, ...) is not drawn
+    # and does not stretch the axis
+    from curious.analysis.figures.parts import drawn_ceiling, lp_ceiling
+
+    main = studies["main"]
+    run = main[main["run"] == main["run"].iat[0]].sort_values("episode").copy()
+    run.loc[run["episode"] == 4, "lp/reach"] = 5.0
+    assert lp_ceiling(run) == pytest.approx(5.0)
+    assert drawn_ceiling(run, "lp/", 2) < 1.0
+
+
 def test_table1_has_a_row_per_seed(studies):
     fig = analysis.table1(studies["main"])
     assert len(fig.axes) == 2 * 3
@@ -186,6 +237,31 @@ def test_forgetting_follows_the_perturbed_module_and_states_recovery_times(studi
     assert line.get_xdata().min() < 0 < line.get_xdata().max()
 
 
+SHIPPED = Path(__file__).resolve().parents[1] / "data" / "laptop"
+
+
+@pytest.mark.skipif(not (SHIPPED / "sensor_failure").is_dir(), reason="no shipped runs")
+def test_forgetting_draws_every_run_over_its_whole_recovery():
+    """The shipped sensory-failure runs: one line per run, an x axis reaching past every
+    recovery (5,998 and 6,918 episodes after the onset), and the run that never recovered
+    (M-UVFA seed 0, which ends 5,328 episodes after its failure) shown with a cross."""
+    df = analysis.load_runs(SHIPPED / "sensor_failure")
+    fig, per_run = analysis.forgetting(df)
+    top, bottom = fig.axes[:2]
+    recovered = per_run.loc[per_run["recovered"], "recovery_episodes"]
+    assert top.get_xlim()[1] > recovered.max() > 6_000
+    labels = [t.get_text() for t in bottom.get_legend().get_texts()]
+    assert len(labels) == len(per_run) == 4
+    assert "M-UVFA seed 0: not regained by its end (5,328 after)" in labels
+    assert "CURIOUS seed 0: 90% regained after 6,918" in labels
+    runs = [line for line in top.lines if len(line.get_xdata()) > 10]
+    assert len(runs) == 4
+    crosses = [line for line in top.lines if line.get_marker() == "X"]
+    circles = [line for line in top.lines if line.get_marker() == "o"]
+    assert len(crosses) == 1 and len(circles) == 3
+    assert sorted(x for c in circles for x in c.get_xdata()) == sorted(recovered.astype(int))
+
+
 def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies):
     fig = analysis.distractors(studies["distractors"])
     ax = fig.axes[0]
@@ -195,6 +271,25 @@ def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies
     containers = {c.get_label(): c for c in ax.containers}
     line = containers["CURIOUS"].lines[0]
     np.testing.assert_allclose(line.get_ydata(), means.loc["curious"].to_numpy())
+
+
+def test_distractors_names_what_it_plots_and_shows_each_settings_seeds(studies):
+    """The y axis says self-evaluated competence (not "final success"); a setting of the
+    paper's without runs keeps its tick, saying so; each tick says how many seeds it has."""
+    df = studies["distractors"]
+    fig = analysis.distractors(df[df["n_distractors"] != 0])
+    ax = fig.axes[0]
+    assert ax.get_ylabel().startswith("self-evaluated competence")
+    assert "final success" not in ax.get_ylabel() + fig._suptitle.get_text()
+    assert [t.get_text() for t in ax.get_xticklabels()] == [
+        "0\n(no runs)",
+        "4\n(2 seeds)",
+        "7\n(2 seeds)",
+    ]
+    assert "no runs with 0, which the paper also compares" in _caption(fig)
+    one = df[(df["seed"] == 0) | (df["n_distractors"] == 7)]
+    labels = [t.get_text() for t in analysis.distractors(one).axes[0].get_xticklabels()]
+    assert labels == ["0\n(1 seed)", "4\n(1 seed)", "7\n(2 seeds)"]
 
 
 def test_episode_ticks_read_in_thousands():

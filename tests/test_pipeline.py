@@ -63,8 +63,18 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
         assert experiment.title in report
     assert "Welch's t-test" in report and "24 episodes" in report
     # the main comparison's numbers come from the test rollouts, as Fig. 2a's
-    assert "Test success over achievable modules after 24 episodes" in report
-    assert "per epoch's test success" in report and "final test success" in report
+    assert (
+        "Test success over achievable modules in the last 1-episode bin (to 24 episodes" in report
+    )
+    assert "Welch's t-test per 1-episode bin" in report and "significant in 0 of 2 bins" in report
+    assert "computation, `curious.analysis.main_comparison`" in report
+    assert "test success at the last epoch" in report
+    # what the report was built from, counted from its tables; the whole budget beside it
+    assert "This report was built from 14 runs, 336 training episodes in all: main 6 runs" in report
+    assert (
+        "The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains 14 runs"
+        in report
+    )
     # the smoke failure starts at episode 12 on an unlearned module: no recovery is claimed
     assert "The failure starts at episode 12. It started at episode 12 in every run." in report
     assert "nothing to forget" in report and "No recovery can be measured" in report
@@ -89,6 +99,11 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "Order of learning: the first episode at which each module's competence" in report
     # C3/C5: the drop, the LP and p_LP before and after the failure, per run
     assert "| LP before → after | p_LP before → after | recovery (episodes) |" in report
+    # two levels before the failure, named apart
+    assert (
+        "| competence at the onset | pre-failure mean | drop from the pre-failure mean |" in report
+    )
+    assert "competence then" not in report and "competence before" not in report
     # the command ends by saying where the products are
     assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
     assert json.loads((out / "reproduce.json").read_text())["budget"] == "smoke"
@@ -157,6 +172,58 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
                 assert png == (smoke.out / "figures" / f"{figure}.png").read_bytes()
     finally:
         instance.dispose()
+
+
+def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_each_shows(
+    smoke, shipped, tmp_path, monkeypatch, capsys
+):
+    """`curious reproduce` on a budget with a shipped campaign beside it (the README's quick
+    job and data/laptop; here the smoke budget and its shipped smoke runs): after its own
+    training it builds the shipped campaign's report and figures into <campaign>-shipped beside
+    OUT, from the shipped runs alone, and ends by saying where each output is and what each
+    can show. --no-shipped leaves the campaign out."""
+    import shutil
+
+    from curious.commands import reproduce as command
+
+    out = tmp_path / "runs" / "smoke"
+    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns("*.lock"))  # all finished
+    monkeypatch.setattr(command, "SHIPPED_BESIDE", {"smoke": "smoke"})
+    monkeypatch.setattr(command, "shipped_data_folder", lambda name: shipped.data)
+    args = ["reproduce", "--budget", "smoke", "--out", str(out), "--no-progress"]
+    assert curious_cli(args) == 0
+    stdout = capsys.readouterr().out
+    beside = tmp_path / "runs" / "smoke-shipped"
+    assert (beside / "report.md").read_bytes() == (smoke.out / "report.md").read_bytes()
+    assert sorted(p.name for p in (beside / "figures").iterdir()) == sorted(
+        p.name for p in (smoke.out / "figures").iterdir()
+    )
+    assert "0 run(s) trained, 14 already finished" in stdout
+    assert "14 shipped run(s) read, none trained" in stdout
+    closing = stdout[stdout.index("What each output can show:") :]
+    assert f"{out / 'report.md'} and {out / 'figures'}/" in closing
+    assert "it cannot show the paper's claims" in closing
+    assert f"{beside / 'report.md'} and {beside / 'figures'}/" in closing
+    assert f"the shipped `smoke` campaign, 14 runs read from {shipped.data}" in closing
+    assert "C1, CURIOUS learns faster than MG-TE" in closing and "C3/C5" in closing
+    assert "C4" in closing
+
+    shutil.rmtree(beside)
+    assert curious_cli([*args, "--no-shipped"]) == 0
+    stdout = capsys.readouterr().out
+    assert not beside.exists() and "shipped run(s) read" not in stdout
+    assert "What each output can show:" in stdout and "smoke-shipped" not in stdout
+
+
+def test_the_readme_job_builds_the_repositorys_shipped_laptop_campaign():
+    """The quick budget's campaign beside it is data/laptop, which a clone holds."""
+    from curious.commands import reproduce as command
+
+    assert command.SHIPPED_BESIDE == {"quick": "laptop"}
+    data = Path(__file__).resolve().parents[1] / "data" / "laptop"
+    if not (data / "shipped.json").is_file():
+        pytest.skip("no data/laptop in this checkout")
+    assert command.shipped_data_folder("laptop") == data
 
 
 def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smoke):

@@ -178,3 +178,78 @@ def test_stopping_curious_view_stops_the_viewer_it_started(tmp_path: Path) -> No
     assert stopped.value.code == 128 + signal.SIGTERM
     with pytest.raises(ProcessLookupError):
         os.kill(int(pidfile.read_text()), 0)  # the viewer is gone, reaped
+
+
+def test_stopping_curious_view_stops_the_viewers_children_too(tmp_path: Path) -> None:
+    """The `rerun` command is a script that runs the viewer binary as its child: stopped with
+    SIGTERM, `curious view` stops that child too (it would keep serving, holding the ports)."""
+    import os
+    import signal
+    import threading
+    import time
+
+    pidfile = tmp_path / "server.pid"
+
+    def stop_soon() -> None:
+        deadline = time.time() + 10
+        while not pidfile.exists() or not pidfile.read_text().strip():
+            if time.time() > deadline:
+                return
+            time.sleep(0.02)
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=stop_soon, daemon=True).start()
+    with pytest.raises(SystemExit) as stopped:  # a wrapper whose child serves, as `rerun` does
+        view.run_viewer(["sh", "-c", f"sleep 60 & echo $! > {pidfile}; wait"])
+    assert stopped.value.code == 128 + signal.SIGTERM
+    server = int(pidfile.read_text())
+    deadline = time.time() + 5
+    while time.time() < deadline:
+        try:
+            os.kill(server, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(server, signal.SIGKILL)
+        raise AssertionError("the viewer's child outlived `curious view`")
+
+
+def test_the_printed_addresses_name_this_machine_or_localhost_never_a_placeholder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch, no_display: None
+) -> None:
+    import socket
+
+    monkeypatch.setattr(view, "run_viewer", lambda cmd: 0)
+    a = _run_folder(tmp_path, "run_a")
+    host = socket.gethostname()
+    for args in (["--web"], []):
+        assert main(["view", *args, str(a)]) == 0
+        out = capsys.readouterr().out
+        assert "<" not in out and "this-host" not in out
+        assert f"http://{host}:9090/?url=rerun%2Bhttp://{host}:9876/proxy" in out
+        assert "http://localhost:9090/?url=rerun%2Bhttp://localhost:9876/proxy" in out
+        assert f"{host} is this machine's name" in out or f"this machine's name, {host}" in out
+
+
+def test_a_shipped_run_says_shipped_runs_carry_no_recording_and_no_checkpoint(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`curious view` and `curious evaluate` on a run folder of shipped data (data/<budget>,
+    `curious ship`): one line saying what shipped runs carry, and what reads them."""
+    data = Path(__file__).resolve().parents[1] / "data" / "laptop"
+    if not (data / "main" / "curious" / "seed-0").is_dir():
+        pytest.skip("no shipped runs in data/laptop")
+    run = data / "main" / "curious" / "seed-0"
+    assert main(["view", str(run)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no recording.rrd" in err
+    assert "shipped runs carry config.json and their tables only" in err
+    assert "no recording.rrd and no checkpoints" in err and "--from-data" in err
+    assert main(["evaluate", str(run), "--episodes", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "holds no checkpoint" in err and "no recording.rrd and no checkpoints" in err
+    trained = _run_folder(tmp_path, "run")  # a training's run folder: no such sentence
+    (trained / RECORDING_FILE).unlink()
+    assert main(["view", str(trained)]) == 2
+    assert "shipped runs carry" not in capsys.readouterr().err

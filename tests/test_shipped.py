@@ -242,6 +242,32 @@ def test_shipped_runs_of_some_variants_rebuild_those_variants_figures_and_number
     assert set(metrics["variant"].astype(str)) == {"distractors_7"}
 
 
+def test_runs_of_a_left_out_variant_with_every_condition_are_shown_untested(shipped, tmp_path):
+    """`ShippedData.left_out_runs`: of the variants an experiment leaves out (too few seeds
+    shipped), the finished runs of those that have every condition, for the figure and the
+    table; a variant missing a condition gives none."""
+    from dataclasses import replace
+
+    from curious.reproduction.experiments import get_budget
+    from pipelines.from_data import ShippedData
+
+    data = tmp_path / "smoke"
+    shutil.copytree(shipped.data, data)
+    shutil.rmtree(data / "distractors" / "m-uvfa@distractors_0")
+    folder = ShippedFolder(data)
+    manifest = folder.read_manifest()
+    runs = tuple(r for r in manifest.runs if "m-uvfa@distractors_0" not in r.run)
+    folder.write_manifest(type(manifest)("smoke", runs))
+    two_seeds = replace(get_budget("smoke").experiments["distractors"], seeds=(0, 1))
+    experiment = two_seeds.with_variants(["distractors_7"])
+    shown = ShippedData.open(data).left_out_runs(experiment)
+    assert [s.relative_path.as_posix() for s in shown] == [
+        "distractors/curious@distractors_4/seed-0",
+        "distractors/m-uvfa@distractors_4/seed-0",
+    ]
+    assert ShippedData.open(data).left_out_runs(two_seeds) == []  # nothing left out
+
+
 def test_a_seed_beyond_the_budgets_is_read_with_its_seeds_once_all_its_runs_are_shipped(
     extra_seed, tmp_path
 ):

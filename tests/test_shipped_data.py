@@ -16,6 +16,7 @@ from shipped_check import check_shipped_folder
 from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
 
 DATA = Path(__file__).resolve().parents[1] / "data"
+DOCS_IMAGES = Path(__file__).resolve().parents[1] / "docs" / "images"
 SHIPPED = sorted(p.parent for p in DATA.glob(f"*/{MANIFEST_FILE}"))
 LIMIT = 50_000_000
 """Bytes: the whole of data/ stays well under this (GitHub warns at 50 MB per file)."""
@@ -33,6 +34,14 @@ def test_a_shipped_folder_loads_and_the_report_reads_its_numbers_from_it(data, t
     report = check_shipped_folder(data, tmp_path / "out")
     budget = ShippedFolder(data).read_manifest().budget
     assert report.startswith(f"# CURIOUS reproduction — budget `{budget}`")
+    # the docs show the report's own figures (docs/images/<budget>-<figure>.png)
+    for png in sorted(DOCS_IMAGES.glob(f"{budget}-*.png")):
+        figure = tmp_path / "out" / "figures" / png.name.removeprefix(f"{budget}-")
+        assert figure.is_file(), f"{png.name} is not a figure of the report"
+        assert png.read_bytes() == figure.read_bytes(), (
+            f"{png.name} is not the report's figure: `curious reproduce --from-data {data} "
+            f"--out /tmp/r` and copy /tmp/r/figures/{figure.name} to docs/images/{png.name}"
+        )
 
 
 def test_data_holds_only_shipped_folders_well_under_the_size_limit():

@@ -159,17 +159,17 @@ def _measure(
     back = np.flatnonzero(after[trough:] >= threshold)
     if not dropped:
         recovered_at = 0.0
-        note = f"competence never fell below {fraction:.0%} of its level before ({pre:.2f})"
+        note = f"competence never fell below {fraction:.0%} of its pre-failure mean ({pre:.2f})"
     elif back.size:
         recovered_at = float(episodes[start + trough + back[0]] - p + 1)
         note = (
-            f"{fraction:.0%} of its competence before ({pre:.2f}) regained "
+            f"{fraction:.0%} of its pre-failure mean ({pre:.2f}) regained "
             f"{recovered_at:,.0f} episodes after the failure"
         )
     else:
         recovered_at = np.nan
         note = (
-            f"{fraction:.0%} of its competence before ({pre:.2f}) not regained within the "
+            f"{fraction:.0%} of its pre-failure mean ({pre:.2f}) not regained within the "
             f"{int(episodes[-1]) - p + 1:,} episodes after the failure"
         )
     return {

@@ -52,15 +52,19 @@ from curious.analysis.loading import AnalysisError, require_runs, require_tests
 
 __all__ = [
     "ALPHA",
+    "COMPARISON_BINS",
     "FLOAT32_SLACK",
     "RUN_COLUMNS",
     "achievable_competence",
     "across_seeds",
     "bin_runs",
+    "binned_success",
     "check_comparable",
+    "comparison_bin_size",
     "epoch_success",
     "final_competence",
     "final_success",
+    "main_comparison",
     "nice_bin_size",
     "on_achievable",
     "run_arrays",
@@ -68,6 +72,11 @@ __all__ = [
 ]
 
 ALPHA = 0.01
+
+COMPARISON_BINS = 20
+"""The main comparison is read in this many episode bins of a run's budget (`comparison_bin_size`:
+5,000 episodes for the `laptop` budget's 100,000): Fig. 2a's points, its Welch tests, the final
+success and the report's numbers all come from `main_comparison` on these bins."""
 
 FLOAT32_SLACK = 1e-6
 """Competences are stored as float32 (0.7 reads 0.69999999): comparisons with a level allow
@@ -366,3 +375,57 @@ def final_success(points: pd.DataFrame) -> pd.DataFrame:
     last = upto.loc[upto.groupby("run", observed=True)["episodes"].idxmax()]
     columns = [*RUN_COLUMNS, "episodes", "n_tests", "value"]
     return last[columns].sort_values("run").reset_index(drop=True)
+
+
+def comparison_bin_size(n_episodes: int) -> int:
+    """The main comparison's bin width for runs of ``n_episodes`` (`COMPARISON_BINS` bins,
+    rounded down to 1, 2 or 5 times a power of ten by `nice_bin_size`): 5,000 for 100,000."""
+    return nice_bin_size(n_episodes, COMPARISON_BINS)
+
+
+def binned_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFrame:
+    """`epoch_success` in the main comparison's bins: the test rollouts of each run pooled per
+    ``bin_size``-episode bin (default `comparison_bin_size` of the longest run's training
+    episodes at its last test). ``attrs["bin_size"]`` says which width was used."""
+    require_tests(tests)
+    if bin_size is None:
+        bin_size = comparison_bin_size(max(int(tests["episode"].max()), 1))
+    return epoch_success(tests, bin_size)
+
+
+def main_comparison(
+    tests: pd.DataFrame,
+    better: str | None = None,
+    worse: str | None = None,
+    alpha: float = ALPHA,
+    bin_size: int | None = None,
+) -> dict[str, object]:
+    """The main comparison's numbers, from one computation shared by Fig. 2a, the report and
+    whatever quotes them: the test success of every run in the comparison's bins
+    (`binned_success`), their mean ± std across seeds per condition and bin (`across_seeds`),
+    each run's value in the last bin every run completed (`final_success`), and, given
+    ``better`` and ``worse``, the one-tailed Welch test per bin (`welch_per_bin`).
+
+    Returns a dict: ``bin_size``, ``points``, ``summary``, ``final`` (one row per run),
+    ``final_summary`` (per condition: ``mean``, ``std``, ``n``, at ``episodes``), and ``welch``
+    (None without a pair) with ``n_significant`` and ``n_bins``.
+    """
+    points = binned_success(tests, bin_size)
+    final = final_success(points)
+    grouped = final.groupby("condition", observed=True)["value"]
+    final_summary = grouped.agg(mean="mean", std=lambda v: v.std(ddof=1), n="size").reset_index()
+    final_summary["episodes"] = int(final["episodes"].max())
+    out: dict[str, object] = {
+        "bin_size": int(points.attrs["bin_size"]),
+        "points": points,
+        "summary": across_seeds(points),
+        "final": final,
+        "final_summary": final_summary,
+        "welch": None,
+        "n_significant": 0,
+        "n_bins": 0,
+    }
+    if better is not None and worse is not None:
+        welch = welch_per_bin(points, better, worse, alpha)
+        out.update(welch=welch, n_significant=int(welch["significant"].sum()), n_bins=len(welch))
+    return out

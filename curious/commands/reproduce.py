@@ -13,6 +13,12 @@ OUT/.dagster: no server to start. Training runs go to worker processes (one per 
 --workers says otherwise), or to Ray tasks with --ray-address. A second call with the same
 budget and --out retrains nothing that is finished and resumes what was interrupted.
 
+The README's job, `curious reproduce` (budget quick), ends by also building the report and
+figures of the shipped `laptop` campaign (data/laptop, committed with the repository) into
+runs/laptop-shipped beside its own output, in seconds, and says what each can show: the quick
+runs check the pipeline on this machine, the shipped campaign's report shows the paper's claims
+as far as its runs go (`SHIPPED_BESIDE`; --no-shipped leaves it out).
+
 --from-data DATA trains nothing: it reads the runs from a shipped data folder (`curious ship`;
 the repository's data/<budget>), every experiment it holds complete unless --experiments says
 otherwise (an experiment of several variants, complete for some of them only, from those
@@ -32,6 +38,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from curious.commands import add_set_option
@@ -136,6 +143,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--no-record", action="store_true", help="do not write Rerun recordings (recording.rrd)"
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    parser.add_argument(
+        "--no-shipped",
+        action="store_true",
+        help="do not build the shipped campaign's report beside a quick reproduction",
+    )
     parser.set_defaults(func=run)
 
 
@@ -240,7 +252,88 @@ def run(args: argparse.Namespace) -> int:
         return 130
 
     _done(result)
+    if result.budget in SHIPPED_BESIDE:
+        shipped = None if args.no_shipped else _build_shipped_beside(result, not args.no_progress)
+        _what_each_shows(result, shipped)
     return 0
+
+
+SHIPPED_BESIDE: dict[str, str] = {"quick": "laptop"}
+"""Budget trained -> the shipped campaign (data/<name>) whose report `curious reproduce` builds
+beside it: the quick runs cannot show the paper's claims, the shipped campaign's can."""
+
+CLAIMS: dict[str, str] = {
+    "main": "C1, CURIOUS learns faster than MG-TE (Fig. 2a, with its Welch test per bin); "
+    "C2, the order of learning (Fig. 2b/2c, Table 1)",
+    "sensor_failure": "C3/C5, forgetting and recovery after a sensory failure (the forgetting "
+    "figure)",
+    "distractors": "C4, CURIOUS against M-UVFA with distracting modules (the distractors figure)",
+}
+"""What each experiment's figures and numbers test, in the paper's claims (in their order)."""
+
+
+def shipped_data_folder(name: str) -> Path | None:
+    """The repository's shipped data folder data/<name> (beside the `curious` package of a
+    clone, else in the working directory), or None where neither holds one."""
+    from curious.reproduction.shipped_folder import ShippedFolder
+
+    here = Path(__file__).resolve().parents[2]
+    for root in (here, Path.cwd()):
+        folder = ShippedFolder(root / "data" / name)
+        if folder.is_shipped:
+            return folder.path
+    return None
+
+
+def _build_shipped_beside(result: ReproduceResult, progress: bool) -> ReproduceResult | None:
+    """The shipped campaign's report and figures, into <campaign>-shipped beside OUT; None (with
+    a line saying why) where the budget has none or it cannot be built."""
+    from curious.reproduction.experiments import ExperimentError
+    from pipelines.reproduce import ReproduceError, reproduce
+
+    name = SHIPPED_BESIDE.get(result.budget)
+    if name is None:
+        return None
+    data = shipped_data_folder(name)
+    if data is None:
+        print(
+            f"\nNo shipped data/{name} here (it comes with a clone of the repository): the "
+            f"shipped campaign's report was not built.",
+            file=sys.stderr,
+        )
+        return None
+    out = result.layout.out.parent / f"{name}-shipped"
+    print(f"\nThe shipped `{name}` campaign's report and figures, from {data}:")
+    try:
+        shipped = reproduce(name, out=out, progress=progress, from_data=data)
+    except (ExperimentError, ReproduceError) as exc:
+        print(f"curious reproduce: the shipped campaign's report was not built: {exc}")
+        return None
+    _done(shipped)
+    return shipped
+
+
+def _what_each_shows(result: ReproduceResult, shipped: ReproduceResult | None) -> None:
+    """The closing lines of a budget with a shipped campaign beside it: where each output is
+    and what it can show."""
+    from curious.reproduction.experiments import get_budget
+
+    budget = get_budget(result.budget)
+    print("\nWhat each output can show:")
+    print(
+        f"  {result.layout.report} and {result.layout.figures}/\n"
+        f"    budget `{result.budget}`, trained here ({budget.description}). It checks that "
+        "training, the analysis and the figures run on this machine; it cannot show the "
+        f"paper's claims. {budget.caption_note}"
+    )
+    if shipped is not None:
+        claims = "; ".join(text for e, text in CLAIMS.items() if e in shipped.experiments)
+        print(
+            f"  {shipped.layout.report} and {shipped.layout.figures}/\n"
+            f"    the shipped `{shipped.budget}` campaign, {len(shipped.results)} runs read from "
+            f"{shipped.from_data}: the paper's claims as far as its runs go, each figure with "
+            f"its statistics: {claims}."
+        )
 
 
 _TRAINING_OPTIONS = {

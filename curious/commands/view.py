@@ -12,14 +12,18 @@ on another machine) instead.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import shlex
 import shutil
 import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
+from curious.reproduction.shipped_folder import shipped_run_note
 from curious.runs.folder import RunFolder
 from curious.watching.display import has_display
 
@@ -95,10 +99,14 @@ def recording_paths(runs: list[str]) -> list[Path]:
         if path.is_dir():
             rrd = RunFolder(path).recording_path
             if not rrd.is_file():
+                shipped = shipped_run_note(path)
                 raise FileNotFoundError(
-                    f"{path}: no {rrd.name} in this folder. A run folder gets one when "
-                    "`curious train` runs with recording on; check the path, or that the run "
-                    "has started."
+                    f"{path}: no {rrd.name} in this folder."
+                    + (
+                        shipped
+                        or " A run folder gets one when `curious train` runs with recording "
+                        "on; check the path, or that the run has started."
+                    )
                 )
             paths.append(rrd)
         elif path.is_file() and path.suffix == ".rrd":
@@ -151,6 +159,7 @@ def elsewhere_instructions(
     """How to open the recordings from a machine without a display."""
     files = " ".join(shlex.quote(str(p.resolve())) for p in paths)
     runs_text = " ".join(shlex.quote(r) for r in runs)
+    host = socket.gethostname()
     return "\n".join(
         [
             "No display here (DISPLAY and WAYLAND_DISPLAY are unset), so no viewer window can "
@@ -162,21 +171,24 @@ def elsewhere_instructions(
             "",
             "  2. Or serve them from here:",
             f"       curious view --web {runs_text}",
-            "     then open in a browser",
-            f"       {web_viewer_url('<this-host>', web_port, grpc_port)}",
+            f"     then open in a browser (from another machine; {host} is this machine's name)",
+            f"       {web_viewer_url(host, web_port, grpc_port)}",
             f"     (over ssh: ssh -L {web_port}:localhost:{web_port} -L {grpc_port}:localhost:"
-            f"{grpc_port} <this-host>, then",
+            f"{grpc_port} {host}, then",
             f"       {web_viewer_url('localhost', web_port, grpc_port)} ),",
             "     or connect a native viewer to it:",
-            f"       rerun --connect rerun+http://<this-host>:{grpc_port}/proxy",
+            f"       rerun --connect rerun+http://{host}:{grpc_port}/proxy",
         ]
     )
 
 
 def run_viewer(command: list[str]) -> int:
     """Run the viewer until it ends, or until this process is stopped (Ctrl-C, SIGTERM, SIGHUP):
-    then the viewer is stopped too, so that no server outlives `curious view`."""
-    proc = subprocess.Popen(command)
+    then the viewer is stopped too, so that no server outlives `curious view`. The viewer runs
+    in a process group of its own, and the whole group is stopped: the `rerun` command is a
+    Python script that runs the viewer binary as its child, which stopping the script alone
+    would leave serving (and holding its ports)."""
+    proc = subprocess.Popen(command, start_new_session=True)
 
     def stop(signum: int, frame: object) -> None:
         raise SystemExit(128 + signum)
@@ -189,13 +201,29 @@ def run_viewer(command: list[str]) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+        _stop_group(proc)
+
+
+def _stop_group(proc: subprocess.Popen) -> None:
+    """SIGTERM to the viewer's process group, SIGKILL to what is left after 5 s; the viewer
+    itself is reaped."""
+    group = proc.pid
+    try:
+        os.killpg(group, signal.SIGTERM)
+    except ProcessLookupError:
+        return  # the group is gone: nothing left running
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline:
+        proc.poll()
+        try:
+            os.killpg(group, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(group, signal.SIGKILL)
+    proc.wait()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -224,11 +252,14 @@ def run(args: argparse.Namespace) -> int:
             str(args.grpc_port),
             *files,
         ]
+        host = socket.gethostname()
         print(
-            f"Serving {len(files)} recording(s). Open "
-            f"{web_viewer_url('<this-host>', args.web_port, args.grpc_port)} in a browser "
-            "(<this-host>: localhost here, or this machine's name), or run "
-            f"`rerun --connect rerun+http://<this-host>:{args.grpc_port}/proxy`. Ctrl-C stops."
+            f"Serving {len(files)} recording(s). In a browser on this machine open\n"
+            f"  {web_viewer_url('localhost', args.web_port, args.grpc_port)}\n"
+            f"from another machine (by this machine's name, {host}) open\n"
+            f"  {web_viewer_url(host, args.web_port, args.grpc_port)}\n"
+            f"or connect a native viewer: rerun --connect rerun+http://{host}:"
+            f"{args.grpc_port}/proxy\nCtrl-C (or SIGTERM, SIGHUP) stops the server."
         )
         return run_viewer(command)
     if not has_display():

@@ -27,7 +27,7 @@ run of every experiment:
 
 =========  ===============================================================================
 `smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
-`quick`    the README's job: `main` and `distractors` in about ten minutes on 2 cores
+`quick`    the README's job: `main` and `distractors`, short runs (README)
 `laptop`   a day and a half on 2 cores (hours on a workstation or a Ray cluster)
 `paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
 =========  ===============================================================================
@@ -439,7 +439,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
         _budget(
             "quick",
             "the README's job: 12 runs over two experiments (main, distractors; no sensory "
-            "failure), about ten minutes on 2 cores",
+            "failure) of 1,000 episodes each",
             "Training preset `quick` (2 workers x 2 episodes and 20 updates of 256 per cycle). "
             "12 runs of 1,000 episodes over two experiments: main 3 conditions x 2 seeds, "
             "distractors 2 conditions x 3 settings x 1 seed; the sensory failure is left out "
@@ -457,7 +457,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             "a day and a half on 2 cores (hours on more, or with --ray-address)",
             "Training preset `laptop` (4 workers x 2 episodes and 40 updates of 512 per cycle): "
             "about 0.12 s per training episode on one core of a 2-core machine, and a fifth more "
-            "for the test rollouts, so 1.74 M episodes in 25 runs "
+            "for the test rollouts, so the whole budget's episodes "
             "take about 35 h on 2 cores, 9 h on 8. The runs are independent: `--workers` runs "
             "them side by side, `--ray-address` across a cluster; an interrupted reproduction "
             "resumes.",

@@ -166,6 +166,30 @@ class ShippedFolder:
         self.manifest_path.write_text(json.dumps(manifest.to_dict(), indent=2) + "\n")
 
 
+def shipped_root(run: str | os.PathLike) -> Path | None:
+    """The shipped data folder that holds the run folder `run` (the nearest folder at or above it
+    with a `shipped.json`), or None for a run folder of a training."""
+    path = Path(run).resolve()
+    for folder in (path, *path.parents):
+        if (folder / MANIFEST_FILE).is_file():
+            return folder
+    return None
+
+
+def shipped_run_note(run: str | os.PathLike) -> str:
+    """For a run folder of shipped data: a sentence saying what shipped runs carry (their tables
+    and description: no recording, no checkpoints) and what reads them; "" otherwise."""
+    root = shipped_root(run)
+    if root is None:
+        return ""
+    return (
+        f" It is a shipped run (of the data folder {root}, written by `curious ship`): shipped "
+        "runs carry config.json and their tables only, no recording.rrd and no checkpoints. "
+        f"`curious reproduce --from-data {root}` and the notebooks read them; to watch or "
+        "evaluate a run, train one (`curious train`)."
+    )
+
+
 def shipped_metadata(dropped: tuple[str, ...]) -> dict[bytes, bytes]:
     """The parquet schema metadata that marks a table as reduced, with the columns it drops."""
     return {SHIPPED_KEY: json.dumps({"format": FORMAT, "dropped": list(dropped)}).encode()}

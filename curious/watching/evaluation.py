@@ -295,7 +295,12 @@ def open_run(
     run_modules = list(info.module_names)
     latest = checkpoint.load_latest(folder.checkpoints, config.device, replay=False)
     if latest is None:
-        raise ValueError(f"{folder.path} holds no checkpoint to evaluate (in {folder.checkpoints})")
+        from curious.reproduction.shipped_folder import shipped_run_note
+
+        raise ValueError(
+            f"{folder.path} holds no checkpoint to evaluate (in {folder.checkpoints})."
+            + shipped_run_note(folder.path)
+        )
     path, state, _ = latest
     variant = variant or config.variant
     n = max(1, min(episodes, copies or config.n_workers))

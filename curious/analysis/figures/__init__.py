@@ -5,16 +5,18 @@ the others the episodes of `curious.analysis.load_runs`), returns a `matplotlib.
 and, given ``out_dir``, also writes ``<out_dir>/<name>.png`` and ``.svg`` (see `style.save_figure`):
 
 ============  ===========================================================================
-`fig2a`       average test success over achievable modules per condition, mean ± std over
-              seeds, dots where a one-tailed Welch test finds the first compared condition
-              better; drawn from the test rollouts (`curious.analysis.load_tests`)
+`fig2a`       average test success over achievable modules per condition in the main
+              comparison's episode bins (`statistics.main_comparison`), mean ± std over seeds
+              and each seed, stars at the bins where a one-tailed Welch test finds the first
+              compared condition better; drawn from the test rollouts (`load_tests`)
 `fig2b`       competence of every module, one run
 `fig2c`       absolute learning progress of every module, the same run
 `table1`      competence and LP of every seed of a condition, one row per seed
 `forgetting`  competence and LP of the perturbed module around the sensory failure, and the
               episodes each condition takes to regain a fraction of its earlier competence,
               where that can be measured
-`distractors` final success over achievable modules against the number of distracting modules
+`distractors` self-evaluated competence over achievable modules at the end of the runs against
+              the number of distracting modules
 ============  ===========================================================================
 
 Every x axis counts episodes (bar the distractors figure's), and every caption names the seeds,

@@ -1,5 +1,5 @@
-"""The distractors figure (`distractors`): final success against the number of distracting
-modules."""
+"""The distractors figure (`distractors`): the self-evaluated competence over the achievable
+modules at the end of the runs against the number of distracting modules."""
 
 from __future__ import annotations
 
@@ -42,10 +42,14 @@ def distractors(
     out_dir: str | PathLike[str] | None = None,
     name: str = "distractors",
 ) -> Figure:
-    """Final success over achievable modules against the number of distracting modules.
+    """Self-evaluated competence over achievable modules at the end of the runs against the
+    number of distracting modules.
 
-    One line per condition, mean ± std across seeds, for every number of distractors among the
-    runs (their variants may differ; their achievable modules must not). "Final" is after episode
+    One line per condition, mean ± std across seeds (a lone seed drawn as its value), for every
+    number of distractors among the runs (their variants may differ; their achievable modules
+    must not); the x ticks say how many seeds each setting has. The value is
+    `statistics.final_competence` (the mean over the achievable modules of the agent's own
+    competence measure, the success rate of its recent self-evaluations), after episode
     ``at_episode``, by default the last episode every run reached.
     """
     conditions = ordered_conditions(df, conditions)
@@ -87,21 +91,28 @@ def distractors(
                 capsize=3,
                 label=palette.condition_label(c),
             )
-        ax.set_xticks(counts)
-        ax.set_xlim(min(counts) - 0.6, max(counts) + 0.6)
+        ticks = sorted(set(counts) | set(PAPER_SETTINGS))
+        ax.set_xticks(ticks)
+        ax.set_xticklabels(
+            [f"{n}\n{_seeds_at(final, n) if n in counts else '(no runs)'}" for n in ticks]
+        )
+        ax.set_xlim(min(min(counts), 0) - 0.6, max(max(counts), 7) + 0.6)
         ax.set_xlabel("distracting modules")
         ax.set_ylim(-0.03, 1.03)
-        ax.set_ylabel(f"final success over achievable modules ({n_achievable})")
+        ax.set_ylabel(f"self-evaluated competence over\nthe {n_achievable} achievable modules")
         legend_right(ax)
-        fig.suptitle("Distracting modules — final success")
+        fig.suptitle("Distracting modules — competence at the end of the runs")
         seeds = _distractor_seeds_text(final, conditions, counts)
         episodes = int(final["episodes"].iat[0])
         runs = runs_of(rows)
         caption(
             fig,
-            f"{seeds}. Success after {episodes:,} episodes (the budget every run reached; "
-            f"runs of {budget_text(runs['n_episodes'])}, {setting_text(runs)}). Mean ± std "
-            f"across seeds of the competence averaged over the {n_achievable} achievable modules.",
+            f"{seeds}. Competence after {episodes:,} episodes (the budget every run reached; "
+            f"runs of {budget_text(runs['n_episodes'])}, {setting_text(runs)}): the success "
+            "rate of the agent's recent self-evaluations on each module, averaged over the "
+            f"{n_achievable} achievable modules; mean ± std across seeds (no bar: one seed). "
+            f"Settings drawn: {', '.join(map(str, counts))} distracting modules"
+            f"{_missing_text(counts)}.",
             note,
         )
     return finish(fig, out_dir, name)
@@ -121,3 +132,23 @@ def _distractor_seeds_text(
             listed = ", ".join(f"{n} distractors: {t}" for n, t in per_count.items())
             parts.append(f"{palette.condition_label(c)}: {listed}")
     return "; ".join(parts)
+
+
+def _seeds_at(final: pd.DataFrame, n: int) -> str:
+    """The x tick's second line: how many seeds each condition has at ``n`` distractors."""
+    seeds = final.loc[final["n_distractors"] == n].groupby("condition", observed=True).size()
+    low, high = int(seeds.min()), int(seeds.max())
+    many = f"{low}" if low == high else f"{low}–{high}"
+    return f"({many} seed{'' if high == 1 else 's'})"
+
+
+PAPER_SETTINGS = (0, 4, 7)
+"""The numbers of distracting modules the paper compares."""
+
+
+def _missing_text(counts: Sequence[int]) -> str:
+    """Which of the paper's settings the runs lack, if any."""
+    missing = [n for n in PAPER_SETTINGS if n not in counts]
+    if not missing:
+        return ""
+    return f" (no runs with {' or '.join(map(str, missing))}, which the paper also compares)"

@@ -3,6 +3,7 @@ recovery where it can be measured."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from os import PathLike
 
@@ -62,9 +63,11 @@ def forgetting(
     ``module`` defaults to the module the runs' sensory failure perturbs
     (`perturbation.perturbed_module`); each run's onset is where its failure started
     (`perturbation.failure_onsets`), or ``perturbation_episode`` for every run. The runs whose
-    failure started are aligned on their onset: the x axis counts episodes since the failure,
-    from ``before`` episodes before it (default: half of what every such run has after it) to
-    the end that all of them reach.
+    failure started are aligned on their onset and drawn one line per run (so that a run that
+    never recovered shows as such): the x axis counts episodes since the failure, from
+    ``before`` episodes before it (default: a quarter of what it shows after it) to a fifth
+    beyond the latest recovery, or end of a run not recovered (`_horizon`), each run up to its
+    own end; a circle marks each recovery, a cross the end of a run that never recovered.
     Where the failure started in no run, the figure shows the module's competence over the
     whole runs, with the competence the failure waited for, and says so. Returns the figure and
     `perturbation.recovery`'s table (one row per run, with its ``status`` and ``note``); the
@@ -81,12 +84,14 @@ def forgetting(
     onsets = onsets["perturbation_episode"].astype(np.int64)
     shown = palette.module_name(module)
     with figure_style():
-        fig = new_figure(7.6, 5.6)
+        fig = new_figure(9.2, 5.8)
         top, bottom = fig.subplots(2, 1, sharex=True)
         if onsets.empty:
             text = _draw_unstarted(top, bottom, rows, module, conditions, per_run)
         else:
-            text = _draw_aligned(top, bottom, rows, module, conditions, per_run, onsets, before)
+            text = _draw_aligned(
+                top, bottom, rows, module, conditions, per_run, onsets, before, fraction
+            )
         competence_axis(top, f"competence of {shown}")
         bottom.set_ylabel(f"absolute LP of {shown}")
         handles = [
@@ -105,7 +110,8 @@ def forgetting(
             f"failure perturbs. {text} A recovery is measured only where the failure started and "
             f"{shown} was learned before it (competence just before it at least {learned_text}): "
             f"the episodes from the failure until the competence, after its lowest point, is back "
-            f"at {fraction:.0%} of its level before.",
+            f"at {fraction:.0%} of its pre-failure mean (its mean over the last p/10 episodes "
+            "before a failure at episode p).",
             note,
         )
     return finish(fig, out_dir, name), per_run
@@ -158,6 +164,37 @@ def _draw_conditions(
             draw_mean_std(ax, s[s["n"] == s["n"].max()], color, width, None)
 
 
+SEED_STYLES = ("-", "--", ":", "-.")
+"""Line styles of a condition's runs, in seed order (then again)."""
+
+
+def _horizon(per_run: pd.DataFrame, remaining: pd.Series) -> int:
+    """Episodes after the failure that the x axis covers: a fifth beyond the latest of each
+    run's recovery (or, for a run not recovered, its end), so that every recovery and every
+    run that never recovered show whole; never beyond the longest run."""
+    latest = 0
+    for r in per_run.itertuples():
+        if r.run not in remaining.index:
+            continue
+        if bool(r.recovered) and pd.notna(r.recovery_episodes):
+            latest = max(latest, int(r.recovery_episodes))
+        else:
+            latest = max(latest, int(remaining[r.run]))
+    return int(min(int(remaining.max()), max(1, math.ceil(latest * 1.2))))
+
+
+def _run_label(r: object, fraction: float, remaining: int) -> str:
+    """A run's legend entry: its seed and its recovery, or why there is none."""
+    name = f"{palette.condition_label(r.condition)} seed {int(r.seed)}"
+    if r.status != "measured":
+        return f"{name}: nothing to measure"
+    if not bool(r.dropped):
+        return f"{name}: never below {fraction:.0%}"
+    if bool(r.recovered):
+        return f"{name}: {fraction:.0%} regained after {int(r.recovery_episodes):,}"
+    return f"{name}: not regained by its end ({remaining:,} after)"
+
+
 def _draw_aligned(
     top: Axes,
     bottom: Axes,
@@ -167,30 +204,74 @@ def _draw_aligned(
     per_run: pd.DataFrame,
     onsets: pd.Series,
     before: int | None,
+    fraction: float,
 ) -> str:
-    """The runs whose failure started, aligned on it; returns the caption's middle."""
+    """The runs whose failure started, aligned on it, one line per run; returns the caption's
+    middle."""
     last = rows.groupby("run", observed=True)["episode"].max()
-    after = int((last[onsets.index] + 1 - onsets).min())
+    remaining = (last[onsets.index] + 1 - onsets).astype(np.int64)
+    after = _horizon(per_run, remaining)
     if before is None:
-        before = max(1, after // 2)
+        before = max(1, after // 4)
     before = min(before, int(onsets.min()))
     step = curve_bin(before + after)
     offsets = np.arange(-(before // step), (after - 1) // step + 1) * step
-    comp = across_seeds(_aligned(rows, f"competence/{module}", onsets, offsets))
-    lp = across_seeds(_aligned(rows, f"lp/{module}", onsets, offsets))
-    _draw_conditions(top, bottom, comp, lp, conditions)
-    for c in conditions:
-        mine = per_run[(per_run["condition"] == c) & (per_run["status"] == "measured")]
-        if not mine.empty:
-            color = palette.condition_color(c)
-            top.axhline(mine["threshold"].mean(), color=color, linestyle=":", linewidth=1.0)
-    lp_axis(bottom, float(np.nanmax(lp["mean"] + lp["std"].fillna(0.0))) if len(lp) else 0.0)
+    comp = _aligned(rows, f"competence/{module}", onsets, offsets)
+    lp = _aligned(rows, f"lp/{module}", onsets, offsets)
+    handles, labels = [], []
+    lp_top = 0.0
+    for i, c in enumerate(conditions):
+        color, width = palette.condition_color(c), 0.6 + line_width(i, len(conditions)) / 2
+        mine = per_run[(per_run["condition"] == c) & per_run["run"].isin(onsets.index)]
+        for k, r in enumerate(mine.sort_values("seed").itertuples()):
+            style = SEED_STYLES[k % len(SEED_STYLES)]
+            c_run, l_run = comp[comp["run"] == r.run], lp[lp["run"] == r.run]
+            (line,) = top.plot(
+                c_run["episodes"], c_run["value"], color=color, linestyle=style, linewidth=width
+            )
+            bottom.plot(
+                l_run["episodes"], l_run["value"], color=color, linestyle=style, linewidth=width
+            )
+            lp_top = max(lp_top, float(np.nanmax(l_run["value"])) if len(l_run) else 0.0)
+            if r.status == "measured" and bool(r.recovered) and bool(r.dropped):
+                top.plot(
+                    [int(r.recovery_episodes)],
+                    [float(r.threshold)],
+                    marker="o",
+                    markersize=6,
+                    markerfacecolor="white",
+                    markeredgecolor=color,
+                    markeredgewidth=1.6,
+                    linestyle="none",
+                )
+            elif r.status == "measured" and bool(r.dropped) and len(c_run):
+                top.plot(
+                    [c_run["episodes"].iat[-1]],
+                    [c_run["value"].iat[-1]],
+                    marker="X",
+                    markersize=7,
+                    color=color,
+                    linestyle="none",
+                )
+            handles.append(line)
+            labels.append(_run_label(r, fraction, int(remaining[r.run])))
+    lp_axis(bottom, lp_top)
     for ax in (top, bottom):
         ax.axvline(0, color="black", linestyle="--", linewidth=1.0)
         ax.set_xlim(offsets[0], offsets[-1])
     episodes_axis(top, label=False)
     episodes_axis(bottom)
     bottom.set_xlabel("episodes since the sensory failure")
+    bottom.legend(
+        handles,
+        labels,
+        loc="upper left",
+        bbox_to_anchor=(1.02, 1.0),
+        borderaxespad=0.0,
+        title="each run",
+        fontsize=7.5,
+        title_fontsize=8,
+    )
     top.annotate(
         "sensory failure",
         xy=(0, 1.0),
@@ -199,15 +280,17 @@ def _draw_aligned(
         fontsize=7.5,
         va="top",
     )
-    dotted = (
-        " Dotted lines: each condition's recovery threshold (mean over its measured seeds)."
-        if (per_run["status"] == "measured").any()
+    ended = (
+        " A cross: a run that ended before regaining it."
+        if any("not regained" in t for t in labels)
         else ""
     )
     return (
         f"Each run is aligned on the first episode run with the failure "
-        f"({_onset_text(per_run, onsets)}); mean ± std across the seeds where it started, "
-        f"sampled every {episodes_text(step)}.{dotted}"
+        f"({_onset_text(per_run, onsets)}) and drawn as its own line (line style: seed) up to "
+        f"its end or {after:,} episodes after the failure, sampled every "
+        f"{episodes_text(step)}. A circle: where a run regained {fraction:.0%} of its pre-failure "
+        f"mean.{ended}"
     )
 
 
@@ -272,7 +355,7 @@ def _recovery_label(condition: str, runs: pd.DataFrame, fraction: float) -> str:
         )
     rest = "" if m == n else f"; {n - m} of {n} seeds not measurable"
     if not measured["dropped"].any():
-        return f"{name}: never fell below {fraction:.0%} of its level before ({m} seeds{rest})"
+        return f"{name}: never fell below {fraction:.0%} of its pre-failure mean ({m} seeds{rest})"
     back = measured[measured["recovered"]]
     if back.empty:
         return f"{name}: {fraction:.0%} not regained by the end (0/{m} seeds{rest})"

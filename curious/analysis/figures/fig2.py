@@ -18,12 +18,12 @@ from curious.analysis.figures.parts import (
     curve_bin,
     draw_mean_std,
     draw_modules,
+    drawn_ceiling,
     episodes_text,
     finish,
     legend_right,
     line_width,
     lp_axis,
-    lp_ceiling,
     one_run,
     ordered_conditions,
     restrict,
@@ -37,10 +37,8 @@ from curious.analysis.loading import (
 )
 from curious.analysis.statistics import (
     ALPHA,
-    across_seeds,
     check_comparable,
-    epoch_success,
-    welch_per_bin,
+    main_comparison,
 )
 from curious.analysis.style import (
     budget_text,
@@ -67,11 +65,14 @@ def fig2a(
     names other uses of the same plot).
 
     ``tests`` is a `load_tests` table: the runs' test rollouts, as the paper measured Fig. 2a.
-    Mean ± std across seeds of `statistics.epoch_success`: one point per epoch, at the training
-    episodes done when its tests ran (``bin_size`` pools the epochs of each ``bin_size``-episode
-    bin instead); a condition's curve stops at the last point all its seeds reached.
-    ``compare = (better, worse)`` adds a dot above every point where a one-tailed Welch's t-test
-    finds ``better`` greater at level ``alpha``; ``None`` draws no test.
+    Drawn from `statistics.main_comparison`, the computation the report quotes: each run's test
+    rollouts pooled per episode bin (``bin_size``, default `statistics.comparison_bin_size`:
+    5,000 episodes for runs of 100,000), one marker per bin at its end; a thick line for the
+    mean across seeds, a band for ± std and a thin line per seed, so that the spread shows; a
+    condition's curve stops at the last bin all its seeds completed.
+    ``compare = (better, worse)`` adds a marker above every bin where a one-tailed Welch's t-test
+    finds ``better`` greater at level ``alpha``, and the caption counts them; ``None`` draws no
+    test.
     """
     require_tests(tests)
     conditions = ordered_conditions(tests, conditions)
@@ -85,8 +86,11 @@ def fig2a(
     rows = restrict(tests, conditions, variant)
     check_comparable(rows)
     runs = test_runs_of(rows)
-    points = epoch_success(rows, bin_size)
-    summary = across_seeds(points)
+    pair = compare if compare is not None else (None, None)
+    numbers = main_comparison(rows, *pair, alpha=alpha, bin_size=bin_size)
+    points: pd.DataFrame = numbers["points"]  # type: ignore[assignment]
+    summary: pd.DataFrame = numbers["summary"]  # type: ignore[assignment]
+    width_episodes = int(numbers["bin_size"])  # type: ignore[arg-type]
     n_achievable = len(str(rows["achievable_modules"].iat[0]).split(","))
     n_modules = len(str(rows["modules"].iat[0]).split(","))
 
@@ -94,33 +98,53 @@ def fig2a(
         fig = new_figure(7.2, 4.4)
         ax = fig.add_subplot()
         for i, c in enumerate(conditions):
+            color = palette.condition_color(c)
             s = summary[summary["condition"] == c]
             s = s[s["n"] == s["n"].max()]
+            mine = points[(points["condition"] == c) & points["episodes"].isin(s["episodes"])]
+            for _run, seed in mine.groupby("run", observed=True, sort=True):
+                ax.plot(
+                    seed["episodes"],
+                    seed["value"],
+                    color=color,
+                    linewidth=0.7,
+                    alpha=0.55,
+                    label="_seed",
+                )
             width = line_width(i, len(conditions))
-            draw_mean_std(ax, s, palette.condition_color(c), width, palette.condition_label(c))
+            draw_mean_std(ax, s, color, width, palette.condition_label(c), alpha=0.25)
+            ax.plot(
+                s["episodes"],
+                s["mean"],
+                linestyle="none",
+                marker="o",
+                markersize=3.0,
+                color=color,
+                label="_bins",
+            )
         test_text = ""
         if compare is not None:
             better, worse = compare
-            test = welch_per_bin(points, better, worse, alpha)
+            test: pd.DataFrame = numbers["welch"]  # type: ignore[assignment]
             hits = test[test["significant"]]
             (dots,) = ax.plot(
                 hits["episodes"],
                 np.full(len(hits), 1.06),
                 linestyle="none",
-                marker="o",
-                markersize=3.5,
+                marker="*",
+                markersize=6,
                 color=palette.condition_color(better),
                 label=(
                     f"p < {alpha:g}: {palette.condition_label(better)} > "
-                    f"{palette.condition_label(worse)}" + ("" if len(hits) else " (no point)")
+                    f"{palette.condition_label(worse)} ({len(hits)} of {len(test)} bins)"
                 ),
                 clip_on=False,
             )
             dots.set_in_layout(False)  # inside the y limits; an empty line would pull in (0, 0)
             test_text = (
-                f" Dots: one-tailed Welch's t-test per point, {palette.condition_label(better)} > "
-                f"{palette.condition_label(worse)}, p < {alpha:g} "
-                f"({len(hits)} of {len(test)} points)."
+                f" Stars: one-tailed Welch's t-test per bin, {palette.condition_label(better)} > "
+                f"{palette.condition_label(worse)}, p < {alpha:g}: significant in {len(hits)} of "
+                f"{len(test)} bins."
             )
         ax.set_ylim(-0.03, 1.1)
         ax.set_yticks(np.linspace(0, 1, 6))
@@ -129,19 +153,15 @@ def fig2a(
         ax.set_xlim(0, None)
         legend_right(ax)
         fig.suptitle(title)
-        where = (
-            "one point per epoch, at the training episodes done when its tests ran"
-            if bin_size is None
-            else f"the epochs of each {bin_size:,}-episode bin pooled into one point"
-        )
         caption(
             fig,
             f"{conditions_text(runs, conditions)}. Budget {budget_text(runs['n_episodes'])} "
-            f"({setting_text(runs)}). Mean ± std across seeds of the test success: after every "
-            "epoch, noise-free test rollouts on modules drawn uniformly, their success rate "
-            f"pooled over those on the {n_achievable} achievable modules "
-            f"({points['n_tests'].mean():,.0f} per run and point on average); {where}."
-            f"{_her_text(conditions)}{test_text}",
+            f"({setting_text(runs)}). Test success: after every epoch, noise-free test rollouts "
+            f"on modules drawn uniformly, their success rate pooled over those on the "
+            f"{n_achievable} achievable modules and over the epochs of each "
+            f"{width_episodes:,}-episode bin ({points['n_tests'].mean():,.0f} rollouts per run "
+            "and bin on average), drawn at the bin's end. Thick line and band: mean ± std across "
+            f"seeds; thin lines: each seed.{_her_text(conditions)}{test_text}",
             note,
         )
     return finish(fig, out_dir, name)
@@ -181,7 +201,7 @@ def _one_run_figure(
         if prefix == "competence/":
             competence_axis(ax)
         else:
-            lp_axis(ax, lp_ceiling(run))
+            lp_axis(ax, drawn_ceiling(run, prefix, bin_size))
         ax.set_xlim(0, None)
         legend_right(ax)
         seed_value = int(runs["seed"].iat[0])
@@ -261,7 +281,10 @@ def table1(
     n = len(runs)
     n_episodes = int(runs["n_episodes"].max())
     bin_size = curve_bin(n_episodes)
-    top = lp_ceiling(rows)
+    top = max(
+        drawn_ceiling(rows[rows["run"] == r].sort_values("episode"), "lp/", bin_size)
+        for r in runs.index
+    )
     with figure_style():
         fig = new_figure(8.0, 1.25 + 1.55 * n)
         axes = fig.subplots(n, 2, sharex=True, squeeze=False)

@@ -173,6 +173,18 @@ def lp_axis(ax: Axes, top: float) -> None:
     ax.set_ylabel("absolute LP (Δ success rate)")
 
 
+def drawn_ceiling(run: pd.DataFrame, prefix: str, bin_size: int) -> float:
+    """The highest value `draw_modules` draws of one run's ``<prefix><module>`` columns (its
+    samples at the ends of ``bin_size``-episode bins), so that an axis fits the curves drawn
+    rather than a spike between two samples."""
+    _, series = module_series(run, prefix, bin_size)
+    values = [v for v in series.values() if len(v)]
+    if not values:
+        return 0.0
+    top = np.nanmax(np.concatenate(values).astype(np.float64))
+    return float(top) if np.isfinite(top) else 0.0
+
+
 def lp_ceiling(df: pd.DataFrame) -> float:
     columns = [c for c in df.columns if c.startswith("lp/")]
     top = np.nanmax(df[columns].to_numpy(dtype=np.float64)) if columns else 0.0
@@ -190,8 +202,10 @@ def test_runs_of(tests: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
-def draw_mean_std(ax: Axes, s: pd.DataFrame, color: str, width: float, label: str | None) -> None:
-    """One condition's mean curve and, with several seeds, its ± std band."""
+def draw_mean_std(
+    ax: Axes, s: pd.DataFrame, color: str, width: float, label: str | None, alpha: float = 0.2
+) -> None:
+    """One condition's mean curve and, with several seeds, its ± std band (opacity ``alpha``)."""
     ax.plot(s["episodes"], s["mean"], color=color, linewidth=width, label=label)
     if (s["n"] > 1).any():
         ax.fill_between(
@@ -199,6 +213,6 @@ def draw_mean_std(ax: Axes, s: pd.DataFrame, color: str, width: float, label: st
             s["mean"] - s["std"],
             s["mean"] + s["std"],
             color=color,
-            alpha=0.2,
+            alpha=alpha,
             linewidth=0,
         )
