@@ -531,7 +531,8 @@ def _coerce(name: str, annotation: str, text: str) -> Any:
             return float(text)
         return text
     except ValueError:
-        raise ConfigError(f"{name}={text!r}: expected a {annotation}") from None
+        wanted = {"int": "an integer", "float": "a number", "bool": "true or false"}[annotation]
+        raise ConfigError(f"{name}={text!r}: expected {wanted}") from None
 
 
 def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:

@@ -364,7 +364,7 @@ def test_cli_reports_bad_input_in_one_line(tmp_path, capsys):
         (["--condition", "curiouser"], "unknown condition 'curiouser'"),
         (["--preset", "weekend"], "unknown preset 'weekend'"),
         (["--set", "hiden=3"], "unknown config key 'hiden'"),
-        (["--set", "n_workers=two"], "n_workers='two': expected a int"),
+        (["--set", "n_workers=two"], "n_workers='two': expected an integer"),
     ]
     for extra, message in cases:
         assert main(["train", "--out", out, "--no-record", *extra]) == 2
