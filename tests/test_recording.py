@@ -592,7 +592,7 @@ try:
     rrd_files.end_file(stream, path, timeout=20)
 except OSError as exc:
     print(f"curious train: error: {exc}", file=sys.stderr)
-stream.disconnect()
+    rrd_files.disconnect(stream)  # as the recorder gives up a recording it cannot write
 sys.stderr.flush()
 os._exit(0)  # a stream whose writer died may wait for it at the interpreter's exit
 """

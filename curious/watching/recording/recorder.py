@@ -68,6 +68,7 @@ from curious.watching.recording.resume import last_episode_kept, take_held_value
 from curious.watching.recording.rrd_files import (
     PreviousRecording,
     compact_recording,
+    disconnect,
     end_file,
     flush_to_file,
     has_room_for,
@@ -690,7 +691,7 @@ class RunRecorder:
     def _abandon_working_file(self) -> None:
         """Disconnects the sink and removes the working file (not whole: a write failed)."""
         with contextlib.suppress(Exception):
-            self.stream.disconnect()
+            disconnect(self.stream)
         with contextlib.suppress(OSError):
             self.working.unlink(missing_ok=True)
 

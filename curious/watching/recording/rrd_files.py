@@ -19,6 +19,7 @@ from __future__ import annotations
 import errno
 import os
 import shutil
+import threading
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -86,6 +87,24 @@ def has_footer(path: str | os.PathLike[str]) -> bool:
     return True
 
 
+DISCONNECT_TIMEOUT_SECONDS = 10.0
+"""Longest wait for a stream to let go of its sinks: Rerun's `disconnect` can wait forever on a
+file writer that died (a full disk), as its flush can."""
+
+
+def disconnect(stream: rr.RecordingStream, timeout: float = DISCONNECT_TIMEOUT_SECONDS) -> bool:
+    """`stream.disconnect()`, given up after `timeout` seconds (in a daemon thread, so that a
+    writer that died cannot hold the run); whether it returned."""
+    done = threading.Event()
+
+    def run() -> None:
+        stream.disconnect()
+        done.set()
+
+    threading.Thread(target=run, name="rerun-disconnect", daemon=True).start()
+    return done.wait(timeout)
+
+
 def end_file(
     stream: rr.RecordingStream, path: Path, timeout: float = FLUSH_TIMEOUT_SECONDS
 ) -> None:
@@ -97,7 +116,7 @@ def end_file(
     """
     flush_to_file(stream, path, timeout)
     flushed = path.stat().st_size
-    stream.disconnect()
+    disconnect(stream)
     if path.stat().st_size != flushed and not has_footer(path):
         os.truncate(path, flushed)
 
