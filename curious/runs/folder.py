@@ -107,8 +107,7 @@ def check_writable(path: str | os.PathLike, option: str, folder: bool = False) -
     permission). Checked by making an empty file there and removing it, the one test that sees
     all of them (`os.access` answers for the permissions alone), before any work is done."""
     target = Path(path).absolute()
-    start = target if folder else target.parent
-    existing = next(p for p in (start, *start.parents) if p.exists())
+    existing = _nearest_existing(target if folder else target.parent)
     if not existing.is_dir():
         raise RunFolderError(f"{option} {path}: {existing} is a file, not a folder")
     try:
@@ -119,6 +118,11 @@ def check_writable(path: str | os.PathLike, option: str, folder: bool = False) -
         ) from None
     os.close(handle)
     os.unlink(probe)
+
+
+def _nearest_existing(path: Path) -> Path:
+    """`path`, or the nearest of its parents that exists (where a write or a lock would land)."""
+    return next(p for p in (path, *path.parents) if p.exists())
 
 
 def lock_path(folder: str | os.PathLike) -> Path:
@@ -144,7 +148,7 @@ def folder_lock(
     tries again, so that two processes never both hold "the" lock.
     """
     path = lock_path(folder)
-    existing = next(p for p in path.parents if p.exists())
+    existing = _nearest_existing(path.parent)
     if not existing.is_dir():
         raise RunFolderError(f"cannot make {Path(folder)}: {existing} is a file, not a folder")
     made = [p for p in path.parents if not p.exists()]  # innermost first

@@ -172,10 +172,9 @@ def rebuild_from_tables(
             wall_time=wall[sl],
         )
         end = int(episode[b - 1]) + 1
-        mine = test_episode == end  # the epoch's tests ran after this cycle
-        if mine.any():
-            first = int(np.argmax(mine))
-            recorder.log_tests(end, test_module[mine], test_success[mine], test_wall[first])
+        lo, hi = np.searchsorted(test_episode, [end, end + 1])  # tests run after this cycle
+        if hi > lo:
+            recorder.log_tests(end, test_module[lo:hi], test_success[lo:hi], test_wall[lo])
     if episode.size:
         recorder.continue_clock(float(wall[-1]))
     return int(episode.size)
