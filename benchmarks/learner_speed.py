@@ -181,7 +181,7 @@ def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:
     """Our update alone, and the training loop's step (sample + encode + update); the time
     of one relabelled sample in ms."""
     from curious.agent.agent import Agent
-    from curious.agent.inputs import GoalBox
+    from curious.agent.goals import GoalBox
     from curious.agent.learner import Learner
     from curious.agent.replay import EpisodeReplay
 

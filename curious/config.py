@@ -15,8 +15,18 @@ import os
 from dataclasses import dataclass, fields
 from typing import Any
 
-CONDITIONS: tuple[str, ...] = ("curious", "m-uvfa", "mg-te", "her")
 ALGORITHMS: tuple[str, ...] = ("ddpg", "td3")
+
+
+def condition_names() -> tuple[str, ...]:
+    """The conditions a config may name, in the paper's order: the keys of the one registry,
+    `curious.agent.conditions.CONDITION_CLASSES` (imported here, not at the top, because the
+    conditions read `Config`; that module needs numpy only, not torch)."""
+    from curious.agent.conditions import CONDITION_CLASSES
+
+    return tuple(CONDITION_CLASSES)
+
+
 LEARNER_BACKENDS: tuple[str, ...] = ("autograd", "compiled", "workspace")
 DEVICES: tuple[str, ...] = ("cpu", "cuda")
 EVAL_MODULE_RULES: tuple[str, ...] = ("released", "uniform")
@@ -317,10 +327,7 @@ class Config:
         """Raise `ConfigError` naming the first field with a value that cannot run."""
         if not 0 <= self.seed <= MAX_SEED:
             raise ConfigError(f"seed (--seed) must be from 0 to {MAX_SEED:,}, got {self.seed}")
-        if self.condition not in CONDITIONS:
-            raise ConfigError(
-                f"unknown condition {self.condition!r}; choose one of {', '.join(CONDITIONS)}"
-            )
+        _check_condition(self.condition)
         if self.algorithm not in ALGORITHMS:
             raise ConfigError(
                 f"unknown algorithm {self.algorithm!r}; choose one of {', '.join(ALGORITHMS)}"
@@ -554,6 +561,12 @@ def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
     return out
 
 
+def _check_condition(condition: str) -> None:
+    names = condition_names()
+    if condition not in names:
+        raise ConfigError(f"unknown condition {condition!r}; choose one of {', '.join(names)}")
+
+
 def resolve(
     preset: str,
     condition: str = "curious",
@@ -563,8 +576,7 @@ def resolve(
     """The config of a preset with a condition, a seed and overrides applied, validated."""
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
-    if condition not in CONDITIONS:
-        raise ConfigError(f"unknown condition {condition!r}; choose one of {', '.join(CONDITIONS)}")
+    _check_condition(condition)
     values: dict[str, Any] = dict(PRESETS[preset])
     values.update(condition=condition, seed=seed, preset=preset)
     for key, value in (overrides or {}).items():

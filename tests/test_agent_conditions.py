@@ -356,12 +356,18 @@ def test_task_replay_leaves_out_modules_with_nothing_to_replay():
     np.testing.assert_array_equal(mgte.replay_probs(_LP(lp), 6, valid), [0, 0, 1, 0])
 
 
-def test_the_condition_names_and_classes_are_one_list():
-    """`curious.config.CONDITIONS` (what validation and the command line accept, without torch)
-    and `CONDITION_CLASSES` (what `make_condition` builds) name the same conditions, in order,
-    each class under its own `name`."""
-    from curious.agent.conditions import CONDITION_CLASSES
-    from curious.config import CONDITIONS
+def test_conditions_have_one_registry():
+    """What validation and the command line accept (`condition_names`) is the registry's keys,
+    each class under its own `name`, and listing them loads no torch (the help stays light)."""
+    import subprocess
+    import sys
 
-    assert tuple(CONDITION_CLASSES) == CONDITIONS
+    from curious.agent.conditions import CONDITION_CLASSES
+    from curious.config import condition_names
+
+    assert condition_names() == tuple(CONDITION_CLASSES) == ("curious", "m-uvfa", "mg-te", "her")
     assert all(cls.name == name for name, cls in CONDITION_CLASSES.items())
+    code = "import sys; from curious.config import condition_names; condition_names(); "
+    code += "print('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -2,11 +2,11 @@
 
 import pytest
 
-from curious.config import CONDITIONS, PRESETS, Config, ConfigError, parse_overrides, resolve
+from curious.config import PRESETS, Config, ConfigError, condition_names, parse_overrides, resolve
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))
-@pytest.mark.parametrize("condition", CONDITIONS)
+@pytest.mark.parametrize("condition", condition_names())
 def test_every_preset_and_condition_resolves(preset, condition):
     config = resolve(preset, condition, seed=3)
     assert (config.preset, config.condition, config.seed) == (preset, condition, 3)

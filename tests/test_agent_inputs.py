@@ -9,7 +9,7 @@ import torch
 from toy_env import ToyGoalEnv
 
 import suite
-from curious.agent.inputs import GoalBox, GoalInput
+from curious.agent.goals import GoalBox, GoalInput
 from curious.config import ConfigError, resolve
 from curious.envs.goal_env import SuiteEnv
 from curious.runs.driver import train

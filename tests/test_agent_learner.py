@@ -9,7 +9,8 @@ import pytest
 import torch
 from toy_env import ToyGoalEnv
 
-from curious.agent.inputs import GoalBox, GoalInput, InputEncoder
+from curious.agent.goals import GoalBox, GoalInput
+from curious.agent.inputs import InputEncoder
 from curious.agent.learner import Learner
 from curious.agent.networks import Actor, Critic
 from curious.agent.normalizer import RunningNormalizer

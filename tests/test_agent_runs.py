@@ -17,7 +17,7 @@ import pytest
 import torch
 from toy_env import make_toy_envs
 
-from curious.agent.inputs import GoalInput
+from curious.agent.goals import GoalInput
 from curious.agent.learning_progress import CompetenceTracker
 from curious.cli import main
 from curious.config import ConfigError, resolve

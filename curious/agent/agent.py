@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from curious.agent.inputs import GoalBox, GoalInput, InputEncoder
+from curious.agent.goals import GoalBox, GoalInput
+from curious.agent.inputs import InputEncoder
 from curious.agent.learner import Learner
 from curious.agent.replay import Transitions
 from curious.config import Config

@@ -58,7 +58,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from curious.agent.inputs import GoalInput
+from curious.agent.goals import GoalInput
 from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
 from curious.envs.goal_env import EnvSpec, GoalEnv
 

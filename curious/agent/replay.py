@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from curious.agent.inputs import GoalInput
+from curious.agent.goals import GoalInput
 from curious.envs.goal_env import EnvSpec, GoalEnv
 
 if TYPE_CHECKING:

@@ -20,10 +20,10 @@ import sys
 
 from curious.commands import HelpFormatter, add_set_option
 from curious.config import (
-    CONDITIONS,
     MAX_EPISODES,
     PRESETS,
     ConfigError,
+    condition_names,
     parse_overrides,
     resolve,
 )
@@ -31,6 +31,7 @@ from curious.config import (
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious train`."""
+    conditions = condition_names()
     parser = sub.add_parser(
         "train",
         help="train one condition x seed into a run folder",
@@ -40,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             "presets: "
             + ", ".join(PRESETS)
             + "\nconditions: "
-            + ", ".join(CONDITIONS)
+            + ", ".join(conditions)
             + "\nvariants: {variants}"
             + "\nsettings: every field of curious.config.Config (each documented there, with "
             "the authors' value),\n  e.g. --set learner_backend=workspace (the fastest update "
@@ -50,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--condition",
         default="curious",
-        help=f"{', '.join(CONDITIONS[:-1])} or {CONDITIONS[-1]} (default curious)",
+        help=f"{', '.join(conditions[:-1])} or {conditions[-1]} (default curious)",
     )
     parser.add_argument(
         "--seed", type=int, default=0, help="seeds networks, rollouts and replay (default 0)"

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import PurePosixPath
 from typing import Any
 
-from curious.config import CONDITIONS, LEARNED_COMPETENCE, PRESETS, Config, resolve
+from curious.config import LEARNED_COMPETENCE, PRESETS, Config, condition_names, resolve
 
 EXPERIMENTS: tuple[str, ...] = ("main", "distractors", "sensor_failure")
 """Experiment names, in the order they are trained and reported."""
@@ -145,7 +145,7 @@ class Experiment:
     def __post_init__(self) -> None:
         if self.name not in EXPERIMENTS:
             raise ExperimentError(f"unknown experiment {self.name!r}; choose from {EXPERIMENTS}")
-        unknown = [c for c in self.conditions if c not in CONDITIONS]
+        unknown = [c for c in self.conditions if c not in condition_names()]
         if unknown or not self.conditions:
             raise ExperimentError(f"{self.name}: unknown or no conditions {unknown}")
         if not self.variants or not self.seeds:

@@ -17,7 +17,7 @@ import numpy as np
 
 from curious.agent.agent import Agent
 from curious.agent.conditions import Condition
-from curious.agent.inputs import GoalInput
+from curious.agent.goals import GoalInput
 from curious.envs.batch import EnvBatch
 from curious.envs.goal_env import GoalEnv
 from curious.envs.rollout import run_episodes

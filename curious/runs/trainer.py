@@ -46,7 +46,7 @@ import torch
 
 from curious.agent.agent import Agent
 from curious.agent.conditions import Condition, make_condition
-from curious.agent.inputs import GoalBox, GoalInput
+from curious.agent.goals import GoalBox, GoalInput
 from curious.agent.learning_progress import CompetenceTracker
 from curious.agent.replay import EpisodeReplay
 from curious.config import Config, ConfigError

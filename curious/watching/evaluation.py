@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from curious.agent.inputs import GoalInput
+    from curious.agent.goals import GoalInput
     from curious.runs.play import Act, PolicyFor
 
 MAX_EPISODES = 100_000
@@ -279,7 +279,7 @@ def open_run(
 
     from curious.agent.agent import Agent
     from curious.agent.conditions import make_condition
-    from curious.agent.inputs import GoalBox
+    from curious.agent.goals import GoalBox
     from curious.envs.batch import LocalEnvs, ProcessEnvs
     from curious.envs.goal_env import suite_env_fns
     from curious.runs import checkpoint
