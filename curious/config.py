@@ -323,6 +323,9 @@ class Config:
         """Episodes the replay holds: `buffer_episodes`, or the whole run when it is 0."""
         return self.buffer_episodes or self.total_episodes
 
+    def __post_init__(self) -> None:
+        self.validate()  # every Config that exists can run: built, replaced or loaded
+
     def validate(self) -> Config:
         """Raise `ConfigError` naming the first field with a value that cannot run."""
         if not 0 <= self.seed <= MAX_SEED:
@@ -455,7 +458,7 @@ class Config:
                 article = "an" if kind == "int" else "a"
                 raise ConfigError(f"{f.name} must be {article} {kind}, got {value!r}")
             values[f.name] = float(value) if kind == "float" else value
-        return cls(**values).validate()
+        return cls(**values)
 
 
 def setting_names() -> tuple[str, ...]:
@@ -583,4 +586,4 @@ def resolve(
         if key not in setting_names():
             raise ConfigError(f"unknown config key {key!r}")
         values[key] = value
-    return dataclasses.replace(Config(), **values).validate()
+    return dataclasses.replace(Config(), **values)

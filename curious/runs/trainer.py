@@ -172,7 +172,6 @@ class Trainer:
         copies of their own). `condition`: the run's, where the caller built it and checked the
         run's memory with it before building the copies (`curious.runs.driver.train` does);
         else it is built, and the memory checked, here."""
-        config.validate()
         self.config = config
         self.envs = _as_batch(envs)
         self.test_envs = _as_batch(test_envs) if test_envs is not None else self.envs
