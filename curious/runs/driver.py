@@ -12,7 +12,9 @@ shows a progress bar and hands every cycle to an optional recorder (`curious.run
 from __future__ import annotations
 
 import contextlib
+import threading
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,12 +24,27 @@ from curious.agent.conditions import Condition, make_condition
 from curious.config import Config, ConfigError
 from curious.envs.batch import EnvBatch, ProcessEnvs
 from curious.envs.goal_env import GoalEnv
+from curious.envs.lockstep import Lockstep
 from curious.runs import checkpoint
 from curious.runs.folder import RunFolder, RunFolderError, folder_lock
 from curious.runs.hooks import Recorder
 from curious.runs.memory import SUITE_COPY_BYTES, check_memory
 from curious.runs.metrics import MetricsLog, TableLog, TestsLog
 from curious.runs.trainer import CycleResult, Trainer
+
+
+@dataclass(frozen=True)
+class Seat:
+    """A run's place in a population (`curious.runs.population`): the lockstep its copies step
+    through, its progress bar's line, and the event that asks every run to stop (each at the
+    end of its cycle, after a checkpoint)."""
+
+    lockstep: Lockstep
+    position: int = 0
+    stop: threading.Event | None = None
+
+    def stopping(self) -> bool:
+        return self.stop is not None and self.stop.is_set()
 
 
 def train(
@@ -38,6 +55,7 @@ def train(
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
     stop_after_cycles: int | None = None,
     restart: bool = False,
+    seat: Seat | None = None,
 ) -> Trainer:
     """Train `config` in the run folder `out` (created, continued with `resume=True`, or started
     over with `restart=True`, which removes the run the folder held once every check passed).
@@ -51,9 +69,12 @@ def train(
     a run. Errors about the folder, the checkpoint or what the run needs (memory) are raised
     before anything in the folder is written (`resume_checks` says what a resume refuses);
     while it trains, the folder is locked against a second process (`RunFolderBusy`).
+    `seat`: the run is one of a population trained in this process (`curious.runs.population`).
     """
     with folder_lock(out):
-        return _train(config, out, resume, restart, make_envs, make_recorder, stop_after_cycles)
+        return _train(
+            config, out, resume, restart, make_envs, make_recorder, stop_after_cycles, seat
+        )
 
 
 def _train(
@@ -64,27 +85,38 @@ def _train(
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     stop_after_cycles: int | None,
+    seat: Seat | None,
 ) -> Trainer:
     folder = RunFolder.prepare(out, config, resume, restart)
-    envs, test_envs, condition = _environments(config, make_envs)
+    envs, test_envs, condition = _environments(config, make_envs, seat)
+    if seat is not None:  # the copies step through the population's lockstep
+        envs = seat.lockstep.lane(envs)
+        test_envs = seat.lockstep.lane(test_envs) if test_envs is not None else None
     trainer = Trainer(config, envs, test_envs, condition)
     with contextlib.closing(trainer):  # the environment workers stop with the run
-        return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles)
+        return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles, seat)
 
 
 def _environments(
-    config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
+    config: Config,
+    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
+    seat: Seat | None = None,
 ) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None, Condition | None]:
     """The training copies and the test rollouts' copies of a run (see `train`), and the run's
     condition where it was built here to check the memory before the copies (the suite's
     copies; with `make_envs`, the trainer builds and checks it)."""
     tests_wanted = config.test_rollouts_per_worker > 0
-    if make_envs is not None:
-        if config.processes > 1:
-            raise ConfigError(
-                "env_processes > 1 builds the suite's environments in worker processes; a "
-                "custom make_envs runs in this process (env_processes=1)"
+    if config.processes > 1 and (make_envs is not None or seat is not None):
+        raise ConfigError(
+            "env_processes > 1 builds the suite's environments in worker processes; "
+            + (
+                "a population steps its runs' copies in this process"
+                if seat is not None
+                else "a custom make_envs runs in this process"
             )
+            + " (env_processes=1)"
+        )
+    if make_envs is not None:
         return make_envs(config), make_envs(config) if tests_wanted else None, None
     from curious.envs.goal_env import suite_env_fns
 
@@ -168,6 +200,7 @@ def _run(
     restart: bool,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     stop_after_cycles: int | None,
+    seat: Seat | None = None,
 ) -> Trainer:
     from tqdm.auto import tqdm
 
@@ -206,13 +239,17 @@ def _run(
         disable=not config.progress,
         dynamic_ncols=True,
         desc=f"{config.condition} seed {config.seed}",
+        position=seat.position if seat is not None else None,
     )
     cycles_here = 0
     try:
         while not trainer.done:
             every = config.checkpoint_every_cycles
-            drain = (trainer.cycles + 1) % every == 0 or (
-                stop_after_cycles is not None and cycles_here + 1 >= stop_after_cycles
+            stopping = seat is not None and seat.stopping()
+            drain = (
+                (trainer.cycles + 1) % every == 0
+                or stopping
+                or (stop_after_cycles is not None and cycles_here + 1 >= stop_after_cycles)
             )
             result = trainer.cycle(drain=drain)
             cycles_here += 1
@@ -223,7 +260,9 @@ def _run(
                 _log_cycle(recorder, trainer, result)
             bar.update(len(result.rows.get("episode", ())))
             bar.set_postfix(_progress_text(trainer), refresh=False)
-            stop_now = stop_after_cycles is not None and cycles_here >= stop_after_cycles
+            stop_now = stopping or (
+                stop_after_cycles is not None and cycles_here >= stop_after_cycles
+            )
             if trainer.done or stop_now or trainer.cycles % config.checkpoint_every_cycles == 0:
                 trainer.ensure_finite()  # a diverged run writes none of this checkpoint
                 metrics.flush()

@@ -15,6 +15,7 @@ need some more (Python, torch, MuJoCo themselves).
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from curious.agent.replay import EpisodeReplay
@@ -112,14 +113,26 @@ def memory_parts(config: Config, spec: EnvSpec, n_experts: int, copy_bytes: int)
 def check_memory(config: Config, spec: EnvSpec, n_experts: int, copy_bytes: int = 0) -> None:
     """A `ConfigError` naming the settings to lower when a run of `config` would not fit in the
     memory available (see the module docstring)."""
-    parts = memory_parts(config, spec, n_experts, copy_bytes)
+    _check(memory_parts(config, spec, n_experts, copy_bytes), "this run needs")
+
+
+def check_population_memory(
+    runs: Sequence[tuple[Config, EnvSpec, int]], copy_bytes: int = 0
+) -> None:
+    """`check_memory` for runs trained at once in one process, each (config, spec, n_experts):
+    their parts add up, and the error says how many runs asked for it."""
+    parts = [p for run in runs for p in memory_parts(*run, copy_bytes)]
+    _check(parts, f"these {len(runs)} runs trained at once need", " (or train fewer at once)")
+
+
+def _check(parts: list[Part], needs: str, also: str = "") -> None:
     need = sum(p.nbytes for p in parts)
     have = available_memory()
     if need <= USABLE * have:
         return
     largest = max(parts, key=lambda p: p.nbytes)
     raise ConfigError(
-        f"this run needs at least {need / 2**30:,.2f} GiB of memory, {largest.what} "
+        f"{needs} at least {need / 2**30:,.2f} GiB of memory, {largest.what} "
         f"{largest.nbytes / 2**30:,.2f} GiB of it, but this machine has {have / 2**30:.2f} GiB "
-        f"available: {largest.settings}"
+        f"available: {largest.settings}{also}"
     )

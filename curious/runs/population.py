@@ -1,0 +1,122 @@
+"""A population: several runs trained in one process, their rounds stepped together.
+
+Each run is the single run's code (`curious.runs.driver.train`: its folder, trainer, tables,
+checkpoints, resume and recording) in a thread of its own; what the runs share is a `Lockstep`
+(`curious.envs.lockstep`), through which every run's environment copies step, so that the
+copies of all runs in a round advance in one physics call. A run in a population computes what
+it computes alone, episode for episode (a test checks): its random streams, networks and
+copies are its own, and the lockstep changes only when its copies step, not how.
+
+Torch runs the updates' arithmetic and MuJoCo the physics outside Python's lock, so the runs'
+threads overlap where the work is; what is Python (the conditions, the replay's bookkeeping)
+takes turns. `curious bench population` measures a population against the same runs in
+processes side by side.
+
+Ctrl-C (or `stop.set()`) asks every run to stop at the end of its cycle, after a checkpoint:
+`--resume` goes on from there. A run that fails leaves the lockstep; the others train to their
+end, and the failures are raised together (`PopulationError`) once they have.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from curious.agent.conditions import make_condition
+from curious.config import Config, ConfigError
+from curious.envs.goal_env import GoalEnv
+from curious.envs.lockstep import Lockstep, StepCopies, step_one_by_one
+from curious.runs.driver import Seat, train
+from curious.runs.folder import RunFolder
+from curious.runs.hooks import Recorder
+from curious.runs.memory import SUITE_COPY_BYTES, check_population_memory
+from curious.runs.trainer import Trainer
+
+
+class PopulationError(RuntimeError):
+    """Some runs of a population failed (the others trained to their end): `failures` maps each
+    failed run's folder to its error."""
+
+    def __init__(self, failures: dict[Path, BaseException]) -> None:
+        self.failures = failures
+        lines = [f"{path}: {type(e).__name__}: {e}" for path, e in failures.items()]
+        super().__init__(f"{len(failures)} run(s) of the population failed:\n" + "\n".join(lines))
+
+
+def check_members(configs: Sequence[Config], outs: Sequence[str | Path]) -> list[Path]:
+    """The run folders, resolved: a `ConfigError` for a population that cannot train together
+    (no runs, folders and configs that do not pair up, a folder named twice, copies in worker
+    processes)."""
+    if not configs:
+        raise ConfigError("a population needs at least one run")
+    if len(configs) != len(outs):
+        raise ConfigError(f"{len(configs)} configs but {len(outs)} run folders")
+    paths = [Path(out).resolve() for out in outs]
+    if len(set(paths)) != len(paths):
+        raise ConfigError("two runs of the population share one run folder")
+    if any(c.processes > 1 for c in configs):
+        raise ConfigError(
+            "a population steps its runs' copies in this process: set env_processes=1"
+        )
+    return paths
+
+
+def train_population(
+    configs: Sequence[Config],
+    outs: Sequence[str | Path],
+    resume: bool = False,
+    restart: bool = False,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
+    make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
+    step_copies: StepCopies = step_one_by_one,
+    stop: threading.Event | None = None,
+    stop_after_cycles: int | None = None,
+) -> list[Trainer]:
+    """Train run `configs[i]` in folder `outs[i]`, all at once in this process (the module
+    docstring); `resume`, `restart`, `make_recorder`, `make_envs` and `stop_after_cycles` as
+    for every run of `curious.runs.driver.train`. `step_copies` steps the copies of a lockstep
+    call (default: one after the other). The memory of all the runs together is checked before
+    any is built. Returns the runs' trainers, in order."""
+    paths = check_members(configs, outs)
+    if make_envs is None:  # the suite's copies (with make_envs, each trainer checks its own)
+        _check_memory(configs)
+    stop = stop if stop is not None else threading.Event()
+    lockstep = Lockstep(step_copies)
+
+    def run(i: int) -> Trainer:
+        seat = Seat(lockstep, position=i, stop=stop)
+        return train(
+            configs[i], paths[i], resume=resume, restart=restart, make_envs=make_envs,
+            make_recorder=make_recorder, stop_after_cycles=stop_after_cycles, seat=seat,
+        )  # fmt: skip
+
+    with ThreadPoolExecutor(len(configs), thread_name_prefix="run") as pool:
+        futures = [pool.submit(run, i) for i in range(len(configs))]
+        try:
+            for future in futures:
+                future.exception()  # wait for every run, whatever happens to the others
+        except KeyboardInterrupt:
+            stop.set()  # each run stops after its cycle's checkpoint
+            for future in futures:
+                future.exception()
+            raise
+    failures = {paths[i]: f.exception() for i, f in enumerate(futures) if f.exception()}
+    if len(failures) == 1 and len(configs) == 1:
+        raise next(iter(failures.values()))  # a population of one fails as the run does
+    if failures:
+        raise PopulationError(failures)  # type: ignore[arg-type]
+    return [f.result() for f in futures]
+
+
+def _check_memory(configs: Sequence[Config]) -> None:
+    """The memory of all the runs together (one suite copy per variant gives its spec)."""
+    from curious.envs.goal_env import SuiteEnv
+
+    specs = {variant: SuiteEnv(variant, seed=0).spec for variant in {c.variant for c in configs}}
+    runs = []
+    for config in configs:
+        spec = specs[config.variant]
+        runs.append((config, spec, make_condition(config, spec).n_experts))
+    check_population_memory(runs, SUITE_COPY_BYTES)

@@ -1,0 +1,140 @@
+"""A population: several runs trained in one process, their copies stepped in lockstep."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+import torch
+
+from curious.config import ConfigError, resolve
+from curious.envs.goal_env import make_suite_envs
+from curious.envs.lockstep import Lockstep, step_one_by_one
+from curious.runs import checkpoint
+from curious.runs.driver import train
+from curious.runs.population import PopulationError, train_population
+
+SMALL = dict(total_episodes=24, progress=False)
+MEMBERS = [("curious", 0), ("mg-te", 1), ("her", 2)]
+
+
+def _table(path):
+    return pq.read_table(path).drop(["wall_time"]).to_pandas()
+
+
+def _assert_same_table(a, b):
+    pd.testing.assert_frame_equal(_table(a), _table(b))  # NaN (her's competence) equals NaN
+
+
+def _state(folder):
+    _, state, replay = checkpoint.load_latest(folder / "checkpoints")
+    return state, replay
+
+
+def _assert_same(a, b, where=""):
+    """Equal nested states: tensors and arrays bit for bit, timings left out."""
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), where
+        for key in a:
+            if key not in ("elapsed", "torch_rng"):
+                _assert_same(a[key], b[key], f"{where}/{key}")
+    elif isinstance(a, list | tuple):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _assert_same(x, y, f"{where}/{i}")
+    elif isinstance(a, torch.Tensor):
+        assert torch.equal(a, b), where
+    elif isinstance(a, np.ndarray):
+        np.testing.assert_array_equal(a, b, err_msg=where)
+    else:
+        assert a == b, where
+
+
+def test_a_run_trained_in_a_population_is_the_run_trained_alone(tmp_path):
+    """Three runs (three conditions, three seeds) trained together in one process write the
+    same episodes, test rollouts, networks, optimisers, queues and replay as each alone: the
+    lockstep changes when their copies step, not how."""
+    configs = [resolve("smoke", c, s, SMALL) for c, s in MEMBERS]
+    alone = [tmp_path / "alone" / f"{c}-{s}" for c, s in MEMBERS]
+    together = [tmp_path / "together" / f"{c}-{s}" for c, s in MEMBERS]
+    for config, out in zip(configs, alone, strict=True):
+        train(config, out)
+    steps = []
+
+    def counting(groups):
+        steps.append(len(groups))
+        return step_one_by_one(groups)
+
+    trainers = train_population(configs, together, step_copies=counting)
+    assert [t.episodes for t in trainers] == [24, 24, 24]
+    assert max(steps) > 1  # some calls stepped several runs' copies
+    for a, b in zip(alone, together, strict=True):
+        for name in ("metrics.parquet", "tests.parquet"):
+            _assert_same_table(a / name, b / name)
+        _assert_same(_state(a), _state(b), b.name)
+
+
+def test_a_population_resumes_from_its_runs_checkpoints(tmp_path):
+    """Stopped after two cycles and resumed, a population ends where it ends uninterrupted."""
+    configs = [resolve("smoke", c, s, SMALL) for c, s in MEMBERS[:2]]
+    straight = [tmp_path / "straight" / str(i) for i in range(2)]
+    resumed = [tmp_path / "resumed" / str(i) for i in range(2)]
+    train_population(configs, straight)
+    first = train_population(configs, resumed, stop_after_cycles=2)
+    assert all(0 < t.episodes < 24 for t in first)
+    train_population(configs, resumed, resume=True)
+    for a, b in zip(straight, resumed, strict=True):
+        _assert_same_table(a / "metrics.parquet", b / "metrics.parquet")
+        _assert_same(_state(a), _state(b))
+
+
+def test_a_stop_request_ends_every_run_at_a_checkpoint(tmp_path):
+    """`stop` set while the runs train: each ends after its cycle, with a checkpoint there."""
+    configs = [resolve("smoke", "curious", s, SMALL) for s in (0, 1)]
+    stop = threading.Event()
+    stop.set()  # asked before the first cycle ends: every run stops after one cycle
+    trainers = train_population(configs, [tmp_path / "a", tmp_path / "b"], stop=stop)
+    for trainer, out in zip(trainers, ("a", "b"), strict=True):
+        assert trainer.episodes == configs[0].episodes_per_cycle
+        found = checkpoint.load_latest(tmp_path / out / "checkpoints")
+        assert found is not None and found[1]["episodes"] == trainer.episodes
+
+
+def test_a_failing_run_does_not_stop_the_others(tmp_path):
+    """A run whose copies fail leaves the lockstep; the other trains to its end, and the
+    failure is raised with its folder once it has."""
+    configs = [resolve("smoke", "curious", s, SMALL) for s in (0, 1)]
+    bad = tmp_path / "bad"
+
+    def make_envs(config):
+        envs = make_suite_envs(config.variant, config.seed, config.n_workers)
+        if config.seed == 1:
+            envs[0].step = lambda action: (_ for _ in ()).throw(OSError("simulator lost"))
+        return envs
+
+    with pytest.raises(PopulationError, match="simulator lost") as caught:
+        train_population(configs, [tmp_path / "good", bad], make_envs=make_envs)
+    assert list(caught.value.failures) == [bad.resolve()]
+    assert len(_table(tmp_path / "good" / "metrics.parquet")) == 24
+
+
+@pytest.mark.parametrize(
+    ("outs", "message"),
+    [(["a", "a"], "share one run folder"), (["a"], "2 configs but 1 run folders")],
+)
+def test_a_population_that_cannot_train_together_is_refused(tmp_path, outs, message):
+    configs = [resolve("smoke", "curious", s, SMALL) for s in (0, 1)]
+    with pytest.raises(ConfigError, match=message):
+        train_population(configs, [tmp_path / o for o in outs])
+
+
+def test_a_lane_refuses_steps_outside_a_round_and_bad_actions():
+    lane = Lockstep().lane(make_suite_envs("default", 0, 2))
+    with pytest.raises(RuntimeError, match="reset it first"):
+        lane.step(np.zeros((2, lane.spec.action_dim)))
+    lane.reset(np.zeros(2, int), np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="need"):
+        lane.step(np.zeros((3, lane.spec.action_dim)))
