@@ -545,6 +545,22 @@ def _coerce(name: str, annotation: str, text: str) -> Any:
         raise ConfigError(f"{name}={text!r}: expected {wanted}") from None
 
 
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """`0-4` -> (0, 1, 2, 3, 4); `0,2,5` -> (0, 2, 5); ranges and single seeds mix, each seed
+    once, in the order written. A `ConfigError` for anything else."""
+    seeds: list[int] = []
+    for part in text.split(","):
+        first, dash, last = part.strip().partition("-")
+        if (
+            not first.isdigit()
+            or (dash and not last.isdigit())
+            or (dash and int(last) < int(first))
+        ):
+            raise ConfigError(f"seeds {text!r}: write them as 0-4 or 0,2,5")
+        seeds += range(int(first), int(last) + 1) if dash else [int(first)]
+    return tuple(dict.fromkeys(seeds))
+
+
 def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
     """Turn `["key=value", ...]` into typed values; unknown keys and bad values are errors."""
     types_by_name = {f.name: str(f.type) for f in fields(Config)}

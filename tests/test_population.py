@@ -138,3 +138,20 @@ def test_a_lane_refuses_steps_outside_a_round_and_bad_actions():
     lane.reset(np.zeros(2, int), np.zeros((2, 3)))
     with pytest.raises(ValueError, match="need"):
         lane.step(np.zeros((3, lane.spec.action_dim)))
+
+
+def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
+    """`curious train --seeds 0-1`: one run folder per seed under --out, a line per run; a bad
+    seed list is one line and exit status 2, nothing written."""
+    from curious.cli import main
+
+    out = tmp_path / "curious"
+    argv = ["train", "--preset", "smoke", "--out", str(out), "--no-record", "--no-progress"]
+    assert main([*argv, "--seeds", "0-1"]) == 0
+    printed = capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["seed-0", "seed-1"]
+    assert f"24 episodes in {out / 'seed-1'}" in printed
+    assert main([*argv, "--seeds", "2-x"]) == 2
+    assert "write them as 0-4 or 0,2,5" in capsys.readouterr().err
+    assert main([*argv, "--seeds", "0-1"]) == 2  # the folders hold runs: nothing trains
+    assert "is not empty" in capsys.readouterr().err

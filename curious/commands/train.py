@@ -1,6 +1,7 @@
-"""`curious train`: train one condition with one seed into a run folder.
+"""`curious train`: train one condition with one seed into a run folder, or several seeds at once.
 
     curious train --condition curious --seed 0 --preset quick --out runs/curious-0
+    curious train --condition curious --seeds 0-4 --preset quick --out runs/curious  # a population
     curious train ... --set n_workers=8 --set algorithm=td3      # override single settings
     curious train ... --resume                                    # go on from the last checkpoint
     curious train ... --restart                                   # start the run in --out over
@@ -11,12 +12,19 @@ without --resume, a checkpoint from another config, a run that would not fit in 
 reported in one line, exit status 2, and nothing in the folder is written. A run whose training
 diverges (a learning rate too high) stops with one line, exit status 1, its folder as it was at
 its last checkpoint; Ctrl-C stops it with exit status 130.
+
+With `--seeds`, the seeds train as one population in this process (`curious.runs.population`):
+each run is the run `--seed` would train, in `--out/seed-N`, and they step their copies
+together. Ctrl-C then stops every run at the end of its cycle, after a checkpoint; one run's
+failure leaves the others training, and is reported (exit status 1) once they are done.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from curious.commands import HelpFormatter, add_set_option
 from curious.config import (
@@ -25,8 +33,12 @@ from curious.config import (
     ConfigError,
     condition_names,
     parse_overrides,
+    parse_seeds,
     resolve,
 )
+
+if TYPE_CHECKING:
+    from curious.runs.trainer import Trainer
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,15 +65,29 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="curious",
         help=f"{', '.join(conditions[:-1])} or {conditions[-1]} (default curious)",
     )
-    parser.add_argument(
+    seeds = parser.add_mutually_exclusive_group()
+    seeds.add_argument(
         "--seed", type=int, default=0, help="seeds networks, rollouts and replay (default 0)"
+    )
+    seeds.add_argument(
+        "--seeds",
+        default=None,
+        metavar="SEEDS",
+        help="train several seeds at once in this process, as one population (e.g. 0-4 or "
+        "0,2,5): run i goes to --out/seed-i, each the run --seed would train, its copies "
+        "stepped together with the others'",
     )
     parser.add_argument(
         "--preset",
         default="quick",
         help=f"{', '.join(list(PRESETS)[:-1])} or {list(PRESETS)[-1]} (default quick)",
     )
-    parser.add_argument("--out", required=True, help="run folder (must be empty unless --resume)")
+    parser.add_argument(
+        "--out",
+        required=True,
+        help="run folder (must be empty unless --resume); with --seeds, the folder of the "
+        "seed-N run folders",
+    )
     add_set_option(parser, "override one setting (repeatable), e.g. --set n_workers=8")
     parser.add_argument("--resume", action="store_true", help="continue the run in --out")
     parser.add_argument(
@@ -109,7 +135,8 @@ def run(args: argparse.Namespace) -> int:
             overrides["variant"] = args.variant
         if args.no_progress:
             overrides["progress"] = False
-        config = resolve(args.preset, args.condition, args.seed, overrides)
+        seeds = parse_seeds(args.seeds) if args.seeds is not None else (args.seed,)
+        configs = [resolve(args.preset, args.condition, seed, overrides) for seed in seeds]
         if args.no_record and (args.spawn_viewer or args.rollout_every is not None):
             raise ConfigError(
                 "--spawn-viewer and --rollout-every need the recording: drop --no-record"
@@ -124,6 +151,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
 
     from curious.runs.driver import train
+    from curious.runs.population import PopulationError
     from curious.runs.trainer import TrainingDiverged
 
     make_recorder = None
@@ -135,14 +163,22 @@ def run(args: argparse.Namespace) -> int:
         if args.rollout_every is not None:
             settings = RecorderSettings(rollout_every=args.rollout_every)
         make_recorder = recorder_factory(args.resume, settings, args.spawn_viewer)
+    population = args.seeds is not None
+    outs = [Path(args.out) / f"seed-{c.seed}" for c in configs] if population else [args.out]
     try:
-        trainer = train(
-            config,
-            args.out,
-            resume=args.resume,
-            restart=args.restart,
-            make_recorder=make_recorder,
-        )
+        if population:
+            from curious.runs.population import train_population
+
+            trainers = train_population(
+                configs, outs, resume=args.resume, restart=args.restart,
+                make_recorder=make_recorder,
+            )  # fmt: skip
+        else:
+            run = train(
+                configs[0], args.out, resume=args.resume, restart=args.restart,
+                make_recorder=make_recorder,
+            )  # fmt: skip
+            trainers = [run]
     except TrainingDiverged as exc:
         print(f"curious train: error: {exc}", file=sys.stderr)
         return 1
@@ -153,12 +189,28 @@ def run(args: argparse.Namespace) -> int:
         where = f": {exc.filename}" if exc.filename else ""
         print(f"curious train: error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        if not population:
+            raise
+        print(
+            "curious train: stopped; every run ended at a checkpoint: go on with --resume",
+            file=sys.stderr,
+        )
+        return 130
+    except PopulationError as exc:
+        print(f"curious train: error: {exc}", file=sys.stderr)
+        return 1
+    for trainer, out in zip(trainers, outs, strict=True):
+        print(_summary(trainer, out))
+    return 0
+
+
+def _summary(trainer: Trainer, out: str | Path) -> str:
+    """What a finished run reached: its competence per module (none in `her`)."""
     if not trainer.condition.self_evaluates:  # her: no competence; its score is in the tables
-        print(f"{trainer.episodes} episodes in {args.out}; no self-evaluations (her)")
-        return 0
+        return f"{trainer.episodes} episodes in {out}; no self-evaluations (her)"
     competence = trainer.tracker.competence()
     summary = ", ".join(
         f"{name} {c:.2f}" for name, c in zip(trainer.spec.module_names, competence, strict=True)
     )
-    print(f"{trainer.episodes} episodes in {args.out}; competence: {summary}")
-    return 0
+    return f"{trainer.episodes} episodes in {out}; competence: {summary}"

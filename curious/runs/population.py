@@ -77,9 +77,11 @@ def train_population(
     """Train run `configs[i]` in folder `outs[i]`, all at once in this process (the module
     docstring); `resume`, `restart`, `make_recorder`, `make_envs` and `stop_after_cycles` as
     for every run of `curious.runs.driver.train`. `step_copies` steps the copies of a lockstep
-    call (default: one after the other). The memory of all the runs together is checked before
-    any is built. Returns the runs' trainers, in order."""
+    call (default: one after the other). Every run folder and the memory of all the runs
+    together are checked before any run starts. Returns the runs' trainers, in order."""
     paths = check_members(configs, outs)
+    for config, path in zip(configs, paths, strict=True):  # every folder, before any run starts
+        RunFolder.prepare(path, config, resume, restart)
     if make_envs is None:  # the suite's copies (with make_envs, each trainer checks its own)
         _check_memory(configs)
     stop = stop if stop is not None else threading.Event()
