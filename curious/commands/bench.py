@@ -1,5 +1,5 @@
-"""`curious bench {env,learner,cycle,rollouts,recording,checkpoint}`: speed benchmarks, ours
-side by side with a bound and a peer.
+"""`curious bench {env,learner,cycle,rollouts,recording,population,checkpoint}`: speed
+benchmarks, ours side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
@@ -33,6 +33,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "recording": (
         "benchmarks.recording_overhead",
         "training with vs without the Rerun recording: the overhead and the .rrd size",
+    ),
+    "population": (
+        "benchmarks.population_speed",
+        "training episodes/s of runs as one population in one process vs as processes",
     ),
     "checkpoint": (
         "benchmarks.checkpoint_cost",

@@ -1,0 +1,119 @@
+"""`curious bench population`: runs trained as one population in one process (ours) against the
+same runs as processes side by side (peer), for the same episodes.
+
+Both contenders are what a user types: peer starts `--runs` `curious train --seed i` processes at
+once; ours starts one `curious train --seeds 0-(runs-1)`. Every run trains `--cycles` cycles of
+the preset from scratch (no recording, no test rollouts, one torch thread per run), into a
+temporary folder. The rate is read from the runs' own tables: each run's episodes after its
+first cycle over the seconds they took (metrics.parquet's `wall_time`), summed over the runs,
+so that imports and the first cycle's allocations count for neither; `*_command_s` is the
+wall time of the whole command, start-up included.
+
+`bound` is the physics alone: one core stepping the suite's model for an episode's control
+steps, times the machine's cores (`benchmarks.cycle_speed.physics_episodes_per_second`).
+`--repeats` alternates the two contenders that many times and reports the median of each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--preset", default="laptop", help="training preset (default laptop)")
+    parser.add_argument("--runs", type=int, default=None, help="runs each (default: one per core)")
+    parser.add_argument(
+        "--condition", default="curious", help="the runs' condition (default curious)"
+    )
+    parser.add_argument("--cycles", type=int, default=6, help="cycles per run (default 6)")
+    parser.add_argument(
+        "--repeats", type=int, default=1, help="alternations of the two (default 1)"
+    )
+
+
+def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -> list[str]:
+    from curious.config import resolve
+
+    episodes = args.cycles * resolve(args.preset).episodes_per_cycle
+    return [
+        sys.executable, "-m", "curious.cli", "train", "--preset", args.preset,
+        "--condition", args.condition, flag, seeds, "--out", str(out), "--no-record",
+        "--no-progress", "--set", f"total_episodes={episodes}", "--set", "torch_threads=1",
+        "--set", "test_rollouts_per_worker=0",
+    ]  # fmt: skip
+
+
+def _steady_rate(folders: list[Path]) -> float:
+    """Episodes/s of the runs together after each one's first cycle, from their tables."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    total = 0.0
+    for folder in folders:
+        wall = pq.read_table(folder / "metrics.parquet", columns=["wall_time"])["wall_time"]
+        config = json.loads((folder / "config.json").read_text())["config"]
+        per_cycle = int(config["n_workers"]) * int(config["episodes_per_worker"])
+        # the first cycle's last episode, to the run's last
+        total += (len(wall) - per_cycle) / (wall[-1].as_py() - wall[per_cycle - 1].as_py())
+    return total
+
+
+def _run(commands: list[list[str]]) -> float:
+    """Start every command at once; the seconds until the last ends (an error if one fails)."""
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
+    tic = time.perf_counter()
+    procs = [subprocess.Popen(c, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for c in commands]  # fmt: skip
+    for proc in procs:
+        _, err = proc.communicate()
+        if proc.returncode:
+            raise RuntimeError(f"{' '.join(proc.args)} failed:\n{err.decode()[-2000:]}")
+    return time.perf_counter() - tic
+
+
+def measure(args: argparse.Namespace) -> dict[str, Any]:
+    """ours, bound, peer (episodes/s) and the commands' wall times."""
+    from benchmarks.cycle_speed import physics_episodes_per_second
+    from curious.config import resolve
+
+    cores = os.cpu_count() or 1
+    runs = args.runs or cores
+    rates: dict[str, list[float]] = {"ours": [], "peer": []}
+    seconds: dict[str, list[float]] = {"ours": [], "peer": []}
+    with tempfile.TemporaryDirectory(prefix="bench-population-") as tmp:
+        for repeat in range(args.repeats):
+            peer = Path(tmp) / f"peer-{repeat}"
+            commands = [
+                _train_command(args, peer / f"seed-{i}", str(i), "--seed") for i in range(runs)
+            ]
+            seconds["peer"].append(_run(commands))
+            rates["peer"].append(_steady_rate([peer / f"seed-{i}" for i in range(runs)]))
+            ours = Path(tmp) / f"ours-{repeat}"
+            seconds["ours"].append(_run([_train_command(args, ours, f"0-{runs - 1}", "--seeds")]))
+            rates["ours"].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
+    config = resolve(args.preset)
+    out: dict[str, Any] = {
+        "ours": statistics.median(rates["ours"]),
+        "bound": physics_episodes_per_second(config.variant) * cores,
+        "peer": statistics.median(rates["peer"]),
+        "unit": "episodes/s",
+    }
+    out["ours_over_peer"] = out["ours"] / out["peer"]
+    out["ours_command_s"] = statistics.median(seconds["ours"])
+    out["peer_command_s"] = statistics.median(seconds["peer"])
+    out["cores"] = cores
+    out["shape"] = (
+        f"{runs} {args.condition} runs of preset {args.preset}, {args.cycles} cycles of "
+        f"{config.episodes_per_cycle} episodes and {config.n_updates} updates of "
+        f"{config.batch_size} each; {args.repeats} alternation(s), medians"
+    )
+    return out
