@@ -23,10 +23,10 @@ import importlib  # noqa: E402
 from typing import Any  # noqa: E402
 
 _HOMES = {
-    "APPLICATION_ID": "recorder",
+    "APPLICATION_ID": "working_file",
     "RecorderSettings": "settings",
     "RunRecorder": "recorder",
-    "compact_recording": "recorder",
+    "compact_recording": "rrd_files",
     "RolloutCapture": "scene",
     "SceneLayout": "scene",
     "wxyz_to_xyzw": "scene",

@@ -15,7 +15,8 @@ what an uninterrupted run had logged at the checkpoint, and picks up the state i
   a run are not part of the run it continues (a finished run extended, or a run stopped early):
   they are dropped, and the resumed run writes its own when it ends.
 
-A recording that is missing, or that could not be read (set aside), is rebuilt from the run's
+A recording that cannot be read (`read_previous`) is set aside with a warning, never a reason a
+run cannot resume. A recording that is missing, or that was set aside, is rebuilt from the run's
 tables instead (`rebuild_from_tables`): every series `metrics.parquet` and `tests.parquet` hold
 (competence, LP and p_LP, success, module, test success), logged cycle by cycle as the run logged
 them, so that they come out as an uninterrupted run's (the statistics at the float32 precision
@@ -26,7 +27,10 @@ statistics: those start at the resumed episode, and a warning says so.
 from __future__ import annotations
 
 import itertools
+import os
+import warnings
 from collections.abc import Callable, Iterable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -34,12 +38,13 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from rerun.chunk import Chunk
 
-from curious.watching.recording.rrd_files import PreviousRecording
+from curious.watching.recording.rrd_files import PreviousRecording, load_previous
 
 __all__ = [
     "NOT_IN_TABLES",
     "PER_CYCLE",
     "last_episode_kept",
+    "read_previous",
     "rebuild_from_tables",
     "take_held_values",
 ]
@@ -61,6 +66,30 @@ def last_episode_kept(episodes_done: int) -> Callable[[str], int]:
         return episodes_done if entity.startswith(PER_CYCLE) else episodes_done - 1
 
     return last
+
+
+def read_previous(
+    path: Path, resume_from_episode: int | None
+) -> tuple[PreviousRecording | None, str | None]:
+    """The recording at `path` in memory, cut at the checkpoint of `resume_from_episode`
+    episodes (None: not cut), and its id; (None, None) where there is none, or where it cannot
+    be read: it is then kept as `<name>.unreadable`, with a warning."""
+    if not path.exists():
+        return None, None
+    try:
+        cut = None if resume_from_episode is None else last_episode_kept(resume_from_episode)
+        return load_previous(path, cut)
+    except Exception as exc:  # whatever a damaged file raises, the run goes on
+        aside = path.with_name(f"{path.name}.unreadable")
+        os.replace(path, aside)
+        warnings.warn(
+            f"{path} could not be read ({exc}); it is kept as {aside.name} and the "
+            "recording starts again (`curious train --resume` rebuilds what the run's "
+            "tables hold)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return None, None
 
 
 def _same(a: float, b: float) -> bool:
