@@ -37,6 +37,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--repeats", type=int, default=1, help="alternations of the two (default 1)"
     )
+    parser.add_argument(
+        "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train"
+    )
 
 
 def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -> list[str]:
@@ -47,7 +50,7 @@ def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -
         sys.executable, "-m", "curious.cli", "train", "--preset", args.preset,
         "--condition", args.condition, flag, seeds, "--out", str(out), "--no-record",
         "--no-progress", "--set", f"total_episodes={episodes}", "--set", "torch_threads=1",
-        "--set", "test_rollouts_per_worker=0",
+        "--set", "test_rollouts_per_worker=0", "--device", args.device,
     ]  # fmt: skip
 
 
@@ -114,6 +117,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     out["shape"] = (
         f"{runs} {args.condition} runs of preset {args.preset}, {args.cycles} cycles of "
         f"{config.episodes_per_cycle} episodes and {config.n_updates} updates of "
-        f"{config.batch_size} each; {args.repeats} alternation(s), medians"
+        f"{config.batch_size} each, networks on {args.device}; {args.repeats} alternation(s), "
+        "medians"
     )
     return out

@@ -6,6 +6,9 @@
 #   bash tools/gpu_checks.sh OUT            # on a node with a CUDA device: results into OUT/
 #   PRESET=smoke DEVICE=cpu bash tools/gpu_checks.sh OUT   # the same steps on a CPU, in minutes
 #
+# 0. (STEPS with "population", first by default) `curious bench population`: POPULATION_RUNS
+#    (15) `paper` runs as one population against as many processes side by side, into
+#    OUT/population.json;
 # 1. the CUDA tests (tests/test_agent_learner.py and tests/test_agent_runs.py, -k cuda), into OUT/cuda-tests.txt;
 # 2. `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
 # 3. one short run with the fastest synchronous settings, into OUT/one-run/;
@@ -19,8 +22,9 @@
 # Each step has a time limit of its own, so that a slow one leaves the others their turn; OUT/env.txt
 # says on what it ran. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two
 # epochs of `paper`), CONTENDERS, SIDE_BY_SIDE (2; "2 4" adds four runs, about 2.5 minutes more),
-# STEPS (which steps run: "tests bench one side", all four by default; "one side" measures only
-# runs, one alone and N side by side; "resume" adds step 5), RESUME_SECONDS (170: each leg of
+# STEPS (which steps run: "population tests bench one side" by default; "one side" measures
+# only runs, one alone and N side by side; "resume" adds step 5), POPULATION_RUNS (15),
+# POPULATION_CYCLES (3), RESUME_SECONDS (170: each leg of
 # step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
@@ -30,7 +34,7 @@ device=${DEVICE:-cuda}
 episodes=${EPISODES:-1900}
 contenders=${CONTENDERS:-workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu}
 side_by_side=${SIDE_BY_SIDE:-2}
-steps=" ${STEPS:-tests bench one side} "
+steps=" ${STEPS:-population tests bench one side} "
 wanted() { [[ $steps == *" $1 "* ]]; }
 cores=$(nproc)
 mkdir -p "$out"
@@ -47,6 +51,15 @@ step environment
 torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version__)"
     git rev-parse --short HEAD 2>/dev/null
 } 2>&1 | tee "$out/env.txt"
+
+if wanted population; then
+    step population of "${POPULATION_RUNS:-15}" runs against as many processes
+    timeout 400 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
+        --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" --json \
+        >"$out/population.json" 2>"$out/population.err"
+    echo "exit $?"
+    cat "$out/population.json"
+fi
 
 if wanted tests; then
     step CUDA tests
