@@ -60,10 +60,12 @@ def _steady_rate(folders: list[Path]) -> float:
 
     import pyarrow.parquet as pq
 
+    from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE
+
     total = 0.0
     for folder in folders:
-        wall = pq.read_table(folder / "metrics.parquet", columns=["wall_time"])["wall_time"]
-        config = json.loads((folder / "config.json").read_text())["config"]
+        wall = pq.read_table(folder / METRICS_FILE, columns=["wall_time"])["wall_time"]
+        config = json.loads((folder / CONFIG_FILE).read_text())["config"]
         per_cycle = int(config["n_workers"]) * int(config["episodes_per_worker"])
         # the first cycle's last episode, to the run's last
         total += (len(wall) - per_cycle) / (wall[-1].as_py() - wall[per_cycle - 1].as_py())

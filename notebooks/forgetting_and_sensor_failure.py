@@ -40,7 +40,7 @@ from IPython.display import display
 
 from curious import analysis
 from curious.reproduction.experiments import get_budget
-from curious.runs.folder import METRICS_FILE
+from curious.runs.folder_layout import METRICS_FILE
 from pipelines.resources import OutputLayout
 
 # %% tags=["parameters"]

@@ -65,7 +65,8 @@ class ShippedData:
 
     def state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished` (see the module docstring)."""
-        from curious.runs.folder import RunFolder, RunFolderError
+        from curious.runs.folder import RunFolder
+        from curious.runs.folder_errors import RunFolderError
 
         entry = self.manifest.get(spec.relative_path)
         if entry is None:

@@ -27,7 +27,8 @@ import pandas as pd
 from curious import analysis
 from curious.analysis.palette import condition_label, module_label
 from curious.reproduction.experiments import BUDGETS, Experiment, ReproduceBudget, get_budget
-from curious.runs.folder import RunFolder, RunFolderError
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderError
 from pipelines.resources import Reproduction
 
 FIGURE_TEXT: dict[str, str] = {

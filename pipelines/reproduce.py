@@ -299,7 +299,8 @@ def _shipped_data(
 def _check_writable(layout: OutputLayout) -> None:
     """A `ReproduceError` naming `--out` where OUT (its lock beside it, its report and figures
     in it) cannot be written, before anything is locked or trained."""
-    from curious.runs.folder import RunFolderError, check_writable
+    from curious.runs.folder_errors import RunFolderError
+    from curious.runs.folder_lock import check_writable
 
     try:
         check_writable(layout.out, "--out", folder=True)
@@ -311,8 +312,9 @@ def _check_writable(layout: OutputLayout) -> None:
 def _reproduction_lock(layout: OutputLayout) -> Iterator[None]:
     """Hold OUT's lock for the whole reproduction: a second `curious reproduce` of the same
     folder is refused at once (`ReproduceError`) while the first goes on; nothing is left
-    behind (`curious.runs.folder.folder_lock`)."""
-    from curious.runs.folder import RunFolderBusy, RunFolderError, folder_lock
+    behind (`curious.runs.folder_lock.folder_lock`)."""
+    from curious.runs.folder_errors import RunFolderBusy, RunFolderError
+    from curious.runs.folder_lock import folder_lock
 
     with contextlib.ExitStack() as stack:
         try:

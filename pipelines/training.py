@@ -87,7 +87,8 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
     Whether the folder holds (a part of) the run is the check a resume makes
     (`curious.runs.folder.RunFolder.check_resumable`)."""
     from curious.config import ConfigError
-    from curious.runs.folder import ConfigMismatch, RunFolder, RunFolderError
+    from curious.runs.folder import RunFolder
+    from curious.runs.folder_errors import ConfigMismatch, RunFolderError
 
     folder = RunFolder(run_folder(spec, runs_root))
     if folder.path.exists() and not folder.path.is_dir():
@@ -135,8 +136,8 @@ def _make_recorder(spec: RunSpec, record: bool, resume: bool):
 
 
 def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
-    """The lock file beside a run folder (`curious.runs.folder.lock_path`)."""
-    from curious.runs.folder import lock_path as folder_lock_path
+    """The lock file beside a run folder (`curious.runs.folder_lock.lock_path`)."""
+    from curious.runs.folder_lock import lock_path as folder_lock_path
 
     return folder_lock_path(run_folder(spec, runs_root))
 
@@ -145,10 +146,10 @@ def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
 def training_lock(
     spec: RunSpec, runs_root: str | os.PathLike, claim: bool = True
 ) -> Iterator[None]:
-    """Hold the run's lock (`curious.runs.folder.folder_lock`, the one `train` takes while it
+    """Hold the run's lock (`curious.runs.folder_lock.folder_lock`, the one `train` takes while it
     trains); raise `RunFolderBusy` if another process holds it."""
-    from curious.runs.folder import RunFolderBusy as Busy
-    from curious.runs.folder import folder_lock
+    from curious.runs.folder_errors import RunFolderBusy as Busy
+    from curious.runs.folder_lock import folder_lock
 
     with contextlib.ExitStack() as stack:
         try:
@@ -173,7 +174,7 @@ def run_partition(
     stop_after_cycles: int | None = None,
 ) -> PartitionResult:
     """Bring one partition's run folder to its budget (see the module docstring)."""
-    from curious.runs.folder import RunFolderBusy as Busy
+    from curious.runs.folder_errors import RunFolderBusy as Busy
 
     os.environ.setdefault("MUJOCO_GL", "disable")
     try:  # `train` holds the folder's lock while it trains

@@ -27,7 +27,7 @@ from curious import analysis
 from curious.cli import main as curious_cli
 from curious.reproduction.experiments import get_budget
 from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
-from curious.runs.folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
 from pipelines.from_data import ShippedData, ShippedDataError
 
 

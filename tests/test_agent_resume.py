@@ -17,9 +17,9 @@ from toy_env import make_toy_envs
 from curious.agent.agent import Agent
 from curious.cli import main
 from curious.config import resolve
-from curious.runs.checkpoint import list_checkpoints
 from curious.runs.driver import train
-from curious.runs.folder import RunFolderError
+from curious.runs.folder_errors import RunFolderError
+from curious.runs.folder_layout import list_checkpoints
 from curious.runs.trainer import TrainingDiverged
 
 SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)

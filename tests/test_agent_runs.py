@@ -21,9 +21,10 @@ from curious.agent.goals import GoalInput
 from curious.agent.learning_progress import CompetenceTracker
 from curious.cli import main
 from curious.config import ConfigError, resolve
-from curious.runs.checkpoint import CheckpointError, list_checkpoints
+from curious.runs.checkpoint import CheckpointError
 from curious.runs.driver import train
-from curious.runs.folder import RunFolderError
+from curious.runs.folder_errors import RunFolderError
+from curious.runs.folder_layout import list_checkpoints
 
 TESTS = Path(__file__).resolve().parent
 SMALL = dict(total_episodes=39, n_workers=2, episodes_per_worker=2, progress=False)
@@ -512,7 +513,7 @@ def test_sensory_failure_settings_are_checked(tmp_path):
 
 
 def test_a_second_process_cannot_train_in_a_folder_being_trained(tmp_path):
-    from curious.runs.folder import RunFolderBusy
+    from curious.runs.folder_errors import RunFolderBusy
 
     out = tmp_path / "run"
     holder = subprocess.Popen(
@@ -520,7 +521,7 @@ def test_a_second_process_cannot_train_in_a_folder_being_trained(tmp_path):
             sys.executable,
             "-c",
             "import sys, time\n"
-            "from curious.runs.folder import folder_lock\n"
+            "from curious.runs.folder_lock import folder_lock\n"
             f"with folder_lock({str(out)!r}):\n"
             "    print('held', flush=True)\n"
             "    time.sleep(60)\n",

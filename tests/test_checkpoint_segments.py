@@ -9,7 +9,8 @@ from test_agent_replay import filled_replay
 
 from curious.agent.replay import EpisodeReplay
 from curious.runs import checkpoint
-from curious.runs.checkpoint import CheckpointError, list_checkpoints
+from curious.runs.checkpoint import CheckpointError
+from curious.runs.folder_layout import list_checkpoints
 
 
 def grown(n: int, evicted: bool = False) -> dict:

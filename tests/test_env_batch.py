@@ -15,7 +15,7 @@ from curious.config import resolve
 from curious.envs.batch import LocalEnvs, ProcessEnvs
 from curious.envs.goal_env import suite_env_fns
 from curious.runs.driver import _environments
-from curious.runs.folder import RECORDING_FILE
+from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.recording.reader import read_component
 
 os.environ.setdefault("MUJOCO_GL", "disable")

@@ -22,7 +22,7 @@ import pytest
 
 from curious.cli import main as curious_cli
 from curious.reproduction.experiments import get_budget
-from curious.runs.folder import machine, machine_text
+from curious.runs.provenance import machine, machine_text
 from curious.watching.recording.reader import summarize
 from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
@@ -572,7 +572,7 @@ def test_ctrl_c_stops_a_reproduction_in_one_line_and_every_worker_with_it(tmp_pa
 
 
 def test_a_second_reproduction_of_a_folder_is_refused_at_once(tmp_path, capsys):
-    from curious.runs.folder import folder_lock
+    from curious.runs.folder_lock import folder_lock
 
     out = tmp_path / "out"
     with folder_lock(out, activity="reproduced"):  # as the first `curious reproduce` holds it

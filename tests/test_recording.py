@@ -23,7 +23,7 @@ from rerun.chunk import RrdReader
 
 from curious.analysis.palette import module_entity, module_label, module_rgb
 from curious.commands.view import viewer_command
-from curious.runs.folder import RECORDING_FILE
+from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.recording import (
     APPLICATION_ID,
     RecorderSettings,

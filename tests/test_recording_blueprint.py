@@ -13,7 +13,7 @@ import numpy as np
 import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
-from curious.runs.folder import RECORDING_FILE
+from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.recording import RunRecorder, default_blueprint
 from curious.watching.recording.blueprint import LEGEND_CORNER, UNIT_RANGE
 

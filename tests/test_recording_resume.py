@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import rerun as rr
 
-from curious.runs.folder import RECORDING_FILE, list_checkpoints
+from curious.runs.folder_layout import RECORDING_FILE, list_checkpoints
 from curious.watching.recording import RecorderSettings, RunRecorder
 from curious.watching.recording.cost import synthetic_episodes
 from curious.watching.recording.reader import read_points
@@ -359,7 +359,6 @@ def test_a_resume_removes_the_checkpoint_a_kill_left_over(tmp_path: Path) -> Non
     from toy_env import make_toy_envs
 
     from curious.config import resolve
-    from curious.runs.checkpoint import list_checkpoints
     from curious.runs.driver import train
 
     config = resolve("smoke", "curious", 0, dict(total_episodes=24, progress=False))

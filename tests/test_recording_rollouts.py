@@ -17,7 +17,7 @@ from curious.analysis.palette import module_entity, module_label
 from curious.cli import main
 from curious.config import resolve
 from curious.runs.driver import train
-from curious.runs.folder import RECORDING_FILE
+from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.recording import RecorderSettings, RunRecorder
 from curious.watching.recording.reader import read_component, summarize
 from curious.watching.recording.rollout_capture import RolloutObserver, attach_rollout_recording

@@ -9,7 +9,7 @@ import pytest
 
 from curious.cli import main
 from curious.commands import view
-from curious.runs.folder import RECORDING_FILE
+from curious.runs.folder_layout import RECORDING_FILE
 
 RRD_HEADER = b"RRF2\x00\x29\x00\x00\x01\x02\x00\x00"
 """The first 12 bytes of a recording that rerun-sdk 0.41 wrote: magic, version, options."""

@@ -1,5 +1,6 @@
-"""The run folder's format (curious.runs.folder): what config.json records, how every version of it
-reads, and the one check of whether a config goes on with the run in a folder."""
+"""The run folder's format (curious.runs.folder, folder_layout, run_info, provenance): what
+config.json records, how every version of it reads, and the one check of whether a config goes on
+with the run in a folder."""
 
 from __future__ import annotations
 
@@ -14,16 +15,10 @@ from toy_env import ToyGoalEnv
 from curious.config import resolve
 from curious.envs.goal_env import SuiteEnv
 from curious.reproduction.experiments import get_budget
-from curious.runs.folder import (
-    RUN_ENTRIES,
-    ConfigMismatch,
-    RunFolder,
-    RunFolderError,
-    checkpoint_name,
-    list_checkpoints,
-    machine,
-    machine_text,
-)
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import ConfigMismatch, RunFolderError
+from curious.runs.folder_layout import RUN_ENTRIES, checkpoint_name, list_checkpoints
+from curious.runs.provenance import machine, machine_text
 from pipelines.training import PARTIAL, RunFolderMismatch, folder_state, run_folder
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -192,11 +187,11 @@ def test_checkpoints_are_listed_by_their_names(tmp_path):
 
 
 def test_only_the_run_folder_module_spells_the_file_names():
-    """Every reader and writer of a run folder takes the names from `curious.runs.folder`."""
+    """Every reader and writer of a run folder takes the names from `curious.runs.folder_layout`."""
     spelled = []
     for top in ("curious", "pipelines", "notebooks", "benchmarks"):
         for path in sorted((ROOT / top).rglob("*.py")):
-            if path == ROOT / "curious" / "runs" / "folder.py":
+            if path == ROOT / "curious" / "runs" / "folder_layout.py":
                 continue
             for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
                 if isinstance(node, ast.Constant) and node.value in RUN_ENTRIES:

@@ -27,7 +27,8 @@ from curious import analysis
 from curious.cli import main as curious_cli
 from curious.reproduction.shipped_folder import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
 from curious.reproduction.shipping import clean_leftovers
-from curious.runs.folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE, RunFolder
+from curious.runs.folder import RunFolder
+from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
 from pipelines.resources import OutputLayout
 
 EXPERIMENTS = ("main", "distractors", "sensor_failure")

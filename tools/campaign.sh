@@ -8,9 +8,9 @@
 # commit, outside the repository) when it is gone, and starts tools/campaign.py in the background
 # from that worktree, unless it is already running: it trains the runs the campaign lacks, two at
 # a time, leaving out those data/laptop holds finished, and ships and commits each run into
-# data/laptop the moment it finishes. The campaign is the `laptop` budget's runs, then the seeds
-# issue 51 adds beyond them (tools/campaign.py's DEFAULT_SEEDS: main's seeds 3 and 4, the
-# distractors' seed 2), from the same commit. A campaign.py started from an earlier checkout goes
+# data/laptop the moment it finishes. The campaign is the `laptop` budget's runs, then further
+# seeds beyond them (tools/campaign.py's DEFAULT_SEEDS: main's seeds 3 and 4, the distractors'
+# seed 2), from the same commit. A campaign.py started from an earlier checkout goes
 # on with its own queue until it ends: this script starts the new one once it has (or once it is
 # stopped; the runs in flight resume from their checkpoints). Settings (environment):
 # CAMPAIGN_COMMIT, CAMPAIGN_WORKTREE, CAMPAIGN_RUNS.

@@ -46,15 +46,11 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from curious.reproduction.shipped_folder import ShippedError, shipped_drops
-from curious.runs.folder import (
-    CONFIG_FILE,
-    METRICS_FILE,
-    TESTS_FILE,
-    RunFolder,
-    RunFolderError,
-    RunInfo,
-)
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderError
+from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
 from curious.runs.metrics import tests_schema
+from curious.runs.run_info import RunInfo
 
 __all__ = [
     "IDENTITY_COLUMNS",
@@ -112,7 +108,7 @@ PathsOrRoot = str | PathLike[str] | Iterable[str | PathLike[str]]
 class AnalysisError(ValueError):
     """A folder is not a readable run folder, or a set of runs cannot be analysed together.
 
-    (Training's own folder errors are `curious.runs.folder.RunFolderError`.)"""
+    (Training's own folder errors are `curious.runs.folder_errors.RunFolderError`.)"""
 
 
 def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:

@@ -5,7 +5,7 @@ The failure's onset is read from the data (`failure_onsets`: the first episode w
 ``sensor_failure`` flag is True; runs logged before that column existed fall back to the
 config's ``sensor_failure_episode``). The module followed is the one the variant's failure
 perturbs (`perturbed_module`), as the run folder records it (the table's ``perturbed_modules``
-column; `curious.runs.folder.RunInfo.sensor_failure_modules`). A recovery is measured
+column; `curious.runs.run_info.RunInfo.sensor_failure_modules`). A recovery is measured
 (`recovery`) only where the failure started and that module was learned before it: its
 competence just before the onset at least the run's own ``sensor_failure_competence``, else
 `LEARNED_COMPETENCE`. Other runs get no number, only a sentence saying why (never started, or

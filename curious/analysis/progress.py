@@ -38,7 +38,9 @@ from curious.analysis.loading import (
     run_path_below,
     search_run_folders,
 )
-from curious.runs.folder import CONFIG_FILE, RunFolder, RunInfo
+from curious.runs.folder import RunFolder
+from curious.runs.folder_layout import CONFIG_FILE
+from curious.runs.run_info import RunInfo
 
 if TYPE_CHECKING:
     from curious.reproduction.experiments import ReproduceBudget

@@ -29,7 +29,7 @@ import argparse
 import json
 import sys
 
-from curious.runs.folder import EVALUATION_RECORDING_FILE as DEFAULT_FILE
+from curious.runs.folder_layout import EVALUATION_RECORDING_FILE as DEFAULT_FILE
 
 RECORD_EPISODES = 2
 """`--record-episodes` unless given: each module's first episodes kept in 3-D."""

@@ -140,7 +140,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> str:
     """Refuses bad arguments before anything loads; returns the output format."""
-    from curious.runs.folder import check_writable
+    from curious.runs.folder_lock import check_writable
     from curious.watching.evaluation import check_episodes, check_seed
     from curious.watching.video import check_timing, check_writer, output_kind, real_time_fps
     from suite.layout import CONTROL_TIMESTEP, EPISODE_STEPS

@@ -176,7 +176,7 @@ def placement_overrides(items: list[str]) -> dict[str, object]:
 def run(args: argparse.Namespace) -> int:
     from curious.config import ConfigError
     from curious.reproduction.experiments import ExperimentError
-    from curious.runs.folder import RunFolderError
+    from curious.runs.folder_errors import RunFolderError
 
     options = (("--out", args.out), ("--runs-dir", args.runs_dir), ("--from-data", args.from_data))
     for option, value in options:
@@ -204,7 +204,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         overrides = placement_overrides(args.overrides)
         if args.runs_dir is not None and args.ray_address is None:  # Ray's nodes may see another
-            from curious.runs.folder import check_writable
+            from curious.runs.folder_lock import check_writable
 
             check_writable(args.runs_dir, "--runs-dir", folder=True)
     except (ConfigError, RunFolderError) as exc:

@@ -57,7 +57,7 @@ def _megabytes(n: int) -> str:
 def run(args: argparse.Namespace) -> int:
     from curious.reproduction.shipped_folder import MANIFEST_FILE
     from curious.reproduction.shipping import ship
-    from curious.runs.folder import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+    from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
     from pipelines.resources import OutputLayout
 
     root = Path(args.root)

@@ -123,7 +123,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from curious.runs.checkpoint import CheckpointError
-    from curious.runs.folder import RunFolderError
+    from curious.runs.folder_errors import RunFolderError
 
     try:
         if not args.out.strip():

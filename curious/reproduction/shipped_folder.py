@@ -7,7 +7,7 @@ the format.
 
     shipped.json              what the folder holds (`ShippedManifest`, below)
     <run>/config.json         the run's config.json as it was: identity, resolved settings,
-                              library versions and commit (`curious.runs.folder.RunInfo`)
+                              library versions and commit (`curious.runs.run_info.RunInfo`)
     <run>/metrics.parquet     the run's metrics.parquet without the columns in METRICS_DROPPED
     <run>/tests.parquet       the run's tests.parquet without TESTS_DROPPED (absent where the
                               run has no test rollouts)

@@ -48,16 +48,10 @@ from curious.reproduction.shipped_folder import (
     ShippedRun,
     shipped_metadata,
 )
-from curious.runs.folder import (
-    CONFIG_FILE,
-    METRICS_FILE,
-    TESTS_FILE,
-    RunFolder,
-    RunFolderBusy,
-    RunFolderError,
-    check_writable,
-    folder_lock,
-)
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderBusy, RunFolderError
+from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.folder_lock import check_writable, folder_lock
 
 
 @dataclass(frozen=True)

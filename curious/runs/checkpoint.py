@@ -1,12 +1,12 @@
 """Resumable checkpoints, written atomically.
 
 A checkpoint is a folder `checkpoints/ep-<episodes>/` (its name and the listing of the complete
-ones are the run folder's format, `curious.runs.folder`) holding `state.pt` (networks, optimisers,
-normalisers, competence queues, RNG states, counters, the config) and the replay buffer's filled
-part. It is written under a temporary name and renamed when complete, so a crash leaves either
-the previous checkpoint or the new one, never half of one. The two newest are kept (older ones
-are removed after the rename), so that a checkpoint damaged later (a disk error, a truncated
-copy) is not the end of a run: `load_latest` falls back to the one before, saying so.
+ones are the run folder's layout: `curious.runs.folder_layout`) holding `state.pt` (networks,
+optimisers, normalisers, competence queues, RNG states, counters, the config) and the replay
+buffer's filled part. It is written under a temporary name and renamed when complete, so a crash
+leaves either the previous checkpoint or the new one, never half of one. The two newest are kept
+(older ones are removed after the rename), so that a checkpoint damaged later (a disk error, a
+truncated copy) is not the end of a run: `load_latest` falls back to the one before, saying so.
 
 The replay only grows until it first stores an episode over another (a run keeps every episode
 by default), so a checkpoint writes only the episodes stored since the one before: each lands
@@ -37,7 +37,7 @@ from typing import Any, BinaryIO
 import numpy as np
 import torch
 
-from curious.runs.folder import checkpoint_episodes, checkpoint_name, list_checkpoints
+from curious.runs.folder_layout import checkpoint_episodes, checkpoint_name, list_checkpoints
 
 KEEP = 2
 """Checkpoints kept in a run folder: the newest and the one before."""

@@ -26,7 +26,9 @@ from curious.envs.batch import EnvBatch, ProcessEnvs
 from curious.envs.goal_env import GoalEnv
 from curious.envs.lockstep import Lockstep
 from curious.runs import checkpoint
-from curious.runs.folder import RunFolder, RunFolderError, folder_lock
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderError
+from curious.runs.folder_lock import folder_lock
 from curious.runs.hooks import Recorder
 from curious.runs.memory import SUITE_COPY_BYTES, check_memory
 from curious.runs.metrics import MetricsLog, TableLog, TestsLog

@@ -1,27 +1,7 @@
-"""A run folder: where one training run (one condition, one seed) keeps everything, and the one
-module that knows its format: the names of its files, what config.json holds (and how older ones
-read), writing it, and whether a config may go on with the run it holds.
-
-    config.json       the run's description (`RunFolder.describe`), read back as a `RunInfo`
-    metrics.parquet   one row per training episode (`curious.runs.metrics`)
-    tests.parquet     one row per test rollout (`curious.runs.metrics`)
-    recording.rrd     the Rerun recording (written by `curious.watching.recording`)
-    checkpoints/      resumable checkpoints, `ep-<episodes, 12 digits>/` (`curious.runs.checkpoint`)
-
-config.json's keys:
-
-    condition, seed, preset, variant  the run's identity (the same as in `config`)
-    modules, achievable               module names in slot order, and whether each is achievable
-    sensor_failure_modules            the modules the variant's sensory failure perturbs (empty:
-                                      none), from the env (`EnvSpec.sensor_failure_modules`);
-                                      config.json written before it was recorded lacks it, and
-                                      `RunInfo` derives it from the variant's definition
-    config                            the resolved settings (`Config.to_dict`)
-    versions, git, created            libraries, source commit and time of the first start
-    machine                           the machine of the first start (`machine`): processor,
-                                      cores, system, and the GPU where it trains on one
-    resumed                           one entry per resume: its time, libraries, commit, machine,
-                                      settings
+"""A run folder: where one training run (one condition, one seed) keeps everything. `RunFolder`
+holds its paths (the names are `curious.runs.folder_layout`'s), writes config.json
+(`RunFolder.describe`; its keys are listed in `curious.runs.run_info`), reads it back, and decides
+whether a config may go on with the run the folder holds.
 
 Who reads what: training (`prepare`, `write_config`, the paths), `curious evaluate`
 (`read_config`), `curious progress` and the analysis (`read_info`, `episodes_logged`,
@@ -33,259 +13,36 @@ Who reads what: training (`prepare`, `write_config`, the paths), `curious evalua
 `RESUMABLE_FIELDS` may change), or with `restart=True` when it holds a run's files and nothing
 else (`clear` removes them once every check has passed). A config.json that is not a run's
 (damaged, hand-edited into another shape, a setting of the wrong type) is a `RunFolderError`
-naming the file. `folder_lock` keeps a second process out of a folder while one trains in it, and
-leaves nothing behind.
+naming the file. While one process trains in a folder, `curious.runs.folder_lock` keeps others
+out.
 """
 
 from __future__ import annotations
 
-import contextlib
 import datetime
-import fcntl
-import functools
 import json
 import os
-import platform
-import re
 import shutil
-import socket
-import subprocess
-import tempfile
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
-from importlib import metadata
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
 from curious.config import RESUMABLE_FIELDS, Config, ConfigError, setting_names
+from curious.runs.folder_errors import ConfigMismatch, RunFolderError
+from curious.runs.folder_layout import (
+    CHECKPOINTS_DIR,
+    CONFIG_FILE,
+    METRICS_FILE,
+    RECORDING_FILE,
+    RUN_ENTRIES,
+    TESTS_FILE,
+    checkpoint_episodes,
+    list_checkpoints,
+)
+from curious.runs.provenance import git_commit, library_versions, machine
+from curious.runs.run_info import RunInfo, parse_info
 
 if TYPE_CHECKING:
     from curious.envs.goal_env import EnvSpec
-
-CONFIG_FILE = "config.json"
-METRICS_FILE = "metrics.parquet"
-TESTS_FILE = "tests.parquet"
-RECORDING_FILE = "recording.rrd"
-CHECKPOINTS_DIR = "checkpoints"
-RUN_ENTRIES: tuple[str, ...] = (
-    CONFIG_FILE,
-    METRICS_FILE,
-    TESTS_FILE,
-    RECORDING_FILE,
-    CHECKPOINTS_DIR,
-)
-"""What a run writes in its folder (with temporaries named after them, a leading dot aside)."""
-EVALUATION_RECORDING_FILE = "evaluation.rrd"
-"""Where `curious evaluate --record` writes without a FILE: the current folder, never a run
-folder (a run folder holds a run's files only: `--restart` refuses one with more)."""
-
-CHECKPOINT_PREFIX = "ep-"
-_CHECKPOINT_NAME = re.compile(r"ep-(\d{12})")
-
-
-class RunFolderError(RuntimeError):
-    """A run folder that cannot be used as asked (nothing has been written)."""
-
-
-class RunFolderBusy(RunFolderError):
-    """Another process is training in the run folder right now."""
-
-
-class ConfigMismatch(RunFolderError):
-    """The folder holds another run than the config given (`RunFolder.check_resumable`)."""
-
-    def __init__(self, message: str, differences: dict[str, tuple[Any, Any]]) -> None:
-        super().__init__(message)
-        self.differences = differences
-        """Setting -> (value in config.json, value given); None for a side that lacks it."""
-
-
-def check_writable(path: str | os.PathLike, option: str, folder: bool = False) -> None:
-    """A `RunFolderError` naming `option` where nothing could be written at `path`: the nearest
-    folder on the way to it that exists (`path` itself, with `folder`, where it is a folder that
-    exists) is a file, or takes no new file (a read-only file system, a folder without write
-    permission). Checked by making an empty file there and removing it, the one test that sees
-    all of them (`os.access` answers for the permissions alone), before any work is done."""
-    target = Path(path).absolute()
-    existing = _nearest_existing(target if folder else target.parent)
-    if not existing.is_dir():
-        raise RunFolderError(f"{option} {path}: {existing} is a file, not a folder")
-    try:
-        handle, probe = tempfile.mkstemp(prefix=".curious-write-check-", dir=existing)
-    except OSError as exc:
-        raise RunFolderError(
-            f"{option} {path} cannot be written: {existing}: {exc.strerror or exc}"
-        ) from None
-    os.close(handle)
-    os.unlink(probe)
-
-
-def _nearest_existing(path: Path) -> Path:
-    """`path`, or the nearest of its parents that exists (where a write or a lock would land)."""
-    return next(p for p in (path, *path.parents) if p.exists())
-
-
-def lock_path(folder: str | os.PathLike) -> Path:
-    """The lock file beside a run folder (inside it, it would make a new folder non-empty)."""
-    path = Path(folder).absolute()
-    return path.with_name(f".{path.name}.lock")
-
-
-@contextlib.contextmanager
-def folder_lock(
-    folder: str | os.PathLike, claim: bool = True, activity: str = "trained"
-) -> Iterator[None]:
-    """Hold the run folder's lock; `RunFolderBusy` if another process holds it.
-
-    An advisory `flock` on a file beside the folder: the system drops it when its process dies,
-    however it dies, so a killed run never leaves a stale lock, and two processes never train
-    one folder. With `claim`, the file names the holder (host and pid) for the error others get;
-    `activity` says what the holder does there ("being trained by ...").
-
-    The lock file is removed when the lock is given back, and so are the folders made to hold
-    it when they stayed empty: a refused command leaves nothing behind. The file is removed
-    while still locked, and a process that locked a file that is no longer the one at the path
-    tries again, so that two processes never both hold "the" lock.
-    """
-    path = lock_path(folder)
-    existing = _nearest_existing(path.parent)
-    if not existing.is_dir():
-        raise RunFolderError(f"cannot make {Path(folder)}: {existing} is a file, not a folder")
-    made = [p for p in path.parents if not p.exists()]  # innermost first
-    try:
-        handle = _acquire(path, Path(folder), activity)
-        try:
-            if claim:
-                handle.seek(0)
-                handle.truncate()
-                handle.write(f"{socket.gethostname()} pid {os.getpid()}\n")
-                handle.flush()
-            yield
-        finally:
-            path.unlink(missing_ok=True)  # before the unlock: nobody can hold it meanwhile
-            fcntl.flock(handle, fcntl.LOCK_UN)
-            handle.close()
-    finally:
-        for parent in made:  # only those this call made, and only while empty
-            with contextlib.suppress(OSError):
-                parent.rmdir()
-
-
-def _acquire(path: Path, folder: Path, activity: str) -> IO[str]:
-    """The open, locked lock file at `path` (see `folder_lock`)."""
-    while True:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle = open(path, "a+")
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            handle.seek(0)
-            holder = handle.read().strip() or "another process"
-            handle.close()
-            raise RunFolderBusy(
-                f"{folder} is being {activity} by {holder}; wait for it to end, or stop it, "
-                "before starting it again"
-            ) from None
-        try:  # the holder before may have removed the file between our open and our lock
-            current = os.stat(path).st_ino == os.fstat(handle.fileno()).st_ino
-        except FileNotFoundError:
-            current = False
-        if current:
-            return handle
-        handle.close()
-
-
-def checkpoint_name(episodes: int) -> str:
-    """The name of the checkpoint taken after `episodes` episodes, in `checkpoints/`."""
-    return f"{CHECKPOINT_PREFIX}{episodes:012d}"
-
-
-def checkpoint_episodes(path: str | os.PathLike) -> int | None:
-    """The episodes a checkpoint's name says it was taken after; None for another name."""
-    match = _CHECKPOINT_NAME.fullmatch(Path(path).name)
-    return int(match.group(1)) if match else None
-
-
-def list_checkpoints(directory: Path) -> list[Path]:
-    """Complete checkpoints, oldest first (temporaries, `.tmp-ep-...`, are not listed)."""
-    if not directory.exists():
-        return []
-    found = [p for p in directory.iterdir() if p.is_dir() and checkpoint_episodes(p) is not None]
-    return sorted(found, key=lambda p: checkpoint_episodes(p) or 0)
-
-
-def library_versions() -> dict[str, str | None]:
-    """Installed versions of the libraries a run's results depend on."""
-    versions: dict[str, str | None] = {"python": platform.python_version()}
-    for dist in ("curious", "torch", "numpy", "mujoco", "dm-control", "rerun-sdk"):
-        try:
-            versions[dist] = metadata.version(dist)
-        except metadata.PackageNotFoundError:
-            versions[dist] = None
-    return versions
-
-
-def _cpu_model() -> str:
-    """The processor's model name (Linux's /proc/cpuinfo), else what `platform` knows."""
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name") and ":" in line:
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or platform.machine()
-
-
-def machine(device: str = "cpu") -> dict[str, Any]:
-    """What a run starts or resumes on, for the compute an experiment took: the processor, its
-    logical cores, the system and, with ``device`` `cuda`, the GPU (no host name)."""
-    gpu = None
-    if device.startswith("cuda"):
-        import torch
-
-        if torch.cuda.is_available():
-            gpu = torch.cuda.get_device_name(torch.device(device))
-    affinity = getattr(os, "sched_getaffinity", None)  # the cores this process may use (Linux)
-    cores = len(affinity(0)) if affinity is not None else os.cpu_count()
-    return {
-        "cpu": _cpu_model(),
-        "cores": cores,
-        "system": f"{platform.system()} {platform.release()}",
-        "gpu": gpu,
-    }
-
-
-def machine_text(entry: Mapping[str, Any]) -> str:
-    """One line for a `machine` entry, e.g. ``AMD EPYC 7B13, 2 cores``; empty where none."""
-    if not entry.get("cpu"):
-        return ""
-    text = str(entry["cpu"])
-    if entry.get("cores"):
-        text += f", {entry['cores']} cores"
-    if entry.get("gpu"):
-        text += f", {entry['gpu']}"
-    return text
-
-
-def git_commit() -> dict[str, Any]:
-    """Commit (and whether the tree has changes) of the source tree this package runs from."""
-    root = Path(__file__).resolve().parent.parent
-    try:
-        commit = subprocess.run(
-            ["git", "-C", str(root), "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-        status = subprocess.run(
-            ["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout
-        return {"commit": commit, "dirty": bool(status.strip())}
-    except (OSError, subprocess.SubprocessError):
-        return {"commit": None, "dirty": None}
 
 
 def config_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
@@ -297,171 +54,10 @@ def config_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
 
 
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    """Write `data` to `path` through a temporary beside it: a reader never sees half a file."""
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
     os.replace(tmp, path)
-
-
-@dataclass(frozen=True)
-class RunInfo:
-    """What a run folder's config.json says about its run (`RunFolder.read_info`)."""
-
-    path: Path
-    condition: str
-    seed: int
-    variant: str
-    preset: str
-    module_names: tuple[str, ...]
-    achievable: tuple[bool, ...]
-    perturbation_episode: int | None = None
-    """The setting `sensor_failure_episode` (None: never, or not set)."""
-    failure_competence: float | None = None
-    """The setting `sensor_failure_competence`: the perturbed module's competence at which the
-    failure was to start (None: not used)."""
-    recorded_failure_modules: tuple[str, ...] | None = None
-    """config.json's `sensor_failure_modules`; None where it predates that record."""
-    settings: Mapping[str, Any] | None = None
-    """The resolved settings (config.json's `config`)."""
-    versions: Mapping[str, Any] | None = None
-    """Library versions of the first start."""
-    git: Mapping[str, Any] | None = None
-    """Source commit of the first start: `commit` and `dirty` (local changes)."""
-    resumed: tuple[Mapping[str, Any], ...] = ()
-    """One entry per resume: `at`, `versions`, `git`, `machine`, `config`."""
-    machine: Mapping[str, Any] | None = None
-    """The machine of the first start (`machine`; None where config.json predates it)."""
-
-    @property
-    def achievable_modules(self) -> tuple[str, ...]:
-        """The achievable modules, in slot order."""
-        return tuple(m for m, a in zip(self.module_names, self.achievable, strict=True) if a)
-
-    @functools.cached_property
-    def sensor_failure_modules(self) -> tuple[str, ...]:
-        """The modules the variant's sensory failure perturbs (empty: none): as config.json
-        records them, else (a run written before they were recorded) from the variant's own
-        definition, `curious.envs.goal_env.suite_sensor_failure_modules`."""
-        if self.recorded_failure_modules is not None:
-            return self.recorded_failure_modules
-        from curious.envs.goal_env import suite_sensor_failure_modules
-
-        found = suite_sensor_failure_modules(self.variant)
-        return tuple(m for m in found if m in self.module_names)
-
-    @property
-    def total_episodes(self) -> int:
-        """The run's budget in episodes (its latest `total_episodes`; 0 where not set)."""
-        return int((self.settings or {}).get("total_episodes", 0))
-
-    @property
-    def machines(self) -> tuple[str, ...]:
-        """The machines the run trained on, first start then resumes (`machine_text`), without
-        repeats; starts that predate the record are left out."""
-        entries = [self.machine or {}, *(r.get("machine", {}) for r in self.resumed)]
-        texts = (machine_text(e) for e in entries if isinstance(e, Mapping))
-        return tuple(dict.fromkeys(t for t in texts if t))
-
-    @property
-    def commits(self) -> tuple[str, ...]:
-        """Short commits the run was trained from, first start then resumes, without repeats; a
-        commit with local changes is marked with '+'."""
-        out: list[str] = []
-        for entry in [self.git or {}, *(r.get("git", {}) for r in self.resumed)]:
-            commit = entry.get("commit") if isinstance(entry, Mapping) else None
-            if commit:
-                text = commit[:7] + ("+" if entry.get("dirty") else "")
-                if text not in out:
-                    out.append(text)
-        return tuple(out)
-
-
-def _parse_info(data: dict[str, Any], folder: Path, config_path: Path) -> RunInfo:
-    """`RunInfo` from config.json's content, checked; a `RunFolderError` naming the file."""
-
-    def need(key: str, kind: type, what: str) -> Any:
-        if key not in data:
-            raise RunFolderError(f"{config_path} has no '{key}' ({what})")
-        value = data[key]
-        if not isinstance(value, kind) or (isinstance(value, bool) and kind is int):
-            raise RunFolderError(f"{config_path}: '{key}' must be {what}, got {value!r}")
-        return value
-
-    condition = need("condition", str, "a string")
-    seed = need("seed", int, "an integer")
-    variant = need("variant", str, "a string")
-    preset = need("preset", str, "a string")
-    names = need("modules", list, "a list of module names in slot order")
-    achievable = need("achievable", list, "a list of booleans, one per module")
-    if not names or not all(isinstance(n, str) and n for n in names):
-        raise RunFolderError(f"{config_path}: 'modules' must be non-empty strings: {names!r}")
-    if len(set(names)) != len(names):
-        raise RunFolderError(f"{config_path}: 'modules' repeats a name: {names!r}")
-    if any("," in n for n in names):
-        raise RunFolderError(f"{config_path}: module names may not contain commas: {names!r}")
-    if len(achievable) != len(names) or not all(isinstance(a, bool) for a in achievable):
-        raise RunFolderError(
-            f"{config_path}: 'achievable' must be {len(names)} booleans (one per module in "
-            f"'modules'), got {achievable!r}"
-        )
-    recorded = data.get("sensor_failure_modules")
-    if recorded is not None and (
-        not isinstance(recorded, list) or not all(m in names for m in recorded)
-    ):
-        raise RunFolderError(
-            f"{config_path}: 'sensor_failure_modules' must list modules of 'modules', got "
-            f"{recorded!r}"
-        )
-    settings = data["config"]
-    resumed = data.get("resumed")
-    return RunInfo(
-        path=folder.resolve(),
-        condition=condition,
-        seed=seed,
-        variant=variant,
-        preset=preset,
-        module_names=tuple(names),
-        achievable=tuple(achievable),
-        perturbation_episode=_failure_episode(settings, config_path),
-        failure_competence=_failure_competence(settings, config_path),
-        recorded_failure_modules=None if recorded is None else tuple(recorded),
-        settings=settings,
-        versions=_mapping(data.get("versions")),
-        git=_mapping(data.get("git")),
-        resumed=tuple(_mapping(r) for r in resumed) if isinstance(resumed, list) else (),
-        machine=_mapping(data.get("machine")),
-    )
-
-
-def _mapping(value: Any) -> Mapping[str, Any]:
-    """A provenance entry of config.json, or an empty one where it is not an object (provenance
-    is for reading; a hand-edited entry does not make the run unreadable)."""
-    return value if isinstance(value, dict) else {}
-
-
-def _failure_episode(settings: Mapping[str, Any], config_path: Path) -> int | None:
-    """The setting `sensor_failure_episode` (None where absent, null or -1: never)."""
-    value = settings.get("sensor_failure_episode")
-    if value is None or value == -1:
-        return None
-    if not isinstance(value, int) or isinstance(value, bool) or value < 0:
-        raise RunFolderError(
-            f"{config_path}: 'sensor_failure_episode' must be a non-negative integer, -1 or "
-            f"null, got {value!r}"
-        )
-    return value
-
-
-def _failure_competence(settings: Mapping[str, Any], config_path: Path) -> float | None:
-    """The setting `sensor_failure_competence` (None where absent, null or -1: not used)."""
-    value = settings.get("sensor_failure_competence")
-    if value is None or value == -1:
-        return None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value <= 1:
-        raise RunFolderError(
-            f"{config_path}: 'sensor_failure_competence' must be a number in (0, 1], -1 or "
-            f"null, got {value!r}"
-        )
-    return float(value)
 
 
 class RunFolder:
@@ -567,7 +163,7 @@ class RunFolder:
         """What config.json says about the run (`RunInfo`), checked: its identity, modules,
         sensory failure and provenance; a `RunFolderError` naming the file otherwise. Reads
         every config.json curious has written (see the module docstring)."""
-        return _parse_info(self.read_stored(), self.path, self.config_path)
+        return parse_info(self.read_stored(), self.path, self.config_path)
 
     def check_resumable(self, config: Config) -> None:
         """A `RunFolderError` unless `config` may go on with the run in this folder: config.json

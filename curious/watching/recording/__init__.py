@@ -3,7 +3,7 @@
 The training loop makes one `RunRecorder` per run and calls its `log_*` methods with batches of
 arrays; rollout code fills a `RolloutCapture` from MuJoCo data each step. `curious view` opens
 the resulting `recording.rrd` files (named by the run folder's format,
-`curious.runs.folder.RECORDING_FILE`); `curious.watching.recording.reader` reads them back.
+`curious.runs.folder_layout.RECORDING_FILE`); `curious.watching.recording.reader` reads them back.
 """
 
 import os

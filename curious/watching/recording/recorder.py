@@ -49,7 +49,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from curious.runs.folder import RECORDING_FILE
+from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.recording.module_statistics import ModuleStatistics
 from curious.watching.recording.recorded_modules import RecordedModules
 from curious.watching.recording.resume import read_previous

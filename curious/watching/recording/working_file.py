@@ -21,7 +21,7 @@ from typing import Any
 
 import rerun as rr
 
-from curious.runs.folder import RECORDING_FILE
+from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.display import has_display
 from curious.watching.recording.blueprint import default_blueprint
 from curious.watching.recording.rrd_files import (

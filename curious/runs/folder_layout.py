@@ -1,0 +1,54 @@
+"""The names in a run folder, the one place that spells them, so that every reader and writer
+agrees on the layout:
+
+    config.json       the run's description (`curious.runs.folder.RunFolder.describe`)
+    metrics.parquet   one row per training episode (`curious.runs.metrics`)
+    tests.parquet     one row per test rollout (`curious.runs.metrics`)
+    recording.rrd     the Rerun recording (written by `curious.watching.recording`)
+    checkpoints/      resumable checkpoints, `ep-<episodes, 12 digits>/` (`curious.runs.checkpoint`)
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+CONFIG_FILE = "config.json"
+METRICS_FILE = "metrics.parquet"
+TESTS_FILE = "tests.parquet"
+RECORDING_FILE = "recording.rrd"
+CHECKPOINTS_DIR = "checkpoints"
+RUN_ENTRIES: tuple[str, ...] = (
+    CONFIG_FILE,
+    METRICS_FILE,
+    TESTS_FILE,
+    RECORDING_FILE,
+    CHECKPOINTS_DIR,
+)
+"""What a run writes in its folder (with temporaries named after them, a leading dot aside)."""
+EVALUATION_RECORDING_FILE = "evaluation.rrd"
+"""Where `curious evaluate --record` writes without a FILE: the current folder, never a run
+folder (a run folder holds a run's files only: `--restart` refuses one with more)."""
+
+CHECKPOINT_PREFIX = "ep-"
+_CHECKPOINT_NAME = re.compile(r"ep-(\d{12})")
+
+
+def checkpoint_name(episodes: int) -> str:
+    """The name of the checkpoint taken after `episodes` episodes, in `checkpoints/`."""
+    return f"{CHECKPOINT_PREFIX}{episodes:012d}"
+
+
+def checkpoint_episodes(path: str | os.PathLike) -> int | None:
+    """The episodes a checkpoint's name says it was taken after; None for another name."""
+    match = _CHECKPOINT_NAME.fullmatch(Path(path).name)
+    return int(match.group(1)) if match else None
+
+
+def list_checkpoints(directory: Path) -> list[Path]:
+    """Complete checkpoints, oldest first (temporaries, `.tmp-ep-...`, are not listed)."""
+    if not directory.exists():
+        return []
+    found = [p for p in directory.iterdir() if p.is_dir() and checkpoint_episodes(p) is not None]
+    return sorted(found, key=lambda p: checkpoint_episodes(p) or 0)
