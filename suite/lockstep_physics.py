@@ -69,16 +69,22 @@ class LockstepPhysics:
         self.outputs = {name: b.bind(name) for name in _OUTPUTS}
         """Derived fields after each copy's last call: positions and velocities up to date."""
         self._warnings = b.warning[..., 1]  # (n_copies, mjNWARNING) counts
-        self._control = np.empty((len(self.models), substeps, mujoco.mj_stateSize(model, _CONTROLS)))
+        width = mujoco.mj_stateSize(model, _CONTROLS)
+        self._control = np.empty((len(self.models), substeps, width))
         self._nu = model.nu
 
     def __len__(self) -> int:
         return len(self.models)
 
     def _live(self) -> mujoco_batch.Batch:
+        """The batch; a RuntimeError once closed."""
         if self._batch is None:
             raise RuntimeError("the physics was closed")
         return self._batch
+
+    @property
+    def closed(self) -> bool:
+        return self._batch is None
 
     def load(self, i: int, data: mujoco.MjData) -> None:
         """Copy i takes the complete state of `data` (an MjData of its model); `refresh` then

@@ -110,6 +110,8 @@ class LockstepTask:
 
     def load(self, ids: Sequence[int]) -> None:
         """Copies `ids` start from their own MjData, just reset by their environment."""
+        if self.physics.closed:
+            raise RuntimeError("the lockstep copies were closed")
         for i in ids:
             self.physics.load(i, self.envs[i].physics.data.ptr)
             self._slots[i] = self.tasks[i].goal_slots
@@ -118,6 +120,8 @@ class LockstepTask:
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One control step of the first n = len(actions) copies: their (state (n, S) float32,
         achieved (n, sum of outcome dims) float32, success (n, n_modules) bool)."""
+        if self.physics.closed:
+            raise RuntimeError("the lockstep copies were closed")
         a = self._check(actions)
         n = len(a)
         ph, b = self.physics, self.bindings
