@@ -8,15 +8,18 @@ round by round, interleaved, so that load from other processes hits them alike:
   step on `--threads` native threads, the task logic vectorised over the copies.
 - bound: the bare physics through `mujoco.rollout.Rollout(nthread=--threads)`: one call per
   control step advancing every copy by its substeps from the last call's states, with the
-  controls (finger commands, mocap targets) our episodes produced, recorded in an untimed pass.
-  No task logic, no observation.
+  controls (finger commands, mocap targets) our episodes produced, recorded in an untimed pass,
+  on the models ours runs (one shared model where the copies' are the same). No task logic,
+  no observation.
 - peer: `LocalEnvs` (`curious.envs.batch`), the suite stepping each copy in turn, as the
   training loop does today in one process.
 
 `batch_physics` in the detail is the physics of ours alone (`suite.lockstep_physics`: the same
 recorded controls through `mujoco.batch`, which also computes the positions and velocities the
 observation reads): ours over it is what the task logic costs, it over the bound what the
-batch's extra work costs. Rates come from the median round of each.
+batch's extra work costs. Rates come from the median round of each; the `cpu_` rates divide by
+the CPU time of all this process's threads instead of the wall time, a steadier measure of what a
+step costs where other processes share the cores.
 """
 
 from __future__ import annotations
@@ -58,12 +61,24 @@ class _Recording:
         self.mocap = mocap  # (T, n, nmocap, 3)
 
 
-def _round(envs: Any, modules: np.ndarray, goals: np.ndarray, actions: np.ndarray) -> float:
-    tic = time.perf_counter()
+class _Clock:
+    """Wall and CPU seconds (of all this process's threads) from its start to `stop`."""
+
+    def __init__(self) -> None:
+        self.wall, self.cpu = time.perf_counter(), time.process_time()
+
+    def stop(self) -> tuple[float, float]:
+        return time.perf_counter() - self.wall, time.process_time() - self.cpu
+
+
+def _round(
+    envs: Any, modules: np.ndarray, goals: np.ndarray, actions: np.ndarray
+) -> tuple[float, float]:
+    clock = _Clock()
     envs.reset(modules, goals)
     for a in actions:
         envs.step(a)
-    return time.perf_counter() - tic
+    return clock.stop()
 
 
 def _record(ours: Any, modules: np.ndarray, goals: np.ndarray, actions: np.ndarray) -> _Recording:
@@ -112,13 +127,13 @@ class _Bound:
         out[1:, :, 0, nu:] = mocap[:-1, :, 0]
         return out
 
-    def episode(self, rec: _Recording, controls: np.ndarray) -> float:
+    def episode(self, rec: _Recording, controls: np.ndarray) -> tuple[float, float]:
         n = len(rec.initial)
         models = self.models[:n]
         state = np.empty((n, self.substeps, self.nstate))
         sensordata = np.empty((n, self.substeps, 0))
         initial = rec.initial.copy()
-        tic = time.perf_counter()
+        clock = _Clock()
         for control in controls:
             self.pool.rollout(
                 models,
@@ -133,23 +148,23 @@ class _Bound:
                 chunk_size=None,
             )
             initial[:] = state[:, -1]
-        return time.perf_counter() - tic
+        return clock.stop()
 
     def close(self) -> None:
         self.pool.close()
 
 
-def _batch_physics_episode(ours: Any, rec: _Recording) -> float:
+def _batch_physics_episode(ours: Any, rec: _Recording) -> tuple[float, float]:
     """The same controls through ours' physics alone, from the recorded round's reset."""
     lockstep = ours._lockstep
     physics = lockstep.physics
     n = len(rec.initial)
     # Back to the reset: each copy's own MjData still holds it (ours syncs none).
     lockstep.load(range(n))
-    tic = time.perf_counter()
+    clock = _Clock()
     for ctrl, mocap in zip(rec.ctrl, rec.mocap, strict=True):
         physics.advance(ctrl, mocap)
-    return time.perf_counter() - tic
+    return clock.stop()
 
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
@@ -163,15 +178,19 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     copies, threads, rounds = int(args.copies), int(args.threads), int(args.rounds)
     if copies < 1 or threads < 1 or rounds < 1:
         raise ValueError("--copies, --threads and --rounds must be at least 1")
-    wall = time.perf_counter()
+    started = time.perf_counter()
     load = os.getloadavg()[0]
     peer = LocalEnvs(make_suite_envs(args.variant, args.seed, copies))
     ours = ThreadedEnvs(make_suite_envs(args.variant, args.seed, copies), threads=threads)
     physics = ours._lockstep.physics
-    bound = _Bound(physics.models, threads, physics.substeps)
+    shared = physics.shared_model
+    models = physics.models if shared is None else [shared] * copies  # as ours runs them
+    bound = _Bound(models, threads, physics.substeps)
     spec = ours.spec
     rng = np.random.default_rng(args.seed)
-    times: dict[str, list[float]] = {"ours": [], "bound": [], "peer": [], "batch_physics": []}
+    names = ("ours", "bound", "peer", "batch_physics")
+    wall: dict[str, list[float]] = {name: [] for name in names}
+    cpu: dict[str, list[float]] = {name: [] for name in names}
     try:
         for r in range(rounds + 1):  # the first one warms up, untimed
             modules = rng.integers(0, spec.n_modules, copies)
@@ -188,12 +207,14 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                 "batch_physics": _batch_physics_episode(ours, rec),
             }
             if r:
-                for name, seconds in result.items():
-                    times[name].append(seconds)
+                for name, (wall_s, cpu_s) in result.items():
+                    wall[name].append(wall_s)
+                    cpu[name].append(cpu_s)
     finally:
         ours.close()
         bound.close()
-    rate = {name: copies / float(np.median(t)) for name, t in times.items()}
+    rate = {name: copies / float(np.median(t)) for name, t in wall.items()}
+    cpu_rate = {name: copies / float(np.median(t)) for name, t in cpu.items()}
     return {
         "ours": rate["ours"],
         "bound": rate["bound"],
@@ -204,8 +225,17 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "batch_physics": rate["batch_physics"],
         "ours_over_batch_physics": rate["ours"] / rate["batch_physics"],
         "batch_physics_over_bound": rate["batch_physics"] / rate["bound"],
+        # Episodes per CPU second (all threads): what a step costs, whatever share of the cores
+        # other processes leave; on a loaded machine a steadier comparison than the rates.
+        "cpu_ours": cpu_rate["ours"],
+        "cpu_bound": cpu_rate["bound"],
+        "cpu_peer": cpu_rate["peer"],
+        "cpu_batch_physics": cpu_rate["batch_physics"],
+        "cpu_ours_over_bound": cpu_rate["ours"] / cpu_rate["bound"],
+        "cpu_ours_over_batch_physics": cpu_rate["ours"] / cpu_rate["batch_physics"],
         "copies": copies,
         "threads": threads,
+        "shared_model": physics.shared_model is not None,
         "steps_per_episode": spec.episode_length,
         "substeps": physics.substeps,
         "variant": args.variant,
@@ -213,5 +243,5 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "cpus": os.cpu_count(),
         "load_average_1min_at_start": load,
         "mujoco": mujoco.__version__,
-        "wall_s": time.perf_counter() - wall,
+        "wall_s": time.perf_counter() - started,
     }

@@ -4,9 +4,10 @@ physics vectorised over the copies and the physics in MuJoCo's threads.
 A control step of the first n copies:
 
 1. the actions become mocap targets and finger commands for all copies at once (what
-   `MultiTaskFetch.before_step` does for one), and each copy's distractors take a step of their
-   own random walk (`MultiTaskFetch.walk_distractors`, from the copy's random state: the only
-   Python run per copy in a step, and only in variants with distractors);
+   `MultiTaskFetch.before_step` does for one), and the distractors of all copies take a step of
+   their random walks (`suite.distractors.step_walks`: each copy's moves, drawn at its reset,
+   in one array; a copy whose move ends too close to another cube redraws from its own random
+   state);
 2. one call advances every copy's physics by the control step's substeps on native threads
    (`suite.lockstep_physics`);
 3. the state features, outcomes and successes of all copies come from the physics' fields
@@ -14,8 +15,8 @@ A control step of the first n copies:
    `ModuleEvaluator.evaluate_stacked`).
 
 Why vectorised: per copy, `before_step` costs ~30 us and the observation ~90 us on a 2-core
-machine (its physics ~900 us), so with the physics on two threads the copy-by-copy Python
-would add about a quarter to a step; stacked, it is a few hundred microseconds for all copies.
+machine (its physics ~600 us of CPU), so with the physics on two threads the copy-by-copy
+Python would add about a third to a step; stacked, it is about a millisecond for 38 copies.
 
 Resets stay each copy's own (`env.reset()` of its composer environment: cube placement, goals,
 distractor starts, from the copy's random state, once per episode); `load` then hands the reset
@@ -35,6 +36,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from suite import layout
+from suite.distractors import step_walks
 from suite.environment import SuiteEnvironment
 from suite.features import StackedStateReader
 from suite.lockstep_physics import LockstepPhysics
@@ -104,6 +106,8 @@ class LockstepTask:
         self._reach_qpos = slice(b.reach_qpos, b.reach_qpos + 7 * len(b.reach_bodies))
         self._distractors = slice(b.distractor_mocap, b.distractor_mocap + b.n_distractors)
         self._failing = first.has_sensor_failure
+        self._walks = [task.distractor_walk for task in self.tasks]
+        self._random_states = [env.random_state for env in self.envs]
 
     def __len__(self) -> int:
         return len(self.envs)
@@ -133,10 +137,7 @@ class LockstepTask:
         if b.n_distractors:
             reach_xy = ph.qpos[:n, self._reach_qpos].reshape(n, -1, 7)[..., :2]
             walking = mocap[:, self._distractors, :2]
-            for i in range(n):
-                walking[i] = self.tasks[i].walk_distractors(
-                    reach_xy[i], walking[i], self.envs[i].random_state
-                )
+            walking[:] = step_walks(self._walks[:n], reach_xy, walking, self._random_states[:n])
         ph.advance(ctrl, mocap)
         fields = {name: values[:n] for name, values in ph.outputs.items()}
         state, positions = self._reader.read(

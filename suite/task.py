@@ -285,17 +285,9 @@ class MultiTaskFetch(composer.Task):
         np.add(self._gripper_xpos, self._delta, out=self._arm_mocap_pos)
         np.add(self._finger_q, a[3], out=self._finger_ctrl)
         if self._n_distractors:
-            self._distractor_xy[:] = self.walk_distractors(
+            self._distractor_xy[:] = self._walk.step(
                 self._reach_xy, self._distractor_xy, random_state
             )
-
-    def walk_distractors(
-        self, reach_xy: np.ndarray, distractor_xy: np.ndarray, random_state: np.random.RandomState
-    ) -> np.ndarray:
-        """One step of the distractors' random walk (this episode's, `suite.distractors`): their
-        new xy (n_distractors, 2) from the reachable cubes' xy and their own. A view into the
-        walk's buffers: copy it to keep it."""
-        return self._walk.step(reach_xy, distractor_xy, random_state)
 
     def after_step(self, physics, random_state) -> None:
         self._steps += 1
@@ -445,6 +437,11 @@ class MultiTaskFetch(composer.Task):
                 "use sensor_failure_modules"
             )
         return names[0] if names else None
+
+    @property
+    def distractor_walk(self) -> DistractorWalk:
+        """The distractors' random walk, this episode's steps drawn (`before_step` steps it)."""
+        return self._walk
 
     @property
     def bindings(self) -> TaskBindings:

@@ -11,6 +11,7 @@ from dm_control.rl import control
 
 import suite
 from suite.catalog import BUILT_IN
+from suite.distractors import DistractorWalk, start_positions, step_walks
 from suite.layout import CUBE_REST_Z, GRIP0
 from suite.lockstep_physics import LockstepPhysics
 from suite.lockstep_task import LockstepTask
@@ -65,6 +66,7 @@ def test_what_cannot_be_stepped_in_lockstep_is_refused_by_name() -> None:
 def test_a_diverging_copy_is_a_physics_error_naming_it() -> None:
     envs = _loads("distractors_0", 3)
     physics = LockstepPhysics([env.physics.model.ptr for env in envs], 20, 2)
+    assert physics.shared_model is envs[0].physics.model.ptr  # copies of one variant: one model
     try:
         for i, env in enumerate(envs):
             physics.load(i, env.physics.data.ptr)
@@ -75,3 +77,51 @@ def test_a_diverging_copy_is_a_physics_error_naming_it() -> None:
             physics.advance(physics.ctrl.copy(), physics.mocap_pos.copy())
     finally:
         physics.close()
+
+
+def test_stacked_walks_move_as_each_walk_redraws_and_all() -> None:
+    n_cubes, n = 9, 40
+    walks = [[DistractorWalk(n_cubes, 7, 20) for _ in range(n)] for _ in range(2)]
+    states = [[np.random.RandomState(i) for i in range(n)] for _ in range(2)]
+    for copies, randoms in zip(walks, states, strict=True):
+        for walk, random_state in zip(copies, randoms, strict=True):
+            walk.reset(random_state)
+    redraws = []
+    for walk in walks[1]:  # count the stacked path's redraws
+        walk.redraw = lambda *args, walk=walk: redraws.append(1) or type(walk).redraw(walk, *args)
+    rng = np.random.default_rng(0)
+    # the distractors crowded together (0.03 apart), the reachable cubes far away
+    xy = start_positions(7, np.random.RandomState(0))[None].repeat(n, 0) * 0.4 + 0.7
+    xy += rng.uniform(-0.01, 0.01, xy.shape)
+    others = rng.uniform(-0.2, 0.2, (n, 2, 2))
+    for _ in range(25):  # past the episode's 20 drawn moves
+        one = np.stack(
+            [walk.step(others[i], xy[i], states[0][i]).copy() for i, walk in enumerate(walks[0])]
+        )
+        np.testing.assert_array_equal(step_walks(walks[1], others, xy, states[1]), one)
+        xy = one
+    assert len(redraws) > 10
+
+
+def test_copies_on_models_of_their_own_step_as_each_alone() -> None:
+    alone, together = _loads("default", 2), _loads("default", 2)
+    for envs in (alone, together):
+        envs[1].physics.model.ptr.geom_friction[:, 0] *= 0.5  # copy 1 slides more
+    lockstep = LockstepTask(together, 2)
+    try:
+        assert lockstep.physics.shared_model is None
+        for env in (*alone, *together):
+            env.task.set_next_episode(module="push_cube1")
+            env.reset()
+        lockstep.load(range(2))
+        rng = np.random.default_rng(3)
+        for _ in range(15):
+            actions = rng.uniform(-1, 1, (2, 4))
+            state, achieved, success = lockstep.step(actions)
+            for i, env in enumerate(alone):
+                obs = env.step(actions[i]).observation
+                np.testing.assert_array_equal(state[i], obs["state"])
+                np.testing.assert_array_equal(achieved[i], obs["achieved"])
+                np.testing.assert_array_equal(success[i], obs["success"] > 0.5)
+    finally:
+        lockstep.close()

@@ -5,9 +5,10 @@ The copies may belong to different runs of one variant (one `EnvSpec`): each kee
 random state, draws its own resets and distractor walks, and gets the same observations and
 successes as the same copy stepped by `LocalEnvs`, bit for bit (`tests/test_threaded_envs.py`
 checks every variant). How a step is split between Python and native threads is the suite's
-`suite.lockstep_task`: per copy, only the reset (once per episode) and the distractors' walk;
-the actions, the observation, outcomes and successes of all copies in numpy; the physics of all
-copies in one call on `threads` threads that do not hold the GIL.
+`suite.lockstep_task`: per copy, only the reset (once per episode, the suite's own) and a rare
+redraw of a distractor's move; the actions, the distractors' walk, the observation, outcomes
+and successes of all copies in numpy; the physics of all copies in one call on `threads`
+threads that do not hold the GIL.
 
 The batch owns its copies: their own `step` must not be used while it holds them. Observers get
 the copies themselves (`observed`), whose MuJoCo state is copied from the batch's after every
