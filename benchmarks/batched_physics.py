@@ -85,7 +85,7 @@ def _record(ours: Any, modules: np.ndarray, goals: np.ndarray, actions: np.ndarr
     """An untimed round of ours, keeping the start states and the controls it stepped with."""
     import mujoco
 
-    physics = ours._lockstep.physics
+    physics = ours.lockstep.physics
     ours.reset(modules, goals)
     n = len(modules)
     full = _full_physics()
@@ -156,7 +156,7 @@ class _Bound:
 
 def _batch_physics_episode(ours: Any, rec: _Recording) -> tuple[float, float]:
     """The same controls through ours' physics alone, from the recorded round's reset."""
-    lockstep = ours._lockstep
+    lockstep = ours.lockstep
     physics = lockstep.physics
     n = len(rec.initial)
     # Back to the reset: each copy's own MjData still holds it (ours syncs none).
@@ -182,7 +182,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     load = os.getloadavg()[0]
     peer = LocalEnvs(make_suite_envs(args.variant, args.seed, copies))
     ours = ThreadedEnvs(make_suite_envs(args.variant, args.seed, copies), threads=threads)
-    physics = ours._lockstep.physics
+    physics = ours.lockstep.physics
     shared = physics.shared_model
     models = physics.models if shared is None else [shared] * copies  # as ours runs them
     bound = _Bound(models, threads, physics.substeps)

@@ -56,6 +56,11 @@ class ThreadedEnvs:
     def __len__(self) -> int:
         return len(self.envs)
 
+    @property
+    def lockstep(self) -> Any:
+        """The suite's `LockstepTask` stepping the copies (its `physics`: the MuJoCo batch)."""
+        return self._lockstep
+
     def reset(self, modules: np.ndarray, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each of the first len(modules) copies resets itself (its suite environment), then the
         batch takes its state."""
