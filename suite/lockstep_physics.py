@@ -30,7 +30,7 @@ those stages in its threads.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import mujoco
 import numpy as np
@@ -96,6 +96,7 @@ class LockstepPhysics:
     def load(self, i: int, data: mujoco.MjData) -> None:
         """Copy i takes the complete state of `data` (an MjData of its model); `refresh` then
         computes what the state implies."""
+        self._live()
         mujoco.mj_getState(self.models[i], data, self.state[i], _INTEGRATION)
 
     def refresh(self, ids: Sequence[int]) -> None:
@@ -105,6 +106,7 @@ class LockstepPhysics:
     def advance(self, ctrl: np.ndarray, mocap_pos: np.ndarray) -> None:
         """One control step of the first n = len(ctrl) copies with this step's controls: `ctrl`
         (n, nu) and `mocap_pos` (n, nmocap, 3) (see the module docstring)."""
+        self._live()
         n = len(ctrl)
         if not 0 < n <= len(self):
             raise ValueError(f"can step 1..{len(self)} copies, got {n}")
@@ -121,7 +123,11 @@ class LockstepPhysics:
 
         self._check(ids, step)
 
-    def _check(self, ids: Sequence[int], call) -> None:
+    def _check(
+        self,
+        ids: Sequence[int],
+        call: Callable[[mujoco_batch.Batch, np.ndarray | None], None],
+    ) -> None:
         """Run `call(batch, selection)` on copies `ids`; a MuJoCo warning raised in any of them
         is a `PhysicsError` naming them."""
         b = self._live()
@@ -158,9 +164,10 @@ class LockstepPhysics:
         # The bound arrays keep the batch's memory alive; dropping them and the batch lets it
         # join its threads.
         self._batch = None
-        self.__dict__.update(dict.fromkeys(("state", "qpos", "qvel", "ctrl", "mocap_pos")))
+        none = np.empty(0)
+        self.state = self.qpos = self.qvel = self.ctrl = self.mocap_pos = none
         self.outputs = {}
-        self._warnings = np.zeros((len(self), 0), np.int32)
+        self._warnings = none
 
 
 def _shared(models: Sequence[mujoco.MjModel]) -> mujoco.MjModel | None:
