@@ -1,25 +1,25 @@
 """`curious bench threads`: episodes/s of many suite copies stepped together in MuJoCo's threads,
 against the bare physics of `mujoco.rollout` and the suite stepping copy by copy.
 
-All contestants run the same episodes (the same copies, seeds, modules, goals and actions)
-round by round, interleaved, so that load from other processes hits them alike:
+All contestants run the same episodes (the same copies, seeds, modules, goals and actions),
+interleaved step by step, so that load from other processes hits them alike:
 
 - ours: `ThreadedEnvs` (`curious.envs.threaded`), the physics of all copies in one call per
   step on `--threads` native threads, the task logic vectorised over the copies.
 - bound: the bare physics through `mujoco.rollout.Rollout(nthread=--threads)`: one call per
   control step advancing every copy by its substeps from the last call's states, with the
-  controls (finger commands, mocap targets) our episodes produced, recorded in an untimed pass,
-  on the models ours runs (one shared model where the copies' are the same). No task logic,
-  no observation.
+  controls (finger commands, mocap targets) ours just stepped with, on the models ours runs
+  (one shared model where the copies' are the same). No task logic, no observation, no reset.
 - peer: `LocalEnvs` (`curious.envs.batch`), the suite stepping each copy in turn, as the
   training loop does today in one process.
 
-`batch_physics` in the detail is the physics of ours alone (`suite.lockstep_physics`: the same
-recorded controls through `mujoco.batch`, which also computes the positions and velocities the
-observation reads): ours over it is what the task logic costs, it over the bound what the
-batch's extra work costs. Rates come from the median round of each; the `cpu_` rates divide by
-the CPU time of all this process's threads instead of the wall time, a steadier measure of what a
-step costs where other processes share the cores.
+`batch_physics` in the detail is the physics of ours alone (`suite.lockstep_physics` with the
+same controls: `mujoco.batch`, which also computes the positions and velocities the observation
+reads): ours over it is what the task logic and the resets cost, it over the bound what the
+batch's extra work costs. An episode's time is the sum of its steps' (and for ours and the peer
+its reset's); rates come from the median episode. The `cpu_` rates divide by the CPU time of all
+this process's threads instead of the wall time: a steadier measure of what a step costs where
+other processes share the cores.
 """
 
 from __future__ import annotations
@@ -27,9 +27,12 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+
+NAMES = ("ours", "bound", "peer", "batch_physics")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,143 +40,82 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--copies", type=int, default=38, help="environment copies (default 38: 2 runs x 19)"
     )
     parser.add_argument("--threads", type=int, default=2, help="native threads (default 2)")
-    parser.add_argument("--rounds", type=int, default=3, help="timed rounds each (default 3)")
+    parser.add_argument("--rounds", type=int, default=5, help="timed episodes each (default 5)")
     parser.add_argument("--variant", default="default", help="suite variant (default: default)")
     parser.add_argument("--seed", type=int, default=0)
 
 
-def _full_physics() -> int:
-    import mujoco  # here: `curious bench threads --help` imports no MuJoCo
-
-    return int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
-
-
-class _Recording:
-    """What the bound replays of one round: the copies' states after the reset and the controls
-    of every step."""
-
-    def __init__(
-        self, initial: np.ndarray, mocap0: np.ndarray, ctrl: np.ndarray, mocap: np.ndarray
-    ) -> None:
-        self.initial = initial  # (n, nstate) mjSTATE_FULLPHYSICS
-        self.mocap0 = mocap0  # (n, nmocap, 3) after the reset
-        self.ctrl = ctrl  # (T, n, nu)
-        self.mocap = mocap  # (T, n, nmocap, 3)
-
-
-class _Clock:
-    """Wall and CPU seconds (of all this process's threads) from its start to `stop`."""
+class _Clocks:
+    """Wall and CPU seconds (all this process's threads) spent in each contestant's calls."""
 
     def __init__(self) -> None:
-        self.wall, self.cpu = time.perf_counter(), time.process_time()
+        self.seconds = {name: np.zeros(2) for name in NAMES}
 
-    def stop(self) -> tuple[float, float]:
-        return time.perf_counter() - self.wall, time.process_time() - self.cpu
-
-
-def _round(
-    envs: Any, modules: np.ndarray, goals: np.ndarray, actions: np.ndarray
-) -> tuple[float, float]:
-    clock = _Clock()
-    envs.reset(modules, goals)
-    for a in actions:
-        envs.step(a)
-    return clock.stop()
-
-
-def _record(ours: Any, modules: np.ndarray, goals: np.ndarray, actions: np.ndarray) -> _Recording:
-    """An untimed round of ours, keeping the start states and the controls it stepped with."""
-    import mujoco
-
-    physics = ours.lockstep.physics
-    ours.reset(modules, goals)
-    n = len(modules)
-    full = _full_physics()
-    initial = np.empty((n, mujoco.mj_stateSize(physics.models[0], full)))
-    for i in range(n):
-        dm = ours.envs[i].dm_env.physics
-        mujoco.mj_getState(dm.model.ptr, dm.data.ptr, initial[i], full)
-    mocap0 = physics.mocap_pos[:n].copy()
-    ctrl, mocap = [], []
-    for a in actions:
-        ours.step(a)
-        ctrl.append(physics.ctrl[:n].copy())
-        mocap.append(physics.mocap_pos[:n].copy())
-    return _Recording(initial, mocap0, np.stack(ctrl), np.stack(mocap))
+    def time(self, name: str, call: Callable[..., Any], *args: Any) -> None:
+        """Run `call(*args)` on `name`'s clocks."""
+        wall, cpu = time.perf_counter(), time.process_time()
+        call(*args)
+        self.seconds[name] += (time.perf_counter() - wall, time.process_time() - cpu)
 
 
 class _Bound:
     """The bare physics of the copies through one `mujoco.rollout.Rollout` thread pool."""
 
-    def __init__(self, models: list[Any], threads: int, substeps: int) -> None:
-        import mujoco
+    def __init__(self, models: list[Any], threads: int, substeps: int, nu: int) -> None:
+        import mujoco  # here: `curious bench threads --help` imports no MuJoCo
         from mujoco import rollout
 
+        self.mujoco = mujoco
         self.models = models
-        self.substeps = substeps
+        self.substeps, self.nu = substeps, nu
         self.spec = int(mujoco.mjtState.mjSTATE_CTRL | mujoco.mjtState.mjSTATE_MOCAP_POS)
+        self.full = int(mujoco.mjtState.mjSTATE_FULLPHYSICS)
         self.pool = rollout.Rollout(nthread=threads)
         self.datas = [mujoco.MjData(models[0]) for _ in range(threads)]
-        self.nstate = mujoco.mj_stateSize(models[0], _full_physics())
+        n, nstate = len(models), mujoco.mj_stateSize(models[0], self.full)
+        self.initial = np.empty((n, nstate))
+        self.states = np.empty((n, substeps, nstate))
+        self.sensordata = np.empty((n, substeps, 0))
+        self.control = np.empty((n, substeps, mujoco.mj_stateSize(models[0], self.spec)))
 
-    def controls(self, rec: _Recording) -> np.ndarray:
-        """(T, n, substeps, ncontrol): the per-substep controls of ours' legacy stepping."""
-        steps, n, nu = rec.ctrl.shape
-        out = np.empty((steps, n, self.substeps, nu + rec.mocap[0, 0].size))
-        out[..., :nu] = rec.ctrl[:, :, None]
-        mocap = rec.mocap.reshape(steps, n, 1, -1)
-        out[:, :, 1:, nu:] = mocap
-        out[0, :, 0, nu:] = rec.mocap0.reshape(n, -1)
-        out[1:, :, 0, nu:] = mocap[:-1, :, 0]
-        return out
+    def start(self, datas: list[Any]) -> None:
+        """Start from the copies' states (their MjData)."""
+        for i, data in enumerate(datas):
+            self.mujoco.mj_getState(self.models[i], data, self.initial[i], self.full)
 
-    def episode(self, rec: _Recording, controls: np.ndarray) -> tuple[float, float]:
-        n = len(rec.initial)
-        models = self.models[:n]
-        state = np.empty((n, self.substeps, self.nstate))
-        sensordata = np.empty((n, self.substeps, 0))
-        initial = rec.initial.copy()
-        clock = _Clock()
-        for control in controls:
-            self.pool.rollout(
-                models,
-                self.datas,
-                initial,
-                control,
-                control_spec=self.spec,
-                skip_checks=True,
-                nstep=self.substeps,
-                state=state,
-                sensordata=sensordata,
-                chunk_size=None,
-            )
-            initial[:] = state[:, -1]
-        return clock.stop()
+    def step(self, ctrl: np.ndarray, old_mocap: np.ndarray, mocap: np.ndarray) -> None:
+        """One control step, with the controls of ours' (legacy order: the first substep with
+        the mocap positions of the step before)."""
+        n, nu, c = len(ctrl), self.nu, self.control
+        c[:, :, :nu] = ctrl[:, None]
+        c[:, 0, nu:] = old_mocap.reshape(n, -1)
+        c[:, 1:, nu:] = mocap.reshape(n, 1, -1)
+        self.pool.rollout(
+            self.models,
+            self.datas,
+            self.initial,
+            c,
+            control_spec=self.spec,
+            skip_checks=True,
+            nstep=self.substeps,
+            state=self.states,
+            sensordata=self.sensordata,
+            chunk_size=None,
+        )
+        self.initial[:] = self.states[:, -1]
 
     def close(self) -> None:
         self.pool.close()
 
 
-def _batch_physics_episode(ours: Any, rec: _Recording) -> tuple[float, float]:
-    """The same controls through ours' physics alone, from the recorded round's reset."""
-    lockstep = ours.lockstep
-    physics = lockstep.physics
-    n = len(rec.initial)
-    # Back to the reset: each copy's own MjData still holds it (ours syncs none).
-    lockstep.load(range(n))
-    clock = _Clock()
-    for ctrl, mocap in zip(rec.ctrl, rec.mocap, strict=True):
-        physics.advance(ctrl, mocap)
-    return clock.stop()
-
-
 def measure(args: argparse.Namespace) -> dict[str, Any]:
-    """ours, bound, peer (episodes/s) on the same rounds, and the batch's physics alone."""
+    """ours, bound, peer (episodes/s) on the same episodes, and the batch's physics alone."""
     import mujoco
 
     from curious.envs.batch import LocalEnvs
     from curious.envs.goal_env import make_suite_envs
     from curious.envs.threaded import ThreadedEnvs
+    from suite.lockstep_physics import LockstepPhysics
 
     copies, threads, rounds = int(args.copies), int(args.threads), int(args.rounds)
     if copies < 1 or threads < 1 or rounds < 1:
@@ -185,36 +127,41 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     physics = ours.lockstep.physics
     shared = physics.shared_model
     models = physics.models if shared is None else [shared] * copies  # as ours runs them
-    bound = _Bound(models, threads, physics.substeps)
+    alone = LockstepPhysics(physics.models, physics.substeps, threads)
+    bound = _Bound(models, threads, physics.substeps, physics.ctrl.shape[1])
+    datas = [env.dm_env.physics.data.ptr for env in ours.envs]
     spec = ours.spec
     rng = np.random.default_rng(args.seed)
-    names = ("ours", "bound", "peer", "batch_physics")
-    wall: dict[str, list[float]] = {name: [] for name in names}
-    cpu: dict[str, list[float]] = {name: [] for name in names}
+    episodes: dict[str, list[np.ndarray]] = {name: [] for name in NAMES}
     try:
         for r in range(rounds + 1):  # the first one warms up, untimed
             modules = rng.integers(0, spec.n_modules, copies)
             goals = rng.uniform(-1.0, 1.0, (copies, spec.goal_dim))
-            actions = rng.uniform(-1.0, 1.0, (spec.episode_length, copies, spec.action_dim))
-            states = ours.get_rng_states()
-            rec = _record(ours, modules, goals, actions)
-            ours.set_rng_states(states)
-            controls = bound.controls(rec)
-            result = {
-                "peer": _round(peer, modules, goals, actions),
-                "ours": _round(ours, modules, goals, actions),
-                "bound": bound.episode(rec, controls),
-                "batch_physics": _batch_physics_episode(ours, rec),
-            }
+            clocks = _Clocks()
+            clocks.time("peer", peer.reset, modules, goals)
+            clocks.time("ours", ours.reset, modules, goals)
+            for i, data in enumerate(datas):  # the physics alone start where ours does
+                alone.load(i, data)
+            alone.refresh(range(copies))
+            bound.start(datas)
+            for _ in range(spec.episode_length):
+                actions = rng.uniform(-1.0, 1.0, (copies, spec.action_dim))
+                old_mocap = physics.mocap_pos.copy()
+                clocks.time("ours", ours.step, actions)
+                ctrl, mocap = physics.ctrl.copy(), physics.mocap_pos.copy()
+                clocks.time("batch_physics", alone.advance, ctrl, mocap)
+                clocks.time("bound", bound.step, ctrl, old_mocap, mocap)
+                clocks.time("peer", peer.step, actions)
             if r:
-                for name, (wall_s, cpu_s) in result.items():
-                    wall[name].append(wall_s)
-                    cpu[name].append(cpu_s)
+                for name, seconds in clocks.seconds.items():
+                    episodes[name].append(seconds)
     finally:
         ours.close()
+        alone.close()
         bound.close()
-    rate = {name: copies / float(np.median(t)) for name, t in wall.items()}
-    cpu_rate = {name: copies / float(np.median(t)) for name, t in cpu.items()}
+    median = {name: np.median(np.stack(t), axis=0) for name, t in episodes.items()}
+    rate = {name: copies / float(m[0]) for name, m in median.items()}
+    cpu_rate = {name: copies / float(m[1]) for name, m in median.items()}
     return {
         "ours": rate["ours"],
         "bound": rate["bound"],
@@ -225,8 +172,6 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "batch_physics": rate["batch_physics"],
         "ours_over_batch_physics": rate["ours"] / rate["batch_physics"],
         "batch_physics_over_bound": rate["batch_physics"] / rate["bound"],
-        # Episodes per CPU second (all threads): what a step costs, whatever share of the cores
-        # other processes leave; on a loaded machine a steadier comparison than the rates.
         "cpu_ours": cpu_rate["ours"],
         "cpu_bound": cpu_rate["bound"],
         "cpu_peer": cpu_rate["peer"],
@@ -235,7 +180,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "cpu_ours_over_batch_physics": cpu_rate["ours"] / cpu_rate["batch_physics"],
         "copies": copies,
         "threads": threads,
-        "shared_model": physics.shared_model is not None,
+        "shared_model": shared is not None,
         "steps_per_episode": spec.episode_length,
         "substeps": physics.substeps,
         "variant": args.variant,
