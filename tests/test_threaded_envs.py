@@ -12,6 +12,7 @@ import pytest
 import suite
 from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import make_suite_envs
+from curious.envs.rollout import run_episodes
 from curious.envs.threaded import ThreadedEnvs
 from tests.toy_env import ToyGoalEnv
 
@@ -119,6 +120,9 @@ def test_watched_copies_carry_the_batch_physics() -> None:
         mine, theirs = watched[1].dm_env.physics.data, local.envs[1].dm_env.physics.data
         for field in ("qpos", "qvel", "mocap_pos", "xpos", "xquat", "time"):
             np.testing.assert_array_equal(getattr(mine, field), getattr(theirs, field))
+        np.testing.assert_array_equal(  # what the rollout recorder reads of the task
+            watched[1].dm_env.task.goal_positions(), local.envs[1].dm_env.task.goal_positions()
+        )
     finally:
         threaded.close()
 
@@ -154,3 +158,23 @@ def test_bad_input_is_a_clear_error() -> None:
         ThreadedEnvs([ToyGoalEnv(0), ToyGoalEnv(1)])
     with pytest.raises(ValueError, match="share one EnvSpec"):
         ThreadedEnvs([*make_suite_envs("default", 0, 1), *make_suite_envs("distractors_0", 0, 1)])
+
+
+def test_a_round_of_episodes_is_the_same_through_either_batch() -> None:
+    """`run_episodes`, as the trainer plays a round, on 3 of 4 copies."""
+
+    def act(states: np.ndarray, achieved: np.ndarray, t: int) -> np.ndarray:
+        # a deterministic policy of the observation: towards cube 1, closing late
+        push = np.clip(10 * states[:, 3:6] - 10 * states[:, 0:3], -1, 1)
+        return np.concatenate([push, np.full((len(states), 1), 1.0 - t / 25)], axis=1)
+
+    rounds = []
+    for kind in (LocalEnvs, ThreadedEnvs):
+        envs = kind(make_suite_envs("default", 9, 4))
+        try:
+            modules, goals = np.array([1, 2, 3]), np.full((3, 3), 0.2)
+            rounds.append(run_episodes(envs, modules, goals, act))
+        finally:
+            envs.close()
+    for field in ("states", "achieved", "actions", "final_success"):
+        np.testing.assert_array_equal(getattr(rounds[0], field), getattr(rounds[1], field))
