@@ -9,6 +9,8 @@ beyond the arm's reach (the authors' walk has no bound; docs/suite.md says what 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from suite import layout
@@ -64,6 +66,15 @@ class DistractorWalk:
         )
         self._t = 0
 
+    def next_move(self, random_state: np.random.RandomState) -> np.ndarray:
+        """This step's move (n, 2), drawn at reset (or now, past the episode's length)."""
+        if self._t < len(self._moves):
+            move = self._moves[self._t]
+        else:  # stepped past the episode's length: draw as we go
+            move = random_state.normal(0.0, layout.DISTRACTOR_WALK_STD, (self.n, 2))
+        self._t += 1
+        return move
+
     def _too_close(self) -> np.ndarray:
         """Which candidates end within the minimum separation of another cube or candidate."""
         d = np.abs(self._candidate_column - self._points)
@@ -80,12 +91,7 @@ class DistractorWalk:
             return current
         self._others[:] = others_xy
         current[:] = xy
-        if self._t < len(self._moves):
-            move = self._moves[self._t]
-        else:  # stepped past the episode's length: draw as we go
-            move = random_state.normal(0.0, layout.DISTRACTOR_WALK_STD, (self.n, 2))
-        self._t += 1
-        np.add(current, move, out=candidate)
+        np.add(current, self.next_move(random_state), out=candidate)
         np.maximum(candidate, _LOW, out=candidate)
         np.minimum(candidate, _HIGH, out=candidate)
         d = np.abs(self._candidate_column - self._points)
@@ -93,6 +99,22 @@ class DistractorWalk:
         if d.min() < layout.DISTRACTOR_MIN_SEPARATION:
             self._redraw(random_state)
         return candidate
+
+    def redraw(
+        self,
+        others_xy: np.ndarray,
+        xy: np.ndarray,
+        candidate: np.ndarray,
+        random_state: np.random.RandomState,
+    ) -> np.ndarray:
+        """`step`'s redraws for a move to `candidate` (n, 2) from `xy` among `others_xy`: the
+        candidates that end too close to another cube drawn again (a view: copy it to keep
+        it)."""
+        self._others[:] = others_xy
+        self._current[:] = xy
+        self._candidate[:] = candidate
+        self._redraw(random_state)
+        return self._candidate
 
     def _redraw(self, random_state: np.random.RandomState) -> None:
         """Redraw the candidates that end too close to another cube; whoever still collides
@@ -109,3 +131,28 @@ class DistractorWalk:
             candidate[bad] = np.clip(redraw, _LOW, _HIGH)
         bad = self._too_close()
         candidate[bad] = current[bad]
+
+
+def step_walks(
+    walks: Sequence[DistractorWalk],
+    others_xy: np.ndarray,
+    xy: np.ndarray,
+    random_states: Sequence[np.random.RandomState],
+) -> np.ndarray:
+    """`DistractorWalk.step` of many copies' walks (one variant's) at once: the distractors' new
+    xy (n, n_distractors, 2) from their current xy (n, n_distractors, 2) and the other cubes'
+    (n, n_cubes - n_distractors, 2). The moves and the clipping of all copies take a few numpy
+    operations, the same ones element by element as `step`'s; only a copy whose move ends too
+    close to another cube redraws, through its own walk and random state."""
+    moves = np.stack([w.next_move(rs) for w, rs in zip(walks, random_states, strict=True)])
+    candidate = np.add(xy, moves)
+    np.maximum(candidate, _LOW, out=candidate)
+    np.minimum(candidate, _HIGH, out=candidate)
+    points = np.ascontiguousarray(np.concatenate((others_xy, xy, candidate), axis=1))
+    z = points.view(np.complex128)[..., 0]  # (n, n_cubes + n_distractors): x + iy
+    d = np.abs(z[:, -walks[0].n :, None] - z[:, None, :])
+    d += walks[0]._self_pairs
+    redraw = np.flatnonzero(d.min(axis=(1, 2)) < layout.DISTRACTOR_MIN_SEPARATION)
+    for i in redraw:
+        candidate[i] = walks[i].redraw(others_xy[i], xy[i], candidate[i], random_states[i])
+    return candidate

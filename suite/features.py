@@ -245,3 +245,93 @@ class StateReader:
     def cubes(self) -> np.ndarray:
         """The (n_cubes, 3) cube positions as perceived, from the last `read` (a view)."""
         return self._b_pos
+
+
+class StackedStateReader:
+    """`StateReader`'s features for many copies of one model at once, from MuJoCo's fields
+    stacked over the copies ((n, ...) arrays, as `mujoco.batch` binds them).
+
+    The same numbers as `StateReader.read` copy by copy, bit for bit: the same float64
+    operations element by element, and each body's velocity as `mj_objectVelocity` computes it
+    in the world frame (its `cvel` moved from the subtree's centre of mass to the body's centre
+    of mass, or to the site, by `lin - (pos - com) x ang`).
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        *,
+        grip_site: int,
+        reach_bodies: tuple[int, ...],
+        reach_qpos: int,
+        distractor_mocap: int,
+        n_distractors: int,
+        finger_qpos: slice,
+        finger_qvel: slice,
+    ) -> None:
+        n_reach = len(reach_bodies)
+        self.layout = StateLayout(n_reach + n_distractors, n_reach)
+        self._grip_site = grip_site
+        self._grip_body = int(model.site_bodyid[grip_site])
+        self._grip_root = int(model.body_rootid[self._grip_body])
+        self._reach = np.asarray(reach_bodies, dtype=np.intp)
+        self._reach_roots = model.body_rootid[self._reach].astype(np.intp)
+        self._reach_qpos = slice(reach_qpos, reach_qpos + 7 * n_reach)
+        self._distractors = slice(distractor_mocap, distractor_mocap + n_distractors)
+        self._finger_qpos, self._finger_qvel = finger_qpos, finger_qvel
+        self._scale = self.layout.scale()
+
+    def read(
+        self,
+        fields: dict[str, np.ndarray],
+        qpos: np.ndarray,
+        qvel: np.ndarray,
+        mocap_pos: np.ndarray,
+        bias: np.ndarray | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(state (n, layout size) float32, positions (n, 3 + 3 n_cubes) float64 as perceived)
+        for the n copies of the leading axis.
+
+        Args:
+            fields: `site_xpos`, `xmat`, `xipos`, `cvel`, `subtree_com`, (n, ...) each, up to
+                date with the positions and velocities.
+            qpos, qvel, mocap_pos: (n, ...) each.
+            bias: (n, 3 + 3 n_cubes) added to the true positions (the sensory failure), or None.
+        """
+        lay = self.layout
+        n, n_reach = len(qpos), len(self._reach)
+        raw = np.empty((n, lay.size))
+        positions = raw[:, : lay.cube_pos.stop]
+        grip = raw[:, lay.gripper_pos]
+        cubes = raw[:, lay.cube_pos].reshape(n, -1, 3)
+        grip[:] = fields["site_xpos"][:, self._grip_site]
+        cubes[:, :n_reach] = qpos[:, self._reach_qpos].reshape(n, n_reach, 7)[..., :3]
+        cubes[:, n_reach:] = mocap_pos[:, self._distractors]
+        if bias is not None:
+            positions += bias
+        raw[:, lay.cube_rel_pos] = (cubes[:, :n_reach] - grip[:, None]).reshape(n, -1)
+        raw[:, lay.finger_pos] = qpos[:, self._finger_qpos]
+
+        # Orientation as `StateReader.read` computes it (the pitch's sign comes with the scale).
+        xm = fields["xmat"][:, self._reach]
+        euler = np.empty((n, n_reach, 3))
+        euler[..., 0] = np.arctan2(xm[..., 7], xm[..., 8])
+        euler[..., 1] = np.arctan2(xm[..., 6], np.hypot(xm[..., 7], xm[..., 8]))
+        euler[..., 2] = np.arctan2(xm[..., 3], xm[..., 0])
+        raw[:, lay.cube_euler] = euler.reshape(n, -1)
+
+        # Velocities from the true positions, as mj_objectVelocity reads them.
+        cvel, com = fields["cvel"], fields["subtree_com"]
+        grip_cvel = cvel[:, self._grip_body]
+        grip_arm = fields["site_xpos"][:, self._grip_site] - com[:, self._grip_root]
+        grip_lin = grip_cvel[:, 3:] - np.cross(grip_arm, grip_cvel[:, :3])
+        cube_cvel = cvel[:, self._reach]
+        cube_arm = fields["xipos"][:, self._reach] - com[:, self._reach_roots]
+        cube_vel = np.empty((n, n_reach, 6))
+        cube_vel[..., :3] = cube_cvel[..., :3]
+        cube_vel[..., 3:] = cube_cvel[..., 3:] - np.cross(cube_arm, cube_cvel[..., :3])
+        cube_vel[..., 3:] -= grip_lin[:, None]
+        raw[:, lay.cube_vel] = cube_vel.reshape(n, -1)
+        raw[:, lay.gripper_vel] = grip_lin
+        raw[:, lay.finger_vel] = qvel[:, self._finger_qvel]
+        return (raw * self._scale).astype(np.float32), positions

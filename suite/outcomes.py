@@ -49,6 +49,7 @@ class ModuleEvaluator:
         width = 3 + 3 * n_cubes
         self._linear_rows = np.concatenate(rows) if rows else np.zeros(0, np.intp)
         self._linear_matrix = np.concatenate(matrices) if matrices else np.zeros((0, width))
+        self._one_term = bool(np.all(np.count_nonzero(self._linear_matrix, axis=1) <= 1))
 
         # Goals that follow an outcome component: goals[row, col] = slot + (achieved[src] - anchor)
         follow = [
@@ -106,3 +107,45 @@ class ModuleEvaluator:
         for i, m, sl in self._custom:
             goals[i] = m.goal(self._slots[i], achieved[sl])
             success[i] = m.success_fn(achieved[sl], goals[i])
+
+    def evaluate_stacked(
+        self, positions: np.ndarray, slots: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`evaluate` for many copies at once: (achieved (n, sum of outcome dims) float32,
+        success (n, n_modules) bool) from the positions (n, 3 + 3 n_cubes) as perceived and each
+        copy's goal slots (n, n_modules, 3).
+
+        The same float32 numbers as `evaluate` copy by copy: a linear component with one term
+        (every suite module's) is one product, rounded once whatever the order of the matrix
+        product's sums, so all copies take one product; components that sum several terms take
+        the copy-by-copy product, whose rounding depends on how it is computed. The rest are the
+        same element-wise operations over a leading axis.
+        """
+        n = len(positions)
+        gripper = positions[:, :3]
+        cubes = positions[:, 3:].reshape(n, -1, 3)
+        achieved = np.empty((n, self.achieved.shape[0]), np.float32)
+        w = self._linear_matrix
+        if self._one_term:
+            achieved[:, self._linear_rows] = positions @ w.T
+        else:
+            achieved[:, self._linear_rows] = np.stack([w @ p for p in positions])
+        for fn, sl in self._extras:
+            achieved[:, sl] = fn(gripper, cubes)
+        for fn, sl in self._functional:
+            achieved[:, sl] = fn(gripper, cubes)
+        goals = np.array(slots, dtype=np.float32)
+        if len(self._follow_row):
+            goals[:, self._follow_row, self._follow_col] += (
+                achieved[:, self._follow_src] - self._follow_anchor
+            )
+        success = np.zeros((n, len(self.modules)), bool)
+        if len(self._reaching):
+            ok = within_distance(achieved[:, self._reaching_first3], goals[:, self._reaching])
+            for j, i, guard, sl in self._guards:
+                ok[:, j] &= guard(achieved[:, sl], goals[:, i])
+            success[:, self._reaching] = ok
+        for i, m, sl in self._custom:
+            goals[:, i] = m.goal(slots[:, i], achieved[:, sl])
+            success[:, i] = m.success_fn(achieved[:, sl], goals[:, i])
+        return achieved, success

@@ -97,3 +97,16 @@ def test_the_checkpoint_benchmark_keeps_the_replay_once_where_the_peer_keeps_it_
     assert replay_mb < result["disk_two_checkpoints_ours_mb"] < 1.1 * replay_mb
     both = replay_mb * (300 + 200) / 300  # the replay at both checkpoints, 300 and 200 episodes
     assert both < result["disk_two_checkpoints_peer_mb"] < 1.1 * both
+
+
+def test_the_threads_benchmark_runs_every_contender_on_the_same_rounds():
+    from benchmarks import batched_physics
+
+    parser = argparse.ArgumentParser()
+    batched_physics.add_arguments(parser)
+    args = ["--copies", "3", "--rounds", "1", "--variant", "distractors_4"]
+    result = batched_physics.measure(parser.parse_args(args))
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    assert result["unit"] == "episodes/s" and result["copies"] == 3 and result["shared_model"]
+    for name in ("ours", "bound", "peer", "batch_physics"):
+        assert result[name] > 0 and result[f"cpu_{name}"] > 0

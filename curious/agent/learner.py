@@ -29,6 +29,7 @@ tensors of its device.
 from __future__ import annotations
 
 import copy
+import threading
 from typing import Any
 
 import torch
@@ -39,6 +40,11 @@ from curious.agent.networks import Actor, Critic
 from curious.agent.update_backends import UpdateBackend
 from curious.config import Config
 
+_TORCH_SEEDING = threading.Lock()
+"""Held while a learner seeds torch's global generator and draws its initial weights: runs of a
+population build their learners in threads of their own, and would otherwise draw from one
+another's seeding."""
+
 
 class Learner:
     """One actor-critic pair with its targets, optimisers and update rule."""
@@ -48,15 +54,18 @@ class Learner:
         self.device = torch.device(config.device)
         self.action_dim = action_dim
         self.td3 = config.algorithm == "td3"
-        cpu_rng_state = torch.get_rng_state()
-        torch.manual_seed(seed)  # deterministic initial weights, independent of callers' RNG use
         h, n_layers = config.hidden, config.layers
-        self.actor = Actor(input_dim, action_dim, h, n_layers).to(self.device)
         n_critics = 2 if self.td3 else 1
-        self.critics = nn.ModuleList(
-            Critic(input_dim, action_dim, h, n_layers) for _ in range(n_critics)
-        ).to(self.device)
-        torch.set_rng_state(cpu_rng_state)
+        with _TORCH_SEEDING:  # deterministic initial weights, whatever else draws meanwhile
+            cpu_rng_state = torch.get_rng_state()
+            torch.manual_seed(seed)
+            actor = Actor(input_dim, action_dim, h, n_layers)
+            critics = nn.ModuleList(
+                Critic(input_dim, action_dim, h, n_layers) for _ in range(n_critics)
+            )
+            torch.set_rng_state(cpu_rng_state)
+        self.actor = actor.to(self.device)
+        self.critics = critics.to(self.device)
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)
         self.critics_target = copy.deepcopy(self.critics).requires_grad_(False)
         self.clip_return = 1.0 / (1.0 - config.gamma)

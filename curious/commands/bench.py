@@ -1,5 +1,5 @@
-"""`curious bench {env,learner,cycle,rollouts,recording,population,checkpoint}`: speed
-benchmarks, ours side by side with a bound and a peer.
+"""`curious bench {env,learner,cycle,rollouts,threads,population,recording,checkpoint}`:
+speed benchmarks, ours side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
@@ -29,6 +29,11 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "rollouts": (
         "benchmarks.rollout_scaling",
         "rollout episodes/s with 1, 2, ... worker processes vs the physics bound per core",
+    ),
+    "threads": (
+        "benchmarks.batched_physics",
+        "episodes/s of copies whose physics steps in MuJoCo's threads vs bare mujoco.rollout "
+        "vs the copies stepped in turn",
     ),
     "recording": (
         "benchmarks.recording_overhead",
