@@ -3,7 +3,7 @@ own thread pool, one control step per call.
 
 Each copy is a row of a persistent `mujoco.batch.Batch`: its complete `mjSTATE_INTEGRATION`
 state (positions, velocities, the constraint solver's warm start, controls, mocap poses), held
-in one MjData per copy. `advance` runs a control step of the first n copies in one call on
+in one MjData per copy. `advance` runs a control step of some of the copies in one call on
 `nthread` native threads that do not hold the GIL, exactly as `SuiteEnvironment` steps one copy
 (composer's legacy stepping: `mj_step2`, `mj_step` for the other substeps, `mj_step1`):
 
@@ -107,25 +107,28 @@ class LockstepPhysics:
         """Position- and velocity-dependent fields of copies `ids` from their state."""
         self._check(ids, lambda b, sel: b.forward(sel, stage=_VELOCITY_STAGE))
 
-    def advance(self, ctrl: np.ndarray, mocap_pos: np.ndarray) -> None:
-        """One control step of the first n = len(ctrl) copies with this step's controls: `ctrl`
-        (n, nu) and `mocap_pos` (n, nmocap, 3) (see the module docstring)."""
+    def advance(
+        self, ctrl: np.ndarray, mocap_pos: np.ndarray, ids: np.ndarray | None = None
+    ) -> None:
+        """One control step of copies `ids` (default: the first n = len(ctrl)) with this step's
+        controls: `ctrl` (n, nu) and `mocap_pos` (n, nmocap, 3), a row per copy of `ids` (see
+        the module docstring)."""
         self._live()
         n = len(ctrl)
         if not 0 < n <= len(self):
             raise ValueError(f"can step 1..{len(self)} copies, got {n}")
+        sel = np.arange(n) if ids is None else np.asarray(ids, dtype=np.intp)
         c = self._control[:n]
         nu = self._nu
         c[:, :, :nu] = ctrl[:, None]
-        c[:, 0, nu:] = self.mocap_pos[:n].reshape(n, -1)
+        c[:, 0, nu:] = self.mocap_pos[sel].reshape(n, -1)
         c[:, 1:, nu:] = mocap_pos.reshape(n, 1, -1)
-        ids = range(n)
 
         def step(b: mujoco_batch.Batch, sel: np.ndarray | None) -> None:
             b.rollout(self.substeps, c, _CONTROLS, record=(), ids=sel)
             b.forward(sel, stage=_VELOCITY_STAGE)
 
-        self._check(ids, step)
+        self._check(sel, step)
 
     def _check(
         self,

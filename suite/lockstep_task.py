@@ -1,7 +1,7 @@
 """`LockstepTask`: many copies of one suite variant stepped together, the task's work around the
 physics vectorised over the copies and the physics in MuJoCo's threads.
 
-A control step of the first n copies:
+A control step of some of the copies (the first n, or any `ids`):
 
 1. the actions become mocap targets and finger commands for all copies at once (what
    `MultiTaskFetch.before_step` does for one), and the distractors of all copies take a step of
@@ -121,29 +121,42 @@ class LockstepTask:
             self._slots[i] = self.tasks[i].goal_slots
         self.physics.refresh(ids)
 
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One control step of the first n = len(actions) copies: their (state (n, S) float32,
-        achieved (n, sum of outcome dims) float32, success (n, n_modules) bool)."""
+    def step(
+        self, actions: np.ndarray, ids: Sequence[int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One control step of copies `ids` (default: the first len(actions)), each with its row
+        of `actions`: their (state (n, S) float32, achieved (n, sum of outcome dims) float32,
+        success (n, n_modules) bool), in the order of `ids`."""
         if self.physics.closed:
             raise RuntimeError("the lockstep copies were closed")
         a = self._check(actions)
         n = len(a)
+        sel = np.arange(n) if ids is None else np.asarray(ids, dtype=np.intp)
+        if sel.shape != (n,) or len(np.unique(sel)) != n or sel.min() < 0 or sel.max() >= len(self):
+            raise ValueError(f"ids must name {n} distinct copies of 0..{len(self) - 1}")
+        order = np.argsort(sel, kind="stable")  # the physics steps copies in ascending order
+        if np.any(order != np.arange(n)):
+            out = self.step(a[order], sel[order])
+            back = np.argsort(order)
+            return out[0][back], out[1][back], out[2][back]
         ph, b = self.physics, self.bindings
-        mocap = ph.mocap_pos[:n].copy()
-        ctrl = ph.ctrl[:n].copy()
-        gripper = ph.outputs["xpos"][:n, b.gripper_body]
+        mocap = ph.mocap_pos[sel]
+        ctrl = ph.ctrl[sel]
+        gripper = ph.outputs["xpos"][sel, b.gripper_body]
         mocap[:, b.arm_mocap] = gripper + a[:, :3] * layout.MAX_GRIPPER_DISPLACEMENT
-        ctrl[:, b.finger_ctrl] = ph.qpos[:n, b.finger_qpos] + a[:, 3:]
+        ctrl[:, b.finger_ctrl] = ph.qpos[sel, b.finger_qpos] + a[:, 3:]
         if b.n_distractors:
-            reach_xy = ph.qpos[:n, self._reach_qpos].reshape(n, -1, 7)[..., :2]
+            reach_xy = ph.qpos[sel][:, self._reach_qpos].reshape(n, -1, 7)[..., :2]
             walking = mocap[:, self._distractors, :2]
-            walking[:] = step_walks(self._walks[:n], reach_xy, walking, self._random_states[:n])
-        ph.advance(ctrl, mocap)
-        fields = {name: values[:n] for name, values in ph.outputs.items()}
+            walks = [self._walks[i] for i in sel]
+            states = [self._random_states[i] for i in sel]
+            walking[:] = step_walks(walks, reach_xy, walking, states)
+        ph.advance(ctrl, mocap, sel)
+        fields = {name: values[sel] for name, values in ph.outputs.items()}
         state, positions = self._reader.read(
-            fields, ph.qpos[:n], ph.qvel[:n], ph.mocap_pos[:n], self._biases(n)
+            fields, ph.qpos[sel], ph.qvel[sel], ph.mocap_pos[sel], self._biases(sel)
         )
-        achieved, success = self._evaluator.evaluate_stacked(positions, self._slots[:n])
+        achieved, success = self._evaluator.evaluate_stacked(positions, self._slots[sel])
         return state, achieved, success
 
     def _check(self, actions: np.ndarray) -> np.ndarray:
@@ -160,12 +173,12 @@ class LockstepTask:
             a = np.clip(a, -1.0, 1.0)
         return a
 
-    def _biases(self, n: int) -> np.ndarray | None:
-        """What each copy's sensors add to the true positions (the sensory failure), or None
-        where no copy's failure is on."""
+    def _biases(self, sel: np.ndarray) -> np.ndarray | None:
+        """What the sensors of copies `sel` add to the true positions (the sensory failure), or
+        None where no copy's failure is on."""
         if not self._failing:
             return None
-        biases = [task.position_bias for task in self.tasks[:n]]
+        biases = [self.tasks[i].position_bias for i in sel]
         if all(bias is None for bias in biases):
             return None
         width = 3 + 3 * self.tasks[0].n_cubes

@@ -12,7 +12,8 @@ import torch
 
 from curious.config import ConfigError, resolve
 from curious.envs.goal_env import make_suite_envs
-from curious.envs.lockstep import Lockstep, step_one_by_one
+from curious.envs.lockstep import Lockstep, OneByOne
+from curious.envs.threaded import ThreadedPhysics
 from curious.runs import checkpoint
 from curious.runs.driver import train
 from curious.runs.population import PopulationError, train_population
@@ -53,24 +54,31 @@ def _assert_same(a, b, where=""):
         assert a == b, where
 
 
-def test_a_run_trained_in_a_population_is_the_run_trained_alone(tmp_path):
+@pytest.mark.parametrize("physics_threads", [2, 0], ids=["threaded", "one-by-one"])
+def test_a_run_trained_in_a_population_is_the_run_trained_alone(
+    tmp_path, monkeypatch, physics_threads
+):
     """Three runs (three conditions, three seeds) trained together in one process write the
-    same episodes, test rollouts, networks, optimisers, queues and replay as each alone: the
-    lockstep changes when their copies step, not how."""
+    same episodes, test rollouts, networks, optimisers, queues and replay as each alone,
+    whether their copies step in MuJoCo's threads or one by one: the lockstep changes when
+    their copies step, not how."""
     configs = [resolve("smoke", c, s, SMALL) for c, s in MEMBERS]
     alone = [tmp_path / "alone" / f"{c}-{s}" for c, s in MEMBERS]
     together = [tmp_path / "together" / f"{c}-{s}" for c, s in MEMBERS]
     for config, out in zip(configs, alone, strict=True):
         train(config, out)
-    steps = []
+    groups_per_call = []
+    physics = ThreadedPhysics if physics_threads else OneByOne
+    step = physics.step
 
-    def counting(groups):
-        steps.append(len(groups))
-        return step_one_by_one(groups)
+    def counting(self, groups):
+        groups_per_call.append(len(groups))
+        return step(self, groups)
 
-    trainers = train_population(configs, together, step_copies=counting)
+    monkeypatch.setattr(physics, "step", counting)
+    trainers = train_population(configs, together, physics_threads=physics_threads)
     assert [t.episodes for t in trainers] == [24, 24, 24]
-    assert max(steps) > 1  # some calls stepped several runs' copies
+    assert max(groups_per_call) > 1  # some calls stepped several runs' copies
     for a, b in zip(alone, together, strict=True):
         for name in ("metrics.parquet", "tests.parquet"):
             _assert_same_table(a / name, b / name)

@@ -4,10 +4,12 @@ A population trains several runs in one process, each run's loop in a thread of 
 (`curious.runs.population`). Each run steps its copies through a `Lane`, an `EnvBatch` like
 any other, so the run's code is the single run's. What the lanes share is a `Lockstep`: a lane
 that steps hands its actions in and waits; once every lane that is in a round has handed its
-actions in, one call steps all their copies (`step_copies`: by default the copies one after
-the other, as `LocalEnvs`; a threaded physics steps them at once), and each lane gets its own
-copies' observations back, or the error its own copies raised. A lane between rounds (its run
-is updating, writing a checkpoint, or done) is not waited for: the others go on without it.
+actions in, one call steps all their copies, and each lane gets its own copies' observations
+back, or the error its own copies raised. A lane between rounds (its run is updating, writing a
+checkpoint, or done) is not waited for: the others go on without it. What steps the copies is
+the lockstep's `SharedPhysics`: `OneByOne` (one after the other, as `LocalEnvs`), or
+`curious.envs.threaded.ThreadedPhysics` (the suite's copies of one variant in one call on
+MuJoCo's native threads).
 
 Each copy's next state depends only on that copy and its action, so which lanes share a call
 changes no observation: a run steps exactly as it would alone (a test checks, episode for
@@ -18,8 +20,8 @@ wait for it.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -30,27 +32,55 @@ Observations = tuple[np.ndarray, np.ndarray, np.ndarray]
 """(states, achieved, per-module success) of the copies stepped, in their order."""
 Group = tuple[Sequence[GoalEnv], np.ndarray]
 """A lane's copies to step in a call, and their actions (len(copies), A)."""
-StepCopies = Callable[[Sequence[Group]], list[Observations | BaseException]]
-"""`step_copies(groups)`: step every group's copies with their actions; for each group, its
-observations, or the error that stopped its copies (which leaves the other groups alone)."""
 
 
-def step_one_by_one(groups: Sequence[Group]) -> list[Observations | BaseException]:
-    """Step the groups' copies one after the other in this thread (what `LocalEnvs` does)."""
-    out: list[Observations | BaseException] = []
-    for copies, actions in groups:
-        try:
-            out.append(LocalEnvs(copies).step(actions))
-        except Exception as error:  # that run's copies failed; the others step on
-            out.append(error)
-    return out
+class SharedPhysics(Protocol):
+    """What steps the copies of a lockstep's calls (one call at a time)."""
+
+    def loaded(self, copies: Sequence[GoalEnv]) -> None:
+        """`copies` were just reset by their own environment (in a lane's thread)."""
+        ...
+
+    def watch(self, copies: Sequence[GoalEnv]) -> None:
+        """An observer reads the simulators of `copies`: keep them up to date."""
+        ...
+
+    def step(self, groups: Sequence[Group]) -> list[Observations | BaseException]:
+        """Step every group's copies with its actions; for each group, its observations, or
+        the error that stopped its copies."""
+        ...
+
+    def close(self) -> None: ...
+
+
+class OneByOne:
+    """The copies stepped one after the other in the calling thread, each by itself (what
+    `LocalEnvs` does): a group's failure leaves the other groups alone."""
+
+    def loaded(self, copies: Sequence[GoalEnv]) -> None:
+        """Nothing to do: the copies step themselves."""
+
+    def watch(self, copies: Sequence[GoalEnv]) -> None:
+        """Nothing to do: the copies' simulators are the ones that step."""
+
+    def step(self, groups: Sequence[Group]) -> list[Observations | BaseException]:
+        out: list[Observations | BaseException] = []
+        for copies, actions in groups:
+            try:
+                out.append(LocalEnvs(copies).step(actions))
+            except Exception as error:  # that run's copies failed; the others step on
+                out.append(error)
+        return out
+
+    def close(self) -> None:
+        """Nothing to release."""
 
 
 class Lockstep:
     """Collects the steps of the lanes in a round and makes them one call (module docstring)."""
 
-    def __init__(self, step_copies: StepCopies = step_one_by_one) -> None:
-        self.step_copies = step_copies
+    def __init__(self, physics: SharedPhysics | None = None) -> None:
+        self.physics: SharedPhysics = physics if physics is not None else OneByOne()
         self._cond = threading.Condition()
         self._acting: set[Lane] = set()  # in a round, computing their next actions
         self._waiting: dict[Lane, tuple[np.ndarray, bool]] = {}  # actions handed in, last step?
@@ -106,7 +136,7 @@ class Lockstep:
         self._stepping = True
         self._cond.release()
         try:
-            outs = self.step_copies(groups)
+            outs = self.physics.step(groups)
         except BaseException as error:  # beyond any one run's copies: every lane gets it
             outs = [error] * len(batch)
         finally:
@@ -139,6 +169,7 @@ class Lane:
     def reset(self, modules: np.ndarray, goals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Start a round in the first len(modules) copies (reset here, in the run's thread)."""
         out = self.local.reset(modules, goals)
+        self.lockstep.physics.loaded(self.copies[: len(modules)])
         self._steps_left = self.spec.episode_length
         self.lockstep._enter(self)
         return out
@@ -171,6 +202,7 @@ class Lane:
         self.local.set_sensor_failure(on)
 
     def observed(self, indices: Sequence[int]) -> list[Any]:
+        self.lockstep.physics.watch([self.copies[i] for i in indices])
         return self.local.observed(indices)
 
     def get_rng_states(self) -> list[Any]:

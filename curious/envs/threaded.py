@@ -18,12 +18,14 @@ reset and step, for the watched copies only.
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from curious.envs.goal_env import GoalEnv
+from curious.envs.lockstep import Group, Observations
 
 
 class ThreadedEnvs:
@@ -120,3 +122,65 @@ class ThreadedEnvs:
     def close(self) -> None:
         """Release the physics' threads; the batch cannot step after."""
         self._lockstep.close()
+
+
+class ThreadedPhysics:
+    """The physics of a population's suite copies (one variant), for `curious.envs.lockstep`:
+    every lockstep call steps the copies of all its lanes in one `LockstepTask` call on native
+    threads, whichever copies of the whole set they are.
+
+    A lane's copies reset themselves in the lane's thread (`loaded` notes them); their states
+    enter the physics at the next call, which is the only place the physics is touched, so
+    that one call runs at a time (the lockstep sees to it). Copies an observer watches have
+    their own simulator brought up to date after each call that steps them.
+    """
+
+    def __init__(self, envs: Sequence[GoalEnv], threads: int | None = None) -> None:
+        batch = ThreadedEnvs(envs, threads)  # checks the copies: suite ones, one variant
+        self.task = batch.lockstep
+        self.threads = batch.threads
+        self._index = {id(env): i for i, env in enumerate(batch.envs)}
+        self._pending: set[int] = set()
+        self._watched: set[int] = set()
+        self._lock = threading.Lock()  # lanes note resets and watches from their threads
+
+    def _ids(self, copies: Sequence[GoalEnv]) -> list[int]:
+        try:
+            return [self._index[id(env)] for env in copies]
+        except KeyError:
+            raise ValueError("a copy that this physics was not built with") from None
+
+    def loaded(self, copies: Sequence[GoalEnv]) -> None:
+        """`copies` were just reset by their own environment: the next call starts them there."""
+        with self._lock:
+            self._pending.update(self._ids(copies))
+
+    def watch(self, copies: Sequence[GoalEnv]) -> None:
+        """Keep the simulators of `copies` up to date (an observer reads them)."""
+        with self._lock:
+            self._watched.update(self._ids(copies))
+
+    def step(self, groups: Sequence[Group]) -> list[Observations | BaseException]:
+        """Step every group's copies with its actions in one call; a failure of the physics (a
+        diverging copy) is every group's error."""
+        ids = [self._ids(copies) for copies, _ in groups]
+        flat = np.concatenate([np.asarray(i, np.intp) for i in ids])
+        with self._lock:
+            pending = sorted(self._pending)
+            self._pending.clear()
+            watched = self._watched & set(flat.tolist())
+        try:
+            if pending:
+                self.task.load(pending)
+            out = self.task.step(np.concatenate([a for _, a in groups]), flat)
+            for i in sorted(watched):
+                self.task.sync(i)
+        except Exception as error:
+            return [error] * len(groups)
+        split = np.cumsum([len(i) for i in ids])[:-1]
+        parts = [np.split(part, split) for part in out]
+        return [(s, a, ok) for s, a, ok in zip(*parts, strict=True)]
+
+    def close(self) -> None:
+        """Release the physics' threads."""
+        self.task.close()

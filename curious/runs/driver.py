@@ -34,16 +34,21 @@ from curious.runs.memory import SUITE_COPY_BYTES, check_memory
 from curious.runs.metrics import MetricsLog, TableLog, TestsLog
 from curious.runs.trainer import CycleResult, Trainer
 
+RunCopies = tuple[list[GoalEnv], list[GoalEnv] | None]
+"""A run's training copies and its test rollouts' (None without test rollouts)."""
+
 
 @dataclass(frozen=True)
 class Seat:
     """A run's place in a population (`curious.runs.population`): the lockstep its copies step
-    through, its progress bar's line, and the event that asks every run to stop (each at the
-    end of its cycle, after a checkpoint)."""
+    through, its progress bar's line, the event that asks every run to stop (each at the end of
+    its cycle, after a checkpoint), and its copies where the population built them (to step
+    them all in one physics); else the run builds its own."""
 
     lockstep: Lockstep
     position: int = 0
     stop: threading.Event | None = None
+    copies: RunCopies | None = None
 
     def stopping(self) -> bool:
         return self.stop is not None and self.stop.is_set()
@@ -120,6 +125,8 @@ def _environments(
         )
     if make_envs is not None:
         return make_envs(config), make_envs(config) if tests_wanted else None, None
+    if seat is not None and seat.copies is not None:  # the population built and checked them
+        return (*seat.copies, None)
     from curious.envs.goal_env import suite_env_fns
 
     train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)

@@ -27,8 +27,8 @@ from pathlib import Path
 from curious.agent.conditions import make_condition
 from curious.config import Config, ConfigError
 from curious.envs.goal_env import GoalEnv
-from curious.envs.lockstep import Lockstep, StepCopies, step_one_by_one
-from curious.runs.driver import Seat, train
+from curious.envs.lockstep import Lockstep
+from curious.runs.driver import RunCopies, Seat, train
 from curious.runs.folder import RunFolder
 from curious.runs.hooks import Recorder
 from curious.runs.memory import SUITE_COPY_BYTES, check_population_memory
@@ -70,25 +70,88 @@ def train_population(
     restart: bool = False,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
-    step_copies: StepCopies = step_one_by_one,
+    physics_threads: int | None = None,
     stop: threading.Event | None = None,
     stop_after_cycles: int | None = None,
 ) -> list[Trainer]:
     """Train run `configs[i]` in folder `outs[i]`, all at once in this process (the module
     docstring); `resume`, `restart`, `make_recorder`, `make_envs` and `stop_after_cycles` as
-    for every run of `curious.runs.driver.train`. `step_copies` steps the copies of a lockstep
-    call (default: one after the other). Every run folder and the memory of all the runs
-    together are checked before any run starts. Returns the runs' trainers, in order."""
+    for every run of `curious.runs.driver.train`. The suite's copies of each variant step in
+    one call on `physics_threads` native threads (default: one per core;
+    `curious.envs.threaded.ThreadedPhysics`), or one after the other with 0 (as with
+    `make_envs`, whose copies step themselves). Every run folder and the memory of all the
+    runs together are checked before any run starts. Returns the runs' trainers, in order."""
     paths = check_members(configs, outs)
     for config, path in zip(configs, paths, strict=True):  # every folder, before any run starts
         RunFolder.prepare(path, config, resume, restart)
     if make_envs is None:  # the suite's copies (with make_envs, each trainer checks its own)
         _check_memory(configs)
     stop = stop if stop is not None else threading.Event()
-    lockstep = Lockstep(step_copies)
+    copies = [_copies(c) if make_envs is None else None for c in configs]
+    locksteps = _locksteps(configs, copies, physics_threads)
+    try:
+        return _train_all(
+            configs, paths, copies, locksteps, resume, restart, make_recorder, make_envs, stop,
+            stop_after_cycles,
+        )  # fmt: skip
+    finally:
+        for lockstep in locksteps.values():
+            lockstep.physics.close()
+
+
+def _copies(config: Config) -> RunCopies:
+    """A run's training copies and its test rollouts' (None without test rollouts), seeded as
+    `curious.runs.driver.train` seeds them."""
+    from curious.envs.goal_env import make_suite_envs
+
+    train = make_suite_envs(config.variant, config.seed, config.n_workers)
+    if not config.test_rollouts_per_worker:
+        return train, None
+    return train, make_suite_envs(config.variant, config.seed, config.n_workers, stream=1)
+
+
+def _locksteps(
+    configs: Sequence[Config], copies: Sequence[RunCopies | None], threads: int | None
+) -> dict[str, Lockstep]:
+    """One lockstep per variant, over the copies of every run of it (stepped one by one where
+    the copies are not the suite's, or `threads` is 0)."""
+    by_variant: dict[str, list[GoalEnv]] = {}
+    for config, run in zip(configs, copies, strict=True):
+        envs = by_variant.setdefault(config.variant, [])
+        if run is not None:
+            envs += [env for part in run if part is not None for env in part]
+    locksteps: dict[str, Lockstep] = {}
+    try:
+        for variant, envs in by_variant.items():
+            if envs and threads != 0:
+                from curious.envs.threaded import ThreadedPhysics
+
+                locksteps[variant] = Lockstep(ThreadedPhysics(envs, threads))
+            else:
+                locksteps[variant] = Lockstep()
+    except BaseException:
+        for lockstep in locksteps.values():
+            lockstep.physics.close()
+        raise
+    return locksteps
+
+
+def _train_all(
+    configs: Sequence[Config],
+    paths: Sequence[Path],
+    copies: Sequence[RunCopies | None],
+    locksteps: dict[str, Lockstep],
+    resume: bool,
+    restart: bool,
+    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
+    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
+    stop: threading.Event,
+    stop_after_cycles: int | None,
+) -> list[Trainer]:
+    """Each run in a thread of its own; the failures raised together once every run ended."""
 
     def run(i: int) -> Trainer:
-        seat = Seat(lockstep, position=i, stop=stop)
+        seat = Seat(locksteps[configs[i].variant], i, stop, copies[i])
         return train(
             configs[i], paths[i], resume=resume, restart=restart, make_envs=make_envs,
             make_recorder=make_recorder, stop_after_cycles=stop_after_cycles, seat=seat,
