@@ -25,6 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from curious.agent.conditions import make_condition
+from curious.agent.update_lockstep import UpdateLockstep
 from curious.config import Config, ConfigError
 from curious.envs.goal_env import GoalEnv
 from curious.envs.lockstep import Lockstep, StepCopies, step_one_by_one
@@ -73,12 +74,16 @@ def train_population(
     step_copies: StepCopies = step_one_by_one,
     stop: threading.Event | None = None,
     stop_after_cycles: int | None = None,
+    batched_updates: bool = False,
 ) -> list[Trainer]:
     """Train run `configs[i]` in folder `outs[i]`, all at once in this process (the module
     docstring); `resume`, `restart`, `make_recorder`, `make_envs` and `stop_after_cycles` as
     for every run of `curious.runs.driver.train`. `step_copies` steps the copies of a lockstep
-    call (default: one after the other). Every run folder and the memory of all the runs
-    together are checked before any run starts. Returns the runs' trainers, in order."""
+    call (default: one after the other). `batched_updates`: the runs' learners step through
+    one `UpdateLockstep` (`curious.agent.update_lockstep`), which computes the steps of the
+    runs in their updates at the same time as one stacked step per shape of network. Every run
+    folder and the memory of all the runs together are checked before any run starts. Returns
+    the runs' trainers, in order."""
     paths = check_members(configs, outs)
     for config, path in zip(configs, paths, strict=True):  # every folder, before any run starts
         RunFolder.prepare(path, config, resume, restart)
@@ -86,9 +91,10 @@ def train_population(
         _check_memory(configs)
     stop = stop if stop is not None else threading.Event()
     lockstep = Lockstep(step_copies)
+    updates = UpdateLockstep() if batched_updates else None
 
     def run(i: int) -> Trainer:
-        seat = Seat(lockstep, position=i, stop=stop)
+        seat = Seat(lockstep, position=i, stop=stop, updates=updates)
         return train(
             configs[i], paths[i], resume=resume, restart=restart, make_envs=make_envs,
             make_recorder=make_recorder, stop_after_cycles=stop_after_cycles, seat=seat,
