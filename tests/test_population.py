@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 import pandas as pd
@@ -10,6 +11,7 @@ import pyarrow.parquet as pq
 import pytest
 import torch
 
+from curious.agent.update_lockstep import UpdateLockstep, stack_alike
 from curious.config import ConfigError, resolve
 from curious.envs.goal_env import make_suite_envs
 from curious.envs.lockstep import Lockstep, step_one_by_one
@@ -56,10 +58,12 @@ def _assert_same(a, b, where=""):
 def test_a_run_trained_in_a_population_is_the_run_trained_alone(tmp_path):
     """Three runs (three conditions, three seeds) trained together in one process write the
     same episodes, test rollouts, networks, optimisers, queues and replay as each alone: the
-    lockstep changes when their copies step, not how."""
+    lockstep changes when their copies step, not how. So do they with their updates stacked
+    (an `UpdateLockstep`): on a CPU each run's products stay its own."""
     configs = [resolve("smoke", c, s, SMALL) for c, s in MEMBERS]
     alone = [tmp_path / "alone" / f"{c}-{s}" for c, s in MEMBERS]
     together = [tmp_path / "together" / f"{c}-{s}" for c, s in MEMBERS]
+    stacked = [tmp_path / "stacked" / f"{c}-{s}" for c, s in MEMBERS]
     for config, out in zip(configs, alone, strict=True):
         train(config, out)
     steps = []
@@ -71,10 +75,21 @@ def test_a_run_trained_in_a_population_is_the_run_trained_alone(tmp_path):
     trainers = train_population(configs, together, step_copies=counting)
     assert [t.episodes for t in trainers] == [24, 24, 24]
     assert max(steps) > 1  # some calls stepped several runs' copies
-    for a, b in zip(alone, together, strict=True):
+    stacks = []
+
+    def slow_stacking(handed):  # slow calls, so that the other runs join the next one
+        stacks.append(len(handed))
+        time.sleep(0.02)
+        return stack_alike(handed)
+
+    train_population(configs, stacked, updates=UpdateLockstep(slow_stacking))
+    assert max(stacks) > 1  # some calls stepped several runs' learners
+    for a, b, c in zip(alone, together, stacked, strict=True):
         for name in ("metrics.parquet", "tests.parquet"):
             _assert_same_table(a / name, b / name)
+            _assert_same_table(a / name, c / name)
         _assert_same(_state(a), _state(b), b.name)
+        _assert_same(_state(a), _state(c), c.name)
 
 
 def test_a_population_resumes_from_its_runs_checkpoints(tmp_path):
@@ -103,8 +118,9 @@ def test_a_stop_request_ends_every_run_at_a_checkpoint(tmp_path):
         assert found is not None and found[1]["episodes"] == trainer.episodes
 
 
-def test_a_failing_run_does_not_stop_the_others(tmp_path):
-    """A run whose copies fail leaves the lockstep; the other trains to its end, and the
+@pytest.mark.parametrize("stacked_updates", [False, True])
+def test_a_failing_run_does_not_stop_the_others(tmp_path, stacked_updates):
+    """A run whose copies fail leaves the locksteps; the other trains to its end, and the
     failure is raised with its folder once it has."""
     configs = [resolve("smoke", "curious", s, SMALL) for s in (0, 1)]
     bad = tmp_path / "bad"
@@ -116,7 +132,8 @@ def test_a_failing_run_does_not_stop_the_others(tmp_path):
         return envs
 
     with pytest.raises(PopulationError, match="simulator lost") as caught:
-        train_population(configs, [tmp_path / "good", bad], make_envs=make_envs)
+        updates = UpdateLockstep() if stacked_updates else None
+        train_population(configs, [tmp_path / "good", bad], make_envs=make_envs, updates=updates)
     assert list(caught.value.failures) == [bad.resolve()]
     assert len(_table(tmp_path / "good" / "metrics.parquet")) == 24
 

@@ -7,13 +7,20 @@ copies of all runs in a round advance in one physics call. A run in a population
 it computes alone, episode for episode (a test checks): its random streams, networks and
 copies are its own, and the lockstep changes only when its copies step, not how.
 
+The runs may share their updates too (`updates`, an `UpdateLockstep` of
+`curious.agent.update_lockstep`): the learners of the runs in their updates at the same time
+then step as one stacked computation per shape of network (`curious.agent.stacked_update`), one
+batched product per layer on a GPU. On a CPU each run's products stay its own and the run
+computes what it computes alone, bit for bit (a test checks); a batched product rounds
+differently, within float precision.
+
 Torch runs the updates' arithmetic and MuJoCo the physics outside Python's lock, so the runs'
 threads overlap where the work is; what is Python (the conditions, the replay's bookkeeping)
 takes turns. `curious bench population` measures a population against the same runs in
 processes side by side.
 
 Ctrl-C (or `stop.set()`) asks every run to stop at the end of its cycle, after a checkpoint:
-`--resume` goes on from there. A run that fails leaves the lockstep; the others train to their
+`--resume` goes on from there. A run that fails leaves the locksteps; the others train to their
 end, and the failures are raised together (`PopulationError`) once they have.
 """
 
@@ -74,16 +81,16 @@ def train_population(
     step_copies: StepCopies = step_one_by_one,
     stop: threading.Event | None = None,
     stop_after_cycles: int | None = None,
-    batched_updates: bool = False,
+    updates: UpdateLockstep | None = None,
 ) -> list[Trainer]:
     """Train run `configs[i]` in folder `outs[i]`, all at once in this process (the module
     docstring); `resume`, `restart`, `make_recorder`, `make_envs` and `stop_after_cycles` as
     for every run of `curious.runs.driver.train`. `step_copies` steps the copies of a lockstep
-    call (default: one after the other). `batched_updates`: the runs' learners step through
-    one `UpdateLockstep` (`curious.agent.update_lockstep`), which computes the steps of the
-    runs in their updates at the same time as one stacked step per shape of network. Every run
-    folder and the memory of all the runs together are checked before any run starts. Returns
-    the runs' trainers, in order."""
+    call (default: one after the other). `updates`: the lockstep the runs' learners step
+    through (`curious.agent.update_lockstep.UpdateLockstep`), which computes the steps of the
+    runs in their updates at the same time, one stacked step per shape of network; None (the
+    default): each run's learners step alone. Every run folder and the memory of all the runs
+    together are checked before any run starts. Returns the runs' trainers, in order."""
     paths = check_members(configs, outs)
     for config, path in zip(configs, paths, strict=True):  # every folder, before any run starts
         RunFolder.prepare(path, config, resume, restart)
@@ -91,7 +98,6 @@ def train_population(
         _check_memory(configs)
     stop = stop if stop is not None else threading.Event()
     lockstep = Lockstep(step_copies)
-    updates = UpdateLockstep() if batched_updates else None
 
     def run(i: int) -> Trainer:
         seat = Seat(lockstep, position=i, stop=stop, updates=updates)
