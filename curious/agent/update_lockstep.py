@@ -56,9 +56,11 @@ RunSteps = Callable[[Sequence[Handed]], list[StepLosses | BaseException]]
 (which leaves the other steps alone)."""
 
 
-def stack_alike(handed: Sequence[Handed]) -> list[StepLosses | BaseException]:
-    """The steps of a call, those of learners alike stacked (`stacked_step`), any other its
-    own backend's step."""
+def stack_alike(
+    handed: Sequence[Handed], batched_products: bool | None = None
+) -> list[StepLosses | BaseException]:
+    """The steps of a call, those of learners alike stacked (`stacked_step`, with its
+    `batched_products`), any other its own backend's step."""
     groups: dict[Hashable, list[int]] = {}
     for i, step in enumerate(handed):
         groups.setdefault(step.key(), []).append(i)
@@ -75,6 +77,7 @@ def stack_alike(handed: Sequence[Handed]) -> list[StepLosses | BaseException]:
                         [s.lane.learner for s in members],
                         [(s.x, s.action, s.reward, s.x_next) for s in members],
                         [s.step_actor for s in members],
+                        batched_products,
                     )
         except Exception as error:  # those learners' step failed; the others step on
             results = [error] * len(members)
