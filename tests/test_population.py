@@ -159,7 +159,8 @@ def test_a_lane_refuses_steps_outside_a_round_and_bad_actions():
 
 def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     """`curious train --seeds 0-1`: one run folder per seed under --out, a line per run; a bad
-    seed list is one line and exit status 2, nothing written."""
+    seed list is one line and exit status 2, nothing written. `--stack-updates` trains the same
+    runs, and needs `--seeds`."""
     from curious.cli import main
 
     out = tmp_path / "curious"
@@ -172,3 +173,9 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     assert "write them as 0-4 or 0,2,5" in capsys.readouterr().err
     assert main([*argv, "--seeds", "0-1"]) == 2  # the folders hold runs: nothing trains
     assert "is not empty" in capsys.readouterr().err
+    stacked = ["train", "--preset", "smoke", "--no-record", "--no-progress", "--stack-updates"]
+    assert main([*stacked, "--out", str(tmp_path / "one"), "--seed", "0"]) == 2
+    assert "name --seeds" in capsys.readouterr().err
+    assert main([*stacked, "--out", str(tmp_path / "stacked"), "--seeds", "0-1"]) == 0
+    metrics = "seed-1/metrics.parquet"
+    _assert_same_table(out / metrics, tmp_path / "stacked" / metrics)
