@@ -160,6 +160,8 @@ def test_closed_lanes_give_the_learners_their_own_steps_back():
     own = learner.backend.step
     lanes = UpdateLockstep().join([learner], updates_per_phase=2)
     assert learner.backend.step != own
+    with pytest.raises(ValueError, match="already go through a lockstep"):
+        UpdateLockstep().join([learner], updates_per_phase=2)
     lanes.close()
     assert learner.backend.step == own
     with pytest.raises(ValueError, match="at least one step"):

@@ -5,23 +5,29 @@ each; their updates are the same computation on other numbers. `stacked_step` ta
 learners and a minibatch for each, and runs the step `curious.agent.learner.Learner.update`
 would run for each, for all k at once: each network's k flat tensors (`flatten_parameters`)
 are gathered into one (k, P) tensor, every Linear layer becomes a weight (k, out, in) and a bias
-(k, out) viewed in it, the layers run as batched products (`torch.baddbmm`: per run the
-`addmm` of `nn.Linear`), autograd takes the gradients of the k losses' sum into a (k, P)
-gradient tensor (run r's gradient is that of its own loss: the runs share no weight), and one
-Adam call steps the k learners' own flat parameters with their own optimiser states.
+(k, out) viewed in it, autograd takes the gradients of the k losses' sum into a (k, P) gradient
+tensor (run r's gradient is that of its own loss: the runs share no weight), and one Adam call
+steps the k learners' own flat parameters with their own optimiser states (`adam_steps`).
 
 What each run computes is the learner's own statement (`td_target`, `critic_loss`,
 `actor_loss`, the order of DDPG's and TD3's steps), written with a leading run axis; TD3's target
-noise comes from each learner's generator, as alone. On a CPU the products give each run the
-bits its learner's reference backend (`autograd`) gives alone (tests/test_stacked_update.py);
-a learner whose backend is `workspace` or `compiled` gets the reference's arithmetic, which its
-own backend matches to float rounding.
+noise comes from each learner's generator, as alone. Off the CPU each layer is one batched
+product for all runs (`torch.baddbmm`), whose kernels may sum in another order than a run's
+alone: float rounding (a test holds it to a tolerance). On a CPU a batched product is no faster
+than k products (they are compute-bound), so there each run's products are its own, the `addmm`
+that `nn.Linear` calls on the same shapes and strides: each run then gets, bit for bit, what its
+learner's reference backend (`autograd`) computes alone (tests/test_stacked_update.py), which
+checks the stacked computation to the bit. A learner whose backend is `workspace` or `compiled`
+gets the reference's arithmetic, which its own backend matches to float rounding.
 
-Why gathered copies and not the learners' storage: which learners step together changes from
-call to call (runs enter and leave their updates, MG-TE's trained expert changes every epoch),
-and a learner whose weights were views of a shared stack would write every run's weights into
-its checkpoint (`torch.save` keeps a view's whole storage). A gather is one copy per network
-per step, a few hundred kilobytes per run at the authors' sizes.
+The layers are products on views of the gathered tensor rather than `torch.func.vmap` over
+`functional_call`: the same batched kernels, without building parameter dictionaries every step
+or the transforms' dispatch around every operation, and the gradients land where Adam reads
+them. The parameters are gathered copies rather than the learners' storage: which learners step
+together changes from call to call (runs enter and leave their updates, MG-TE's trained expert
+changes every epoch), and a learner whose weights were views of a shared stack would write every
+run's weights into its checkpoint (`torch.save` keeps a view's whole storage). A gather is one
+copy per network per step, a few hundred kilobytes per run at the authors' sizes.
 """
 
 from __future__ import annotations

@@ -169,6 +169,8 @@ class UpdateLane:
     def __init__(self, lockstep: UpdateLockstep, learner: Learner, updates_per_phase: int) -> None:
         if updates_per_phase < 1:
             raise ValueError("an update phase has at least one step")
+        if isinstance(getattr(learner.backend.step, "__self__", None), UpdateLane):
+            raise ValueError("the learner's steps already go through a lockstep")
         self.lockstep = lockstep
         self.learner = learner
         self.key = stack_key(learner)
