@@ -76,14 +76,26 @@ def _learners(args: argparse.Namespace, runs: int) -> tuple[list[Any], list[tupl
 
 
 def _in_thread(work: Callable[[], float]) -> float:
-    """`work()` in a thread of its own: torch's thread pool behaves otherwise in the main
-    thread (on a loaded machine, much slower with 2 threads), and a population's runs are
-    threads."""
+    """`work()` in a thread of its own, as a population's runs are (`_torch_threads`)."""
     out: list[float] = []
-    thread = threading.Thread(target=lambda: out.append(work()))
+    thread = threading.Thread(target=lambda: out.append(_torch_threads(work)()))
     thread.start()
     thread.join()
     return out[0]
+
+
+def _torch_threads(work: Callable[..., Any]) -> Callable[..., Any]:
+    """`work`, taking torch's thread count in the thread that calls it: OpenMP's count is a
+    thread's own, and a thread that has not set it runs its first products (a thread running
+    products only, all of them) with every core, as a run's thread does not
+    (`Trainer` sets it)."""
+    threads = torch.get_num_threads()
+
+    def run(*args: Any) -> Any:
+        torch.set_num_threads(threads)
+        return work(*args)
+
+    return run
 
 
 def _rate(step: Callable[[], None], sync: Any, seconds: float = 1.0) -> float:
@@ -128,7 +140,8 @@ def _together(
             learner.update(*batch)
 
     threads = [
-        threading.Thread(target=work, args=pair) for pair in zip(learners, batches, strict=True)
+        threading.Thread(target=_torch_threads(work), args=pair)
+        for pair in zip(learners, batches, strict=True)
     ]
     for thread in threads:
         thread.start()
