@@ -102,7 +102,7 @@ def _train(
         closing.enter_context(contextlib.closing(trainer))  # the environment workers stop
         if seat is not None and seat.updates is not None and config.n_updates:
             # the learners' steps go through the population's lockstep, which this run leaves
-            # on its way out, failed or not, before anything else closes
+            # on its way out, failed or not, before the trainer closes
             lanes = seat.updates.join(trainer.agent.experts, config.n_updates)
             closing.enter_context(contextlib.closing(lanes))
         return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles, seat)
