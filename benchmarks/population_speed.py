@@ -2,12 +2,13 @@
 same runs as processes side by side (peer), for the same episodes.
 
 Both contenders are what a user types: peer starts `--runs` `curious train --seed i` processes at
-once; ours starts one `curious train --seeds 0-(runs-1)`. Every run trains `--cycles` cycles of
-the preset from scratch (no recording, no test rollouts, one torch thread per run), into a
-temporary folder. The rate is read from the runs' own tables: each run's episodes after its
-first cycle over the seconds they took (metrics.parquet's `wall_time`), summed over the runs,
-so that imports and the first cycle's allocations count for neither; `*_command_s` is the
-wall time of the whole command, start-up included.
+once; ours starts one `curious train --seeds 0-(runs-1)`, and `ours_stacked` the same with
+`--stack-updates` (the runs' updates at the same time as one stacked step). Every run trains
+`--cycles` cycles of the preset from scratch (no recording, no test rollouts, one torch thread
+per run), into a temporary folder. The rate is read from the runs' own tables: each run's
+episodes after its first cycle over the seconds they took (metrics.parquet's `wall_time`),
+summed over the runs, so that imports and the first cycle's allocations count for neither;
+`*_command_s` is the wall time of the whole command, start-up included.
 
 `bound` is the physics alone: one core stepping the suite's model for an episode's control
 steps, times the machine's cores (`benchmarks.cycle_speed.physics_episodes_per_second`).
@@ -92,8 +93,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
 
     cores = os.cpu_count() or 1
     runs = args.runs or cores
-    rates: dict[str, list[float]] = {"ours": [], "peer": []}
-    seconds: dict[str, list[float]] = {"ours": [], "peer": []}
+    rates: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}
+    seconds: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}
     with tempfile.TemporaryDirectory(prefix="bench-population-") as tmp:
         for repeat in range(args.repeats):
             peer = Path(tmp) / f"peer-{repeat}"
@@ -102,9 +103,11 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             ]
             seconds["peer"].append(_run(commands))
             rates["peer"].append(_steady_rate([peer / f"seed-{i}" for i in range(runs)]))
-            ours = Path(tmp) / f"ours-{repeat}"
-            seconds["ours"].append(_run([_train_command(args, ours, f"0-{runs - 1}", "--seeds")]))
-            rates["ours"].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
+            for name, extra in (("ours", []), ("ours_stacked", ["--stack-updates"])):
+                ours = Path(tmp) / f"{name}-{repeat}"
+                command = _train_command(args, ours, f"0-{runs - 1}", "--seeds") + extra
+                seconds[name].append(_run([command]))
+                rates[name].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
     config = resolve(args.preset)
     out: dict[str, Any] = {
         "ours": statistics.median(rates["ours"]),
@@ -112,8 +115,11 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "peer": statistics.median(rates["peer"]),
         "unit": "episodes/s",
     }
+    out["ours_stacked"] = statistics.median(rates["ours_stacked"])
     out["ours_over_peer"] = out["ours"] / out["peer"]
+    out["ours_stacked_over_ours"] = out["ours_stacked"] / out["ours"]
     out["ours_command_s"] = statistics.median(seconds["ours"])
+    out["ours_stacked_command_s"] = statistics.median(seconds["ours_stacked"])
     out["peer_command_s"] = statistics.median(seconds["peer"])
     out["cores"] = cores
     out["shape"] = (

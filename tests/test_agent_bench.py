@@ -110,3 +110,17 @@ def test_the_threads_benchmark_runs_every_contender_on_the_same_rounds():
     assert result["unit"] == "episodes/s" and result["copies"] == 3 and result["shared_model"]
     for name in ("ours", "bound", "peer", "batch_physics"):
         assert result[name] > 0 and result[f"cpu_{name}"] > 0
+
+
+def test_the_stacked_benchmark_reports_every_contender_for_every_number_of_runs():
+    from benchmarks import stacked_update_speed
+
+    parser = argparse.ArgumentParser()
+    stacked_update_speed.add_arguments(parser)
+    args = ["--runs", "1,2", "--updates", "2", "--hidden", "16", "--batch", "32"]
+    result = stacked_update_speed.measure(parser.parse_args(args))
+    assert result["unit"] == "learner updates/s"
+    for runs in (1, 2):
+        for name in ("ours", "ours_batched", "peer"):
+            assert result[f"{name}_{runs}"] > 0
+    assert result["ours"] == result["ours_2"] and result["bound"] > 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 
 import numpy as np
 import pandas as pd
@@ -10,6 +11,7 @@ import pyarrow.parquet as pq
 import pytest
 import torch
 
+from curious.agent.update_lockstep import UpdateLockstep, stack_alike
 from curious.config import ConfigError, resolve
 from curious.envs.goal_env import make_suite_envs
 from curious.envs.lockstep import Lockstep, OneByOne
@@ -54,19 +56,33 @@ def _assert_same(a, b, where=""):
         assert a == b, where
 
 
+@pytest.fixture(scope="module")
+def alone(tmp_path_factory):
+    """The members, each trained alone: what a population must write."""
+    root = tmp_path_factory.mktemp("alone")
+    outs = [root / f"{c}-{s}" for c, s in MEMBERS]
+    for (condition, seed), out in zip(MEMBERS, outs, strict=True):
+        train(resolve("smoke", condition, seed, SMALL), out)
+    return outs
+
+
+def _assert_same_runs(alone, together):
+    for a, b in zip(alone, together, strict=True):
+        for name in ("metrics.parquet", "tests.parquet"):
+            _assert_same_table(a / name, b / name)
+        _assert_same(_state(a), _state(b), b.name)
+
+
 @pytest.mark.parametrize("physics_threads", [2, 0], ids=["threaded", "one-by-one"])
 def test_a_run_trained_in_a_population_is_the_run_trained_alone(
-    tmp_path, monkeypatch, physics_threads
+    alone, tmp_path, monkeypatch, physics_threads
 ):
     """Three runs (three conditions, three seeds) trained together in one process write the
     same episodes, test rollouts, networks, optimisers, queues and replay as each alone,
     whether their copies step in MuJoCo's threads or one by one: the lockstep changes when
     their copies step, not how."""
     configs = [resolve("smoke", c, s, SMALL) for c, s in MEMBERS]
-    alone = [tmp_path / "alone" / f"{c}-{s}" for c, s in MEMBERS]
-    together = [tmp_path / "together" / f"{c}-{s}" for c, s in MEMBERS]
-    for config, out in zip(configs, alone, strict=True):
-        train(config, out)
+    together = [tmp_path / f"{c}-{s}" for c, s in MEMBERS]
     groups_per_call = []
     physics = ThreadedPhysics if physics_threads else OneByOne
     step = physics.step
@@ -79,10 +95,24 @@ def test_a_run_trained_in_a_population_is_the_run_trained_alone(
     trainers = train_population(configs, together, physics_threads=physics_threads)
     assert [t.episodes for t in trainers] == [24, 24, 24]
     assert max(groups_per_call) > 1  # some calls stepped several runs' copies
-    for a, b in zip(alone, together, strict=True):
-        for name in ("metrics.parquet", "tests.parquet"):
-            _assert_same_table(a / name, b / name)
-        _assert_same(_state(a), _state(b), b.name)
+    _assert_same_runs(alone, together)
+
+
+def test_a_population_with_stacked_updates_is_each_run_alone(alone, tmp_path):
+    """With their updates stacked (an `UpdateLockstep`), the runs still write what each writes
+    alone: on a CPU each run's products stay its own."""
+    configs = [resolve("smoke", c, s, SMALL) for c, s in MEMBERS]
+    stacked = [tmp_path / f"{c}-{s}" for c, s in MEMBERS]
+    stacks = []
+
+    def slow_stacking(handed):  # slow calls, so that the other runs join the next one
+        stacks.append(len(handed))
+        time.sleep(0.02)
+        return stack_alike(handed)
+
+    train_population(configs, stacked, updates=UpdateLockstep(slow_stacking))
+    assert max(stacks) > 1  # some calls stepped several runs' learners
+    _assert_same_runs(alone, stacked)
 
 
 def test_a_population_resumes_from_its_runs_checkpoints(tmp_path):
@@ -111,8 +141,9 @@ def test_a_stop_request_ends_every_run_at_a_checkpoint(tmp_path):
         assert found is not None and found[1]["episodes"] == trainer.episodes
 
 
-def test_a_failing_run_does_not_stop_the_others(tmp_path):
-    """A run whose copies fail leaves the lockstep; the other trains to its end, and the
+@pytest.mark.parametrize("stacked_updates", [False, True])
+def test_a_failing_run_does_not_stop_the_others(tmp_path, stacked_updates):
+    """A run whose copies fail leaves the locksteps; the other trains to its end, and the
     failure is raised with its folder once it has."""
     configs = [resolve("smoke", "curious", s, SMALL) for s in (0, 1)]
     bad = tmp_path / "bad"
@@ -124,7 +155,8 @@ def test_a_failing_run_does_not_stop_the_others(tmp_path):
         return envs
 
     with pytest.raises(PopulationError, match="simulator lost") as caught:
-        train_population(configs, [tmp_path / "good", bad], make_envs=make_envs)
+        updates = UpdateLockstep() if stacked_updates else None
+        train_population(configs, [tmp_path / "good", bad], make_envs=make_envs, updates=updates)
     assert list(caught.value.failures) == [bad.resolve()]
     assert len(_table(tmp_path / "good" / "metrics.parquet")) == 24
 
@@ -150,7 +182,8 @@ def test_a_lane_refuses_steps_outside_a_round_and_bad_actions():
 
 def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     """`curious train --seeds 0-1`: one run folder per seed under --out, a line per run; a bad
-    seed list is one line and exit status 2, nothing written."""
+    seed list is one line and exit status 2, nothing written. `--stack-updates` trains the same
+    runs, and needs `--seeds`."""
     from curious.cli import main
 
     out = tmp_path / "curious"
@@ -163,3 +196,9 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     assert "write them as 0-4 or 0,2,5" in capsys.readouterr().err
     assert main([*argv, "--seeds", "0-1"]) == 2  # the folders hold runs: nothing trains
     assert "is not empty" in capsys.readouterr().err
+    stacked = ["train", "--preset", "smoke", "--no-record", "--no-progress", "--stack-updates"]
+    assert main([*stacked, "--out", str(tmp_path / "one"), "--seed", "0"]) == 2
+    assert "name --seeds" in capsys.readouterr().err
+    assert main([*stacked, "--out", str(tmp_path / "stacked"), "--seeds", "0-1"]) == 0
+    metrics = "seed-1/metrics.parquet"
+    _assert_same_table(out / metrics, tmp_path / "stacked" / metrics)

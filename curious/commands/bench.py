@@ -1,5 +1,5 @@
-"""`curious bench {env,learner,cycle,rollouts,threads,population,recording,checkpoint}`:
-speed benchmarks, ours side by side with a bound and a peer.
+"""`curious bench {env,learner,cycle,rollouts,threads,stacked,population,recording,
+checkpoint}`: speed benchmarks, ours side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
@@ -38,6 +38,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "recording": (
         "benchmarks.recording_overhead",
         "training with vs without the Rerun recording: the overhead and the .rrd size",
+    ),
+    "stacked": (
+        "benchmarks.stacked_update_speed",
+        "learner updates/s of several runs' updates as one stacked step vs one after the other",
     ),
     "population": (
         "benchmarks.population_speed",

@@ -17,6 +17,9 @@ With `--seeds`, the seeds train as one population in this process (`curious.runs
 each run is the run `--seed` would train, in `--out/seed-N`, and they step their copies
 together. Ctrl-C then stops every run at the end of its cycle, after a checkpoint; one run's
 failure leaves the others training, and is reported (exit status 1) once they are done.
+`--stack-updates` also computes the updates of the runs updating at the same time as one
+stacked step (`curious.agent.update_lockstep`), which a GPU runs as one batched product per
+layer for all of them.
 """
 
 from __future__ import annotations
@@ -78,6 +81,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "stepped together with the others'",
     )
     parser.add_argument(
+        "--stack-updates",
+        action="store_true",
+        help="with --seeds: the runs' updates at the same time computed as one stacked step "
+        "per shape of network (curious.agent.update_lockstep; for a GPU: on a CPU it is no "
+        "faster, and gives each run its bits alone)",
+    )
+    parser.add_argument(
         "--preset",
         default="quick",
         help=f"{', '.join(list(PRESETS)[:-1])} or {list(PRESETS)[-1]} (default quick)",
@@ -137,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
             overrides["progress"] = False
         seeds = parse_seeds(args.seeds) if args.seeds is not None else (args.seed,)
         configs = [resolve(args.preset, args.condition, seed, overrides) for seed in seeds]
+        if args.stack_updates and args.seeds is None:
+            raise ConfigError("--stack-updates stacks a population's updates: name --seeds")
         if args.no_record and (args.spawn_viewer or args.rollout_every is not None):
             raise ConfigError(
                 "--spawn-viewer and --rollout-every need the recording: drop --no-record"
@@ -167,11 +179,13 @@ def run(args: argparse.Namespace) -> int:
     outs = [Path(args.out) / f"seed-{c.seed}" for c in configs] if population else [args.out]
     try:
         if population:
+            from curious.agent.update_lockstep import UpdateLockstep
             from curious.runs.population import train_population
 
+            updates = UpdateLockstep() if args.stack_updates else None
             trainers = train_population(
                 configs, outs, resume=args.resume, restart=args.restart,
-                make_recorder=make_recorder,
+                make_recorder=make_recorder, updates=updates,
             )  # fmt: skip
         else:
             run = train(

@@ -21,6 +21,7 @@ import numpy as np
 import pyarrow.compute as pc
 
 from curious.agent.conditions import Condition, make_condition
+from curious.agent.update_lockstep import UpdateLockstep
 from curious.config import Config, ConfigError
 from curious.envs.batch import EnvBatch, ProcessEnvs
 from curious.envs.goal_env import GoalEnv
@@ -42,13 +43,15 @@ RunCopies = tuple[list[GoalEnv], list[GoalEnv] | None]
 class Seat:
     """A run's place in a population (`curious.runs.population`): the lockstep its copies step
     through, its progress bar's line, the event that asks every run to stop (each at the end of
-    its cycle, after a checkpoint), and its copies where the population built them (to step
-    them all in one physics); else the run builds its own."""
+    its cycle, after a checkpoint), its copies where the population built them (to step them
+    all in one physics; else the run builds its own), and the lockstep its learners' steps go
+    through, where the population stacks its runs' updates."""
 
     lockstep: Lockstep
     position: int = 0
     stop: threading.Event | None = None
     copies: RunCopies | None = None
+    updates: UpdateLockstep | None = None
 
     def stopping(self) -> bool:
         return self.stop is not None and self.stop.is_set()
@@ -100,7 +103,13 @@ def _train(
         envs = seat.lockstep.lane(envs)
         test_envs = seat.lockstep.lane(test_envs) if test_envs is not None else None
     trainer = Trainer(config, envs, test_envs, condition)
-    with contextlib.closing(trainer):  # the environment workers stop with the run
+    with contextlib.ExitStack() as closing:  # last in, first closed
+        closing.enter_context(contextlib.closing(trainer))  # the environment workers stop
+        if seat is not None and seat.updates is not None and config.n_updates:
+            # the learners' steps go through the population's lockstep, which this run leaves
+            # on its way out, failed or not, before the trainer closes
+            lanes = seat.updates.join(trainer.agent.experts, config.n_updates)
+            closing.enter_context(contextlib.closing(lanes))
         return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles, seat)
 
 

@@ -7,13 +7,20 @@ copies of all runs in a round advance in one physics call. A run in a population
 it computes alone, episode for episode (a test checks): its random streams, networks and
 copies are its own, and the lockstep changes only when its copies step, not how.
 
+The runs may share their updates too (`updates`, an `UpdateLockstep` of
+`curious.agent.update_lockstep`): the learners of the runs in their updates at the same time
+then step as one stacked computation per shape of network (`curious.agent.stacked_update`), one
+batched product per layer on a GPU. On a CPU each run's products stay its own and the run
+computes what it computes alone, bit for bit (a test checks); a batched product rounds
+differently, within float precision.
+
 Torch runs the updates' arithmetic and MuJoCo the physics outside Python's lock, so the runs'
 threads overlap where the work is; what is Python (the conditions, the replay's bookkeeping)
 takes turns. `curious bench population` measures a population against the same runs in
 processes side by side.
 
 Ctrl-C (or `stop.set()`) asks every run to stop at the end of its cycle, after a checkpoint:
-`--resume` goes on from there. A run that fails leaves the lockstep; the others train to their
+`--resume` goes on from there. A run that fails leaves the locksteps; the others train to their
 end, and the failures are raised together (`PopulationError`) once they have.
 """
 
@@ -25,6 +32,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from curious.agent.conditions import make_condition
+from curious.agent.update_lockstep import UpdateLockstep
 from curious.config import Config, ConfigError
 from curious.envs.goal_env import GoalEnv
 from curious.envs.lockstep import Lockstep
@@ -73,14 +81,18 @@ def train_population(
     physics_threads: int | None = None,
     stop: threading.Event | None = None,
     stop_after_cycles: int | None = None,
+    updates: UpdateLockstep | None = None,
 ) -> list[Trainer]:
     """Train run `configs[i]` in folder `outs[i]`, all at once in this process (the module
     docstring); `resume`, `restart`, `make_recorder`, `make_envs` and `stop_after_cycles` as
     for every run of `curious.runs.driver.train`. The suite's copies of each variant step in
     one call on `physics_threads` native threads (default: one per core;
     `curious.envs.threaded.ThreadedPhysics`), or one after the other with 0 (as with
-    `make_envs`, whose copies step themselves). Every run folder and the memory of all the
-    runs together are checked before any run starts. Returns the runs' trainers, in order."""
+    `make_envs`, whose copies step themselves). `updates`: the lockstep the runs' learners step
+    through (`curious.agent.update_lockstep.UpdateLockstep`), which computes the steps of the
+    runs in their updates at the same time, one stacked step per shape of network; None (the
+    default): each run's learners step alone. Every run folder and the memory of all the runs
+    together are checked before any run starts. Returns the runs' trainers, in order."""
     paths = check_members(configs, outs)
     for config, path in zip(configs, paths, strict=True):  # every folder, before any run starts
         RunFolder.prepare(path, config, resume, restart)
@@ -92,7 +104,7 @@ def train_population(
     try:
         return _train_all(
             configs, paths, copies, locksteps, resume, restart, make_recorder, make_envs, stop,
-            stop_after_cycles,
+            stop_after_cycles, updates,
         )  # fmt: skip
     finally:
         for lockstep in locksteps.values():
@@ -147,11 +159,12 @@ def _train_all(
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
     stop: threading.Event,
     stop_after_cycles: int | None,
+    updates: UpdateLockstep | None,
 ) -> list[Trainer]:
     """Each run in a thread of its own; the failures raised together once every run ended."""
 
     def run(i: int) -> Trainer:
-        seat = Seat(locksteps[configs[i].variant], i, stop, copies[i])
+        seat = Seat(locksteps[configs[i].variant], i, stop, copies[i], updates)
         return train(
             configs[i], paths[i], resume=resume, restart=restart, make_envs=make_envs,
             make_recorder=make_recorder, stop_after_cycles=stop_after_cycles, seat=seat,
