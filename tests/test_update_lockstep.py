@@ -90,7 +90,7 @@ def test_learners_in_their_updates_step_together():
     phase, and the other's last is computed without waiting. Each learner's losses and weights
     are those of its updates alone."""
     lockstep = UpdateLockstep()
-    recorded = Recorded(hold_until=lambda: len(lockstep._waiting) == 1)
+    recorded = Recorded(hold_until=lambda: len(lockstep.meeting._waiting) == 1)
     lockstep.run_steps = recorded
     learners = [Learner(D, A, CONFIG, seed=s) for s in range(2)]
     references = [Learner(D, A, CONFIG, seed=s) for s in range(2)]
@@ -121,7 +121,7 @@ def test_a_run_that_fails_in_its_updates_is_not_waited_for():
         try:
             learners[0].update(*minibatch(0))
             entered.set()
-            while not lockstep._waiting:  # the other run waits for this one's next step
+            while not lockstep.meeting._waiting:  # the other run waits for this one's next step
                 time.sleep(0.001)
             raise OSError("replay lost")
         finally:

@@ -15,13 +15,12 @@ with its first step and leaves it with its `n_updates`-th. Between two of its st
 its next minibatch) a lane in its phase is waited for; a lane between phases (its run is
 playing episodes, updating its targets, writing a checkpoint, or done) is not: the others step
 without it. A run whose thread fails leaves its lanes (`UpdateLane.leave`, from
-`UpdateLanes.close`), so that the others never wait for it. This mirrors
-`curious.envs.lockstep.Lockstep`, which does the same for the runs' environment steps.
+`UpdateLanes.close`), so that the others never wait for it. The meeting is
+`curious.rendezvous.Rendezvous`, as for the runs' environment steps (`curious.envs.lockstep`).
 """
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -30,6 +29,7 @@ import torch
 
 from curious.agent.stacked_update import stack_key, stacked_step
 from curious.agent.update_backends import StepLosses
+from curious.rendezvous import Rendezvous
 
 if TYPE_CHECKING:
     from curious.agent.learner import Learner
@@ -91,75 +91,32 @@ class UpdateLockstep:
     docstring)."""
 
     def __init__(self, run_steps: RunSteps = stack_alike) -> None:
-        self.run_steps = run_steps
-        self._cond = threading.Condition()
-        self._updating: set[UpdateLane] = set()  # in their phase, drawing their next minibatch
-        self._waiting: dict[UpdateLane, tuple[Handed, bool]] = {}  # handed in, last step?
-        self._done: dict[UpdateLane, StepLosses | BaseException] = {}
-        self._stepping = False  # one call at a time
-        self.calls = 0
+        self.meeting: Rendezvous[Handed, StepLosses] = Rendezvous(run_steps)
+
+    @property
+    def run_steps(self) -> RunSteps:
+        """What computes a call's steps (`stack_alike` by default)."""
+        return self.meeting.run
+
+    @run_steps.setter
+    def run_steps(self, run_steps: RunSteps) -> None:
+        self.meeting.run = run_steps
+
+    @property
+    def calls(self) -> int:
         """Calls made (each computing the steps of every lane waiting then)."""
-        self.steps = 0
+        return self.meeting.calls
+
+    @property
+    def steps(self) -> int:
         """Learner steps computed, over all calls."""
+        return self.meeting.parts
 
     def join(self, learners: Sequence[Learner], updates_per_phase: int) -> UpdateLanes:
         """A run's learners' lanes: from now on their steps go through this lockstep (until
         `UpdateLanes.close`). `updates_per_phase`: the steps of each of the run's update
         phases (its `Config.n_updates`)."""
         return UpdateLanes([UpdateLane(self, lr, updates_per_phase) for lr in learners])
-
-    # the lanes' side ------------------------------------------------------------------------
-    def _leave(self, lane: UpdateLane) -> None:
-        with self._cond:
-            self._updating.discard(lane)
-            self._waiting.pop(lane, None)
-            self._done.pop(lane, None)
-            self._step_if_all_waiting()
-
-    def _step(self, handed: Handed, last: bool) -> StepLosses:
-        """Hand in a lane's step and wait for its losses; `last`: its update phase ends with
-        this step (the lane is then no longer waited for). A lane not in its phase enters it."""
-        lane = handed.lane
-        with self._cond:
-            if lane in self._waiting or lane in self._done:
-                raise RuntimeError("a lane handed in a step while its last one was pending")
-            self._updating.discard(lane)
-            self._waiting[lane] = (handed, last)
-            self._step_if_all_waiting()
-            while lane not in self._done:
-                self._cond.wait()
-            out = self._done.pop(lane)
-        if isinstance(out, BaseException):
-            raise out
-        return out
-
-    def _step_if_all_waiting(self) -> None:
-        """With the condition held: when no lane in its phase is still drawing its minibatch,
-        compute every waiting lane's step in one call and hand each its losses. The condition
-        is released during the call, so that lanes may enter their phases meanwhile; the lanes
-        of the call are back among those in their phase (unless it ended) before anyone is
-        woken, so the next call waits for them."""
-        if self._stepping or self._updating or not self._waiting:
-            return
-        batch = list(self._waiting.items())
-        self._waiting.clear()
-        self._stepping = True
-        self._cond.release()
-        try:
-            outs = self.run_steps([handed for _, (handed, _) in batch])
-        except BaseException as error:  # beyond any one learner's step: every lane gets it
-            outs = [error] * len(batch)
-        finally:
-            self._cond.acquire()
-            self._stepping = False
-        self.calls += 1
-        self.steps += len(batch)
-        for (lane, (_, last)), out in zip(batch, outs, strict=True):
-            self._done[lane] = out
-            if not last and not isinstance(out, BaseException):
-                self._updating.add(lane)
-        self._cond.notify_all()
-        self._step_if_all_waiting()  # lanes that handed in their steps during the call
 
 
 class UpdateLane:
@@ -193,7 +150,7 @@ class UpdateLane:
         self._left -= 1
         handed = Handed(self, x, action, reward, x_next, step_actor)
         try:
-            return self.lockstep._step(handed, last=self._left == 0)
+            return self.lockstep.meeting.hand_in(self, handed, last=self._left == 0)
         except BaseException:
             self.leave()
             raise
@@ -201,7 +158,7 @@ class UpdateLane:
     def leave(self) -> None:
         """Stop being waited for (a phase given up: the run's thread failed or stopped)."""
         self._left = 0
-        self.lockstep._leave(self)
+        self.lockstep.meeting.leave(self)
 
     def close(self) -> None:
         """Leave the lockstep, and give the learner its own backend's step back."""

@@ -14,12 +14,11 @@ MuJoCo's native threads).
 Each copy's next state depends only on that copy and its action, so which lanes share a call
 changes no observation: a run steps exactly as it would alone (a test checks, episode for
 episode). A run whose thread fails leaves its lanes (`Lane.leave`), so that the others never
-wait for it.
+wait for it. The meeting itself is `curious.rendezvous.Rendezvous`.
 """
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Sequence
 from typing import Any, Protocol
 
@@ -27,6 +26,7 @@ import numpy as np
 
 from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import EnvSpec, GoalEnv
+from curious.rendezvous import Rendezvous
 
 Observations = tuple[np.ndarray, np.ndarray, np.ndarray]
 """(states, achieved, per-module success) of the copies stepped, in their order."""
@@ -81,75 +81,21 @@ class Lockstep:
 
     def __init__(self, physics: SharedPhysics | None = None) -> None:
         self.physics: SharedPhysics = physics if physics is not None else OneByOne()
-        self._cond = threading.Condition()
-        self._acting: set[Lane] = set()  # in a round, computing their next actions
-        self._waiting: dict[Lane, tuple[np.ndarray, bool]] = {}  # actions handed in, last step?
-        self._done: dict[Lane, Observations | BaseException] = {}
-        self._stepping = False  # one physics call at a time
-        self.calls = 0
-        """Physics calls made (each stepping the copies of every lane waiting then)."""
+        self.meeting: Rendezvous[Group, Observations] = Rendezvous(self._call)
         self.copies_stepped = 0
+
+    @property
+    def calls(self) -> int:
+        """Physics calls made (each stepping the copies of every lane waiting then)."""
+        return self.meeting.calls
 
     def lane(self, copies: Sequence[GoalEnv]) -> Lane:
         """A run's view of its copies: an `EnvBatch` whose steps go through this lockstep."""
         return Lane(self, copies)
 
-    # the lanes' side ------------------------------------------------------------------------
-    def _enter(self, lane: Lane) -> None:
-        with self._cond:
-            self._acting.add(lane)
-
-    def _leave(self, lane: Lane) -> None:
-        with self._cond:
-            self._acting.discard(lane)
-            self._waiting.pop(lane, None)
-            self._done.pop(lane, None)
-            self._step_if_all_waiting()
-
-    def _step(self, lane: Lane, actions: np.ndarray, last: bool) -> Observations:
-        """Hand in `lane`'s actions and wait for its copies' observations; `last`: the round
-        ends with this step (the lane is then no longer waited for)."""
-        with self._cond:
-            if lane not in self._acting:
-                raise RuntimeError("a lane stepped outside a round: reset it first")
-            self._acting.discard(lane)
-            self._waiting[lane] = (actions, last)
-            self._step_if_all_waiting()
-            while lane not in self._done:
-                self._cond.wait()
-            out = self._done.pop(lane)
-        if isinstance(out, BaseException):
-            raise out
-        return out
-
-    def _step_if_all_waiting(self) -> None:
-        """With the condition held: when no lane in a round is still computing its actions,
-        step every waiting lane's copies in one call and hand each lane its observations. The
-        condition is released during the call, so that lanes may start rounds meanwhile;
-        the lanes of the call are back among those computing (unless their round ended) before
-        anyone is woken, so the next call waits for them."""
-        if self._stepping or self._acting or not self._waiting:
-            return
-        batch = list(self._waiting.items())
-        self._waiting.clear()
-        groups = [(lane.copies[: len(a)], a) for lane, (a, _) in batch]
-        self._stepping = True
-        self._cond.release()
-        try:
-            outs = self.physics.step(groups)
-        except BaseException as error:  # beyond any one run's copies: every lane gets it
-            outs = [error] * len(batch)
-        finally:
-            self._cond.acquire()
-            self._stepping = False
-        self.calls += 1
+    def _call(self, groups: Sequence[Group]) -> list[Observations | BaseException]:
         self.copies_stepped += sum(len(copies) for copies, _ in groups)
-        for (lane, (_, last)), out in zip(batch, outs, strict=True):
-            self._done[lane] = out
-            if not last and not isinstance(out, BaseException):
-                self._acting.add(lane)
-        self._cond.notify_all()
-        self._step_if_all_waiting()  # lanes that handed in their actions during the call
+        return self.physics.step(groups)
 
 
 class Lane:
@@ -171,7 +117,7 @@ class Lane:
         out = self.local.reset(modules, goals)
         self.lockstep.physics.loaded(self.copies[: len(modules)])
         self._steps_left = self.spec.episode_length
-        self.lockstep._enter(self)
+        self.lockstep.meeting.enter(self)
         return out
 
     def step(self, actions: np.ndarray) -> Observations:
@@ -186,9 +132,12 @@ class Lane:
             raise ValueError(
                 f"actions of shape {actions.shape}: need (n <= {len(self)}, {self.spec.action_dim})"
             )
+        if not self.lockstep.meeting.is_due(self):
+            raise RuntimeError("a lane stepped outside a round: reset it first")
         self._steps_left -= 1
+        group = (self.copies[: len(actions)], actions)
         try:
-            return self.lockstep._step(self, actions, last=self._steps_left == 0)
+            return self.lockstep.meeting.hand_in(self, group, last=self._steps_left == 0)
         except BaseException:
             self.leave()
             raise
@@ -196,7 +145,7 @@ class Lane:
     def leave(self) -> None:
         """Stop being waited for (a round given up: the run's thread failed or stopped)."""
         self._steps_left = 0
-        self.lockstep._leave(self)
+        self.lockstep.meeting.leave(self)
 
     def set_sensor_failure(self, on: np.ndarray) -> None:
         self.local.set_sensor_failure(on)
