@@ -86,6 +86,15 @@ def _run(commands: list[list[str]]) -> float:
     return time.perf_counter() - tic
 
 
+def _report(name: str, rates: dict[str, list[float]], seconds: dict[str, list[float]]) -> None:
+    """Each contender's result on stderr as it comes (a time limit may end the benchmark)."""
+    print(
+        f"{name}: {rates[name][-1]:.2f} episodes/s, the command {seconds[name][-1]:.1f} s",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """ours, bound, peer (episodes/s) and the commands' wall times."""
     from benchmarks.cycle_speed import physics_episodes_per_second
@@ -103,11 +112,13 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             ]
             seconds["peer"].append(_run(commands))
             rates["peer"].append(_steady_rate([peer / f"seed-{i}" for i in range(runs)]))
+            _report("peer", rates, seconds)
             for name, extra in (("ours", []), ("ours_stacked", ["--stack-updates"])):
                 ours = Path(tmp) / f"{name}-{repeat}"
                 command = _train_command(args, ours, f"0-{runs - 1}", "--seeds") + extra
                 seconds[name].append(_run([command]))
                 rates[name].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
+                _report(name, rates, seconds)
     config = resolve(args.preset)
     out: dict[str, Any] = {
         "ours": statistics.median(rates["ours"]),

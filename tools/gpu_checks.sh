@@ -54,7 +54,8 @@ torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version
 
 if wanted population; then
     step population of "${POPULATION_RUNS:-15}" runs against as many processes
-    timeout 400 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
+    # each contender's rate reaches population.err as it ends, should the limit end the rest
+    timeout 560 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
         --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" --json \
         >"$out/population.json" 2>"$out/population.err"
     echo "exit $?"
