@@ -7,7 +7,8 @@ import pyarrow.parquet as pq
 import pytest
 from toy_env import ToyGoalEnv, make_toy_envs
 
-from curious.agent.conditions import HER, MGTE, MUVFA, Curious, HolisticGoals
+from curious.agent.conditions import HER, MGTE, MUVFA, Curious
+from curious.agent.goals import HolisticGoals
 from curious.agent.learning_progress import CompetenceTracker
 from curious.config import PRESETS, ConfigError, resolve
 from curious.envs.goal_env import EnvSpec

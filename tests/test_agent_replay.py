@@ -5,7 +5,8 @@ import pytest
 from scipy import stats
 from toy_env import ToyGoalEnv
 
-from curious.agent.conditions import MUVFA, HolisticGoals
+from curious.agent.conditions import MUVFA
+from curious.agent.goals import HolisticGoals
 from curious.agent.replay import GOAL_OWN, EpisodeReplay
 
 SPEC = ToyGoalEnv.spec

@@ -58,7 +58,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from curious.agent.goals import GoalInput
+from curious.agent.goals import GoalInput, HolisticGoals
 from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
 from curious.envs.goal_env import EnvSpec, GoalEnv
 
@@ -66,65 +66,6 @@ if TYPE_CHECKING:
     from curious.agent.replay import EpisodeReplay, Transitions
     from curious.config import Config
     from curious.envs.rollout import EpisodeData
-
-
-class HolisticGoals:
-    """The flat baseline's goal space: one goal over every module's goal slot at once.
-
-    A goal is (N, G): a slot per module, placed at each step as every condition's goals are
-    (`place`: the suite's cube1_above_cube2 and stack goals follow cube 2). What it is compared
-    with is every module's hindsight outcome (the first G numbers of its outcome,
-    `EnvSpec.hindsight_columns`), and a goal is met
-    when the Euclidean distance over all N x G coordinates is within `spec.success_distance`
-    (gym_flowers multi_task_fetch_arm_v0.py, `compute_reward` in its flat branch:
-    `-(d > distance_threshold)`). Vectorised over any leading axes.
-    """
-
-    def __init__(self, spec: EnvSpec) -> None:
-        self.spec = spec
-        self.columns = spec.hindsight_columns()  # (N, G)
-        self.threshold = float(spec.success_distance)
-
-    def draw(
-        self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
-    ) -> np.ndarray:
-        """(n, N, G) goal slots: every module's drawn uniformly in [-1, 1]^G from `rng` (one
-        draw over the union of the goal spaces, as the authors' flat goal), except that each
-        episode's named module keeps its `raw` goal (n, G)."""
-        n, n_mod, g = len(modules), self.spec.n_modules, self.spec.goal_dim
-        raw_all = rng.uniform(-1.0, 1.0, (n, n_mod, g))
-        raw_all[np.arange(n), modules] = raw
-        goals = np.empty((n, n_mod, g), np.float32)
-        for k in range(n_mod):
-            goals[:, k] = env.goal_slot(k, raw_all[:, k])
-        return goals
-
-    def place(self, env: GoalEnv, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
-        """(n, N, G) the goals that slots (n, N, G) stand for given outcomes (n, achieved_dim)
-        of one step (`GoalEnv.goal`: the suite's cube1_above_cube2 and stack goals follow cube
-        2, as every condition's do)."""
-        placed = np.empty_like(slots)
-        for k in range(self.spec.n_modules):
-            placed[:, k] = env.goal(k, slots[:, k], achieved)
-        return placed
-
-    def hindsight(self, achieved: np.ndarray) -> np.ndarray:
-        """(..., N, G): the holistic goal that outcomes (..., achieved_dim) achieve."""
-        return np.asarray(achieved)[..., self.columns]
-
-    def distance(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
-        """(...,) Euclidean distance between outcomes (..., achieved_dim) and goals (..., N, G)
-        over all N x G coordinates at once."""
-        diff = self.hindsight(achieved) - np.asarray(goals)
-        return np.sqrt(np.square(diff, dtype=np.float64).sum(axis=(-2, -1)))
-
-    def success(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
-        """(...,) bool: the goal is met (distance within the threshold)."""
-        return self.distance(achieved, goals) <= self.threshold
-
-    def reward(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
-        """(...,) float32 sparse reward: 0 where `success`, -1 elsewhere."""
-        return np.where(self.success(achieved, goals), 0.0, -1.0).astype(np.float32)
 
 
 class Condition:

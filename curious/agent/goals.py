@@ -1,10 +1,12 @@
-"""The goal part of the E-UVFA input, as values that do not need torch.
+"""Goals as values that do not need torch: the goal part of the E-UVFA input, each module's goal
+box, and the flat baseline's goal space.
 
-`GoalInput` carries a round's or a minibatch's goals (slots, mask, task descriptor) from where they
-are drawn (`curious.agent.conditions`) and relabelled (`curious.agent.replay`) to the encoder
-(`curious.agent.inputs.InputEncoder`); `GoalBox` is each module's goal space as a fixed affine
-box, which the encoder maps slots through. Both are numpy-only, so that the conditions (and what
-lists them: validation, the command line's help) load without torch.
+`GoalInput` carries a round's or a minibatch's goals (slots, mask, task descriptor) from where
+they are drawn (`curious.agent.conditions`) and relabelled (`curious.agent.replay`) to the
+encoder (`curious.agent.inputs.InputEncoder`); `GoalBox` is each module's goal space as a fixed
+affine box, which the encoder maps slots through; `HolisticGoals` is the `her` condition's one
+goal over every module's slot at once. All numpy-only, so that the conditions (and what lists
+them: validation, the command line's help) load without torch.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from typing import Generic, TypeVar
 
 import numpy as np
 
-from curious.envs.goal_env import GoalEnv
+from curious.envs.goal_env import EnvSpec, GoalEnv
 
 A = TypeVar("A")  # numpy arrays, or torch tensors on a device once `Agent` maps them
 B = TypeVar("B")
@@ -121,3 +123,62 @@ class GoalBox:
             half[k] = np.abs(np.diag(jacobian))
         half[half < atol] = 0.0
         return cls(centre.astype(np.float32), half.astype(np.float32))
+
+
+class HolisticGoals:
+    """The flat baseline's goal space: one goal over every module's goal slot at once.
+
+    A goal is (N, G): a slot per module, placed at each step as every condition's goals are
+    (`place`: the suite's cube1_above_cube2 and stack goals follow cube 2). What it is compared
+    with is every module's hindsight outcome (the first G numbers of its outcome,
+    `EnvSpec.hindsight_columns`), and a goal is met
+    when the Euclidean distance over all N x G coordinates is within `spec.success_distance`
+    (gym_flowers multi_task_fetch_arm_v0.py, `compute_reward` in its flat branch:
+    `-(d > distance_threshold)`). Vectorised over any leading axes.
+    """
+
+    def __init__(self, spec: EnvSpec) -> None:
+        self.spec = spec
+        self.columns = spec.hindsight_columns()  # (N, G)
+        self.threshold = float(spec.success_distance)
+
+    def draw(
+        self, env: GoalEnv, modules: np.ndarray, raw: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        """(n, N, G) goal slots: every module's drawn uniformly in [-1, 1]^G from `rng` (one
+        draw over the union of the goal spaces, as the authors' flat goal), except that each
+        episode's named module keeps its `raw` goal (n, G)."""
+        n, n_mod, g = len(modules), self.spec.n_modules, self.spec.goal_dim
+        raw_all = rng.uniform(-1.0, 1.0, (n, n_mod, g))
+        raw_all[np.arange(n), modules] = raw
+        goals = np.empty((n, n_mod, g), np.float32)
+        for k in range(n_mod):
+            goals[:, k] = env.goal_slot(k, raw_all[:, k])
+        return goals
+
+    def place(self, env: GoalEnv, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        """(n, N, G) the goals that slots (n, N, G) stand for given outcomes (n, achieved_dim)
+        of one step (`GoalEnv.goal`: the suite's cube1_above_cube2 and stack goals follow cube
+        2, as every condition's do)."""
+        placed = np.empty_like(slots)
+        for k in range(self.spec.n_modules):
+            placed[:, k] = env.goal(k, slots[:, k], achieved)
+        return placed
+
+    def hindsight(self, achieved: np.ndarray) -> np.ndarray:
+        """(..., N, G): the holistic goal that outcomes (..., achieved_dim) achieve."""
+        return np.asarray(achieved)[..., self.columns]
+
+    def distance(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(...,) Euclidean distance between outcomes (..., achieved_dim) and goals (..., N, G)
+        over all N x G coordinates at once."""
+        diff = self.hindsight(achieved) - np.asarray(goals)
+        return np.sqrt(np.square(diff, dtype=np.float64).sum(axis=(-2, -1)))
+
+    def success(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(...,) bool: the goal is met (distance within the threshold)."""
+        return self.distance(achieved, goals) <= self.threshold
+
+    def reward(self, achieved: np.ndarray, goals: np.ndarray) -> np.ndarray:
+        """(...,) float32 sparse reward: 0 where `success`, -1 elsewhere."""
+        return np.where(self.success(achieved, goals), 0.0, -1.0).astype(np.float32)

@@ -39,7 +39,7 @@ from curious.agent.goals import GoalInput
 from curious.envs.goal_env import EnvSpec, GoalEnv
 
 if TYPE_CHECKING:
-    from curious.agent.conditions import HolisticGoals
+    from curious.agent.goals import HolisticGoals
 
 GOAL_OWN = -1
 """`Transitions.goal_step` of a transition that kept its episode's module and goal."""
