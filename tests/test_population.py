@@ -116,14 +116,17 @@ def test_a_population_with_stacked_updates_is_each_run_alone(alone, tmp_path):
 
 
 def test_a_population_resumes_from_its_runs_checkpoints(tmp_path):
-    """Stopped after two cycles and resumed, a population ends where it ends uninterrupted."""
-    configs = [resolve("smoke", c, s, SMALL) for c, s in MEMBERS[:2]]
+    """Stopped after two cycles and resumed, a population (one run with the sensory failure
+    from episode 8) ends where it ends uninterrupted."""
+    failing = {**SMALL, "variant": "sensor_failure", "sensor_failure_episode": 8}
+    configs = [resolve("smoke", "mg-te", 1, SMALL), resolve("smoke", "curious", 0, failing)]
     straight = [tmp_path / "straight" / str(i) for i in range(2)]
     resumed = [tmp_path / "resumed" / str(i) for i in range(2)]
     train_population(configs, straight)
     first = train_population(configs, resumed, stop_after_cycles=2)
     assert all(0 < t.episodes < 24 for t in first)
     train_population(configs, resumed, resume=True)
+    assert _table(resumed[1] / "metrics.parquet")["sensor_failure"].any()
     for a, b in zip(straight, resumed, strict=True):
         _assert_same_table(a / "metrics.parquet", b / "metrics.parquet")
         _assert_same(_state(a), _state(b))
@@ -202,3 +205,28 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     assert main([*stacked, "--out", str(tmp_path / "stacked"), "--seeds", "0-1"]) == 0
     metrics = "seed-1/metrics.parquet"
     _assert_same_table(out / metrics, tmp_path / "stacked" / metrics)
+
+
+def test_a_population_records_each_run_as_alone(tmp_path):
+    """Recorded in a population (their copies stepped in MuJoCo's threads, the 3-D rollouts
+    read from the copies' own simulators), two runs of different variants write recordings
+    that hold the same points as each run recorded alone."""
+    from curious.watching.recording import RecorderSettings
+    from curious.watching.recording.reader import read_points
+    from curious.watching.recording.rollout_capture import recorder_factory
+
+    configs = [
+        resolve("smoke", "m-uvfa", 3, SMALL),
+        resolve("smoke", "curious", 0, {**SMALL, "variant": "distractors_4"}),
+    ]
+    record = recorder_factory(False, RecorderSettings(rollout_every=1))
+    alone = [tmp_path / "alone" / str(i) for i in range(2)]
+    for config, out in zip(configs, alone, strict=True):
+        train(config, out, make_recorder=record)
+    together = [tmp_path / "together" / str(i) for i in range(2)]
+    train_population(configs, together, make_recorder=record, physics_threads=2)
+    for a, b in zip(alone, together, strict=True):
+        points_a, static_a = read_points(a / "recording.rrd")
+        points_b, static_b = read_points(b / "recording.rrd")
+        assert any(entity.startswith("scene/") for entity, _ in points_a)  # 3-D rollouts
+        assert points_a == points_b and static_a == static_b
