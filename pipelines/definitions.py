@@ -1,8 +1,8 @@
-"""The Dagster `Definitions` of one budget, for `curious reproduce` and `dagster dev`.
+"""The Dagster `Definitions` of one budget, for `curious reproduce` and the Dagster UI.
 
 `build_definitions(reproduction)` holds every experiment's assets (see `pipelines.assets`) and
 the `reproduction` resource. `definitions_from_environment()` builds them from environment
-variables, which is what `dagster dev -m pipelines` loads:
+variables, which is what `dagster-webserver -m pipelines` (or `dagster dev`) loads:
 
     CURIOUS_BUDGET       budget: smoke, quick, laptop or paper (default: quick)
     CURIOUS_OUT          output folder (default: the budget's, e.g. runs/quick)
@@ -13,7 +13,7 @@ variables, which is what `dagster dev -m pipelines` loads:
                          (as `curious reproduce --from-data`; CURIOUS_RUNS_DIR is then unused)
 
 To see the runs `curious reproduce` made in the UI, point Dagster at its instance:
-`DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster dev -m pipelines`.
+`DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster-webserver -m pipelines`.
 
 `CURIOUS_PRESET`, the variable's name before budgets were named apart from training presets,
 is refused with an error naming `CURIOUS_BUDGET` rather than ignored (ignored, the default

@@ -18,7 +18,8 @@ root, and steps 1 and 3 are the same. OUT's reproduce.json records DATA, so an o
 holds either trained runs' results or shipped data's, never both.
 
 The Dagster instance lives in `OUT/.dagster` (sqlite storage, no server, no daemon), so the
-history of materialisations is kept with the results and `dagster dev` can show it.
+history of materialisations is kept with the results and the Dagster UI
+(`dagster-webserver -m pipelines`) can show it.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 `Reproduction` is a plain object handed to Dagster as the `reproduction` resource. It knows the
 budget, the output folder's layout and the pool that trains partitions (created on
-first use, so building the definitions, e.g. for `dagster dev`, starts no process and contacts no
+first use, so building the definitions, e.g. for the Dagster UI, starts no process and contacts no
 cluster), or the shipped data folder read in place of training (`curious reproduce --from-data`,
 `pipelines.from_data`).
 

@@ -796,7 +796,7 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
         s.partition_key for s in SMOKE.experiments["distractors"].runs()
     }
     assert "curious@distractors_7|0" in distractors.get_partition_keys()
-    # `dagster dev -m pipelines` finds the same definitions (without a server: validate)
+    # `dagster-webserver -m pipelines` finds the same definitions (without a server: validate)
     env = {**os.environ, "CURIOUS_BUDGET": "smoke", "CURIOUS_OUT": str(tmp_path)}
     done = subprocess.run(
         [sys.executable, "-m", "dagster", "definitions", "validate", "-m", "pipelines"],
@@ -824,7 +824,7 @@ def test_definitions_refuse_the_old_curious_preset_variable(tmp_path, monkeypatc
 
 
 def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke, tmp_path):
-    """What `dagster dev -m pipelines` serves, on a copy of the smoke output."""
+    """What `dagster-webserver -m pipelines` serves, on a copy of the smoke output."""
     import shutil
     import urllib.request
 

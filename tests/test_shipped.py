@@ -487,7 +487,7 @@ def test_a_table_shipped_in_a_format_this_curious_does_not_read_is_named(shipped
 
 
 def test_dagster_definitions_read_shipped_data_from_the_environment(shipped, tmp_path, monkeypatch):
-    """`CURIOUS_FROM_DATA` (what `curious reproduce --from-data` prints for `dagster dev`): the
+    """`CURIOUS_FROM_DATA` (what `curious reproduce --from-data` prints for the Dagster UI): the
     runs asset reads DATA, which is the runs root, and nothing is written by loading them."""
     from pipelines.definitions import reproduction_from_environment
     from pipelines.from_data import ShippedDataError

@@ -395,5 +395,5 @@ def _done(result: ReproduceResult) -> None:
     shipped = f"CURIOUS_FROM_DATA={result.from_data} " if result.from_data else ""
     print(
         f"  Dagster: DAGSTER_HOME={layout.dagster_home} CURIOUS_BUDGET={result.budget} "
-        f"CURIOUS_OUT={layout.out} {shipped}dagster dev -m pipelines"
+        f"CURIOUS_OUT={layout.out} {shipped}dagster-webserver -m pipelines"
     )
