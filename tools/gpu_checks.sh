@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# The checks a GPU node owes the project (docs/scaling.md), in one go: 309 s on a 16-core node
-# with an H100 (2026-11-26, the defaults but for CONTENDERS, which then lacked
-# workers_prefetch_compiled):
+# The checks a GPU node owes the project (docs/scaling.md). By default the population benchmark
+# and the CUDA tests, within one device call of 10 minutes; "bench one side" (309 s on a 16-core
+# node with an H100, 2026-11-26) and "resume" are a second call's:
 #
 #   bash tools/gpu_checks.sh OUT            # on a node with a CUDA device: results into OUT/
 #   PRESET=smoke DEVICE=cpu bash tools/gpu_checks.sh OUT   # the same steps on a CPU, in minutes
@@ -22,8 +22,8 @@
 # Each step has a time limit of its own, so that a slow one leaves the others their turn; OUT/env.txt
 # says on what it ran. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two
 # epochs of `paper`), CONTENDERS, SIDE_BY_SIDE (2; "2 4" adds four runs, about 2.5 minutes more),
-# STEPS (which steps run: "population tests bench one side" by default; "one side" measures
-# only runs, one alone and N side by side; "resume" adds step 5), POPULATION_RUNS (15),
+# STEPS (which steps run: "population tests" by default; "bench one side" the cycle benchmark
+# and runs, one alone and N side by side; "resume" step 5), POPULATION_RUNS (15),
 # POPULATION_CYCLES (3), RESUME_SECONDS (170: each leg of
 # step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
@@ -34,7 +34,7 @@ device=${DEVICE:-cuda}
 episodes=${EPISODES:-1900}
 contenders=${CONTENDERS:-workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu}
 side_by_side=${SIDE_BY_SIDE:-2}
-steps=" ${STEPS:-population tests bench one side} "
+steps=" ${STEPS:-population tests} "
 wanted() { [[ $steps == *" $1 "* ]]; }
 cores=$(nproc)
 mkdir -p "$out"
@@ -55,7 +55,7 @@ torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version
 if wanted population; then
     step population of "${POPULATION_RUNS:-15}" runs against as many processes
     # each contender's rate reaches population.err as it ends, should the limit end the rest
-    timeout 560 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
+    timeout 420 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
         --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" --json \
         >"$out/population.json" 2>"$out/population.err"
     echo "exit $?"
@@ -120,11 +120,12 @@ if wanted resume; then
     cp "$run/metrics.parquet" "$run/tests.parquet" "$run/config.json" "$out/resume/" 2>/dev/null
 fi
 
-step rates
-# each run's episodes/s over its own clock, tests and start included: the project's progress table
-python3 -m curious.cli progress "$out"
-# and its training alone: the episodes after its last epoch's test rollouts (the largest gap)
-python3 - "$out" <<'EOF'
+if find "$out" -name metrics.parquet | grep -q .; then
+    step rates
+    # each run's episodes/s over its own clock, tests and start included: the project's progress table
+    python3 -m curious.cli progress "$out"
+    # and its training alone: the episodes after its last epoch's test rollouts (the largest gap)
+    python3 - "$out" <<'EOF'
 import sys
 from pathlib import Path
 
@@ -140,4 +141,5 @@ for folder in sorted(Path(sys.argv[1]).glob("**/metrics.parquet")):
         f"which took {gaps.max():.1f} s"
     )
 EOF
+fi
 step done
