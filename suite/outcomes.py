@@ -88,43 +88,44 @@ class ModuleEvaluator:
             positions: [gripper, cube 1, ..., cube n], flat (3 + 3 n_cubes,).
             gripper: (3,) and cubes: (n_cubes, 3), the same numbers (views are fine).
         """
-        achieved, success, goals = self.achieved, self.success, self.goals
-        achieved[self._linear_rows] = self._linear_matrix @ positions
-        for fn, sl in self._extras:
-            achieved[sl] = fn(gripper, cubes)
-        for fn, sl in self._functional:
-            achieved[sl] = fn(gripper, cubes)
-        goals[:] = self._slots
-        if len(self._follow_row):
-            goals[self._follow_row, self._follow_col] += (
-                achieved[self._follow_src] - self._follow_anchor
-            )
-        if len(self._reaching):
-            ok = within_distance(achieved[self._reaching_first3], goals[self._reaching])
-            for j, i, guard, sl in self._guards:
-                ok[j] &= guard(achieved[sl], goals[i])
-            success[self._reaching] = ok
-        for i, m, sl in self._custom:
-            goals[i] = m.goal(self._slots[i], achieved[sl])
-            success[i] = m.success_fn(achieved[sl], goals[i])
+        self._evaluate(
+            positions[None], gripper[None], cubes[None], self._slots[None],
+            self.achieved[None], self.goals[None], self.success[None],
+        )  # fmt: skip
 
     def evaluate_stacked(
         self, positions: np.ndarray, slots: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray]:
         """`evaluate` for many copies at once: (achieved (n, sum of outcome dims) float32,
         success (n, n_modules) bool) from the positions (n, 3 + 3 n_cubes) as perceived and each
-        copy's goal slots (n, n_modules, 3).
-
-        The same float32 numbers as `evaluate` copy by copy: a linear component with one term
-        (every suite module's) is one product, rounded once whatever the order of the matrix
-        product's sums, so all copies take one product; components that sum several terms take
-        the copy-by-copy product, whose rounding depends on how it is computed. The rest are the
-        same element-wise operations over a leading axis.
-        """
+        copy's goal slots (n, n_modules, 3). The same float32 numbers as `evaluate` copy by
+        copy (`_evaluate` is both)."""
         n = len(positions)
-        gripper = positions[:, :3]
-        cubes = positions[:, 3:].reshape(n, -1, 3)
         achieved = np.empty((n, self.achieved.shape[0]), np.float32)
+        goals = np.empty((n, len(self.modules), 3), np.float32)
+        success = np.zeros((n, len(self.modules)), bool)
+        gripper, cubes = positions[:, :3], positions[:, 3:].reshape(n, -1, 3)
+        self._evaluate(positions, gripper, cubes, slots, achieved, goals, success)
+        return achieved, success
+
+    def _evaluate(
+        self,
+        positions: np.ndarray,
+        gripper: np.ndarray,
+        cubes: np.ndarray,
+        slots: np.ndarray,
+        achieved: np.ndarray,
+        goals: np.ndarray,
+        success: np.ndarray,
+    ) -> None:
+        """Outcomes, goals and successes of n copies into `achieved`, `goals` and `success`
+        ((n, ...) each) from their positions (n, 3 + 3 n_cubes), gripper (n, 3), cubes
+        (n, n_cubes, 3) and goal slots (n, n_modules, 3).
+
+        A linear component with one term (every suite module's) is one product, rounded once
+        whatever the order of the matrix product's sums, so all copies take one product;
+        components that sum several terms take each copy's own product, whose rounding depends
+        on how it is computed. The rest are element-wise operations over the leading axis."""
         w = self._linear_matrix
         if self._one_term:
             achieved[:, self._linear_rows] = positions @ w.T
@@ -134,12 +135,11 @@ class ModuleEvaluator:
             achieved[:, sl] = fn(gripper, cubes)
         for fn, sl in self._functional:
             achieved[:, sl] = fn(gripper, cubes)
-        goals = np.array(slots, dtype=np.float32)
+        goals[:] = slots
         if len(self._follow_row):
             goals[:, self._follow_row, self._follow_col] += (
                 achieved[:, self._follow_src] - self._follow_anchor
             )
-        success = np.zeros((n, len(self.modules)), bool)
         if len(self._reaching):
             ok = within_distance(achieved[:, self._reaching_first3], goals[:, self._reaching])
             for j, i, guard, sl in self._guards:
@@ -148,4 +148,3 @@ class ModuleEvaluator:
         for i, m, sl in self._custom:
             goals[:, i] = m.goal(slots[:, i], achieved[:, sl])
             success[:, i] = m.success_fn(achieved[:, sl], goals[:, i])
-        return achieved, success

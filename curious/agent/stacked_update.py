@@ -171,18 +171,24 @@ def _linear(
 class _Runs:
     """The learners that step together, and how their products run."""
 
-    def __init__(self, learners: Sequence[Learner], per_run: bool) -> None:
+    def __init__(
+        self,
+        learners: Sequence[Learner],
+        per_run: bool,
+        places: tuple[tuple[LayerPlaces, ...], ...] | None = None,
+    ) -> None:
         self.learners = list(learners)
         self.first = learners[0]
         self.per_run = per_run
+        self.places = places if places is not None else _places(self.first)  # alike: one layout
 
     def subset(self, rows: Sequence[int]) -> _Runs:
-        return _Runs([self.learners[r] for r in rows], self.per_run)
+        return _Runs([self.learners[r] for r in rows], self.per_run, self.places)
 
     def gather(self, online: bool, i: int, grads: bool) -> _Stacked:
         """Network i (0 the actor, 1 the critics), online or target, of every learner."""
         flats = [(lr.backend.online if online else lr.backend.targets)[i] for lr in self.learners]
-        mlps = _places(self.first)[i + (0 if online else 2)]
+        mlps = self.places[i + (0 if online else 2)]
         return _Stacked(flats, mlps, grads, self.per_run)
 
 
