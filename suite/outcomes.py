@@ -77,6 +77,18 @@ class ModuleEvaluator:
             (i, m, self.slices[i]) for i, m in enumerate(self.modules) if not m.reaches_slot
         ]
 
+        # Row-wise tables (`row_goals`, `row_success`): per module, the outcome column that each
+        # goal coordinate follows (-1: none) and its anchor, and its first three outcome columns.
+        n_mod = len(self.modules)
+        self._follow_table = np.full((n_mod, 3), -1, np.intp)
+        self._anchor_table = np.zeros((n_mod, 3), np.float32)
+        for i, c, src, anchor in follow:
+            if self._follow_table[i, c] >= 0:
+                raise ValueError(f"{self.modules[i].name}: goal coordinate {c} follows twice")
+            self._follow_table[i, c], self._anchor_table[i, c] = src, anchor
+        self._first3_table = np.array([np.arange(sl.start, sl.start + 3) for sl in self.slices])
+        self._reaches = np.array([m.reaches_slot for m in self.modules], bool)
+
     def set_slots(self, slots: np.ndarray) -> None:
         """The goal slot (n_modules, 3) each module is judged against from now on."""
         self._slots[:] = slots
@@ -107,6 +119,43 @@ class ModuleEvaluator:
         gripper, cubes = positions[:, :3], positions[:, 3:].reshape(n, -1, 3)
         self._evaluate(positions, gripper, cubes, slots, achieved, goals, success)
         return achieved, success
+
+    def row_goals(self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        """Each row's goal (n, 3) float32 for its own module: row i's slot (n, 3) for module
+        `modules[i]`, placed where outcomes `achieved` (n, sum of outcome dims) put it
+        (`TaskModule.goal` row by row, the same float32 numbers, in one pass over all rows)."""
+        modules = np.asarray(modules, np.intp)
+        goals = np.array(slots, dtype=np.float32)
+        src = self._follow_table[modules]  # (n, 3)
+        follows = src >= 0
+        if follows.any():
+            rows, cols = np.nonzero(follows)
+            goals[rows, cols] += (
+                achieved[rows, src[rows, cols]] - self._anchor_table[modules[rows], cols]
+            )
+        for i, m, sl in self._custom:
+            sel = np.flatnonzero(modules == i)
+            if sel.size:
+                goals[sel] = m.goal(slots[sel], achieved[sel, sl])
+        return goals
+
+    def row_success(
+        self, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        """(n,) bool: whether each row's outcomes (n, sum of outcome dims) meet its goal (n, 3)
+        for its own module (`TaskModule.success` row by row, the same verdicts)."""
+        modules = np.asarray(modules, np.intp)
+        first3 = achieved[np.arange(len(modules))[:, None], self._first3_table[modules]]
+        ok = within_distance(first3, goals) & self._reaches[modules]
+        for _, i, guard, sl in self._guards:
+            sel = np.flatnonzero(modules == i)
+            if sel.size:
+                ok[sel] &= guard(achieved[sel, sl], goals[sel])
+        for i, m, sl in self._custom:
+            sel = np.flatnonzero(modules == i)
+            if sel.size:
+                ok[sel] = m.success_fn(achieved[sel, sl], goals[sel])
+        return ok
 
     def _evaluate(
         self,

@@ -204,6 +204,41 @@ def test_batched_evaluator_matches_each_module_exactly():
             assert evaluator.success[i] == float(m.success(expected, goal)), m.name
 
 
+@pytest.mark.parametrize("goal_kind", ["own", "hindsight"])
+def test_row_wise_goals_and_success_match_each_module_exactly(goal_kind):
+    """`row_goals` and `row_success` (the replay's relabelling of a whole minibatch, every row
+    its own module) give each module's own `goal` and `success`, bit for bit."""
+    rng = np.random.default_rng(11)
+    evaluator = ModuleEvaluator(MODULES, N_CUBES)
+    n = 600
+    gripper, cubes = random_positions(rng, (n,))
+    near = rng.random(n) < 0.5  # cube 1 on cube 2 and the gripper near it: successes happen
+    cubes[near, 0] = cubes[near, 1] + [0.0, 0.0, 0.05]
+    gripper[near] = cubes[near, 0] + rng.normal(0, 0.04, (int(near.sum()), 3))
+    achieved = np.concatenate(
+        [m.achieved(gripper, cubes).astype(np.float32) for m in MODULES], axis=-1
+    )
+    modules = rng.integers(len(MODULES), size=n)
+    slots = np.stack([MODULES[k].goal_slot(rng.uniform(-1, 1, 3)) for k in modules])
+    if goal_kind == "own":
+        goals = evaluator.row_goals(modules, slots, achieved)
+    else:  # a hindsight goal: the row's own outcome where `near`, another row's elsewhere
+        source = np.where(near, np.arange(n), rng.permutation(n))
+        goals = np.stack(
+            [
+                MODULES[k].hindsight_goal(achieved[j, evaluator.slices[k]])
+                for j, k in zip(source, modules, strict=True)
+            ]
+        )
+    success = evaluator.row_success(modules, achieved, goals)
+    assert success.any() and not success.all()
+    for i, k in enumerate(modules):
+        m, sl = MODULES[k], evaluator.slices[k]
+        if goal_kind == "own":
+            np.testing.assert_array_equal(goals[i], m.goal(slots[i], achieved[i, sl]))
+        assert success[i] == m.success(achieved[i, sl], goals[i]), m.name
+
+
 def test_goal_positions_follow_cube2():
     evaluator = ModuleEvaluator(MODULES, N_CUBES)
     slots = np.stack([m.goal_slot(np.zeros(3)) for m in MODULES])

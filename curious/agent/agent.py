@@ -64,11 +64,15 @@ class Agent:
         they are at this step, `GoalInput.placed`); `experts` (n,) the expert acting in each
         row; `explore` (n,) bool rows get exploration noise."""
         x = self.encoder.encode(self._tensor(states), goal.map(self._tensor))
-        actions = np.empty((len(states), self.spec.action_dim), np.float32)
-        for k in np.unique(experts):
-            rows = np.flatnonzero(experts == k)
-            out = self.experts[int(k)].act(x[torch.from_numpy(rows).to(self.device)])
-            actions[rows] = out.cpu().numpy()
+        first = int(experts[0])
+        if len(self.experts) == 1 or np.all(experts == first):  # one expert acts for every row
+            actions = self.experts[first].act(x).cpu().numpy()
+        else:
+            actions = np.empty((len(states), self.spec.action_dim), np.float32)
+            for k in np.unique(experts):
+                rows = np.flatnonzero(experts == k)
+                out = self.experts[int(k)].act(x[torch.from_numpy(rows).to(self.device)])
+                actions[rows] = out.cpu().numpy()
         n_explore = int(explore.sum())
         if n_explore:
             rows = np.flatnonzero(explore)

@@ -300,12 +300,8 @@ class HER(Condition):
     ) -> np.ndarray:
         # The named module's own reward at the final step, from its slot of the holistic goal.
         final = data.achieved[:, -1]
-        out = np.zeros(len(modules), bool)
-        for k in np.unique(modules):
-            sel = np.flatnonzero(modules == k)
-            goal = env.goal(int(k), goals[sel, k], final[sel])
-            out[sel] = env.reward(int(k), final[sel], goal) == 0
-        return out
+        goal = env.row_goals(modules, goals[np.arange(len(modules)), modules], final)
+        return env.row_rewards(modules, final, goal) == 0
 
     def holistic_distance(
         self, env: GoalEnv, goals: np.ndarray, final: np.ndarray

@@ -67,9 +67,8 @@ class GoalInput(Generic[A]):
         authors' env moves them), zero where the mask is not set: what the policy sees."""
         slots, mask = self.slots, self.mask
         goals = np.zeros_like(slots)
-        for k in np.flatnonzero(mask.any(axis=0)):
-            rows = np.flatnonzero(mask[:, k])
-            goals[rows, k] = env.goal(int(k), slots[rows, k], achieved[rows])
+        rows, modules = np.nonzero(mask)
+        goals[rows, modules] = env.row_goals(modules, slots[rows, modules], achieved[rows])
         return GoalInput(goals, mask, self.task)
 
     def map(self, fn: Callable[[A], B]) -> GoalInput[B]:
@@ -160,10 +159,11 @@ class HolisticGoals:
         """(n, N, G) the goals that slots (n, N, G) stand for given outcomes (n, achieved_dim)
         of one step (`GoalEnv.goal`: the suite's cube1_above_cube2 and stack goals follow cube
         2, as every condition's do)."""
-        placed = np.empty_like(slots)
-        for k in range(self.spec.n_modules):
-            placed[:, k] = env.goal(k, slots[:, k], achieved)
-        return placed
+        n, n_mod = slots.shape[:2]
+        modules = np.tile(np.arange(n_mod), n)
+        rows = np.repeat(np.asarray(achieved), n_mod, axis=0)
+        placed = env.row_goals(modules, slots.reshape(n * n_mod, -1), rows)
+        return placed.reshape(slots.shape).astype(slots.dtype, copy=False)
 
     def hindsight(self, achieved: np.ndarray) -> np.ndarray:
         """(..., N, G): the holistic goal that outcomes (..., achieved_dim) achieve."""

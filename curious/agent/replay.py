@@ -182,13 +182,9 @@ class EpisodeReplay:
         goal[her] = self.achieved[episode[her, None], future[her, None], cols]
         goal_step = np.where(her, future, GOAL_OWN)
         next_achieved = self.achieved[episode, step + 1]
-        reward = np.empty(B, np.float32)
-        for k in np.unique(module):
-            sel = np.flatnonzero(module == k)
-            own = sel[~her[sel]]
-            if own.size:  # the slot's goal after the step
-                goal[own] = env.goal(int(k), goal[own], next_achieved[own])
-            reward[sel] = env.reward(int(k), next_achieved[sel], goal[sel])
+        own = np.flatnonzero(~her)  # the slot's goal after the step
+        goal[own] = env.row_goals(module[own], goal[own], next_achieved[own])
+        reward = env.row_rewards(module, next_achieved, goal)
 
         goals = np.zeros((B, n_mod, spec.goal_dim), np.float32)
         goals[np.arange(B), module] = goal

@@ -16,6 +16,11 @@ The agent never touches dm_control objects: it trains on anything that implement
   `goal(module, slot, achieved)` for an episode's own goal (never the bare slot of a module whose
   goal follows something). Vectorised over the leading axes: the replay recomputes rewards for
   whole minibatches with it.
+* `row_goals(modules, slots, achieved)` and `row_rewards(modules, achieved, goals)` are the
+  same row by row, each row (n, .) for its own module `modules[i]`: what a minibatch of
+  transitions replayed as different modules needs, in one call (the suite's in one pass over
+  all rows; `goals_by_module` and `rewards_by_module` build them from `goal` and `reward` for
+  any env).
 
 An environment with a perturbation also offers `set_sensor_failure(on)`, which the trainer
 calls before every episode of a run with a sensory failure, and `sensor_failure_module`, the name
@@ -115,17 +120,50 @@ class GoalEnv(Protocol):
 
     def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray: ...
 
+    def row_goals(
+        self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray
+    ) -> np.ndarray: ...
+
+    def row_rewards(
+        self, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray: ...
+
     def get_rng_state(self) -> Any: ...
 
     def set_rng_state(self, state: Any) -> None: ...
+
+
+def goals_by_module(
+    env: GoalEnv, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray
+) -> np.ndarray:
+    """`GoalEnv.row_goals` from `GoalEnv.goal`, one call per module the rows name."""
+    modules = np.asarray(modules)
+    out = np.empty((len(modules), env.spec.goal_dim), np.float32)
+    for k in np.unique(modules):
+        sel = np.flatnonzero(modules == k)
+        out[sel] = env.goal(int(k), slots[sel], achieved[sel])
+    return out
+
+
+def rewards_by_module(
+    env: GoalEnv, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
+) -> np.ndarray:
+    """`GoalEnv.row_rewards` from `GoalEnv.reward`, one call per module the rows name."""
+    modules = np.asarray(modules)
+    out = np.empty(len(modules), np.float32)
+    for k in np.unique(modules):
+        sel = np.flatnonzero(modules == k)
+        out[sel] = env.reward(int(k), achieved[sel], goals[sel])
+    return out
 
 
 class SuiteEnv:
     """A `suite` environment (dm_control composer) seen through the `GoalEnv` protocol.
 
     Uses only the suite's public interface: `suite.load`, `env.task.modules`,
-    `env.task.set_next_episode`, `env.reset`, `env.step`, and each module's vectorised
-    `goal_slot`, `goal` and `reward`.
+    `env.task.set_next_episode`, `env.reset`, `env.step`, each module's vectorised
+    `goal_slot`, `goal` and `reward`, and `suite.outcomes.ModuleEvaluator` for all modules'
+    goals and rewards row by row.
     """
 
     EPISODE_LENGTH = 50
@@ -134,6 +172,7 @@ class SuiteEnv:
     def __init__(self, variant: str = "default", seed: int = 0) -> None:
         import suite  # imported here: MuJoCo is only needed when the real suite is used
         from suite import layout
+        from suite.outcomes import ModuleEvaluator
 
         if variant not in suite.ALL_VARIANTS:
             raise ConfigError(
@@ -142,6 +181,7 @@ class SuiteEnv:
         self._env = suite.load(variant, seed=seed)
         self._task = self._env.task
         self._modules = tuple(self._task.modules)
+        self._evaluator = ModuleEvaluator(self._modules, self._task.n_cubes)
         timestep = self._env.reset()
         obs = timestep.observation
         slices, start = [], 0
@@ -205,6 +245,19 @@ class SuiteEnv:
     def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
         outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
         return np.asarray(self._modules[module].reward(outcome, np.asarray(goal)), np.float32)
+
+    def row_goals(self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        return self._evaluator.row_goals(
+            modules, np.asarray(slots, np.float32), np.asarray(achieved, np.float32)
+        )
+
+    def row_rewards(
+        self, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        success = self._evaluator.row_success(
+            modules, np.asarray(achieved, np.float32), np.asarray(goals, np.float32)
+        )
+        return success.astype(np.float32) - np.float32(1.0)
 
     def set_sensor_failure(self, on: bool) -> None:
         """Switch the variant's sensory failure for the episodes that follow (the suite's
