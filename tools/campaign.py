@@ -37,6 +37,7 @@ again with the same command.
 
 from __future__ import annotations
 
+# ruff: noqa: E402  (the imports of the campaign's code come after the import finders are set)
 import argparse
 import dataclasses
 import fnmatch
@@ -46,6 +47,16 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+# Only the campaign's worktree (PYTHONPATH) supplies `curious`, `pipelines` and `suite`: an
+# editable install of another checkout adds an import finder after the path's, which would
+# otherwise supply the modules that the campaign's commit lacks (`curious.reproduction` at
+# 9972821) from that checkout, mixing two commits' code in one run.
+sys.meta_path[:] = [
+    finder
+    for finder in sys.meta_path
+    if not getattr(finder, "__module__", "").startswith("__editable__")
+]
 
 import curious
 from curious.config import parse_overrides
