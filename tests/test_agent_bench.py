@@ -124,3 +124,16 @@ def test_the_stacked_benchmark_reports_every_contender_for_every_number_of_runs(
         for name in ("ours", "ours_batched", "peer"):
             assert result[f"{name}_{runs}"] > 0
     assert result["ours"] == result["ours_2"] and result["bound"] > 0
+
+
+def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
+    from benchmarks import relabel_speed
+
+    parser = argparse.ArgumentParser()
+    relabel_speed.add_arguments(parser)
+    args = ["--batch", "64", "--episodes", "40", "--seconds", "0.05", "--rounds", "1"]
+    result = relabel_speed.measure(parser.parse_args(args))
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    assert result["unit"] == "minibatches/s" and result["batch"] == 64
+    assert result["ours"] > 0 and result["peer"] > 0 and result["bound"] > 0
+    assert 0 < result["rewards_met"] < 1  # some relabelled goals met, some not

@@ -1,4 +1,4 @@
-"""`curious bench {env,learner,cycle,rollouts,threads,stacked,population,recording,
+"""`curious bench {env,learner,relabel,cycle,rollouts,threads,stacked,population,recording,
 checkpoint}`: speed benchmarks, ours side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
@@ -21,6 +21,10 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "learner": (
         "benchmarks.learner_speed",
         "DDPG+HER updates/s: ours vs the fp32 compute bound vs Stable-Baselines3",
+    ),
+    "relabel": (
+        "benchmarks.relabel_speed",
+        "relabelled minibatches/s from the suite's replay: row by row vs module by module",
     ),
     "cycle": (
         "benchmarks.cycle_speed",
