@@ -1,19 +1,22 @@
 """Where training partitions run: local worker processes, or Ray tasks across a cluster.
 
-Both take the same jobs (a `RunSpec` and the runs root) and write the same run folders:
+Both take the same jobs (`Job`: one run's `RunSpec`, or a group of them trained together as a
+population, and the runs root) and write the same run folders:
 
-* `LocalPool`: a pool of `workers` processes on this machine (default: one per core). Processes
-  are started with `spawn`, so a worker never inherits the parent's threads or open databases,
-  and are reused from partition to partition (and from experiment to experiment).
-* `RayPool`: one Ray task per partition with `cpus_per_run` CPUs and `gpus_per_run` GPUs (a run
-  with a GPU trains its networks with `device=cuda`). The runs root must be storage every node
-  sees (`--runs-dir` on a shared file system). `connect_ray` first checks that the address
-  answers, so a wrong address fails in seconds with a clear error instead of hanging.
+* `LocalPool`: a pool of `workers` processes on this machine (default: one per core), a job at a
+  time in each. Processes are started with `spawn`, so a worker never inherits the parent's
+  threads or open databases, and are reused from job to job (and from experiment to experiment).
+* `RayPool`: one Ray task per job with `cpus_per_run` CPUs and `gpus_per_run` GPUs for each of
+  its runs (a run with a GPU trains its networks with `device=cuda`), so a population lands on
+  one node that holds all its runs. The runs root must be storage every node sees (`--runs-dir`
+  on a shared file system). `connect_ray` first checks that the address answers, so a wrong
+  address fails in seconds with a clear error instead of hanging.
 
 `run_all` submits jobs, shows one progress bar over every run's episodes (read from the run
-folders' metrics, which the runs flush at each checkpoint) and returns the results in order.
-The first failing run stops the others' submission and raises `PartitionFailed`; a Ctrl-C
-stops every run at once (`Pool.stop`).
+folders' metrics, which the runs flush at each checkpoint) and returns one result per run, in
+order. The first failing job stops the others' submission and raises `PartitionFailed` naming
+the runs that failed; a Ctrl-C stops every run at once (`Pool.stop`: a run alone stops where it
+is, the runs of a population each at their cycle's checkpoint).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import concurrent.futures as cf
 import contextlib
 import json
 import logging
+import math
 import multiprocessing
 import os
 import signal
@@ -29,12 +33,12 @@ import socket
 import subprocess
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
 from curious.reproduction.experiments import RunSpec
-from pipelines.training import PartitionResult, episodes_logged, run_folder, run_partition
+from pipelines.training import PartitionResult, RunsFailed, episodes_logged, run_folder, run_group
 
 RAY_CONNECT_TIMEOUT_S = 30.0
 
@@ -49,12 +53,31 @@ class RayUnavailable(RuntimeError):
 
 @dataclass(frozen=True)
 class Job:
-    """One partition to train."""
+    """Runs to train in one worker process or Ray task, together as a population
+    (`pipelines.training.run_group`); a single run is a group of one, and `Job(spec, ...)` with
+    a lone `RunSpec` makes that group."""
 
-    spec: RunSpec
+    specs: tuple[RunSpec, ...]
     runs_root: str
     overrides: dict[str, Any] = field(default_factory=dict)
     record: bool = True
+
+    def __post_init__(self) -> None:
+        specs = (self.specs,) if isinstance(self.specs, RunSpec) else tuple(self.specs)
+        if not specs:
+            raise ValueError("a job trains at least one run")
+        object.__setattr__(self, "specs", specs)
+
+    @property
+    def spec(self) -> RunSpec:
+        """The run of a job of one run (`runs()` hands a group's runs out as such jobs)."""
+        if len(self.specs) != 1:
+            raise ValueError(f"a job of {len(self.specs)} runs has no one spec: see Job.runs()")
+        return self.specs[0]
+
+    def runs(self) -> list[Job]:
+        """Each run of the group as a job of its own: what `run_all` hands to `on_done`."""
+        return [replace(self, specs=(spec,)) for spec in self.specs]
 
 
 class _WorkerState:
@@ -74,13 +97,13 @@ def _on_interrupt(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
 
-def run_job(job: Job) -> PartitionResult:
-    """Entry point in a worker process or a Ray task."""
-    if _WorkerState.interrupted:  # a run queued before the Ctrl-C reached this worker
+def run_job(job: Job) -> list[PartitionResult]:
+    """Entry point in a worker process or a Ray task: one result per run of the job."""
+    if _WorkerState.interrupted:  # a job queued before the Ctrl-C reached this worker
         raise KeyboardInterrupt
     _WorkerState.running = True
     try:
-        return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
+        return run_group(job.specs, job.runs_root, job.overrides, record=job.record)
     finally:
         _WorkerState.running = False
 
@@ -89,12 +112,21 @@ class Pool(Protocol):
     """What `run_all` needs from an executor."""
 
     description: str
+    slots: int
+    """Runs it trains at once where each job holds one: its worker processes, or the runs the
+    Ray cluster's nodes hold."""
+    largest_group: int | None
+    """The most runs one job may hold (on Ray, the most one node holds); None: no limit."""
+    gpus_per_run: float
+    """GPUs it gives each run (> 0: the run trains its networks with device=cuda); 0 where the
+    runs' own settings say."""
 
     def submit(self, job: Job) -> Any: ...
 
     def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]: ...
 
-    def result(self, handle: Any) -> PartitionResult: ...
+    def result(self, handle: Any) -> list[PartitionResult]:
+        """One result per run of the job."""
 
     def cancel(self, handles: Sequence[Any]) -> None: ...
 
@@ -107,8 +139,12 @@ class Pool(Protocol):
 class LocalPool:
     """`workers` worker processes on this machine (started on first use, then reused)."""
 
+    largest_group = None
+    gpus_per_run = 0.0
+
     def __init__(self, workers: int | None = None) -> None:
         self.workers = max(1, int(workers or os.cpu_count() or 1))
+        self.slots = self.workers
         self._pool: cf.ProcessPoolExecutor | None = None
         self.description = f"{self.workers} local worker process{'es' if self.workers > 1 else ''}"
 
@@ -131,7 +167,7 @@ class LocalPool:
         done, pending = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
         return [h for h in handles if h in done], [h for h in handles if h in pending]
 
-    def result(self, handle: cf.Future) -> PartitionResult:
+    def result(self, handle: cf.Future) -> list[PartitionResult]:
         return handle.result()
 
     def cancel(self, handles: Sequence[Any]) -> None:
@@ -328,7 +364,8 @@ def connect_ray(
 
 
 class RayPool:
-    """One Ray task per partition on the cluster this process is connected to."""
+    """One Ray task per job on the cluster this process is connected to, with `cpus_per_run`
+    CPUs and `gpus_per_run` GPUs for each of its runs."""
 
     def __init__(self, address: str, cpus_per_run: float = 1.0, gpus_per_run: float = 0.0) -> None:
         import ray
@@ -336,12 +373,10 @@ class RayPool:
         self.cpus_per_run = float(cpus_per_run)
         self.gpus_per_run = float(gpus_per_run)
         self.address, self._connected, nodes = connect_ray(address)
-        fits = [
-            n
-            for n in nodes
-            if n.get("CPU", 0.0) >= self.cpus_per_run and n.get("GPU", 0.0) >= self.gpus_per_run
-        ]
-        if not fits:
+        held = [self._runs_held(n) for n in nodes]
+        self.slots = sum(held)
+        self.largest_group = max(held, default=0)
+        if not self.slots:
             self.close()
             have = "; ".join(f"{n.get('CPU', 0):g} CPU, {n.get('GPU', 0):g} GPU" for n in nodes)
             raise RayUnavailable(
@@ -349,16 +384,39 @@ class RayPool:
                 f"{self.gpus_per_run:g} GPU for one run (nodes: {have or 'none'}): lower "
                 "--cpus-per-run / --gpus-per-run"
             )
-        self._remote = ray.remote(
-            num_cpus=self.cpus_per_run, num_gpus=self.gpus_per_run, max_retries=0
-        )(run_job)
+        self._remote = ray.remote(max_retries=0)(run_job)
         gpu = f", {self.gpus_per_run:g} GPU" if self.gpus_per_run else ""
         self.description = f"Ray tasks at {self.address} ({self.cpus_per_run:g} CPU{gpu} per run)"
 
+    def resources(self, runs: int) -> tuple[float, float]:
+        """The CPUs and GPUs a task of `runs` runs asks for: the runs' shares added up, rounded
+        up to a whole number above 1 (where Ray takes only whole numbers)."""
+
+        def whole_above_one(amount: float) -> float:
+            return amount if amount <= 1 else float(math.ceil(amount - 1e-9))
+
+        return whole_above_one(self.cpus_per_run * runs), whole_above_one(self.gpus_per_run * runs)
+
+    def _runs_held(self, node: dict[str, float]) -> int:
+        """The most runs one task on `node` can hold (0: not even one)."""
+        cpu, gpu = node.get("CPU", 0.0), node.get("GPU", 0.0)
+        runs = int(cpu / self.cpus_per_run + 1e-9)
+        if self.gpus_per_run > 0:
+            runs = min(runs, int(gpu / self.gpus_per_run + 1e-9))
+        while runs > 0 and not self._holds(cpu, gpu, runs):
+            runs -= 1  # the rounding up asked for more than the node has
+        return runs
+
+    def _holds(self, cpu: float, gpu: float, runs: int) -> bool:
+        """Whether a node of `cpu` CPUs and `gpu` GPUs holds a task of `runs` runs."""
+        cpus, gpus = self.resources(runs)
+        return cpus <= cpu and gpus <= gpu
+
     def submit(self, job: Job) -> Any:
         if self.gpus_per_run > 0:
-            job = Job(job.spec, job.runs_root, {**job.overrides, "device": "cuda"}, job.record)
-        return self._remote.remote(job)
+            job = replace(job, overrides={**job.overrides, "device": "cuda"})
+        cpus, gpus = self.resources(len(job.specs))
+        return self._remote.options(num_cpus=cpus, num_gpus=gpus).remote(job)
 
     def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]:
         import ray
@@ -368,7 +426,7 @@ class RayPool:
         done, pending = ray.wait(list(handles), num_returns=1, timeout=timeout)
         return done, pending
 
-    def result(self, handle: Any) -> PartitionResult:
+    def result(self, handle: Any) -> list[PartitionResult]:
         import ray
 
         return ray.get(handle)
@@ -398,16 +456,17 @@ def run_all(
     on_done: Callable[[Job, PartitionResult], None] | None = None,
     poll_seconds: float = 1.0,
 ) -> list[PartitionResult]:
-    """Train every job on `pool`; results in the order of `jobs`.
+    """Train every job on `pool`; one result per run, in the order of `jobs` and of their runs.
 
     `on_progress(episodes_done, episodes_total)` is called about every `poll_seconds` with the
-    episodes found in the run folders; `on_done(job, result)` after each run.
+    episodes found in every run's folder; `on_done(run, result)` after each run, `run` its job
+    of one (`Job.runs`), once its job has ended.
     """
-    results: dict[int, PartitionResult] = {}
+    results: dict[int, list[PartitionResult]] = {}
     handles = {pool.submit(job): i for i, job in enumerate(jobs)}
-    total = sum(job.spec.total_episodes for job in jobs)
+    total = sum(spec.total_episodes for job in jobs for spec in job.specs)
     pending = list(handles)
-    folders = [run_folder(job.spec, job.runs_root) for job in jobs]
+    folders = [[run_folder(spec, job.runs_root) for spec in job.specs] for job in jobs]
     try:
         while pending:
             done, pending = pool.wait(pending, poll_seconds)
@@ -416,14 +475,15 @@ def run_all(
                 try:
                     results[i] = pool.result(handle)
                 except Exception as exc:
-                    raise PartitionFailed(
-                        f"{jobs[i].spec.label} failed: {type(exc).__name__}: {exc}"
-                    ) from exc
+                    raise PartitionFailed(_failure(jobs[i], exc)) from exc
                 if on_done is not None:
-                    on_done(jobs[i], results[i])
+                    for run, result in zip(jobs[i].runs(), results[i], strict=True):
+                        on_done(run, result)
             if on_progress is not None:
                 seen = sum(
-                    results[i].episodes if i in results else episodes_logged(folders[i])
+                    sum(r.episodes for r in results[i])
+                    if i in results
+                    else sum(episodes_logged(folder) for folder in folders[i])
                     for i in range(len(jobs))
                 )
                 on_progress(min(seen, total), total)
@@ -432,7 +492,15 @@ def run_all(
         if not isinstance(exc, Exception):  # a Ctrl-C (Dagster's interrupt is one too)
             pool.stop()
         raise
-    return [results[i] for i in range(len(jobs))]
+    return [result for i in range(len(jobs)) for result in results[i]]
+
+
+def _failure(job: Job, exc: Exception) -> str:
+    """What `PartitionFailed` says: the runs that failed, each with its error."""
+    if isinstance(exc, RunsFailed):  # runs of a population, named by the worker
+        return str(exc)
+    labels = " + ".join(spec.label for spec in job.specs)
+    return f"{labels} failed: {type(exc).__name__}: {exc}"
 
 
 def make_pool(

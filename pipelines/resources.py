@@ -6,6 +6,11 @@ first use, so building the definitions, e.g. for the Dagster UI, starts no proce
 cluster), or the shipped data folder read in place of training (`curious reproduce --from-data`,
 `pipelines.from_data`).
 
+It sends an experiment's runs to the pool in populations (`curious reproduce --population`,
+`Reproduction.population_size`): the runs still to train, in the budget's order, cut into groups
+that each train in one process, their physics stepped as one batch; a group of one is a run
+alone, the default on a CPU.
+
 Output folder layout (`OutputLayout`):
 
     OUT/reproduce.json          which budget made this folder (checked on every later call)
@@ -23,6 +28,7 @@ Output folder layout (`OutputLayout`):
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -30,6 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from curious.config import ConfigError
 from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
 from curious.reproduction.shipped_folder import ShippedFolder
 from pipelines.executors import Job, Pool, run_all
@@ -154,6 +161,8 @@ class Reproduction:
     data: ShippedData | None = None
     """The shipped data folder read instead of training (`curious reproduce --from-data`); its
     path is the layout's runs root."""
+    population: int | None = None
+    """Runs trained together in one process (`population_size`); None: the default rule."""
     _pool: Pool | None = None
 
     @property
@@ -178,17 +187,61 @@ class Reproduction:
             return self.data.state(spec)
         return folder_state(spec, self.layout.runs_root, self.overrides)
 
+    def copies_in_processes(self, specs: Sequence[RunSpec]) -> bool:
+        """Whether the runs of `specs` step their copies in worker processes (`env_processes`
+        other than 1), which a population cannot: it steps them in its own process."""
+        return any(spec.config(self.overrides).processes > 1 for spec in specs)
+
+    def population_size(self, specs: Sequence[RunSpec]) -> int:
+        """Runs per population for the runs of `specs`, an experiment's runs still to train:
+        `population` where given; else 1, unless the networks train on a GPU (`device=cuda`,
+        or Ray tasks with GPUs) and the runs step their copies in their own process
+        (`env_processes=1`, the budgets' default): then as many populations as the pool trains
+        runs at once (`Pool.slots`), each of ceil(runs / slots) runs, so that every run of the
+        experiment trains at once and no worker waits; on Ray, no more than one node holds."""
+        if self.population is not None:
+            return self.population
+        pool = self.pool
+        on_gpu = self.overrides.get("device") == "cuda" or pool.gpus_per_run > 0
+        if not on_gpu or self.copies_in_processes(specs):
+            return 1
+        size = math.ceil(len(specs) / pool.slots)
+        return max(1, min(size, pool.largest_group or size))
+
+    def check_population(self, specs: Sequence[RunSpec]) -> None:
+        """A `ConfigError` where the given `population` cannot train the runs of `specs`: fewer
+        than 1, copies stepped in worker processes, or more runs than one Ray node holds."""
+        size = self.population
+        if size is None:
+            return
+        if size < 1:
+            raise ConfigError(f"--population must be >= 1, got {size}")
+        if size > 1 and self.copies_in_processes(specs):
+            raise ConfigError(
+                f"--population {size} steps its runs' copies in its own process, but "
+                "env_processes asks for worker processes: leave out --set env_processes, or "
+                "train one run per process (--population 1)"
+            )
+        largest = self.pool.largest_group
+        if largest is not None and size > largest:
+            raise ConfigError(
+                f"--population {size} asks for {size} runs' CPUs and GPUs in one Ray task, but "
+                f"no node of the cluster holds more than {largest}: lower --population"
+            )
+
     def train(self, experiment: Experiment, specs: Sequence[RunSpec]) -> list[PartitionResult]:
         """Bring every run of `specs` to its budget on the pool, with a progress bar.
 
-        Runs whose folders already hold the finished run are not sent to the pool at all; from
-        shipped data nothing is trained, and a run that is not there finished is an error.
+        Runs whose folders already hold the finished run are not sent to the pool at all; the
+        others go in populations of `population_size`, in the order of `specs` (the budget's,
+        so that a reproduction stopped part-way holds comparable seeds). From shipped data
+        nothing is trained, and a run that is not there finished is an error.
         """
         if self.data is not None:
             return self._read_shipped(experiment, specs)
         root = self.layout.runs_root
         results: dict[str, PartitionResult] = {}
-        todo: list[Job] = []
+        todo: list[RunSpec] = []
         for spec in specs:
             if folder_state(spec, root, self.overrides) == FINISHED:
                 folder = run_folder(spec, root)
@@ -196,11 +249,16 @@ class Reproduction:
                     spec.partition_key, str(folder), FINISHED, episodes_logged(folder), 0.0, False
                 )
             else:
-                todo.append(Job(spec, str(root), dict(self.overrides), self.record))
+                todo.append(spec)
         if results:
             self.say(f"  {experiment.name}: {len(results)} run(s) already finished, not retrained")
         if todo:
-            results.update(self._train(experiment, todo))
+            size = self.population_size(todo)
+            jobs = [
+                Job(tuple(todo[i : i + size]), str(root), dict(self.overrides), self.record)
+                for i in range(0, len(todo), size)
+            ]
+            results.update(self._train(experiment, jobs))
         ordered = [results[s.partition_key] for s in specs]
         self.results.extend(ordered)
         return ordered
@@ -235,10 +293,13 @@ class Reproduction:
     def _train(self, experiment: Experiment, jobs: list[Job]) -> dict[str, PartitionResult]:
         from tqdm.auto import tqdm
 
+        runs = sum(len(job.specs) for job in jobs)
+        plural = "s" if len(jobs) > 1 else ""
+        grouped = f" in {len(jobs)} population{plural}" if runs > len(jobs) else ""
         bar = tqdm(
-            total=sum(j.spec.total_episodes for j in jobs),
+            total=sum(spec.total_episodes for job in jobs for spec in job.specs),
             unit="ep",
-            desc=f"{experiment.name} ({len(jobs)} runs)",
+            desc=f"{experiment.name} ({runs} runs{grouped})",
             disable=not self.progress,
             dynamic_ncols=True,
             file=sys.stderr,
@@ -262,7 +323,7 @@ class Reproduction:
         finally:
             bar.close()
         self.say(
-            f"  {experiment.name}: {len(results)} run(s) trained in "
+            f"  {experiment.name}: {len(results)} run(s){grouped} trained in "
             f"{time.perf_counter() - tic:.0f} s on {self.pool.description}"
         )
         return {r.partition_key: r for r in results}

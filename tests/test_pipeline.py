@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+from pipeline_pools import InterruptingPool, OrderPool
 
 from curious.cli import main as curious_cli
 from curious.reproduction.experiments import get_budget
@@ -27,7 +28,7 @@ from curious.watching.recording.reader import summarize
 from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
 from pipelines.reproduce import ReproduceError, check_output_folder, reproduce
-from pipelines.training import FINISHED, folder_state, run_folder, run_partition
+from pipelines.training import FINISHED, folder_state, run_folder
 
 FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "distractors", "forgetting")
 SMOKE = get_budget("smoke")
@@ -407,55 +408,6 @@ def test_spontaneous_drops_are_reported_per_run_with_their_response(tmp_path):
 # ------------------------------------------------------------------------------ interruption
 
 
-class InterruptingPool:
-    """Trains in this process; the second run is stopped after one cycle, as a kill would."""
-
-    description = "this process (interrupting the second run)"
-
-    def __init__(self) -> None:
-        self.submitted = 0
-
-    def submit(self, job):
-        self.submitted += 1
-        if self.submitted == 1:
-            return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
-        run_partition(
-            job.spec, job.runs_root, job.overrides, record=job.record, stop_after_cycles=1
-        )
-        raise KeyboardInterrupt  # the run is gone between two checkpoints
-
-    def wait(self, handles, timeout):
-        return list(handles), []
-
-    def result(self, handle):
-        return handle
-
-    def cancel(self, handles):
-        pass
-
-    def close(self):
-        pass
-
-
-class OrderPool(InterruptingPool):
-    """Records the runs in the order they are sent, then stops before any trains."""
-
-    description = "this process (recording the order)"
-
-    def __init__(self) -> None:
-        self.sent: list[str] = []
-
-    def submit(self, job):
-        self.sent.append(str(job.spec.relative_path))
-        return len(self.sent)
-
-    def wait(self, handles, timeout):
-        raise KeyboardInterrupt
-
-    def stop(self):
-        pass
-
-
 def test_runs_are_trained_seed_by_seed_so_a_stopped_campaign_compares_conditions(tmp_path):
     pool = OrderPool()
     with pytest.raises(KeyboardInterrupt):
@@ -463,7 +415,7 @@ def test_runs_are_trained_seed_by_seed_so_a_stopped_campaign_compares_conditions
             "smoke", ["main"], out=tmp_path / "out", make_pool=lambda: pool, say=lambda _: None
         )
     assert pool.sent == [
-        f"main/{condition}/seed-{seed}"
+        [f"main/{condition}/seed-{seed}"]
         for seed in (0, 1)
         for condition in ("curious", "mg-te", "her")
     ]

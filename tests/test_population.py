@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import json
+import pickle
+import shutil
 import threading
 import time
 
@@ -10,15 +13,34 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 import torch
+from pipeline_pools import InterruptingPool, OrderPool
 
 from curious.agent.update_lockstep import UpdateLockstep, stack_alike
+from curious.cli import main
 from curious.config import ConfigError, resolve
 from curious.envs.goal_env import make_suite_envs
 from curious.envs.lockstep import Lockstep, OneByOne
 from curious.envs.threaded import ThreadedPhysics
+from curious.reproduction.experiments import get_budget
 from curious.runs import checkpoint
 from curious.runs.driver import train
+from curious.runs.folder_lock import folder_lock
 from curious.runs.population import PopulationError, train_population
+from curious.watching.recording import RecorderSettings
+from curious.watching.recording.reader import read_points
+from curious.watching.recording.rollout_capture import recorder_factory
+from pipelines.executors import Job, LocalPool, PartitionFailed, run_all
+from pipelines.reproduce import reproduce
+from pipelines.resources import OutputLayout, Reproduction
+from pipelines.training import (
+    FINISHED,
+    PartitionResult,
+    RunsFailed,
+    folder_state,
+    run_folder,
+    run_group,
+    run_partition,
+)
 
 SMALL = dict(total_episodes=24, progress=False)
 MEMBERS = [("curious", 0), ("mg-te", 1), ("her", 2)]
@@ -187,8 +209,6 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     """`curious train --seeds 0-1`: one run folder per seed under --out, a line per run; a bad
     seed list is one line and exit status 2, nothing written. `--stack-updates` trains the same
     runs, and needs `--seeds`."""
-    from curious.cli import main
-
     out = tmp_path / "curious"
     argv = ["train", "--preset", "smoke", "--out", str(out), "--no-record", "--no-progress"]
     assert main([*argv, "--seeds", "0-1"]) == 0
@@ -211,10 +231,6 @@ def test_a_population_records_each_run_as_alone(tmp_path):
     """Recorded in a population (their copies stepped in MuJoCo's threads, the 3-D rollouts
     read from the copies' own simulators), two runs of different variants write recordings
     that hold the same points as each run recorded alone."""
-    from curious.watching.recording import RecorderSettings
-    from curious.watching.recording.reader import read_points
-    from curious.watching.recording.rollout_capture import recorder_factory
-
     configs = [
         resolve("smoke", "m-uvfa", 3, SMALL),
         resolve("smoke", "curious", 0, {**SMALL, "variant": "distractors_4"}),
@@ -230,3 +246,181 @@ def test_a_population_records_each_run_as_alone(tmp_path):
         points_b, static_b = read_points(b / "recording.rrd")
         assert any(entity.startswith("scene/") for entity, _ in points_a)  # 3-D rollouts
         assert points_a == points_b and static_a == static_b
+
+
+# ------------------------------------------------------------------ populations in `reproduce`
+
+
+@pytest.mark.slow
+def test_reproduce_in_populations_goes_on_where_it_stopped_and_trains_each_run_as_alone(
+    smoke, tmp_path, capsys
+):
+    """Main's six smoke runs three to a population, stopped part-way (the first population
+    finished, a run of the second partial, two not started), then gone on with `curious
+    reproduce --population 2` in worker processes: the finished runs are left as they are, the
+    partial run resumes in a population beside a new one, and every run folder holds what the
+    same run holds trained alone, one run per process (the smoke reproduction's)."""
+    out, pool = tmp_path / "out", InterruptingPool()
+    with pytest.raises(KeyboardInterrupt):
+        reproduce(
+            "smoke", ["main"], out=out, make_pool=lambda: pool, record=False, progress=False,
+            say=lambda _: None, population=3,
+        )  # fmt: skip
+    runs = get_budget("smoke").experiments["main"].runs()
+    root = out / "runs"
+    assert [len(job.specs) for job in pool.jobs] == [3, 3]
+    assert [folder_state(s, root) for s in runs] == 3 * ["finished"] + ["partial", "new", "new"]
+    kept = {p: p.stat().st_mtime_ns for s in runs[:3] for p in run_folder(s, root).rglob("*")}
+
+    argv = ["reproduce", "--budget", "smoke", "--experiments", "main", "--out", str(out)]
+    assert main([*argv, "--population", "2", "--no-record", "--no-progress"]) == 0
+    err = capsys.readouterr().err
+    assert "main: 3 run(s) already finished, not retrained" in err
+    assert "main: curious seed 1: resumed, 24 episodes" in err
+    assert "main: her seed 1: 24 episodes" in err  # every run of every population is reported
+    assert "main: 3 run(s) in 2 populations trained" in err
+    assert {p: p.stat().st_mtime_ns for p in kept} == kept
+    resumed = json.loads((run_folder(runs[3], root) / "config.json").read_text())["resumed"]
+    assert len(resumed) == 1  # went on from its checkpoint
+    alone = [run_folder(s, smoke.out / "runs") for s in runs]
+    _assert_same_runs(alone, [run_folder(s, root) for s in runs])
+
+
+class ListingPool:
+    """Trains nothing: ends one job a poll after the first, each run with its budget's episodes;
+    a job naming `fails` fails as a worker's population with that run failed would."""
+
+    description = "this process (training nothing)"
+    slots, largest_group, gpus_per_run = 1, None, 0.0
+
+    def __init__(self, fails: str | None = None) -> None:
+        self.jobs: list = []
+        self.fails = fails
+        self.polls = 0
+
+    def submit(self, job):
+        self.jobs.append(job)
+        return len(self.jobs) - 1
+
+    def wait(self, handles, timeout):
+        self.polls += 1
+        if self.polls == 1:
+            return [], list(handles)  # the first poll: every job in flight
+        return list(handles[:1]), list(handles[1:])
+
+    def result(self, handle):
+        job = self.jobs[handle]
+        if any(s.label == self.fails for s in job.specs):
+            raise RunsFailed(f"{self.fails} failed: OSError: simulator lost")
+        return tuple(
+            PartitionResult(s.partition_key, str(run_folder(s, job.runs_root)), "new", 24, 1, True)
+            for s in job.specs
+        )
+
+    def cancel(self, handles):
+        pass
+
+    def close(self):
+        pass
+
+
+def test_run_all_reads_and_reports_every_run_of_every_population(smoke):
+    """Progress reads every run folder of every job in flight; each run is handed to `on_done`
+    as a job of its own, and the results come one per run, in order. A population whose run
+    failed raises `PartitionFailed` naming that run."""
+    runs = get_budget("smoke").experiments["main"].runs()
+    root = str(smoke.out / "runs")
+    jobs = [Job(tuple(runs[:2]), root), Job(tuple(runs[2:5]), root), Job(runs[5], root)]
+    seen, done = [], []
+    results = run_all(
+        ListingPool(), jobs, lambda n, total: seen.append((n, total)),
+        lambda job, result: done.append((job.spec.label, result.partition_key)),
+    )  # fmt: skip
+    assert seen[0] == (6 * 24, 6 * 24)  # read from the six folders before any job ended
+    assert done == [(s.label, s.partition_key) for s in runs]
+    assert [r.partition_key for r in results] == [s.partition_key for s in runs]
+    with pytest.raises(PartitionFailed, match=r"^main: her seed 0 failed: OSError: simulator lost"):
+        run_all(ListingPool(fails="main: her seed 0"), jobs)
+
+
+def test_a_population_of_a_reproduction_goes_on_with_each_run_as_its_folder_says(smoke, tmp_path):
+    """One population over a finished run, a partial one and a new one: the finished run is
+    left as it is, the partial one resumes and the new one starts, each recorded as alone;
+    every run ends as the same run trained alone, one run per process (the smoke
+    reproduction's)."""
+    finished, partial, new = get_budget("smoke").experiments["main"].runs()[:3]
+    shutil.copytree(run_folder(finished, smoke.out / "runs"), run_folder(finished, tmp_path))
+    run_partition(partial, tmp_path, stop_after_cycles=1)
+    kept = {p: p.stat().st_mtime_ns for p in run_folder(finished, tmp_path).rglob("*")}
+    results = run_group((finished, partial, new), tmp_path)
+    assert [(r.state_before, r.trained, r.episodes) for r in results] == [
+        ("finished", False, 24), ("partial", True, 24), ("new", True, 24),
+    ]  # fmt: skip
+    assert {p: p.stat().st_mtime_ns for p in kept} == kept
+    specs = (finished, partial, new)
+    alone = [run_folder(s, smoke.out / "runs") for s in specs]
+    _assert_same_runs(alone, [run_folder(s, tmp_path) for s in specs])
+    recorded = read_points(run_folder(new, tmp_path) / "recording.rrd")
+    assert recorded == read_points(alone[2] / "recording.rrd")
+    assert (run_folder(partial, tmp_path) / "recording.rrd").is_file()
+
+
+def test_a_failing_run_of_a_population_is_named_and_the_others_train(tmp_path):
+    """A run of a population that cannot train (another process trains its folder) fails with
+    its name, in an error that crosses from a worker process as it is; the population's other
+    run trains to its end."""
+    good, busy = get_budget("smoke").experiments["sensor_failure"].runs()
+    with folder_lock(run_folder(busy, tmp_path)):  # as another process training it holds it
+        with pytest.raises(RunsFailed, match=rf"^{busy.label} failed: RunFolderBusy") as caught:
+            run_group((good, busy), tmp_path, record=False)
+    assert str(pickle.loads(pickle.dumps(caught.value))) == str(caught.value)
+    assert folder_state(good, tmp_path) == FINISHED
+
+
+def test_reproduce_sends_the_runs_in_populations_in_the_budgets_order(tmp_path):
+    """`population=4` over main's six runs: two jobs, seed by seed, the second the rest."""
+    pool = OrderPool()
+    with pytest.raises(KeyboardInterrupt):
+        reproduce(
+            "smoke", ["main"], out=tmp_path / "out", make_pool=lambda: pool, say=lambda _: None,
+            population=4,
+        )  # fmt: skip
+    order = [f"main/{c}/seed-{s}" for s in (0, 1) for c in ("curious", "mg-te", "her")]
+    assert pool.sent == [order[:4], order[4:]]
+
+
+def test_the_default_population_fills_the_workers_where_the_networks_train_on_a_gpu(tmp_path):
+    """One run a process on a CPU and where the runs' copies step in worker processes; with a
+    GPU, an experiment's runs cut into one population per worker (on Ray, per run the cluster
+    holds, no bigger than a node holds); a population given is kept."""
+    budget = get_budget("smoke")
+    runs = budget.experiments["main"].runs()  # 6
+
+    def size(pool, population=None, **overrides) -> int:
+        layout = OutputLayout.at(tmp_path)
+        repro = Reproduction(budget, layout, lambda: pool, overrides, population=population)
+        return repro.population_size(runs)
+
+    ray_like = ListingPool()
+    ray_like.slots, ray_like.largest_group, ray_like.gpus_per_run = 2, 2, 0.5
+    assert size(LocalPool(4)) == 1
+    assert size(LocalPool(4), device="cuda") == 2
+    assert size(LocalPool(8), device="cuda") == 1
+    assert size(LocalPool(4), device="cuda", env_processes=2) == 1
+    assert size(ray_like) == 2  # ceil(6 / 2) = 3, but a node holds 2
+    assert size(LocalPool(4), population=5) == 5
+
+
+def test_reproduce_refuses_a_population_it_cannot_train(tmp_path, capsys):
+    """A population below 1, or beside copies stepped in worker processes, is one line and
+    exit status 2, nothing written; --from-data trains nothing, so it takes none."""
+    out = tmp_path / "out"
+    argv = ["reproduce", "--budget", "smoke", "--out", str(out), "--no-progress"]
+    assert main([*argv, "--population", "0"]) == 2
+    assert "--population must be >= 1, got 0" in capsys.readouterr().err
+    assert main([*argv, "--population", "2", "--set", "env_processes=2"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "leave out --set env_processes" in err
+    assert not out.exists()
+    assert main(["reproduce", "--from-data", str(out), "--population", "2"]) == 2
+    assert "--from-data trains nothing, so --population" in capsys.readouterr().err

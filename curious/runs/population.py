@@ -74,7 +74,7 @@ def check_members(configs: Sequence[Config], outs: Sequence[str | Path]) -> list
 def train_population(
     configs: Sequence[Config],
     outs: Sequence[str | Path],
-    resume: bool = False,
+    resume: bool | Sequence[bool] = False,
     restart: bool = False,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None = None,
@@ -85,7 +85,9 @@ def train_population(
 ) -> list[Trainer]:
     """Train run `configs[i]` in folder `outs[i]`, all at once in this process (the module
     docstring); `resume`, `restart`, `make_recorder`, `make_envs` and `stop_after_cycles` as
-    for every run of `curious.runs.driver.train`. The suite's copies of each variant step in
+    for every run of `curious.runs.driver.train`, `resume` one flag for every run or one per run
+    (a population may go on with some runs and start others). `make_recorder` tells the runs
+    apart by the folder it is handed. The suite's copies of each variant step in
     one call on `physics_threads` native threads (default: one per core;
     `curious.envs.threaded.ThreadedPhysics`), or one after the other with 0 (as with
     `make_envs`, whose copies step themselves). `updates`: the lockstep the runs' learners step
@@ -94,8 +96,11 @@ def train_population(
     default): each run's learners step alone. Every run folder and the memory of all the runs
     together are checked before any run starts. Returns the runs' trainers, in order."""
     paths = check_members(configs, outs)
-    for config, path in zip(configs, paths, strict=True):  # every folder, before any run starts
-        RunFolder.prepare(path, config, resume, restart)
+    resumes = [resume] * len(configs) if isinstance(resume, bool) else list(resume)
+    if len(resumes) != len(configs):
+        raise ConfigError(f"{len(configs)} configs but {len(resumes)} resume flags")
+    for config, path, goes_on in zip(configs, paths, resumes, strict=True):  # before any starts
+        RunFolder.prepare(path, config, goes_on, restart)
     if make_envs is None:  # the suite's copies (with make_envs, each trainer checks its own)
         _check_memory(configs)
     stop = stop if stop is not None else threading.Event()
@@ -103,7 +108,7 @@ def train_population(
     locksteps = _locksteps(configs, copies, physics_threads)
     try:
         return _train_all(
-            configs, paths, copies, locksteps, resume, restart, make_recorder, make_envs, stop,
+            configs, paths, copies, locksteps, resumes, restart, make_recorder, make_envs, stop,
             stop_after_cycles, updates,
         )  # fmt: skip
     finally:
@@ -153,7 +158,7 @@ def _train_all(
     paths: Sequence[Path],
     copies: Sequence[RunCopies | None],
     locksteps: dict[str, Lockstep],
-    resume: bool,
+    resumes: Sequence[bool],
     restart: bool,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
@@ -166,7 +171,7 @@ def _train_all(
     def run(i: int) -> Trainer:
         seat = Seat(locksteps[configs[i].variant], i, stop, copies[i], updates)
         return train(
-            configs[i], paths[i], resume=resume, restart=restart, make_envs=make_envs,
+            configs[i], paths[i], resume=resumes[i], restart=restart, make_envs=make_envs,
             make_recorder=make_recorder, stop_after_cycles=stop_after_cycles, seat=seat,
         )  # fmt: skip
 
