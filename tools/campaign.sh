@@ -91,8 +91,10 @@ main() {
             fi
             mkdir -p "$runs"
             nohup nice -n 5 bash "$repo/tools/campaign.sh" --queue >>"$runs/laptop-main.log" 2>&1 &
-            echo "campaign.sh: training (pid $!) phase 1 from ${commit} in $worktree, then phase 2" \
-                 "from ${c5_commit} in $c5_worktree; runs in $runs/laptop, log $runs/laptop-main.log"
+            local then="then phase 2 from ${c5_commit} in $c5_worktree"
+            c5_set "$c5_commit" || then="then phase 2 if C5_COMMIT is set when it ends"
+            echo "campaign.sh: training (pid $!) phase 1 from ${commit} in $worktree, $then;" \
+                 "runs in $runs/laptop, log $runs/laptop-main.log"
             ;;
     esac
 }
