@@ -3,6 +3,8 @@
 The main comparison's numbers (final success, Welch tests) come from the test rollouts, as Fig.
 2a's; the distractors' from the competence; the sensory failure's from `analysis.recovery`, which
 reports a recovery only where the failure started and the perturbed module was learned before it;
+the sensory failure on a mastered module's from the test rollouts first (`analysis.
+recovery_by_tests`, with the Welch test of `analysis.compare_recoveries`), the competence second;
 spontaneous forgetting (drops of a mastered module, `analysis.mastery_drops`) is read in the main
 comparison and the distractors, whose runs nothing perturbs.
 

@@ -11,6 +11,13 @@ competence just before the onset at least the run's own ``sensor_failure_compete
 `LEARNED_COMPETENCE`. Other runs get no number, only a sentence saying why (never started, or
 nothing to forget). Competence is the ``competence/<module>`` column of ``metrics.parquet``, as
 in `curious.analysis.statistics`.
+
+The study on a mastered module (`sensor_failure_mastered`) is read by rules fixed before its runs
+(docs/results.md, C5): its primary measure, `recovery_by_tests`, reads the module's test success
+(``tests.parquet``, modules drawn uniformly, so both conditions are measured at the same rate)
+pooled over 5 epochs, back at 90 % of its level over the 5 epochs before the onset;
+`compare_recoveries` is the one-tailed Welch test on the episodes to recover. `recovery` is its
+secondary measure.
 """
 
 from __future__ import annotations
