@@ -650,7 +650,7 @@ def _primary_cell(t: object) -> str:
     if t.status == "no_onset":
         return "no onset"
     if t.status == "no_level":
-        return "no level before (the failure came too early)"
+        return "no level before"
     if bool(t.recovered):
         return f"{_episodes(t.recovery_episodes)} episodes"
     return f"not by its end ({_episodes(t.episodes_left)} episodes after the onset)"

@@ -23,7 +23,8 @@
 # script starts the new one once it has (or once it is stopped; the runs in flight resume from
 # their checkpoints). Settings (environment): CAMPAIGN_COMMIT, CAMPAIGN_WORKTREE,
 # CAMPAIGN_C5_COMMIT (overrides C5_COMMIT), CAMPAIGN_C5_WORKTREE, CAMPAIGN_RUNS.
-# `--phase2` (the background queue's second step) runs phase 2 alone, in the foreground.
+# The background job is `campaign.sh --queue` (phase 1, then `campaign.sh --phase2`, which runs
+# phase 2 alone in the foreground).
 set -euo pipefail
 
 # The commit `sensor_failure_mastered` trains from: set it once that experiment is merged.
