@@ -14,7 +14,8 @@ For every experiment E (`curious.reproduction.experiments`), in group E:
 * one asset per figure, drawn by `curious.analysis` from those tables (Fig. 2a from the test
   rollouts, as the paper's; the others from the metrics):
   `main/fig2a`, `main/fig2b`, `main/fig2c`, `main/table1`, `distractors/distractors`,
-  `sensor_failure/forgetting`.
+  `sensor_failure/forgetting`, `sensor_failure_mastered/forgetting_mastered` (the same figure
+  of its own runs, with their test success above: the primary measure of that study).
 
 And `report` (group `report`): `report.md` from the figures and statistics that exist.
 """
@@ -40,7 +41,13 @@ FIGURES: dict[str, tuple[str, ...]] = {
     "main": ("fig2a", "fig2b", "fig2c", "table1"),
     "distractors": ("distractors",),
     "sensor_failure": ("forgetting",),
+    "sensor_failure_mastered": ("forgetting_mastered",),
 }
+
+FAILURE_FIGURES: dict[str, bool] = {"forgetting": False, "forgetting_mastered": True}
+"""The sensory-failure figures (`analysis.forgetting`, one per experiment of the variant), and
+whether each draws the runs' test success: the primary measure of the study on a mastered module
+(docs/results.md, C5)."""
 
 
 def _path(repro: Reproduction, path: Path) -> dg.MetadataValue:
@@ -244,9 +251,17 @@ def _draw(
             if extra_runs:  # the settings shipped with too few runs for the statistics
                 table = analysis.load_runs(run_folders(repro, experiment) + extra_runs)
             fig = analysis.distractors(table, note=note, out_dir=out_dir)
-        elif name == "forgetting":
-            fig, per_run = analysis.forgetting(table, note=note, out_dir=out_dir)
-            csv = f"{out_dir}/forgetting.csv"
+        elif name in FAILURE_FIGURES:
+            tests = None
+            if FAILURE_FIGURES[name]:
+                try:
+                    tests = load_tests(repro, experiment)
+                except analysis.AnalysisError:  # runs without test rollouts: no test panel
+                    tests = None
+            fig, per_run = analysis.forgetting(
+                table, note=note, out_dir=out_dir, name=name, tests=tests
+            )
+            csv = f"{out_dir}/{name}.csv"
             per_run.drop(columns=["run"]).to_csv(csv, index=False, float_format="%.6g")
             extra["recovery_csv"] = _path(repro, Path(csv))
         else:  # pragma: no cover - FIGURES and this function are kept in step

@@ -3,6 +3,8 @@
 The main comparison's numbers (final success, Welch tests) come from the test rollouts, as Fig.
 2a's; the distractors' from the competence; the sensory failure's from `analysis.recovery`, which
 reports a recovery only where the failure started and the perturbed module was learned before it;
+the sensory failure on a mastered module's from the test rollouts first (`analysis.
+recovery_by_tests`, with the Welch test of `analysis.compare_recoveries`), the competence second;
 spontaneous forgetting (drops of a mastered module, `analysis.mastery_drops`) is read in the main
 comparison and the distractors, whose runs nothing perturbs.
 
@@ -41,6 +43,8 @@ FIGURE_TEXT: dict[str, str] = {
     "runs against the number of distracting modules.",
     "forgetting": "Competence and LP of the perturbed module around the sensory failure, one "
     "line per run.",
+    "forgetting_mastered": "Test success, competence and LP of the perturbed module around the "
+    "sensory failure, one line per run.",
 }
 ORDER_LEVEL = 0.5
 """The competence at which the order of learning counts a module as learned."""
@@ -542,11 +546,16 @@ def _recovery_rows(summary: pd.DataFrame) -> list[tuple[str, ...]]:
     ]
 
 
-def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
-    lines = [*_figure(repro, "forgetting")]
-    csv = repro.layout.figures / "forgetting.csv"
+def _failure_runs(repro: Reproduction, e: Experiment) -> tuple[list[str], pd.DataFrame | None]:
+    """A sensory-failure experiment's figure and the opening of its section, with the per-run
+    recovery of competence its figure asset wrote beside it (None before it is drawn)."""
+    from pipelines.assets import FIGURES
+
+    name = FIGURES[e.name][0]
+    lines = [*_figure(repro, name)]
+    csv = repro.layout.figures / f"{name}.csv"
     if not csv.is_file():
-        return lines
+        return lines, None
     per_run = pd.read_csv(csv)
     module = str(per_run["module"].iat[0])
     lines += [
@@ -558,6 +567,13 @@ def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list
         "say why there is nothing to measure.",
         "",
     ]
+    return lines, per_run
+
+
+def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
+    lines, per_run = _failure_runs(repro, e)
+    if per_run is None:
+        return lines
     rows = [
         (
             condition_label(r.condition),
@@ -612,7 +628,157 @@ def _sensor_failure(repro: Reproduction, e: Experiment, tables: _Tables) -> list
     return lines + _table(header, measured)
 
 
-SECTIONS = {"main": _main, "distractors": _distractors, "sensor_failure": _sensor_failure}
+RECOVERED_FRACTION = 0.9
+"""The share of its level before at which a run's test success counts as back (docs/results.md,
+C5's fixed rules)."""
+
+PRIMARY_RULE = (
+    "Recovery by test success, the primary measure (rules fixed in docs/results.md before the "
+    "runs; `curious.analysis.recovery_by_tests`): `{module}`'s test success pooled over {window} "
+    "epochs ({span:,} episodes); its level before is the rate over the {window} epochs tested "
+    "before the onset; a run has recovered at the first epoch whose pooled epochs were all "
+    "tested after the onset and whose rate is back at {percent:g} % of that level or above, "
+    "the episodes to recover counting from the onset. The competence's return to 90 % of its "
+    "pre-failure mean (`curious.analysis.recovery`, as in the other sensory-failure study) is "
+    "the secondary measure. LP, p_LP and the share of training episodes that practised the "
+    "module are means over the p/10 episodes before a failure at episode p and as many from it."
+)
+
+
+def _primary_cell(t: object) -> str:
+    """A run's recovery of test success, or why it has no number."""
+    if t.status == "no_onset":
+        return "no onset"
+    if t.status == "no_level":
+        return "no level before"
+    if bool(t.recovered):
+        return f"{_episodes(t.recovery_episodes)} episodes"
+    return f"not by its end ({_episodes(t.episodes_left)} episodes after the onset)"
+
+
+def _secondary_cell(r: object) -> str:
+    """A run's recovery of competence, or why it has no number."""
+    if r.status != "measured":
+        return "–"
+    if not bool(r.dropped):
+        return "never below 90 %"
+    if bool(r.recovered):
+        return f"{_episodes(r.recovery_episodes)} episodes"
+    return "not by its end"
+
+
+def _share(before: float, after: float) -> str:
+    if not (math.isfinite(before) and math.isfinite(after)):
+        return "–"
+    return f"{before:.0%} → {after:.0%}"
+
+
+def _primary_summary(e: Experiment, by_tests: pd.DataFrame) -> list[str]:
+    """Per condition, the runs recovered by test success and their episodes to recover."""
+    parts = []
+    for c in e.conditions:
+        mine = by_tests[by_tests["condition"] == c]
+        back = mine.loc[mine["recovered"].astype(bool), "recovery_episodes"]
+        text = f"{condition_label(c)} {len(back)} of {len(mine)} runs"
+        if len(back) == 1:
+            text += f", after {back.iat[0]:,.0f} episodes"
+        elif len(back) > 1:
+            text += f", after {back.mean():,.0f} ± {back.std(ddof=1):,.0f} episodes (mean ± std)"
+        parts.append(text)
+    return [f"Recovered by test success: {'; '.join(parts)}.", ""]
+
+
+def _recovery_welch(e: Experiment, by_tests: pd.DataFrame, faster: str, slower: str) -> list[str]:
+    """The one-tailed Welch test on the episodes to recover, and the runs given no number."""
+    test = analysis.compare_recoveries(by_tests, faster, slower)
+    head = (
+        f"One-tailed Welch's t-test on the episodes to recover by test success, "
+        f"{condition_label(faster)} faster than {condition_label(slower)}, alpha = "
+        f"{test['alpha']:g}: "
+    )
+    if math.isfinite(test["p"]):
+        verdict = "significant" if test["significant"] else "not significant"
+        head += (
+            f"t = {_fmt(test['t'])}, p = {_p(test['p'])}, {verdict} ({test['n_faster']} and "
+            f"{test['n_slower']} recovered runs)."
+        )
+    else:
+        head += (
+            f"not tested ({test['n_faster']} and {test['n_slower']} recovered runs: fewer than "
+            "two a side, or no variance)."
+        )
+    lines = [head, ""]
+    unrecovered = _in_order(test["unrecovered"], e)
+    if len(unrecovered):
+        lines += ["Runs without a recovery by test success, given no number:", ""]
+        lines += [
+            f"- {condition_label(t.condition)} seed {t.seed}: {t.note}."
+            for t in unrecovered.itertuples()
+        ]
+        lines.append("")
+    return lines
+
+
+def _sensor_failure_mastered(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
+    """The study on a mastered module: per run, its recovery by test success (primary) and by
+    competence (secondary), with the refocus, and the Welch test on the episodes to recover."""
+    lines, per_run = _failure_runs(repro, e)
+    if per_run is None:
+        return lines
+    if tables.tests is None:
+        return [*lines, NO_TESTS, ""]
+    module = str(per_run["module"].iat[0])
+    onsets = analysis.failure_onsets(tables.metrics)["onset"]
+    by_tests = analysis.recovery_by_tests(tables.tests, onsets, module, RECOVERED_FRACTION)
+    window = int(by_tests["window"].max())
+    span = window * int(by_tests["epoch_episodes"].max())
+    rule = PRIMARY_RULE.format(
+        module=module, window=window, span=span, percent=RECOVERED_FRACTION * 100
+    )
+    lines += [rule, ""]
+    secondary = per_run.set_index(["condition", "seed"])
+    rows = []
+    for t in _in_order(by_tests, e).itertuples():
+        r = next(secondary.loc[[(t.condition, t.seed)]].itertuples())
+        rows.append(
+            (
+                condition_label(t.condition),
+                t.seed,
+                "never" if pd.isna(t.onset) else f"{int(t.onset):,}",
+                "–" if pd.isna(t.level_before) else f"{t.level_before:.2f} ({t.n_before})",
+                "–" if pd.isna(t.trough) else f"{t.trough:.2f} at {int(t.trough_episode):,}",
+                f"{_fmt(r.lp_before)} → {_fmt(r.lp_after)}",
+                f"{_fmt(r.p_lp_before)} → {_fmt(r.p_lp_after)}",
+                _share(r.practice_before, r.practice_after),
+                _primary_cell(t),
+                _secondary_cell(r),
+            )
+        )
+    header = (
+        "condition",
+        "seed",
+        "failure from episode",
+        "test success before (rollouts)",
+        "test success trough",
+        "LP before → after",
+        "p_LP before → after",
+        "practised before → after",
+        "recovery by test success (primary)",
+        "recovery by competence (secondary)",
+    )
+    lines += _table(header, rows)
+    lines += _primary_summary(e, by_tests)
+    if e.compare is not None:
+        lines += _recovery_welch(e, by_tests, *e.compare)
+    return lines
+
+
+SECTIONS = {
+    "main": _main,
+    "distractors": _distractors,
+    "sensor_failure": _sensor_failure,
+    "sensor_failure_mastered": _sensor_failure_mastered,
+}
 
 
 def _versions(table: pd.DataFrame) -> str:
@@ -737,10 +903,16 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
         lines += ["### Runs", "", *_runs_table(by_experiment[e.name])]
     missing = [name for name in budget.experiments if name not in tables]
-    if missing and included:
+    command = f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`"
+    if missing and included and repro.data is not None:
         lines += [
-            f"Not in this report (not reproduced yet): {', '.join(missing)}; run "
-            f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`.",
+            f"Not in this report (not shipped yet): {', '.join(missing)}, whose runs the data "
+            f"this report was built from does not hold all finished; {command} trains them.",
+            "",
+        ]
+    elif missing and included:
+        lines += [
+            f"Not in this report (not reproduced yet): {', '.join(missing)}; run {command}.",
             "",
         ]
     layout.out.mkdir(parents=True, exist_ok=True)

@@ -78,7 +78,7 @@ def check_shipped_folder(data: Path, out: Path) -> str:
     built = sorted(p.stem for p in (out / "metrics").glob("*.parquet") if ".tests" not in p.name)
     assert built, "the report covers at least one experiment"
     # spontaneous forgetting is read in every experiment that nothing perturbs
-    unperturbed = [e for e in built if e != "sensor_failure"]
+    unperturbed = [e for e in built if not stands_for.experiments[e].perturbed]
     assert report.count("### Spontaneous forgetting") == len(unperturbed)
     without_drops = 0
     n_runs = 0
@@ -121,7 +121,7 @@ def check_shipped_folder(data: Path, out: Path) -> str:
                 else "–"
             )
             assert cells[7] == tested, f"{relative}: test success and its rollouts"
-        if experiment != "sensor_failure":
+        if experiment in unperturbed:
             without_drops += analysis.mastery_drops(runs).empty
     assert report.count("No drop of a mastered module in these runs.") == without_drops
     assert f"This report was built from {n_runs} runs, " in report, "the header counts its runs"

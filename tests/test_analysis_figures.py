@@ -29,12 +29,13 @@ def studies(tmp_path_factory):
     distractors); built once for this module."""
     root = tmp_path_factory.mktemp("studies")
     write_study(root / "main", seeds=(0, 1, 2), n_episodes=600)
-    write_perturbation_study(root / "failure", perturbation=300, n_episodes=900)
+    write_perturbation_study(root / "failure", perturbation=300, n_episodes=900, tests_per_epoch=40)
     write_distractor_study(root / "distractors", counts=(0, 4, 7), seeds=(0, 1), n_episodes=300)
     return {
         "main": analysis.load_runs(root / "main"),
         "tests": analysis.load_tests(root / "main"),
         "failure": analysis.load_runs(root / "failure"),
+        "failure_tests": analysis.load_tests(root / "failure"),
         "distractors": analysis.load_runs(root / "distractors"),
     }
 
@@ -235,6 +236,32 @@ def test_forgetting_follows_the_perturbed_module_and_states_recovery_times(studi
     # x counts episodes since the failure: the curves cross 0 where the failure started
     line = fig.axes[0].lines[0]
     assert line.get_xdata().min() < 0 < line.get_xdata().max()
+
+
+def test_forgetting_with_test_rollouts_draws_the_primary_measure_above(studies):
+    """Given the runs' test rollouts (the study on a mastered module), a panel above the others
+    draws push cube 3's pooled test success, aligned on the onset, with a circle where each run
+    came back by `recovery_by_tests`; each run's legend entry gives that recovery first."""
+    fig, per_run = analysis.forgetting(studies["failure"], tests=studies["failure_tests"])
+    tested, top, bottom = fig.axes[:3]
+    assert tested.get_ylabel() == "test success of push cube 3"
+    assert top.get_ylabel() == "competence of push cube 3"
+    by_tests = analysis.recovery_by_tests(
+        studies["failure_tests"], per_run.set_index("run")["perturbation_episode"]
+    )
+    assert by_tests["recovered"].all()
+    circles = sorted(line.get_xdata()[0] for line in tested.lines if line.get_marker() == "o")
+    assert circles == sorted(by_tests["recovery_episodes"])
+    labels = [t.get_text() for t in bottom.get_legend().get_texts()]
+    first = by_tests.sort_values("seed").iloc[0]
+    episodes = int(first["recovery_episodes"])
+    assert any(
+        label.startswith(f"CURIOUS seed 0: tests back after {episodes:,}; competence 90%")
+        for label in labels
+    )
+    assert top.get_xlim()[1] > by_tests["recovery_episodes"].max()
+    assert "Top: its test success (noise-free test rollouts" in _caption(fig)
+    assert "pooled over 5 epochs (100 episodes)" in _caption(fig)
 
 
 SHIPPED = Path(__file__).resolve().parents[1] / "data" / "laptop"

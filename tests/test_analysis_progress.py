@@ -285,3 +285,14 @@ def test_a_failure_not_started_says_what_it_waits_for(failing, tmp_path, setting
     metrics.to_parquet(run / "metrics.parquet")
     (row,) = progress_table(run)
     assert row.failure == expected.format(now=metrics["competence/push_cube3"].iat[-1])
+
+
+def test_a_laptop_folder_lists_the_study_on_a_mastered_module_as_not_started(tmp_path):
+    """Before any of its runs trains, `curious progress` lists sensor_failure_mastered's six runs
+    with the episodes each will train, none started."""
+    (tmp_path / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "laptop"}))
+    rows = [r for r in progress_table(tmp_path) if r.name.startswith("sensor_failure_mastered/")]
+    assert sorted(r.name for r in rows) == sorted(
+        f"sensor_failure_mastered/{c}/seed-{s}" for c in ("curious", "m-uvfa") for s in (0, 1, 2)
+    )
+    assert all(r.episodes == 0 and r.total_episodes == 120_000 for r in rows)

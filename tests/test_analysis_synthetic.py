@@ -263,10 +263,12 @@ def write_perturbation_study(
     n_episodes: int = 1500,
     seeds: Sequence[int] = (0, 1, 2),
     recovery_tau: Mapping[str, float] | None = None,
+    tests_per_epoch: int = 0,
 ) -> list[Path]:
     """Made-up sensory-failure runs of the sensor_failure variant: push_cube3 is mastered, falls
     at ``perturbation`` (logged in the ``sensor_failure`` column) and comes back with a time
-    constant per condition (curious faster than m-uvfa by default)."""
+    constant per condition (curious faster than m-uvfa by default); ``tests_per_epoch`` > 0
+    adds test rollouts (`write_tests`)."""
     taus = recovery_tau or {"curious": 80.0, "m-uvfa": 220.0}
     folders = []
     for c, tau in taus.items():
@@ -283,6 +285,7 @@ def write_perturbation_study(
                     sensor_failure_episode=perturbation,
                     failure_onset=perturbation,
                     log_failure=True,
+                    tests_per_epoch=tests_per_epoch,
                 )
             )
     return folders

@@ -1,6 +1,6 @@
 """`curious reproduce` and the Dagster pipeline behind it, on the smoke budget.
 
-One smoke reproduction (every experiment, 14 runs of 24 episodes) is built once per session
+One smoke reproduction (every experiment, 16 runs of 24 episodes) is built once per session
 (`conftest.py`) and shared with the notebook tests.
 """
 
@@ -30,7 +30,15 @@ from pipelines.executors import LocalPool
 from pipelines.reproduce import ReproduceError, check_output_folder, reproduce
 from pipelines.training import FINISHED, folder_state, run_folder
 
-FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "distractors", "forgetting")
+FIGURES = (
+    "fig2a",
+    "fig2b",
+    "fig2c",
+    "table1",
+    "distractors",
+    "forgetting",
+    "forgetting_mastered",
+)
 SMOKE = get_budget("smoke")
 
 
@@ -71,9 +79,9 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "computation, `curious.analysis.main_comparison`" in report
     assert "test success at the last epoch" in report
     # what the report was built from, counted from its tables; the whole budget beside it
-    assert "This report was built from 14 runs, 336 training episodes in all: main 6 runs" in report
+    assert "This report was built from 16 runs, 384 training episodes in all: main 6 runs" in report
     assert (
-        "The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains 14 runs"
+        "The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains 16 runs"
         in report
     )
     # the smoke failure starts at episode 12 on an unlearned module: no recovery is claimed
@@ -105,6 +113,26 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
         "| competence at the onset | pre-failure mean | drop from the pre-failure mean |" in report
     )
     assert "competence then" not in report and "competence before" not in report
+    # C5 on a mastered module: recovery by test success (primary) beside the competence's, and
+    # the Welch test on the episodes to recover; the smoke failure comes before 5 epochs of tests
+    mastered = report[report.index("## Sensory failure on a mastered module") :]
+    assert "Recovery by test success, the primary measure" in mastered
+    assert (
+        "| test success before (rollouts) | test success trough | LP before → after | "
+        "p_LP before → after | practised before → after | recovery by test success (primary) | "
+        "recovery by competence (secondary) |"
+    ) in mastered
+    assert "| CURIOUS | 0 | 12 | – | – |" in mastered
+    assert mastered.count("| no level before | – |") == 2
+    assert "Recovered by test success: CURIOUS 0 of 1 runs; M-UVFA 0 of 1 runs." in mastered
+    assert (
+        "One-tailed Welch's t-test on the episodes to recover by test success, CURIOUS faster "
+        "than M-UVFA, alpha = 0.01: not tested (0 and 0 recovered runs" in mastered
+    )
+    assert (
+        "- CURIOUS seed 0: no level before: the failure started at episode 12, after 1 epoch(s) "
+        "of tests, fewer than the 5 epochs (40 episodes) its level pools." in mastered
+    )
     # the command ends by saying where the products are
     assert str(out / "report.md") in smoke.stdout and str(out / "figures") in smoke.stdout
     assert json.loads((out / "reproduce.json").read_text())["budget"] == "smoke"
@@ -115,7 +143,7 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
 def test_every_partition_is_one_finished_run_folder(smoke):
     runs_root = smoke.out / "runs"
     specs = SMOKE.runs()
-    assert len(specs) == 14
+    assert len(specs) == 16
     for spec in specs:
         folder = run_folder(spec, runs_root)
         assert folder_state(spec, runs_root) == FINISHED, spec.label
@@ -129,7 +157,7 @@ def test_every_partition_is_one_finished_run_folder(smoke):
         assert episodes.to_pylist() == list(range(24))
         entities = summarize(folder / "recording.rrd").entities
         assert "scene/goal" in entities and "scene/gripper_path" in entities  # a 3-D rollout
-        expected = 12 if spec.experiment == "sensor_failure" else -1
+        expected = 12 if spec.variant == "sensor_failure" else -1
         assert config["config"]["sensor_failure_episode"] == expected
         failing = pq.read_table(folder / "metrics.parquet")["sensor_failure"].to_pylist()
         assert failing == [e >= expected >= 0 for e in range(24)]
@@ -199,15 +227,15 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     assert sorted(p.name for p in (beside / "figures").iterdir()) == sorted(
         p.name for p in (smoke.out / "figures").iterdir()
     )
-    assert "0 run(s) trained, 14 already finished" in stdout
-    assert "14 shipped run(s) read, none trained" in stdout
+    assert "0 run(s) trained, 16 already finished" in stdout
+    assert "16 shipped run(s) read, none trained" in stdout
     closing = stdout[stdout.index("What each output can show:") :]
     assert f"{out / 'report.md'} and {out / 'figures'}/" in closing
     assert "it cannot show the paper's claims" in closing
     assert f"{beside / 'report.md'} and {beside / 'figures'}/" in closing
-    assert f"the shipped `smoke` campaign, 14 runs read from {shipped.data}" in closing
+    assert f"the shipped `smoke` campaign, 16 runs read from {shipped.data}" in closing
     assert "C1, CURIOUS learns faster than MG-TE" in closing and "C3/C5" in closing
-    assert "C4" in closing
+    assert "C4" in closing and "C5, the recovery of a mastered module's test success" in closing
 
     shutil.rmtree(beside)
     assert curious_cli([*args, "--no-shipped"]) == 0
@@ -250,7 +278,7 @@ def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smok
         logging.getLogger("caller").removeHandler(handler)
     assert not Handler.closed
     assert any(ref() is handler for ref in logging._handlerList)  # closed at exit as usual
-    assert result.trained == [] and len(result.skipped) == 14
+    assert result.trained == [] and len(result.skipped) == 16
     assert hashes(smoke.out / "runs") == runs_before  # not one byte of a run changed
     assert hashes(smoke.out / "figures") == figures_before  # figures rebuild byte-identical
 
@@ -333,8 +361,9 @@ def test_a_budget_without_the_sensory_failure_says_why_in_its_report(smoke, tmp_
     report, included = write_report(Reproduction(quick, OutputLayout.at(out), make_pool=LocalPool))
     text = report.read_text()
     assert included == ["main", "distractors"]
-    assert text.count(quick.why_absent("sensor_failure")) == 1
-    assert "sensor_failure" not in text.replace(quick.why_absent("sensor_failure"), "")
+    reasons = [quick.why_absent(name) for name in ("sensor_failure", "sensor_failure_mastered")]
+    assert all(text.count(reason) == 1 for reason in reasons)
+    assert "sensor_failure" not in text.replace(reasons[0], "").replace(reasons[1], "")
     assert "Budget `quick` leaves out the `sensor_failure` experiment: the failure starts" in text
     assert "not reproduced yet" not in text and "Not in this report" not in text
     assert "Sensory failure" not in text and "figures/forgetting" not in text
@@ -733,7 +762,7 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
     graph = defs.resolve_asset_graph()
     groups = {key.to_user_string(): graph.get(key).group_name for key in graph.get_all_asset_keys()}
     assert groups["report"] == "report"
-    for name in ("main", "distractors", "sensor_failure"):
+    for name in ("main", "distractors", "sensor_failure", "sensor_failure_mastered"):
         assert {k for k, g in groups.items() if g == name} >= {f"{name}/runs", f"{name}/metrics"}
     assert {k for k, g in groups.items() if g == "main"} == {
         "main/runs",
@@ -825,6 +854,11 @@ def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke,
             "sensor_failure/runs",
             "sensor_failure/metrics",
             "sensor_failure/forgetting",
+        }
+        assert {k for k, g in groups.items() if g == "sensor_failure_mastered"} == {
+            "sensor_failure_mastered/runs",
+            "sensor_failure_mastered/metrics",
+            "sensor_failure_mastered/forgetting_mastered",
         }
         status = graphql(
             '{ assetNodeOrError(assetKey: {path: ["main", "runs"]}) { ... on AssetNode {'

@@ -75,6 +75,47 @@ def test_the_sensory_failure_starts_on_a_learned_module_or_at_the_authors_epoch(
     assert "competence reaches 0.5" in sensor.sensor_failure_text
 
 
+def test_the_study_on_a_mastered_module_follows_the_rules_fixed_before_its_runs():
+    """`sensor_failure_mastered` at `laptop`: the numbers docs/results.md fixed before any of
+    its runs trained (C5, "The study as it will be rerun"): CURIOUS against M-UVFA, seeds 0 to
+    2, 120,000 episodes each, the failure once push_cube3's competence reaches 0.9 over a full
+    window. Changing them is changing the study, not tuning it."""
+    mastered = get_budget("laptop").experiments["sensor_failure_mastered"]
+    assert mastered.conditions == ("curious", "m-uvfa") and mastered.compare == mastered.conditions
+    assert mastered.variants == ("sensor_failure",) and mastered.seeds == (0, 1, 2)
+    assert mastered.total_episodes == 120_000 and mastered.train_preset == "laptop"
+    assert mastered.sensor_failure_competence == 0.9 and mastered.sensor_failure_episode is None
+    config = mastered.runs()[0].config()
+    assert (config.sensor_failure_competence, config.sensor_failure_episode) == (0.9, -1)
+    assert [str(r.relative_path) for r in mastered.runs()] == [
+        f"sensor_failure_mastered/{c}/seed-{s}" for s in (0, 1, 2) for c in ("curious", "m-uvfa")
+    ]
+    # the earlier study is untouched: its runs are the shipped ones
+    assert get_budget("laptop").experiments["sensor_failure"].seeds == (0, 1)
+    assert get_budget("laptop").experiments["sensor_failure"].total_episodes == 60_000
+    # smoke: a fixed onset, as its sensor_failure's, so that the pipeline's tests see one
+    smoke = get_budget("smoke").experiments["sensor_failure_mastered"]
+    assert smoke.sensor_failure_episode == 12 and smoke.seeds == (0,)
+    assert budgets_with("sensor_failure_mastered") == ["smoke", "laptop"]
+    assert EXPERIMENTS.index("sensor_failure_mastered") == EXPERIMENTS.index("sensor_failure") + 1
+    smoke_experiments = BUDGETS["smoke"].experiments.values()
+    assert all(e.perturbed == e.name.startswith("sensor_failure") for e in smoke_experiments)
+
+
+@pytest.mark.parametrize(
+    "budget, words",
+    [
+        ("quick", "1,000 episodes a run are far too short for"),
+        ("paper", "the failure starts at the authors' epoch 250 (episode 237,500), long after"),
+    ],
+)
+def test_the_budgets_without_the_study_on_a_mastered_module_say_why(budget, words):
+    reason = get_budget(budget).omitted["sensor_failure_mastered"]
+    assert words in reason
+    with pytest.raises(ExperimentError, match="has no sensor_failure_mastered experiment"):
+        get_budget(budget).select(["sensor_failure_mastered"])
+
+
 def test_condition_axis_carries_the_variant_only_where_an_experiment_has_several():
     smoke = get_budget("smoke")
     assert smoke.experiments["main"].condition_keys == ("curious", "mg-te", "her")

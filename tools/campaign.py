@@ -19,6 +19,11 @@ Run it from the campaign's worktree, so that the code that trains is the campaig
         python /work/main/tools/campaign.py --out ~/curious-runs/laptop \
         --shipped /work/main/data/laptop --set torch_threads=1
 
+One fixed commit per experiment: an experiment that commit does not know trains from its own
+commit's worktree, with `--only` naming its runs, into the same output folder
+(`tools/campaign.sh` runs `--only 'sensor_failure_mastered/*'` from ~/campaign-c5 once the
+9972821 queue ends).
+
 With `--seeds EXPERIMENT=SEEDS` an experiment gets seeds beyond the budget's: runs identical to
 the budget's in every setting but the seed (`dataclasses.replace` of the budget's experiment, so
 that the campaign's commit, which has no other way to add seeds, builds them), queued after all of

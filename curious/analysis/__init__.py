@@ -15,6 +15,7 @@ analysis.fig2a(tests, out_dir="figures/")           # figures/fig2a.png and figu
 runs = analysis.load_runs("runs/")                  # one row per (run, training episode)
 analysis.fig2b(runs)                                # competence per module, one run
 analysis.recovery(runs)                             # after the sensory failure, where measurable
+analysis.recovery_by_tests(tests, analysis.failure_onsets(runs)["onset"])  # ... by test success
 analysis.mastery_drops(runs)                        # spontaneous drops of mastered modules
 analysis.episodes_to_test_success(tests)            # per module: episodes to 0.5 and 0.9
 analysis.learning_order(analysis.competence_crossings(runs))  # which module was learned when
@@ -25,7 +26,8 @@ every epoch, pooled over those on the run's achievable modules; Fig. 2b/2c, Tabl
 distractors figure and the recovery read the competence (the moving success rate of the agent's
 self-evaluations, which drives learning progress). `curious.analysis.statistics` defines both
 precisely, `curious.analysis.milestones` when each module is learned,
-`curious.analysis.perturbation` the recovery after the sensory failure, and
+`curious.analysis.perturbation` the recovery after the sensory failure (of the competence, and
+of the test success, the primary measure of the study on a mastered module), and
 `curious.analysis.drops` the spontaneous drops of mastered modules (forgetting with nothing
 perturbed). Module and condition colours live in `curious.analysis.palette`, shared with the
 Rerun recordings.

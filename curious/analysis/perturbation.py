@@ -11,23 +11,43 @@ competence just before the onset at least the run's own ``sensor_failure_compete
 `LEARNED_COMPETENCE`. Other runs get no number, only a sentence saying why (never started, or
 nothing to forget). Competence is the ``competence/<module>`` column of ``metrics.parquet``, as
 in `curious.analysis.statistics`.
+
+The study on a mastered module (`sensor_failure_mastered`) is read by rules fixed before its runs
+(docs/results.md, C5): its primary measure, `recovery_by_tests`, reads the module's test success
+(``tests.parquet``, modules drawn uniformly, so both conditions are measured at the same rate)
+pooled over 5 epochs, back at 90 % of its level over the 5 epochs before the onset;
+`compare_recoveries` is the one-tailed Welch test on the episodes to recover. `recovery` is its
+secondary measure.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import pandas as pd
 
-from curious.analysis.loading import AnalysisError, require_runs
-from curious.analysis.statistics import FLOAT32_SLACK, run_arrays
+from curious.analysis import DEFAULT_TEST_EPOCHS
+from curious.analysis.loading import AnalysisError, require_runs, require_tests
+from curious.analysis.milestones import module_test_success
+from curious.analysis.statistics import (
+    ALPHA,
+    FLOAT32_SLACK,
+    RUN_COLUMNS,
+    run_arrays,
+    welch_per_bin,
+)
 from curious.config import LEARNED_COMPETENCE
 
 __all__ = [
     "LEARNED_COMPETENCE",
+    "RECOVERY_BY_TESTS_COLUMNS",
     "RECOVERY_COLUMNS",
+    "compare_recoveries",
     "failure_onsets",
     "perturbed_module",
     "recovery",
+    "recovery_by_tests",
     "recovery_summary",
 ]
 
@@ -192,24 +212,38 @@ def _window(pre_window: int | None, p: int) -> int:
     return pre_window if pre_window is not None else max(1, p // 10)
 
 
-def _shift(episodes: np.ndarray, lp: np.ndarray, p_lp: np.ndarray, p: int, window: int) -> dict:
+def _shift(
+    episodes: np.ndarray,
+    lp: np.ndarray,
+    p_lp: np.ndarray,
+    p: int,
+    window: int,
+    practised: np.ndarray | None = None,
+) -> dict:
     """Mean LP and p_LP of the module over the ``window`` episodes before the onset ``p`` and
-    the ``window`` episodes from it (NaN where a side has no episode)."""
+    the ``window`` episodes from it (NaN where a side has no episode); with ``practised`` (1.0
+    where an episode practised the module), the share of those episodes that practised it."""
     before = (episodes >= p - window) & (episodes < p)
     after = (episodes >= p) & (episodes < p + window)
 
     def mean(values: np.ndarray, rows: np.ndarray) -> float:
         return float(values[rows].mean()) if rows.any() else np.nan
 
-    return {
+    out = {
         "lp_before": mean(lp, before),
         "lp_after": mean(lp, after),
         "p_lp_before": mean(p_lp, before),
         "p_lp_after": mean(p_lp, after),
     }
+    if practised is not None:
+        out.update(practice_before=mean(practised, before), practice_after=mean(practised, after))
+    return out
 
 
-_NO_SHIFT = dict.fromkeys(("lp_before", "lp_after", "p_lp_before", "p_lp_after"), np.nan)
+_NO_SHIFT = dict.fromkeys(
+    ("lp_before", "lp_after", "p_lp_before", "p_lp_after", "practice_before", "practice_after"),
+    np.nan,
+)
 
 
 def _learned_bar(learned: float | None, own: float) -> float:
@@ -244,6 +278,8 @@ RECOVERY_COLUMNS: tuple[str, ...] = (
     "lp_after",
     "p_lp_before",
     "p_lp_after",
+    "practice_before",
+    "practice_after",
     "note",
 )
 
@@ -282,6 +318,8 @@ def recovery(
     being practised (the ``p_lp/<module>`` column: p_LP where the condition selects modules by
     LP, uniform in M-UVFA) over the ``pre_window`` episodes before ``p`` and as many from ``p``
     on: the paper's refocus on a module whose competence drops shows as LP and p_LP rising.
+    ``practice_before``/``practice_after`` are the shares of those episodes that practised it
+    (the ``module`` column; NaN in a table without it).
 
     Only ``measured`` runs have recovery numbers; every run has a ``note``, one sentence on its
     outcome.
@@ -295,9 +333,14 @@ def recovery(
         raise KeyError(f"no module {module!r} in these runs (no column {column!r})")
     onsets = failure_onsets(df)
     columns = [column, f"lp/{module}", f"p_lp/{module}"]
+    if "module" in df.columns:
+        practised = (df["module"].astype(str) == module).to_numpy(np.float64)
+    else:
+        practised = np.full(len(df), np.nan)
+    data = np.column_stack([df[columns].to_numpy(np.float64), practised])
     rows = []
-    for run, first, episodes, arrays in run_arrays(df, df[columns].to_numpy(np.float64)):
-        values, lp, p_lp = arrays.T
+    for run, first, episodes, arrays in run_arrays(df, data):
+        values, lp, p_lp, practice = arrays.T
         onset = onsets.loc[run]
         if perturbation_episode is None and onset["source"] == "none":
             raise AnalysisError(
@@ -322,7 +365,7 @@ def recovery(
         else:
             measured = _measure(module, episodes, values, int(p), bar, fraction, pre_window)
             window = _window(pre_window, int(p))
-            measured.update(_shift(episodes, lp, p_lp, int(p), window))
+            measured.update(_shift(episodes, lp, p_lp, int(p), window, practice))
         row = {c: df[c].iat[first] for c in ("run", "condition", "seed", "variant")}
         row.update(
             module=module,
@@ -366,3 +409,210 @@ def recovery_summary(per_run: pd.DataFrame) -> pd.DataFrame:
     counts = ["n_runs", "n_started", "n_measured", "n_dropped", "n_recovered"]
     out[counts] = out[counts].astype(np.int64)
     return out.reset_index()
+
+
+RECOVERY_BY_TESTS_COLUMNS: tuple[str, ...] = (
+    *RUN_COLUMNS,
+    "module",
+    "status",
+    "onset",
+    "epoch_episodes",
+    "window",
+    "level_before",
+    "n_before",
+    "threshold",
+    "trough",
+    "trough_episode",
+    "recovered",
+    "recovered_episode",
+    "recovery_episodes",
+    "episodes_left",
+    "note",
+)
+"""The columns of `recovery_by_tests`, one row per run."""
+
+_RATE_SLACK = 1e-9
+"""Pooled rates are ratios of counts, and ``fraction`` times a level is computed in floating
+point: a rate this close below the threshold counts as reaching it."""
+
+
+def _epoch_grid(tests: pd.DataFrame, onsets: pd.Series) -> pd.DataFrame:
+    """One row per (run, epoch) of ``tests``: ``episodes`` (training episodes done when its
+    tests ran), ``position`` (its rank in the run) and the run's ``onset``, with ``before``
+    (tested before the onset) and ``after`` (after it). An epoch tested at the onset's own
+    episode count is neither: whether its tests ran with the failure depends on how the rounds
+    were collected."""
+    grid = tests.groupby(["run", "epoch"], observed=True, sort=True)["episode"].max()
+    grid = grid.rename("episodes").reset_index()
+    grid["run"] = grid["run"].astype(str)
+    grid["position"] = grid.groupby("run", sort=False).cumcount()
+    grid["onset"] = grid["run"].map(onsets).astype("Float64")
+    grid["before"] = (grid["episodes"] < grid["onset"]).fillna(False).astype(bool)
+    grid["after"] = (grid["episodes"] > grid["onset"]).fillna(False).astype(bool)
+    return grid
+
+
+def _onsets_by_run(onsets: pd.Series | Mapping[str, object]) -> pd.Series:
+    """``onsets`` (run -> first episode with the failure, NA where it never started) as a
+    nullable-int Series indexed by the run's path as text."""
+    series = pd.Series(onsets, dtype="object") if isinstance(onsets, Mapping) else onsets
+    out = pd.to_numeric(series, errors="raise").astype("Int64")
+    out.index = out.index.astype(str)
+    return out
+
+
+def recovery_by_tests(
+    tests: pd.DataFrame,
+    onsets: pd.Series | Mapping[str, object],
+    module: str | None = None,
+    fraction: float = 0.9,
+    window: int = DEFAULT_TEST_EPOCHS,
+) -> pd.DataFrame:
+    """Episodes each run takes to bring the module's test success back after the failure.
+
+    C5's primary measure (docs/results.md, "The study as it will be rerun"), read from the
+    noise-free test rollouts (``tests``, a `load_tests` table: modules drawn uniformly, so every
+    condition is measured at the same rate whatever it practises). ``onsets`` gives each run's
+    first episode with the failure (``failure_onsets(runs)["onset"]``; NA: it never started);
+    ``module`` defaults to the one the runs' failure perturbs (`perturbed_module`).
+
+    The module's test success is pooled over ``window`` consecutive epochs (`module_test_success`:
+    5 epochs, 1,000 episodes at the `laptop` preset). The *level before* is the rate pooled over
+    the ``window`` epochs tested before the onset; the threshold is ``fraction`` of it. The run
+    is *recovered* at the first epoch whose pooled window lies wholly after the onset (no
+    rollout from before the failure counts towards a recovery) with a rate at or above the
+    threshold; ``recovery_episodes`` counts the training episodes from the onset to that epoch's
+    tests. ``status`` says what could be measured:
+
+    - ``no_onset``: the failure never started (the module never reached the run's threshold);
+    - ``no_level``: it started before ``window`` epochs had been tested, or none of their
+      rollouts was on the module: there is no level to come back to;
+    - ``measured``: ``level_before`` (over ``n_before`` rollouts), ``threshold``, the lowest
+      pooled rate after the onset (``trough``, at ``trough_episode``), ``recovered`` and, where
+      it is, ``recovered_episode`` and ``recovery_episodes``; a run not back by its end has
+      NaN there, and ``episodes_left`` (from the onset to its last tests) says how long it had.
+
+    ``epoch_episodes`` is the run's epoch length read from its tests (the median step between
+    epochs). Every run has a ``note``, one sentence on its outcome. Returns one row per run with
+    `RECOVERY_BY_TESTS_COLUMNS`.
+    """
+    require_tests(tests)
+    if not 0 < fraction <= 1:
+        raise ValueError(f"fraction must be in (0, 1], got {fraction}")
+    if window < 1:
+        raise ValueError(f"window must be >= 1 epoch, got {window}")
+    module = module if module is not None else perturbed_module(tests)
+    pooled = module_test_success(tests, window)
+    pooled = pooled[pooled["module"].astype(str) == module]
+    if pooled.empty and not (tests["module"].astype(str) == module).any():
+        raise KeyError(f"no module {module!r} in these runs' test rollouts")
+    grid = _epoch_grid(tests, _onsets_by_run(onsets))
+    per_run = grid.groupby("run", sort=True)
+    last_before = grid["position"].where(grid["before"]).groupby(grid["run"]).max()
+    first_after = grid["position"].where(grid["after"]).groupby(grid["run"]).min()
+    steps = per_run["episodes"].diff().groupby(grid["run"]).median()
+    out = tests.groupby("run", observed=True, sort=True)[list(RUN_COLUMNS[1:])].first()
+    out.index = out.index.astype(str)
+    out["onset"] = per_run["onset"].first().astype("Int64")
+    out["last"] = per_run["episodes"].max()
+    out["epoch_episodes"] = steps.fillna(per_run["episodes"].min()).round().astype(np.int64)
+    out["threshold_competence"] = tests.groupby("run", observed=True)["failure_competence"].first()
+
+    bounds = pd.DataFrame({"last_before": last_before, "first_after": first_after})
+    rates = pooled.assign(run=pooled["run"].astype(str)).merge(
+        grid[["run", "epoch", "position"]], on=["run", "epoch"]
+    )
+    rates = rates.join(bounds, on="run").sort_values(["run", "position"])
+    level = rates[rates["position"] == rates["last_before"]].set_index("run")
+    out["level_before"] = level["value"]
+    out["n_before"] = level["n_tests"].astype("Int64")
+    out["threshold"] = fraction * out["level_before"]
+    later = rates[rates["position"] >= rates["first_after"] + window - 1]
+    later = later.dropna(subset=["value"]).join(out["threshold"], on="run")
+    trough = later.loc[later.groupby("run")["value"].idxmin()].set_index("run")
+    out["trough"] = trough["value"]
+    out["trough_episode"] = trough["episodes"].astype("Int64")
+    back = later[later["value"] >= later["threshold"] - _RATE_SLACK]
+    out["recovered_episode"] = back.groupby("run")["episodes"].first().astype("Int64")
+    out["episodes_left"] = (out["last"] - out["onset"]).astype("Int64")
+    out["status"] = np.select(
+        [out["onset"].isna().to_numpy(bool), out["level_before"].isna().to_numpy(bool)],
+        ["no_onset", "no_level"],
+        "measured",
+    )
+    measured = out["status"] == "measured"
+    for name in ("threshold", "trough", "trough_episode", "recovered_episode"):
+        out[name] = out[name].where(measured)
+    out["recovered"] = out["recovered_episode"].notna()
+    since = out["recovered_episode"].astype("Float64") - out["onset"].astype("Float64")
+    out["recovery_episodes"] = since.to_numpy(np.float64, na_value=np.nan)
+    out["before_epochs"] = (last_before + 1).reindex(out.index).fillna(0).astype(np.int64)
+    out["module"] = module
+    out["window"] = window
+    out["note"] = [_test_note(r, module, fraction) for r in out.itertuples()]
+    out = out.rename_axis("run").reset_index()
+    out["run"] = out["run"].astype(tests["run"].dtype)
+    return out[list(RECOVERY_BY_TESTS_COLUMNS)]
+
+
+def _test_note(r: object, module: str, fraction: float) -> str:
+    """One sentence on a run's outcome in `recovery_by_tests`."""
+    span = f"{r.window} epochs ({r.window * r.epoch_episodes:,} episodes)"
+    if r.status == "no_onset":
+        waited = (
+            f"{module}'s competence never reached {r.threshold_competence:g}"
+            if pd.notna(r.threshold_competence)
+            else "the failure never started"
+        )
+        return f"no onset: {waited} within the {int(r.last):,} episodes tested"
+    onset = int(r.onset)
+    if r.status == "no_level":
+        if r.before_epochs < r.window:
+            return (
+                f"no level before: the failure started at episode {onset:,}, after "
+                f"{r.before_epochs} epoch(s) of tests, fewer than the {span} its level pools"
+            )
+        return (
+            f"no level before: no test rollout of {module} in the {span} before episode {onset:,}"
+        )
+    level = f"{fraction:.0%} of its level before ({r.level_before:.2f})"
+    if r.recovered:
+        return f"test success back at {level} {r.recovery_episodes:,.0f} episodes after the onset"
+    return (
+        f"test success not back at {level} by the run's end, {int(r.episodes_left):,} episodes "
+        "after the onset"
+    )
+
+
+def compare_recoveries(
+    per_run: pd.DataFrame, faster: str, slower: str, alpha: float = ALPHA
+) -> dict[str, object]:
+    """One-tailed Welch's t-test that ``faster`` recovers in fewer episodes than ``slower``.
+
+    ``per_run`` is a `recovery_by_tests` table (or any with ``condition``, ``status``,
+    ``recovered`` and ``recovery_episodes``). Only recovered runs have a number; the others are
+    listed, not given one (``unrecovered``: their rows). The test is `welch_per_bin` on the
+    recovered runs' ``recovery_episodes``, with ``slower``'s mean the greater under the
+    alternative. Returns a dict: ``faster``, ``slower``, ``alpha``, ``n_faster``, ``n_slower``
+    (recovered runs), ``mean_faster``, ``mean_slower``, ``std_faster``, ``std_slower``, ``t``,
+    ``p`` (NaN with fewer than two recovered runs a side, or no variance), ``significant`` and
+    ``unrecovered``.
+    """
+    recovered = per_run[per_run["recovered"].astype(bool)]
+    out: dict[str, object] = {"faster": faster, "slower": slower, "alpha": alpha}
+    for side, condition in (("faster", faster), ("slower", slower)):
+        values = recovered.loc[recovered["condition"] == condition, "recovery_episodes"]
+        values = values.astype(np.float64)
+        out[f"n_{side}"] = len(values)
+        out[f"mean_{side}"] = float(values.mean()) if len(values) else np.nan
+        out[f"std_{side}"] = float(values.std(ddof=1)) if len(values) > 1 else np.nan
+    out.update(t=np.nan, p=np.nan, significant=False)
+    if out["n_faster"] and out["n_slower"]:
+        rows = recovered[recovered["condition"].isin([faster, slower])]
+        frame = rows.assign(episodes=0, value=rows["recovery_episodes"].astype(np.float64))
+        test = welch_per_bin(frame, slower, faster, alpha).iloc[0]
+        out.update(t=float(test["t"]), p=float(test["p"]), significant=bool(test["significant"]))
+    out["unrecovered"] = per_run[
+        per_run["condition"].isin([faster, slower]) & ~per_run["recovered"].astype(bool)
+    ]
+    return out

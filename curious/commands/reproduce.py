@@ -285,6 +285,9 @@ CLAIMS: dict[str, str] = {
     "sensor_failure": "C3/C5, forgetting and recovery after a sensory failure (the forgetting "
     "figure)",
     "distractors": "C4, CURIOUS against M-UVFA with distracting modules (the distractors figure)",
+    "sensor_failure_mastered": "C5, the recovery of a mastered module's test success after a "
+    "sensory failure, CURIOUS against M-UVFA (the forgetting_mastered figure, with its Welch "
+    "test)",
 }
 """What each experiment's figures and numbers test, in the paper's claims (in their order)."""
 

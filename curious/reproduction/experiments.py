@@ -15,6 +15,14 @@ An *experiment* is a set of training runs that one group of figures compares:
   reached the report says so instead of measuring a recovery. The `quick` budget leaves this
   experiment out, as the failure did not start in a measured quick reproduction
   (`ReproduceBudget.omitted` gives the reason; the report, a notebook and `select` repeat it).
+* `sensor_failure_mastered`: the same conditions and variant, the failure waiting for
+  push_cube3's competence to reach `MASTERED_COMPETENCE` (0.9), so that it perturbs a mastered
+  module, as the authors did; read by the rules docs/results.md fixed before its runs (C5,
+  "The study as it will be rerun"): the recovery of push_cube3's test success, CURIOUS against
+  M-UVFA (`curious.analysis.recovery_by_tests`). `laptop` trains it on runs long enough for the
+  module to be mastered; `smoke` starts it at a fixed episode, as `sensor_failure`'s; `quick` is
+  too short for mastery and `paper`'s `sensor_failure` already starts long after it, so both
+  leave it out.
 
 A *run* (`RunSpec`) is one condition, one variant and one seed: one run folder, and one Dagster
 partition. Partitions are two-dimensional (Dagster's multi-partitions take exactly two axes):
@@ -28,7 +36,7 @@ run of every experiment:
 =========  ===============================================================================
 `smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
 `quick`    the README's job: `main` and `distractors`, short runs (README)
-`laptop`   a day and a half on 2 cores (hours on a workstation or a Ray cluster)
+`laptop`   two days on 2 cores (hours on a workstation or a Ray cluster)
 `paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
 =========  ===============================================================================
 
@@ -50,7 +58,7 @@ from typing import Any
 
 from curious.config import LEARNED_COMPETENCE, PRESETS, Config, condition_names, resolve
 
-EXPERIMENTS: tuple[str, ...] = ("main", "distractors", "sensor_failure")
+EXPERIMENTS: tuple[str, ...] = ("main", "distractors", "sensor_failure", "sensor_failure_mastered")
 """Experiment names, in the order they are trained and reported."""
 
 VARIANT_SEPARATOR = "@"
@@ -255,6 +263,11 @@ class Experiment:
         return self.total_episodes * len(self.runs())
 
     @property
+    def perturbed(self) -> bool:
+        """Whether its runs have a sensory failure (at an episode, or once a competence)."""
+        return self.sensor_failure_episode is not None or self.sensor_failure_competence is not None
+
+    @property
     def sensor_failure_text(self) -> str:
         """When the sensory failure starts, in words ("–" without one)."""
         if self.sensor_failure_episode is not None:
@@ -368,16 +381,30 @@ PAPER_FAILURE_EPISODE = 250 * 950
 (their train.py switches the bias on when `epoch == 250` in the perturbation study)."""
 
 
+MASTERED_COMPETENCE = 0.9
+"""The competence of push_cube3 at which `sensor_failure_mastered`'s failure starts: a mastered
+module, as the authors perturbed one (docs/results.md, C5, "The study as it will be rerun": its
+rules were fixed before its runs, this threshold among them)."""
+
+SENSOR_FAILURE_TITLES: dict[str, str] = {
+    "sensor_failure": "Sensory failure: CURIOUS against M-UVFA, forgetting and recovery",
+    "sensor_failure_mastered": "Sensory failure on a mastered module: CURIOUS against M-UVFA, "
+    "recovery by test success",
+}
+"""The experiments of the `sensor_failure` variant, with their titles."""
+
+
 def _sensor_failure(
     train_preset: str,
     seeds: Sequence[int],
     episodes: int,
     at: int | None = None,
     competence: float | None = None,
+    name: str = "sensor_failure",
 ) -> Experiment:
     return Experiment(
-        name="sensor_failure",
-        title="Sensory failure: CURIOUS against M-UVFA, forgetting and recovery",
+        name=name,
+        title=SENSOR_FAILURE_TITLES[name],
         conditions=("curious", "m-uvfa"),
         variants=("sensor_failure",),
         seeds=tuple(seeds),
@@ -419,6 +446,20 @@ and the report found no recovery to measure (docs/benchmarks.md, "The quickstart
 commands", has the measurement with its commit and date).
 """
 
+QUICK_WITHOUT_MASTERY = (
+    f"its failure waits for push_cube3's competence to reach {MASTERED_COMPETENCE:g}, which "
+    f"1,000 episodes a run are far too short for (the quick runs did not reach "
+    f"{LEARNED_COMPETENCE:g}); `curious reproduce --budget laptop --experiments "
+    "sensor_failure_mastered` trains it"
+)
+"""Why the `quick` budget has no `sensor_failure_mastered` experiment."""
+
+PAPER_WITHOUT_MASTERY = (
+    "its `sensor_failure` experiment already perturbs a mastered module: the failure starts at "
+    "the authors' epoch 250 (episode 237,500), long after push_cube3 is mastered"
+)
+"""Why the `paper` budget has no `sensor_failure_mastered` experiment."""
+
 
 BUDGETS: dict[str, ReproduceBudget] = {
     b.name: b
@@ -435,6 +476,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             _main("smoke", (0, 1), 24),
             _distractors("smoke", (0,), 24),
             _sensor_failure("smoke", (0,), 24, at=12),
+            _sensor_failure("smoke", (0,), 24, at=12, name="sensor_failure_mastered"),
         ),
         _budget(
             "quick",
@@ -450,21 +492,31 @@ BUDGETS: dict[str, ReproduceBudget] = {
             "paper's; at this budget only the first modules are learned.",
             _main("quick", (0, 1), 1_000),
             _distractors("quick", (0,), 1_000),
-            omitted={"sensor_failure": QUICK_WITHOUT_FAILURE},
+            omitted={
+                "sensor_failure": QUICK_WITHOUT_FAILURE,
+                "sensor_failure_mastered": QUICK_WITHOUT_MASTERY,
+            },
         ),
         _budget(
             "laptop",
-            "a day and a half on 2 cores (hours on more, or with --ray-address)",
+            "two days on 2 cores (hours on more, or with --ray-address)",
             "Training preset `laptop` (4 workers x 2 episodes and 40 updates of 512 per cycle): "
             "about 0.12 s per training episode on one core of a 2-core machine, and a fifth more "
             "for the test rollouts, so the whole budget's episodes "
-            "take about 35 h on 2 cores, 9 h on 8. The runs are independent: `--workers` runs "
+            "take about 49 h on 2 cores, 12 h on 8. The runs are independent: `--workers` runs "
             "them side by side, `--ray-address` across a cluster; an interrupted reproduction "
             "resumes.",
             "Budget laptop (reduced): a third of the paper's episodes per run and fewer seeds.",
             _main("laptop", (0, 1, 2), 100_000),
             _distractors("laptop", (0, 1), 50_000),
             _sensor_failure("laptop", (0, 1), 60_000, competence=LEARNED_COMPETENCE),
+            _sensor_failure(
+                "laptop",
+                (0, 1, 2),
+                120_000,
+                competence=MASTERED_COMPETENCE,
+                name="sensor_failure_mastered",
+            ),
         ),
         _budget(
             "paper",
@@ -479,6 +531,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             _main("paper", (0, 1, 2, 3, 4), 300_000),
             _distractors("paper", (0, 1, 2, 3, 4), 300_000),
             _sensor_failure("paper", (0, 1, 2, 3, 4), 300_000, at=PAPER_FAILURE_EPISODE),
+            omitted={"sensor_failure_mastered": PAPER_WITHOUT_MASTERY},
         ),
     )
 }

@@ -1,5 +1,6 @@
 """The sensory-failure figure (`forgetting`): the perturbed module around the failure, and the
-recovery where it can be measured."""
+recovery where it can be measured; given the runs' test rollouts, their test success too, the
+primary measure of the study on a mastered module (`perturbation.recovery_by_tests`)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from curious.analysis import palette
+from curious.analysis import DEFAULT_TEST_EPOCHS, palette
 from curious.analysis.figures.parts import (
     caption,
     competence_axis,
@@ -29,7 +30,8 @@ from curious.analysis.figures.parts import (
     runs_of,
     setting_text,
 )
-from curious.analysis.perturbation import perturbed_module, recovery
+from curious.analysis.milestones import module_test_success
+from curious.analysis.perturbation import perturbed_module, recovery, recovery_by_tests
 from curious.analysis.statistics import (
     across_seeds,
     bin_runs,
@@ -57,6 +59,7 @@ def forgetting(
     note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "forgetting",
+    tests: pd.DataFrame | None = None,
 ) -> tuple[Figure, pd.DataFrame]:
     """Competence and LP of the perturbed module around the sensory failure, and recovery times.
 
@@ -73,6 +76,10 @@ def forgetting(
     `perturbation.recovery`'s table (one row per run, with its ``status`` and ``note``); the
     legend states, per condition, the mean ± std recovery time over the seeds where it could be
     measured, or why it could not be.
+
+    With ``tests`` (the same runs' `load_tests` table), a panel above the others draws the
+    module's test success pooled over `DEFAULT_TEST_EPOCHS` epochs, with each run's recovery by
+    `perturbation.recovery_by_tests` (the legend's per-run entries give it first).
     """
     conditions = ordered_conditions(df, conditions)
     rows = restrict(df, conditions, variant)
@@ -83,24 +90,42 @@ def forgetting(
     onsets = per_run.dropna(subset=["perturbation_episode"]).set_index("run")
     onsets = onsets["perturbation_episode"].astype(np.int64)
     shown = palette.module_name(module)
+    tested = None
+    if tests is not None:
+        tests = tests[tests["run"].isin(per_run["run"])]
+        starts = per_run.set_index("run")["perturbation_episode"]
+        tested = _Tested(tests, recovery_by_tests(tests, starts, module, fraction), module)
     with figure_style():
-        fig = new_figure(9.2, 5.8)
-        top, bottom = fig.subplots(2, 1, sharex=True)
+        if tested is None:
+            fig = new_figure(9.2, 5.8)
+            top, bottom = fig.subplots(2, 1, sharex=True)
+            first = top
+        else:
+            fig = new_figure(9.2, 8.2)
+            first, top, bottom = fig.subplots(3, 1, sharex=True)
         if onsets.empty:
             text = _draw_unstarted(top, bottom, rows, module, conditions, per_run)
         else:
             text = _draw_aligned(
-                top, bottom, rows, module, conditions, per_run, onsets, before, fraction
+                top, bottom, rows, module, conditions, per_run, onsets, before, fraction, tested
             )
+        if tested is not None:
+            text = _draw_tested(first, tested, conditions, onsets, fraction) + " " + text
         competence_axis(top, f"competence of {shown}")
         bottom.set_ylabel(f"absolute LP of {shown}")
         handles = [
             top.plot([], [], color=palette.condition_color(c), linewidth=2.4)[0] for c in conditions
         ]
         labels = [
-            _recovery_label(c, per_run[per_run["condition"] == c], fraction) for c in conditions
+            _recovery_label(
+                c,
+                per_run[per_run["condition"] == c],
+                fraction,
+                None if tested is None else tested.per_run[tested.per_run["condition"] == c],
+            )
+            for c in conditions
         ]
-        top.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.02), borderaxespad=0)
+        first.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.02), borderaxespad=0)
         fig.suptitle(f"Forgetting and recovery — {shown}")
         learned_text = _values_text(per_run["learned_threshold"])
         caption(
@@ -183,16 +208,94 @@ def _horizon(per_run: pd.DataFrame, remaining: pd.Series) -> int:
     return int(min(int(remaining.max()), max(1, math.ceil(latest * 1.2))))
 
 
-def _run_label(r: object, fraction: float, remaining: int) -> str:
-    """A run's legend entry: its seed and its recovery, or why there is none."""
+def _run_label(r: object, fraction: float, remaining: int, tested: object = None) -> str:
+    """A run's legend entry: its seed and its recovery, or why there is none; with ``tested``
+    (its `recovery_by_tests` row), the recovery of its test success first."""
     name = f"{palette.condition_label(r.condition)} seed {int(r.seed)}"
+    if tested is None:
+        return f"{name}: {_competence_text(r, fraction, remaining)}"
+    return f"{name}: {_tested_text(tested)}; competence {_competence_text(r, fraction, remaining)}"
+
+
+def _tested_text(t: object) -> str:
+    """A run's recovery of test success, in a few words."""
+    if t.status != "measured":
+        return "no level before" if t.status == "no_level" else "no onset"
+    if bool(t.recovered):
+        return f"tests back after {int(t.recovery_episodes):,}"
+    return f"tests not back by its end ({int(t.episodes_left):,} after)"
+
+
+def _competence_text(r: object, fraction: float, remaining: int) -> str:
+    """A run's recovery of competence, in a few words."""
     if r.status != "measured":
-        return f"{name}: nothing to measure"
+        return "nothing to measure"
     if not bool(r.dropped):
-        return f"{name}: never below {fraction:.0%}"
+        return f"never below {fraction:.0%}"
     if bool(r.recovered):
-        return f"{name}: {fraction:.0%} regained after {int(r.recovery_episodes):,}"
-    return f"{name}: not regained by its end ({remaining:,} after)"
+        return f"{fraction:.0%} regained after {int(r.recovery_episodes):,}"
+    return f"not regained by its end ({remaining:,} after)"
+
+
+class _Tested:
+    """The test rollouts of a figure's runs: the module's pooled test success per epoch, and
+    each run's `recovery_by_tests` row."""
+
+    def __init__(self, tests: pd.DataFrame, per_run: pd.DataFrame, module: str) -> None:
+        rates = module_test_success(tests, DEFAULT_TEST_EPOCHS)
+        self.rates = rates[rates["module"].astype(str) == module]
+        self.per_run = per_run
+        self.by_run = {str(r.run): r for r in per_run.itertuples()}
+        self.module = module
+
+
+def _draw_tested(
+    ax: Axes, tested: _Tested, conditions: Sequence[str], onsets: pd.Series, fraction: float
+) -> str:
+    """Each run's pooled test success of the module, aligned on its onset where the failure
+    started somewhere (runs without one left out), else over the whole runs; a circle where a
+    run's test success came back, a cross at the end of one that did not. Returns the
+    caption's sentence."""
+    aligned = not onsets.empty
+    window = DEFAULT_TEST_EPOCHS
+    for i, c in enumerate(conditions):
+        color, width = palette.condition_color(c), 0.6 + line_width(i, len(conditions)) / 2
+        mine = tested.per_run[tested.per_run["condition"] == c].sort_values("seed")
+        for k, t in enumerate(mine.itertuples()):
+            if aligned and t.run not in onsets.index:
+                continue
+            shift = int(onsets[t.run]) if aligned else 0
+            run = tested.rates[tested.rates["run"] == t.run]
+            x, y = run["episodes"].to_numpy() - shift, run["value"].to_numpy()
+            style = SEED_STYLES[k % len(SEED_STYLES)]
+            ax.plot(x, y, color=color, linestyle=style, linewidth=width)
+            if t.status == "measured" and bool(t.recovered):
+                mark = {"marker": "o", "markersize": 6, "markerfacecolor": "white"}
+                at = (float(t.recovery_episodes), float(t.threshold))
+                ax.plot(*at, markeredgecolor=color, markeredgewidth=1.6, linestyle="none", **mark)
+            elif t.status == "measured" and len(x):
+                ax.plot(x[-1], y[-1], marker="X", markersize=7, color=color, linestyle="none")
+    if aligned:
+        ax.axvline(0, color="black", linestyle="--", linewidth=1.0)
+    competence_axis(ax, f"test success of {palette.module_name(tested.module)}")
+    episodes_axis(ax, label=False)
+    epoch = int(tested.per_run["epoch_episodes"].max()) if len(tested.per_run) else 0
+    if tested.rates.empty:
+        ax.text(
+            0.01,
+            0.97,
+            f"fewer than {window} epochs tested: no pooled test success",
+            transform=ax.transAxes,
+            fontsize=8,
+            va="top",
+        )
+    return (
+        f"Top: its test success (noise-free test rollouts, modules drawn uniformly) pooled over "
+        f"{window} epochs ({window * epoch:,} episodes), the primary measure of recovery: a "
+        f"circle where a run's rate, pooled over epochs tested wholly after the failure, is back "
+        f"at {fraction:.0%} of its rate over the {window} epochs before it, a cross at the end "
+        "of a run where it is not."
+    )
 
 
 def _draw_aligned(
@@ -205,12 +308,18 @@ def _draw_aligned(
     onsets: pd.Series,
     before: int | None,
     fraction: float,
+    tested: _Tested | None = None,
 ) -> str:
     """The runs whose failure started, aligned on it, one line per run; returns the caption's
-    middle."""
+    middle. With ``tested``, the x axis covers the recoveries of test success too, and each
+    run's legend entry gives both."""
     last = rows.groupby("run", observed=True)["episode"].max()
     remaining = (last[onsets.index] + 1 - onsets).astype(np.int64)
-    after = _horizon(per_run, remaining)
+    marks = per_run
+    if tested is not None:
+        columns = ["run", "recovered", "recovery_episodes"]
+        marks = pd.concat([per_run[columns], tested.per_run[columns]], ignore_index=True)
+    after = _horizon(marks, remaining)
     if before is None:
         before = max(1, after // 4)
     before = min(before, int(onsets.min()))
@@ -254,7 +363,8 @@ def _draw_aligned(
                     linestyle="none",
                 )
             handles.append(line)
-            labels.append(_run_label(r, fraction, int(remaining[r.run])))
+            own = None if tested is None else tested.by_run.get(str(r.run))
+            labels.append(_run_label(r, fraction, int(remaining[r.run]), own))
     lp_axis(bottom, lp_top)
     for ax in (top, bottom):
         ax.axvline(0, color="black", linestyle="--", linewidth=1.0)
@@ -280,11 +390,9 @@ def _draw_aligned(
         fontsize=7.5,
         va="top",
     )
-    ended = (
-        " A cross: a run that ended before regaining it."
-        if any("not regained" in t for t in labels)
-        else ""
-    )
+    drawn = per_run[per_run["run"].isin(onsets.index) & (per_run["status"] == "measured")]
+    crossed = (drawn["dropped"].astype(bool) & ~drawn["recovered"].astype(bool)).any()
+    ended = " A cross: a run that ended before regaining it." if crossed else ""
     return (
         f"Each run is aligned on the first episode run with the failure "
         f"({_onset_text(per_run, onsets)}) and drawn as its own line (line style: seed) up to "
@@ -337,32 +445,54 @@ def _draw_unstarted(
     )
 
 
-def _recovery_label(condition: str, runs: pd.DataFrame, fraction: float) -> str:
-    """A condition's legend entry: its recovery over the measured seeds, or why none is."""
+def _recovery_label(
+    condition: str, runs: pd.DataFrame, fraction: float, tested: pd.DataFrame | None = None
+) -> str:
+    """A condition's legend entry: its recovery over the measured seeds, or why none is; with
+    ``tested`` (its runs' `recovery_by_tests` rows), the recovery of test success first."""
     name = palette.condition_label(condition)
+    if tested is None:
+        return f"{name}: {_competence_summary(runs, fraction)}"
+    return f"{name}: {_tested_summary(tested)}; competence {_competence_summary(runs, fraction)}"
+
+
+def _spread(episodes: pd.Series) -> str:
+    """``"1,200"`` or ``"1,200 ± 300"`` (mean, and std over several runs)."""
+    spread = f" ± {episodes.std(ddof=1):,.0f}" if len(episodes) > 1 else ""
+    return f"{episodes.mean():,.0f}{spread}"
+
+
+def _tested_summary(tested: pd.DataFrame) -> str:
+    """A condition's recovery of test success over its runs, in a few words."""
+    back = tested.loc[tested["recovered"].astype(bool), "recovery_episodes"]
+    if back.empty:
+        return f"test success not back (0/{len(tested)} seeds)"
+    return f"test success back after {_spread(back)} episodes ({len(back)}/{len(tested)} seeds)"
+
+
+def _competence_summary(runs: pd.DataFrame, fraction: float) -> str:
+    """A condition's recovery of competence over the measured seeds, or why none is."""
     n = len(runs)
     measured = runs[runs["status"] == "measured"]
     m = len(measured)
     if m == 0:
         never = int((runs["status"] == "never_started").sum())
         if never == n:
-            return f"{name}: the failure never started ({n} of {n} seeds)"
+            return f"the failure never started ({n} of {n} seeds)"
         if never == 0:
-            return f"{name}: not learned before the failure, nothing to forget ({n} of {n} seeds)"
+            return f"not learned before the failure, nothing to forget ({n} of {n} seeds)"
         return (
-            f"{name}: nothing to measure (never started in {never}, not learned before it in "
+            f"nothing to measure (never started in {never}, not learned before it in "
             f"{n - never} of {n} seeds)"
         )
     rest = "" if m == n else f"; {n - m} of {n} seeds not measurable"
     if not measured["dropped"].any():
-        return f"{name}: never fell below {fraction:.0%} of its pre-failure mean ({m} seeds{rest})"
+        return f"never fell below {fraction:.0%} of its pre-failure mean ({m} seeds{rest})"
     back = measured[measured["recovered"]]
     if back.empty:
-        return f"{name}: {fraction:.0%} not regained by the end (0/{m} seeds{rest})"
-    mean = back["recovery_episodes"].mean()
-    spread = f" ± {back['recovery_episodes'].std(ddof=1):,.0f}" if len(back) > 1 else ""
+        return f"{fraction:.0%} not regained by the end (0/{m} seeds{rest})"
     return (
-        f"{name}: {fraction:.0%} regained after {mean:,.0f}{spread} episodes "
+        f"{fraction:.0%} regained after {_spread(back['recovery_episodes'])} episodes "
         f"({len(back)}/{m} seeds{rest})"
     )
 
