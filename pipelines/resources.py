@@ -197,8 +197,11 @@ class Reproduction:
         `population` where given; else 1, unless the networks train on a GPU (`device=cuda`,
         or Ray tasks with GPUs) and the runs step their copies in their own process
         (`env_processes=1`, the budgets' default): then as many populations as the pool trains
-        runs at once (`Pool.slots`), each of ceil(runs / slots) runs, so that every run of the
-        experiment trains at once and no worker waits; on Ray, no more than one node holds."""
+        runs at once (`Pool.slots`: one local worker by default with `--device cuda`), each of
+        ceil(runs / slots) runs, so that every run of the experiment trains at once and no
+        worker waits; on Ray, no more than one node holds; on this machine, no more than fit
+        in its memory together (`curious.runs.population.runs_that_fit`), the rest in further
+        populations after them."""
         if self.population is not None:
             return self.population
         pool = self.pool
@@ -206,7 +209,12 @@ class Reproduction:
         if not on_gpu or self.copies_in_processes(specs):
             return 1
         size = math.ceil(len(specs) / pool.slots)
-        return max(1, min(size, pool.largest_group or size))
+        if pool.largest_group is not None:  # Ray: its nodes' memory is theirs to check
+            return max(1, min(size, pool.largest_group))
+        from curious.runs.population import runs_that_fit
+
+        configs = [spec.config(self.overrides) for spec in specs[:size]]
+        return max(1, min(size, runs_that_fit(configs)))
 
     def check_population(self, specs: Sequence[RunSpec]) -> None:
         """A `ConfigError` where the given `population` cannot train the runs of `specs`: fewer

@@ -409,6 +409,29 @@ def test_the_default_population_fills_the_workers_where_the_networks_train_on_a_
     assert size(LocalPool(4), device="cuda", env_processes=2) == 1
     assert size(ray_like) == 2  # ceil(6 / 2) = 3, but a node holds 2
     assert size(LocalPool(4), population=5) == 5
+    assert size(LocalPool(1), device="cuda") == 6  # `--device cuda`'s one worker: all at once
+
+
+def test_the_default_population_on_a_gpu_holds_no_more_runs_than_fit_in_memory(
+    tmp_path, monkeypatch
+):
+    """With room for two and a half runs, a GPU's one worker trains main's six smoke runs in
+    populations of two (`runs_that_fit`), not one population that the memory check refuses."""
+    from curious.runs import population
+    from curious.runs.memory import SUITE_COPY_BYTES, USABLE, memory_parts
+
+    budget = get_budget("smoke")
+    runs = budget.experiments["main"].runs()
+    one = max(
+        sum(p.nbytes for p in memory_parts(*run, SUITE_COPY_BYTES))
+        for run in population._sized_runs([spec.config() for spec in runs])
+    )
+    monkeypatch.setattr(population, "available_memory", lambda: int(2.5 * one / USABLE))
+    layout = OutputLayout.at(tmp_path)
+    repro = Reproduction(budget, layout, lambda: LocalPool(1), {"device": "cuda"})
+    assert repro.population_size(runs) == 2
+    monkeypatch.setattr(population, "available_memory", lambda: int(0.5 * one / USABLE))
+    assert repro.population_size(runs) == 1  # a run too big alone meets its own error
 
 
 def test_reproduce_refuses_a_population_it_cannot_train(tmp_path, capsys):

@@ -121,7 +121,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--workers",
         type=int,
         default=None,
-        help="runs trained at once on this machine (default: one per core; ignored with Ray)",
+        help="worker processes training runs at once on this machine (default: one per core; "
+        "with --device cuda, one, which trains the runs in populations; ignored with Ray)",
     )
     parser.add_argument(
         "--population",
@@ -134,7 +135,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "run per process. Default: 1; with --device cuda or Ray GPUs (and env_processes=1), "
         "each experiment's runs to train are cut into one population per worker, ceil(runs / "
         "workers) runs each (on Ray, per run the cluster holds at once, no more than a node "
-        "holds)",
+        "holds; on this machine, no more than fit in its memory together)",
     )
     parser.add_argument("--cpus-per-run", type=float, default=1.0, help="Ray CPUs per run")
     parser.add_argument(
@@ -239,8 +240,12 @@ def run(args: argparse.Namespace) -> int:
     from pipelines.reproduce import ReproduceError, reproduce
     from pipelines.training import RunFolderMismatch
 
+    workers = args.workers
+    if workers is None and overrides.get("device") == "cuda" and not args.ray_address:
+        workers = 1  # one process drives the GPU, its runs in populations (--population)
+
     def pool():
-        return make_pool(args.ray_address, args.workers, args.cpus_per_run, args.gpus_per_run)
+        return make_pool(args.ray_address, workers, args.cpus_per_run, args.gpus_per_run)
 
     try:
         result = reproduce(

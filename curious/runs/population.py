@@ -31,15 +31,23 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import numpy as np
+
 from curious.agent.conditions import make_condition
 from curious.agent.update_lockstep import UpdateLockstep
 from curious.config import Config, ConfigError
-from curious.envs.goal_env import GoalEnv
+from curious.envs.goal_env import EnvSpec, GoalEnv
 from curious.envs.lockstep import Lockstep
 from curious.runs.driver import RunCopies, Seat, train
 from curious.runs.folder import RunFolder
 from curious.runs.hooks import Recorder
-from curious.runs.memory import SUITE_COPY_BYTES, check_population_memory
+from curious.runs.memory import (
+    SUITE_COPY_BYTES,
+    USABLE,
+    available_memory,
+    check_population_memory,
+    memory_parts,
+)
 from curious.runs.trainer import Trainer
 
 
@@ -193,8 +201,9 @@ def _train_all(
     return [f.result() for f in futures]
 
 
-def _check_memory(configs: Sequence[Config]) -> None:
-    """The memory of all the runs together (one suite copy per variant gives its spec)."""
+def _sized_runs(configs: Sequence[Config]) -> list[tuple[Config, EnvSpec, int]]:
+    """Each run's (config, spec, experts), what `curious.runs.memory` sizes a run by (one suite
+    copy per variant gives its spec)."""
     from curious.envs.goal_env import SuiteEnv
 
     specs = {variant: SuiteEnv(variant, seed=0).spec for variant in {c.variant for c in configs}}
@@ -202,4 +211,22 @@ def _check_memory(configs: Sequence[Config]) -> None:
     for config in configs:
         spec = specs[config.variant]
         runs.append((config, spec, make_condition(config, spec).n_experts))
-    check_population_memory(runs, SUITE_COPY_BYTES)
+    return runs
+
+
+def _check_memory(configs: Sequence[Config]) -> None:
+    """The memory of all the runs together."""
+    check_population_memory(_sized_runs(configs), SUITE_COPY_BYTES)
+
+
+def runs_that_fit(configs: Sequence[Config]) -> int:
+    """How many of `configs`, taken in order, fit in this machine's memory as one population
+    (`train_population` checks the same sum before it starts); at least 1, so that a run too
+    big alone meets its own error."""
+    need = np.cumsum(
+        [
+            sum(part.nbytes for part in memory_parts(*run, SUITE_COPY_BYTES))
+            for run in _sized_runs(configs)
+        ]
+    )
+    return max(1, int(np.searchsorted(need, USABLE * available_memory(), side="right")))
