@@ -131,7 +131,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="runs trained together in one process (a worker or a Ray task), their physics "
         "stepped as one batch: worth it where the networks train on a GPU; on a 2-core CPU a "
-        "population of 2 trained 0.86 x the episodes of 2 processes, so there the default is 1 "
+        "population of 2 trained 0.85 x the episodes of 2 processes, so there the default is 1 "
         "run per process. Default: 1; with --device cuda or Ray GPUs (and env_processes=1), "
         "each experiment's runs to train are cut into one population per worker, ceil(runs / "
         "workers) runs each (on Ray, per run the cluster holds at once, no more than a node "
