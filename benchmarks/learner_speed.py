@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from curious.config import Config, resolve
-from curious.envs.goal_env import EnvSpec, goals_by_module, rewards_by_module
+from curious.envs.goal_env import EnvSpec, RowsByModule
 
 STATE, GOAL, TASKS, ACTIONS = 49, 21, 7, 4
 
@@ -147,7 +147,7 @@ def bound_steps(args: argparse.Namespace) -> tuple[dict[str, Any], int]:
 
 
 # ----------------------------------------------------------------------------------------------
-class _SyntheticGoals:
+class _SyntheticGoals(RowsByModule):
     """Goal slots and rewards with the suite's shapes: all the replay needs to relabel."""
 
     spec = EnvSpec(
@@ -175,14 +175,6 @@ class _SyntheticGoals:
         out = np.asarray(achieved)[..., self.spec.outcome_slices[module]][..., :3]
         far = np.linalg.norm(out - goal, axis=-1) > 0.05
         return np.where(far, -1.0, 0.0).astype(np.float32)
-
-    def row_goals(self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
-        return goals_by_module(self, modules, slots, achieved)
-
-    def row_rewards(
-        self, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
-    ) -> np.ndarray:
-        return rewards_by_module(self, modules, achieved, goals)
 
 
 def our_steps(args: argparse.Namespace) -> tuple[dict[str, Any], float]:

@@ -18,13 +18,13 @@ from typing import Any
 
 import numpy as np
 
-from curious.envs.goal_env import EnvSpec, Obs, goals_by_module, rewards_by_module
+from curious.envs.goal_env import EnvSpec, Obs, RowsByModule
 
 THRESHOLD = 0.15
 STEP = 0.25
 
 
-class ToyGoalEnv:
+class ToyGoalEnv(RowsByModule):
     """See the module docstring."""
 
     spec = EnvSpec(
@@ -94,14 +94,6 @@ class ToyGoalEnv:
         outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
         distance = np.linalg.norm(outcome - np.asarray(goal), axis=-1)
         return np.where(distance < THRESHOLD, 0.0, -1.0).astype(np.float32)
-
-    def row_goals(self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
-        return goals_by_module(self, modules, slots, achieved)
-
-    def row_rewards(
-        self, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
-    ) -> np.ndarray:
-        return rewards_by_module(self, modules, achieved, goals)
 
     def get_rng_state(self) -> Any:
         return self.rng.bit_generator.state

@@ -19,8 +19,8 @@ The agent never touches dm_control objects: it trains on anything that implement
 * `row_goals(modules, slots, achieved)` and `row_rewards(modules, achieved, goals)` are the
   same row by row, each row (n, .) for its own module `modules[i]`: what a minibatch of
   transitions replayed as different modules needs, in one call (the suite's in one pass over
-  all rows; `goals_by_module` and `rewards_by_module` build them from `goal` and `reward` for
-  any env).
+  all rows; `RowsByModule`, `goals_by_module` and `rewards_by_module` build them from `goal`
+  and `reward` for any env).
 
 An environment with a perturbation also offers `set_sensor_failure(on)`, which the trainer
 calls before every episode of a run with a sensory failure, and `sensor_failure_module`, the name
@@ -155,6 +155,19 @@ def rewards_by_module(
         sel = np.flatnonzero(modules == k)
         out[sel] = env.reward(int(k), achieved[sel], goals[sel])
     return out
+
+
+class RowsByModule:
+    """`row_goals` and `row_rewards` from an env's own `goal` and `reward`, one call per module
+    the rows name: for an env without a route over all rows at once."""
+
+    def row_goals(self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        return goals_by_module(self, modules, slots, achieved)  # type: ignore[arg-type]
+
+    def row_rewards(
+        self, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
+    ) -> np.ndarray:
+        return rewards_by_module(self, modules, achieved, goals)  # type: ignore[arg-type]
 
 
 class SuiteEnv:
