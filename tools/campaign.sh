@@ -28,7 +28,7 @@
 set -euo pipefail
 
 # The commit `sensor_failure_mastered` trains from: set it once that experiment is merged.
-C5_COMMIT=TO_BE_SET
+C5_COMMIT=8d18b17
 
 main() {
     local commit=${CAMPAIGN_COMMIT:-9972821}
