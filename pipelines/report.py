@@ -295,6 +295,41 @@ NO_TESTS = (
 )
 
 
+def _area_under_success(e: Experiment, tests: pd.DataFrame) -> list[str]:
+    """Per condition: each seed's test success averaged over every epoch of the common budget
+    (`analysis.area_under_success`), and the one-tailed Welch test on it: a reading of the
+    comparison that depends on no bin edges."""
+    area = analysis.area_under_success(tests)
+    rows = [
+        (
+            condition_label(condition),
+            ", ".join(_fmt(v) for v in group.sort_values("seed")["value"]),
+            _mean_std(group["value"]),
+        )
+        for condition, group in _in_order(area, e).groupby("condition", observed=True, sort=False)
+    ]
+    budget = int(area["episodes"].iat[0])
+    lines = [
+        "Test success averaged over every epoch of the first "
+        f"{budget:,} episodes, per seed (the area under each seed's Fig. 2a curve over the "
+        "budget, `analysis.area_under_success`; no bins):",
+        "",
+        *_table(("condition", "per seed", "mean ± std"), rows),
+    ]
+    if e.compare is not None:
+        test = analysis.welch_per_bin(area, *e.compare)
+        if not test.empty:
+            r = test.iloc[0]
+            verdict = "significant" if r.significant else "not significant"
+            lines += [
+                f"One-tailed Welch's t-test, {condition_label(e.compare[0])} > "
+                f"{condition_label(e.compare[1])}, on it: t = {_fmt(r.t)}, p = {_p(r.p)}, "
+                f"{verdict} at alpha = {analysis.ALPHA:g} (n = {r.n_better} and {r.n_worse}).",
+                "",
+            ]
+    return lines
+
+
 def _episodes_to_success(e: Experiment, tests: pd.DataFrame) -> list[str]:
     """Per condition and seed: the episodes each achievable module needed to reach each level of
     test success (`analysis.episodes_to_test_success`)."""
@@ -466,6 +501,7 @@ def _main(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
         lines += _final_by_condition(e, numbers)
         if e.compare is not None:
             lines += _welch_points(numbers, *e.compare)
+        lines += _area_under_success(e, tables.tests)
         lines += _episodes_to_success(e, tables.tests)
     for name in ("fig2b", "fig2c", "table1"):
         lines += _figure(repro, name)

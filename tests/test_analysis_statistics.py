@@ -482,3 +482,34 @@ def test_final_test_success_is_read_at_the_common_budget(tmp_path):
         ).to_parquet(folder / "tests.parquet", index=False)
     final = final_success(epoch_success(load_tests(tmp_path))).set_index("seed")
     assert (final["episodes"] == 30).all() and (final["value"] == 1.0).all()
+
+
+def test_area_under_success_averages_every_epoch_of_the_common_budget(tmp_path):
+    """Each run's epochs up to the budget every run reached weigh the same (an epoch with no
+    test on an achievable module is left out), whatever the bins; the result is what the Welch
+    test takes, one point a run."""
+    for seed, last in ((0, 4), (1, 6)):
+        folder = _run(tmp_path, "curious", seed, np.full(100, 0.5))
+        epochs = np.repeat(np.arange(last), 2)
+        pd.DataFrame(
+            {
+                "epoch": epochs.astype(np.int64),
+                "episode": ((epochs + 1) * 10).astype(np.int64),
+                "worker": np.tile([0, 1], last).astype(np.int32),
+                "module": ["reach", "stack"] * last,
+                "g0": np.zeros(2 * last, np.float32),
+                "g1": np.zeros(2 * last, np.float32),
+                "g2": np.zeros(2 * last, np.float32),
+                # epoch e: both succeed from epoch 2 on, one of two before (seed 1 one epoch later)
+                "success": np.tile([True, False], last) | (epochs >= 2 + seed),
+                "module_success": np.tile([True, False], last) | (epochs >= 2 + seed),
+                "wall_time": np.zeros(2 * last),
+            }
+        ).to_parquet(folder / "tests.parquet", index=False)
+    area = analysis.area_under_success(load_tests(tmp_path)).set_index("seed")
+    assert (area["episodes"] == 40).all() and (area["n_epochs"] == 4).all()  # 4 epochs each
+    np.testing.assert_allclose(area["value"], [(0.5 + 0.5 + 1 + 1) / 4, (0.5 * 3 + 1) / 4])
+    test = welch_per_bin(
+        area.reset_index().assign(condition=["curious", "mg-te"]), "curious", "mg-te"
+    )
+    assert test["n_better"].tolist() == [1] and np.isnan(test["p"]).all()  # one seed a side

@@ -119,3 +119,13 @@ def test_c5_refocus_and_recoveries():
         episodes = f"{recovered[(condition, seed)]:,}"
         assert f"{episodes} episodes" in results and episodes in readme, (condition, seed)
     assert not table.loc[("m-uvfa", 0), "recovered"]
+
+
+def test_c1_area_under_success_per_seed_and_its_welch_test():
+    """C1's reading without bins: each seed's success over every epoch, and the Welch test."""
+    area = analysis.area_under_success(analysis.load_tests(_runs("main")))
+    text = _text(RESULTS)
+    for condition, means in analysis.across_seeds(area).set_index("condition").iterrows():
+        assert _mean_std(means) in text, condition
+    test = analysis.welch_per_bin(area, "curious", "mg-te").iloc[0]
+    assert f"t = {test['t']:.2f}, p = {test['p']:.2g}" in text

@@ -57,6 +57,7 @@ __all__ = [
     "RUN_COLUMNS",
     "achievable_competence",
     "across_seeds",
+    "area_under_success",
     "bin_runs",
     "binned_success",
     "check_comparable",
@@ -375,6 +376,32 @@ def final_success(points: pd.DataFrame) -> pd.DataFrame:
     last = upto.loc[upto.groupby("run", observed=True)["episodes"].idxmax()]
     columns = [*RUN_COLUMNS, "episodes", "n_tests", "value"]
     return last[columns].sort_values("run").reset_index(drop=True)
+
+
+def area_under_success(tests: pd.DataFrame) -> pd.DataFrame:
+    """Each run's test success averaged over every epoch up to the common budget: the area under
+    its Fig. 2a curve divided by the budget, a summary of how fast it learned that depends on no
+    bin edges (C1's reading beside the per-bin tests).
+
+    ``tests`` is a `load_tests` table. Each epoch's success is `epoch_success`'s (its test
+    rollouts on achievable modules pooled); the epochs are those every run reached (a longer run
+    is read at the common budget, so it is not favoured), each weighing the same, as the epochs
+    are evenly spaced; epochs without a test on an achievable module are left out. Returns one
+    row per run in the form `welch_per_bin` takes (all at one ``episodes``, the common budget):
+    the run columns, ``episodes``, ``n_epochs`` and ``value``.
+    """
+    points = epoch_success(tests)
+    if points.empty:
+        raise AnalysisError("no test success points: the runs have no test rollouts yet")
+    common = int(points.groupby("run", observed=True)["episodes"].max().min())
+    upto = points[points["episodes"] <= common].dropna(subset=["value"])
+    grouped = upto.groupby("run", observed=True, sort=True)
+    out = grouped[list(RUN_COLUMNS[1:])].first()
+    out["episodes"] = common
+    out["n_epochs"] = grouped["value"].size().astype(np.int64)
+    out["value"] = grouped["value"].mean()
+    out = out.reset_index()
+    return out[[*RUN_COLUMNS, "episodes", "n_epochs", "value"]]
 
 
 def comparison_bin_size(n_episodes: int) -> int:
