@@ -89,20 +89,20 @@ def test_c2_order_of_learning_in_every_curious_seed():
     assert f"the same order in all {seeds} CURIOUS seeds" in _text(README)
 
 
-def test_c4_competence_at_seven_distractors():
-    runs = analysis.load_runs(_runs("distractors", "distractors_7"))
+@pytest.mark.parametrize("n_distractors", [4, 7])
+def test_c4_competence_per_number_of_distractors(n_distractors):
+    runs = analysis.load_runs(_runs("distractors", f"distractors_{n_distractors}"))
     final = analysis.final_competence(runs)
     means = analysis.across_seeds(final).set_index("condition")
     p = float(analysis.welch_per_bin(final, "curious", "m-uvfa")["p"].iloc[0])
+    curious, m_uvfa = _mean_std(means.loc["curious"]), _mean_std(means.loc["m-uvfa"])
     readme = (
-        f"CURIOUS {_mean_std(means.loc['curious'])}, M-UVFA {_mean_std(means.loc['m-uvfa'])} "
-        f"(p = {p:.3f}, 2 seeds)"
+        f"at 4 distractors CURIOUS {curious}, M-UVFA {m_uvfa} (p = {p:.3f})"
+        if n_distractors == 4
+        else f"at 7, {curious} against {m_uvfa} (p = {p:.3f}); 2 seeds"
     )
     assert readme in _text(README), readme
-    results = (
-        f"| 7 | {_mean_std(means.loc['curious'])} (2 seeds) | "
-        f"{_mean_std(means.loc['m-uvfa'])} (2 seeds) |"
-    )
+    results = f"| {n_distractors} | {curious} (2 seeds) | {m_uvfa} (2 seeds) |"
     assert results in RESULTS.read_text() and f"| {p:.4f} |" in RESULTS.read_text(), results
 
 
