@@ -9,8 +9,8 @@ placed where the outcomes put it) and recomputes their rewards. Timed, in interl
 * ours: goals placed and rewards recomputed row by row in one pass over the minibatch
   (`GoalEnv.row_goals`, `GoalEnv.row_rewards`: the suite's `ModuleEvaluator.row_goals` and
   `row_success`);
-* peer: the same minibatch relabelled one module at a time (`goals_by_module`,
-  `rewards_by_module`: each module's own `goal` and `reward` on its rows), the same numbers;
+* peer: the same minibatch relabelled one module at a time (`RowsByModule`: each module's own
+  `goal` and `reward` on its rows), the same numbers;
 * bound: the minibatch's gathers alone (states, next states, actions and outcomes of the drawn
   transitions), what any relabelling reads.
 
@@ -37,17 +37,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (3)")
 
 
-class _PerModule:
-    """The suite env relabelling one module at a time (the peer)."""
+def _per_module(env: Any) -> Any:
+    """The suite env relabelling one module at a time (the peer): its own `goal` and `reward`
+    behind `RowsByModule`'s row-wise methods."""
+    from curious.envs.goal_env import RowsByModule
 
-    def __init__(self, env: Any) -> None:
-        from curious.envs.goal_env import goals_by_module, rewards_by_module
+    class PerModule(RowsByModule):
+        spec = env.spec
+        goal, reward = staticmethod(env.goal), staticmethod(env.reward)
 
-        self._env = env
-        self.spec = env.spec
-        self.goal, self.reward = env.goal, env.reward
-        self.row_goals = lambda m, s, a: goals_by_module(self, m, s, a)
-        self.row_rewards = lambda m, a, g: rewards_by_module(self, m, a, g)
+    return PerModule()
 
 
 def _filled_replay(env: Any, episodes: int) -> Any:
@@ -86,7 +85,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     env = SuiteEnv(args.variant, seed=0)
     replay = _filled_replay(env, args.episodes)
     probs = np.full(env.spec.n_modules, 1 / env.spec.n_modules)
-    peer_env = _PerModule(env)
+    peer_env = _per_module(env)
 
     ours_batch = replay.sample(args.batch, np.random.default_rng(1), env, probs, 0.8)
     peer_batch = replay.sample(args.batch, np.random.default_rng(1), peer_env, probs, 0.8)

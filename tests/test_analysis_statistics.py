@@ -462,24 +462,31 @@ def test_test_success_pools_the_epochs_rollouts_on_achievable_modules(tmp_path):
     assert final["episodes"].tolist() == [80] and final["value"].tolist() == [0.5]
 
 
+def _two_tests_an_epoch(folder, last: int, both_from: int) -> None:
+    """`tests.parquet` of `last` epochs of 10 episodes, a test on reach and one on stack each:
+    the reach test succeeds, the stack test from epoch `both_from` on."""
+    epochs = np.repeat(np.arange(last), 2)
+    success = np.tile([True, False], last) | (epochs >= both_from)
+    pd.DataFrame(
+        {
+            "epoch": epochs.astype(np.int64),
+            "episode": ((epochs + 1) * 10).astype(np.int64),
+            "worker": np.tile([0, 1], last).astype(np.int32),
+            "module": ["reach", "stack"] * last,
+            "g0": np.zeros(2 * last, np.float32),
+            "g1": np.zeros(2 * last, np.float32),
+            "g2": np.zeros(2 * last, np.float32),
+            "success": success,
+            "module_success": success,
+            "wall_time": np.zeros(2 * last),
+        }
+    ).to_parquet(folder / "tests.parquet", index=False)
+
+
 def test_final_test_success_is_read_at_the_common_budget(tmp_path):
     for seed, last in ((0, 3), (1, 5)):
         folder = _run(tmp_path, "curious", seed, np.full(100, 0.5))
-        epochs = np.repeat(np.arange(last), 2)
-        pd.DataFrame(
-            {
-                "epoch": epochs.astype(np.int64),
-                "episode": ((epochs + 1) * 10).astype(np.int64),
-                "worker": np.tile([0, 1], last).astype(np.int32),
-                "module": ["reach", "stack"] * last,
-                "g0": np.zeros(2 * last, np.float32),
-                "g1": np.zeros(2 * last, np.float32),
-                "g2": np.zeros(2 * last, np.float32),
-                "success": np.tile([True, False], last) | (epochs >= 2),
-                "module_success": np.tile([True, False], last) | (epochs >= 2),
-                "wall_time": np.zeros(2 * last),
-            }
-        ).to_parquet(folder / "tests.parquet", index=False)
+        _two_tests_an_epoch(folder, last, both_from=2)
     final = final_success(epoch_success(load_tests(tmp_path))).set_index("seed")
     assert (final["episodes"] == 30).all() and (final["value"] == 1.0).all()
 
@@ -490,22 +497,8 @@ def test_area_under_success_averages_every_epoch_of_the_common_budget(tmp_path):
     test takes, one point a run."""
     for seed, last in ((0, 4), (1, 6)):
         folder = _run(tmp_path, "curious", seed, np.full(100, 0.5))
-        epochs = np.repeat(np.arange(last), 2)
-        pd.DataFrame(
-            {
-                "epoch": epochs.astype(np.int64),
-                "episode": ((epochs + 1) * 10).astype(np.int64),
-                "worker": np.tile([0, 1], last).astype(np.int32),
-                "module": ["reach", "stack"] * last,
-                "g0": np.zeros(2 * last, np.float32),
-                "g1": np.zeros(2 * last, np.float32),
-                "g2": np.zeros(2 * last, np.float32),
-                # epoch e: both succeed from epoch 2 on, one of two before (seed 1 one epoch later)
-                "success": np.tile([True, False], last) | (epochs >= 2 + seed),
-                "module_success": np.tile([True, False], last) | (epochs >= 2 + seed),
-                "wall_time": np.zeros(2 * last),
-            }
-        ).to_parquet(folder / "tests.parquet", index=False)
+        # one of two tests succeeds an epoch, both from epoch 2 on (seed 1 one epoch later)
+        _two_tests_an_epoch(folder, last, both_from=2 + seed)
     area = analysis.area_under_success(load_tests(tmp_path)).set_index("seed")
     assert (area["episodes"] == 40).all() and (area["n_epochs"] == 4).all()  # 4 epochs each
     np.testing.assert_allclose(area["value"], [(0.5 + 0.5 + 1 + 1) / 4, (0.5 * 3 + 1) / 4])
