@@ -104,6 +104,14 @@ def test_resume_without_any_checkpoint_is_refused_and_restart_starts_over(tmp_pa
     assert "resumed" not in info and info["config"]["total_episodes"] == 8
 
 
+def test_restart_into_a_folder_not_made_yet_starts_the_run(tmp_path):
+    """`--restart` in a script that may find the folder there or not: both start a run."""
+    out = tmp_path / "new" / "r"
+    trainer = restart(out, total_episodes=8)
+    assert trainer.episodes == 8
+    np.testing.assert_array_equal(episodes(out / "metrics.parquet"), np.arange(8))
+
+
 def test_restart_refuses_a_folder_holding_more_than_a_run(tmp_path):
     out = tmp_path / "r"
     run(out, total_episodes=8)

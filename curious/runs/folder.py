@@ -203,7 +203,9 @@ class RunFolder:
 
     def clear(self) -> None:
         """Remove what a run wrote in the folder (`--restart`), after `prepare` checked that it
-        holds nothing else."""
+        holds nothing else; a folder not made yet has nothing to remove."""
+        if not self.path.is_dir():
+            return
         for entry in self.path.iterdir():
             if entry.name.lstrip(".").startswith(RUN_ENTRIES):
                 if entry.is_dir() and not entry.is_symlink():
