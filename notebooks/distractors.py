@@ -69,6 +69,16 @@ pd.concat(
 )
 
 # %% [markdown]
+# ## Who loses more as distractors are added
+#
+# C4's own test (`analysis.compare_degradation`): each condition's loss of mean competence from
+# the fewest to the most distracting modules shipped, and a one-tailed test that `better` loses
+# less (Welch-Satterthwaite over the four groups; NaN with fewer than two seeds in a group).
+
+# %%
+pd.Series(analysis.compare_degradation(final, better, worse))
+
+# %% [markdown]
 # ## Learning curves per setting
 #
 # Test success over achievable modules, from the runs' test rollouts (drawn as Fig. 2a is), one

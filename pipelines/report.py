@@ -548,7 +548,35 @@ def _distractors(repro: Reproduction, e: Experiment, tables: _Tables) -> list[st
     ]
     if test is not None:
         lines += _welch_summary(test, *e.compare, "setting (competence at the end)")
+        lines += _degradation(final, *e.compare)
     return lines + _forgetting(e, tables.metrics)
+
+
+def _degradation(final: pd.DataFrame, better: str, worse: str) -> list[str]:
+    """C4's own test (`analysis.compare_degradation`), where two settings were shipped."""
+    if final["n_distractors"].nunique() < 2:
+        return []
+    try:
+        d = analysis.compare_degradation(final, better, worse)
+    except analysis.AnalysisError as error:
+        return [
+            f"The loss from the fewest to the most distracting modules: not tested ({error}).",
+            "",
+        ]
+    a, b = condition_label(better), condition_label(worse)
+    text = (
+        f"From {d['fewest']:.0f} to {d['most']:.0f} distracting modules the mean competence fell "
+        f"by {d[f'loss_{better}']:.2f} for {a} and by {d[f'loss_{worse}']:.2f} for {b}: a "
+        f"difference of {d['difference']:+.2f}"
+    )
+    if math.isfinite(d["p"]):
+        text += (
+            f" (Welch-Satterthwaite over the four groups: t = {d['t']:.2f}, "
+            f"{d['df']:.1f} degrees of freedom, one-tailed p = {_p(d['p'])} that {a} loses less)"
+        )
+    else:
+        text += " (not tested: a group with fewer than two seeds, or no variance)"
+    return [text + ".", ""]
 
 
 def _onsets_text(per_run: pd.DataFrame) -> str:

@@ -106,6 +106,26 @@ def test_c4_competence_per_number_of_distractors(n_distractors):
     assert results in RESULTS.read_text() and f"| {p:.4f} |" in RESULTS.read_text(), results
 
 
+def test_c4_degradation_between_the_settings_shipped():
+    """The degradation test over the settings whose runs are all shipped (4 and 7 until
+    `distractors_0` is)."""
+    paths = []
+    for n in (0, 4, 7):
+        try:
+            paths += _runs("distractors", f"distractors_{n}")
+        except pytest.skip.Exception:
+            continue
+    final = analysis.final_competence(analysis.load_runs(paths))
+    d = analysis.compare_degradation(final, "curious", "m-uvfa")
+    text = _text(RESULTS)
+    reading = (
+        f"from {d['fewest']} to {d['most']}, a difference of {d['difference']:+.2f} "
+        f"(t = {d['t']:.2f}, {d['df']:.1f} degrees of freedom, p = {d['p']:.3f} that CURIOUS "
+        "loses less)"
+    )
+    assert reading in text, reading
+
+
 def test_c5_refocus_and_recoveries():
     table = analysis.recovery(analysis.load_runs(_runs("sensor_failure")))
     table = table.sort_values(["condition", "seed"]).set_index(["condition", "seed"])

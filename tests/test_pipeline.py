@@ -88,6 +88,18 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "The failure starts at episode 12. It started at episode 12 in every run." in report
     assert "nothing to forget" in report and "No recovery can be measured" in report
     assert "regained" not in report
+    # C4's degradation test, from the distractors' own table (one seed a setting: not tested)
+    from curious import analysis
+
+    final = analysis.final_competence(
+        pq.read_table(out / "metrics" / "distractors.parquet").to_pandas()
+    )
+    d = analysis.compare_degradation(final, "curious", "m-uvfa")
+    assert (
+        f"From 0 to 7 distracting modules the mean competence fell by {d['loss_curious']:.2f} for "
+        f"CURIOUS and by {d['loss_m-uvfa']:.2f} for M-UVFA: a difference of "
+        f"{d['difference']:+.2f} (not tested: a group with fewer than two seeds" in report
+    )
     # the training time is read off the runs' own clocks, not a fixed sentence
     walls = [
         pq.read_table(p, columns=["wall_time"])["wall_time"].to_numpy().max()

@@ -20,6 +20,7 @@ analysis.mastery_drops(runs)                        # spontaneous drops of maste
 analysis.episodes_to_test_success(tests)            # per module: episodes to 0.5 and 0.9
 analysis.area_under_success(tests)                  # per run: success over every epoch, no bins
 analysis.learning_order(analysis.competence_crossings(runs))  # which module was learned when
+analysis.compare_degradation(analysis.final_competence(runs), "curious", "m-uvfa")  # C4's loss
 ```
 
 Fig. 2a's "success" is, as in the paper, the success of the noise-free test rollouts run after
@@ -28,13 +29,14 @@ distractors figure and the recovery read the competence (the moving success rate
 self-evaluations, which drives learning progress). `curious.analysis.statistics` defines both
 precisely, `curious.analysis.milestones` when each module is learned,
 `curious.analysis.perturbation` the recovery after the sensory failure (of the competence, and
-of the test success, the primary measure of the study on a mastered module), and
+of the test success, the primary measure of the study on a mastered module),
 `curious.analysis.drops` the spontaneous drops of mastered modules (forgetting with nothing
-perturbed). Module and condition colours live in `curious.analysis.palette`, shared with the
-Rerun recordings.
+perturbed), and `curious.analysis.degradation` C4's test of which condition loses less as
+distracting modules are added. Module and condition colours live in `curious.analysis.palette`,
+shared with the Rerun recordings.
 
-The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `drops`
-and `figures` (each module's ``__all__``), imported on first use, so that ``import
+The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `drops`,
+`degradation` and `figures` (each module's ``__all__``), imported on first use, so that ``import
 curious.analysis.palette`` (the recording code does) does not pull in pandas, scipy and matplotlib.
 """
 
@@ -56,6 +58,7 @@ _PUBLIC_MODULES = (
     "milestones",
     "perturbation",
     "drops",
+    "degradation",
     "figures",
 )
 """The submodules whose ``__all__`` make this package's names, looked up in this order."""
