@@ -126,6 +126,27 @@ def test_c4_degradation_between_the_settings_shipped():
     assert reading in text, reading
 
 
+def test_c3_no_drop_of_a_mastered_module():
+    """The C3 reading over every shipped run that self-evaluates (HER does not), of the main
+    comparison and of the distractors' settings whose runs are all shipped."""
+    paths = [p for p in _runs("main") if p.parent.name != "her"]
+    for n in (0, 4, 7):
+        try:
+            paths += _runs("distractors", f"distractors_{n}")
+        except pytest.skip.Exception:
+            continue
+    table = analysis.mastery(analysis.load_runs(paths))
+    runs, deepest = len(paths), float(table["deepest_fall"].max())
+    assert int(table["n_drops"].sum()) == 0
+    readme = f"no mastered module fell by 0.2 in {runs} runs (deepest fall {deepest:.2f})"
+    assert readme in _text(README), readme
+    episodes = int(table["mastered_episodes"].sum()) / 1e6
+    results = (
+        f"Over about {episodes:.2f} million module-episodes of mastered modules in {runs} runs"
+    )
+    assert results in _text(RESULTS), results
+
+
 def test_c5_refocus_and_recoveries():
     table = analysis.recovery(analysis.load_runs(_runs("sensor_failure")))
     table = table.sort_values(["condition", "seed"]).set_index(["condition", "seed"])
