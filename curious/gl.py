@@ -5,7 +5,10 @@ value they do not know (`RuntimeError`) or on a backend whose library is missing
 without libOSMesa ends in an `AttributeError` deep in PyOpenGL). Every other command only
 steps the physics, so the command line switches GL off for them before anything imports
 MuJoCo (`gl_for_command`), and `curious render` first checks that the backend loads
-(`rendering_problem`), refusing in one line with the fix when it does not.
+(`rendering_problem`), refusing in one line with the fix when it does not. With `MUJOCO_GL`
+unset on a machine without a display (a server, a container, CI), dm_control would try GLFW,
+warn that DISPLAY is missing and fail to make a context; `curious render` then takes the
+headless backend whose library is installed, EGL before OSMesa (`headless_default`).
 
 Nothing here imports MuJoCo at module level: this runs before the argument parser is built.
 """
@@ -35,9 +38,35 @@ def renders(argv: list[str]) -> bool:
 def gl_for_command(argv: list[str]) -> None:
     """Switch GL off (`MUJOCO_GL=disable`) for every command line that does not render, whatever
     the variable said: stepping the physics needs no GL, and a value MuJoCo cannot load would
-    otherwise fail the import of MuJoCo, and so the command."""
+    otherwise fail the import of MuJoCo, and so the command. A command line that renders gets
+    `headless_default` where `MUJOCO_GL` is unset."""
     if not renders(argv):
         os.environ["MUJOCO_GL"] = "disable"
+    elif "MUJOCO_GL" not in os.environ:
+        backend = headless_default()
+        if backend is not None:
+            os.environ["MUJOCO_GL"] = backend
+
+
+def headless_default() -> str | None:
+    """The backend to render with where `MUJOCO_GL` is unset: None on a machine with a display
+    (dm_control's own choice, GLFW, works there), else `egl` or `osmesa`, the first whose system
+    library loads, else None (render then refuses with `GL_FIX`)."""
+    if _has_display():
+        return None
+    import ctypes
+
+    for backend, names in (
+        ("egl", ("libEGL.so.1", "libEGL.so")),
+        ("osmesa", ("libOSMesa.so.8", "libOSMesa.so")),
+    ):
+        for name in names:
+            try:
+                ctypes.CDLL(name)
+            except OSError:
+                continue
+            return backend
+    return None
 
 
 def rendering_problem() -> str | None:
@@ -47,6 +76,8 @@ def rendering_problem() -> str | None:
     shown = f"MUJOCO_GL={value}" if value is not None else "MUJOCO_GL (unset)"
     if value is not None and value.strip().lower() in OFF:
         return f"{shown} switches rendering off; {GL_FIX}"
+    if value is None and not _has_display():  # `gl_for_command` found no headless library
+        return f"{shown}, no display, and neither libEGL nor libOSMesa loads here; {GL_FIX}"
     try:
         import mujoco  # noqa: F401  (loads the backend's library)
         from dm_control import _render  # noqa: F401  (dm_control's own check of the value)
@@ -56,3 +87,8 @@ def rendering_problem() -> str | None:
         hint = f", is {library} installed?" if library else ""
         return f"{shown} cannot be used here ({type(exc).__name__}: {cause}{hint}); {GL_FIX}"
     return None
+
+
+def _has_display() -> bool:
+    """Whether a desktop session is reachable (X11 or Wayland), where GLFW can make a context."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))

@@ -59,6 +59,53 @@ def test_a_mujoco_gl_that_cannot_load_breaks_no_command_but_render(tmp_path):
     assert "export MUJOCO_GL=egl" in line and not frames.exists()
 
 
+def test_render_without_mujoco_gl_or_a_display_takes_a_headless_backend(tmp_path, monkeypatch):
+    """A server or a container: no DISPLAY, MUJOCO_GL unset. dm_control alone would try GLFW
+    and fail; render takes EGL (or OSMesa) where its library is installed, and otherwise says in
+    one line what to install."""
+    from curious.gl import headless_default
+
+    for name in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY"):
+        monkeypatch.delenv(name, raising=False)
+    backend = headless_default()
+    frames = tmp_path / "clip.gif"
+    args = ["render", "--policy", "still", "--steps", "2", "--out", str(frames), "--no-progress"]
+    done = subprocess.run(
+        [sys.executable, "-m", "curious.cli", *args],
+        env={**os.environ, "OMP_NUM_THREADS": "1"},
+        cwd=ROOT, capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert "GLFW" not in done.stderr and "DISPLAY" not in done.stderr, done.stderr[-2000:]
+    if backend is None:  # neither library here
+        line = one_line(done.stderr)
+        assert done.returncode == 2 and "export MUJOCO_GL=egl" in line
+    else:
+        assert done.returncode == 0 and frames.stat().st_size > 0, done.stderr[-2000:]
+
+
+def test_without_a_display_or_a_headless_library_render_refuses_before_trying_glfw(monkeypatch):
+    from curious import gl
+
+    for name in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setattr(gl, "headless_default", lambda: None)
+    gl.gl_for_command(["render", "--out", "x.gif"])
+    assert "MUJOCO_GL" not in os.environ
+    problem = gl.rendering_problem()
+    assert problem is not None and "neither libEGL nor libOSMesa" in problem
+    assert "export MUJOCO_GL=egl" in problem
+
+
+def test_with_a_display_render_leaves_the_backend_to_dm_control(monkeypatch):
+    from curious.gl import gl_for_command, headless_default
+
+    monkeypatch.setenv("DISPLAY", ":0")
+    monkeypatch.delenv("MUJOCO_GL", raising=False)
+    assert headless_default() is None
+    gl_for_command(["render", "--out", "x.gif"])
+    assert "MUJOCO_GL" not in os.environ
+
+
 @pytest.mark.skipif(
     ctypes.util.find_library("OSMesa") is not None, reason="libOSMesa is installed here"
 )

@@ -18,9 +18,10 @@ per episode (module, goal and, for the trained agent, whether it succeeded) and 
 episode's last frame for --hold seconds; PNG frames are the bare pictures. The goal is drawn as a
 translucent sphere of the success radius.
 
-Needs a headless GL backend: run with MUJOCO_GL=egl (Mesa EGL: apt-get install libegl1
-libegl-mesa0) or MUJOCO_GL=osmesa (apt-get install libosmesa6). A backend that cannot load is
-refused in one line before anything is drawn.
+Where there is no display it needs a headless GL backend: with MUJOCO_GL unset it takes EGL
+(Mesa EGL: apt-get install libegl1 libegl-mesa0), else OSMesa (apt-get install libosmesa6),
+whichever library is installed; MUJOCO_GL=egl or MUJOCO_GL=osmesa chooses. A backend that cannot
+load is refused in one line before anything is drawn.
 """
 
 from __future__ import annotations
