@@ -101,6 +101,11 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     from curious.config import resolve
 
     cores = os.cpu_count() or 1
+    if (args.runs is not None and args.runs < 1) or args.cycles < 2 or args.repeats < 1:
+        raise ValueError(
+            "--runs and --repeats must be at least 1 and --cycles at least 2 (the rate is read "
+            f"after each run's first cycle), got {args.runs}, {args.repeats} and {args.cycles}"
+        )
     runs = args.runs or cores
     rates: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}
     seconds: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}

@@ -137,3 +137,18 @@ def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
     assert result["unit"] == "minibatches/s" and result["batch"] == 64
     assert result["ours"] > 0 and result["peer"] > 0 and result["bound"] > 0
     assert 0 < result["rewards_met"] < 1  # some relabelled goals met, some not
+
+
+@pytest.mark.parametrize(
+    "flags",
+    [["--runs", "0"], ["--cycles", "1"], ["--repeats", "0"]],
+    ids=["runs", "cycles", "repeats"],
+)
+def test_the_population_benchmark_refuses_what_it_cannot_measure(flags):
+    """Zero runs used to fall back on one run per core; one cycle leaves no rate to read."""
+    from benchmarks import population_speed
+
+    parser = argparse.ArgumentParser()
+    population_speed.add_arguments(parser)
+    with pytest.raises(ValueError, match="--cycles at least 2"):
+        population_speed.measure(parser.parse_args(flags))
