@@ -225,6 +225,11 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     assert main([*stacked, "--out", str(tmp_path / "stacked"), "--seeds", "0-1"]) == 0
     metrics = "seed-1/metrics.parquet"
     _assert_same_table(out / metrics, tmp_path / "stacked" / metrics)
+    single = out / "seed-0"  # a run folder: a population is not nested in it
+    before = sorted(p.name for p in single.iterdir())
+    assert main([*argv[:3], "--out", str(single), *argv[5:], "--seeds", "0-1"]) == 2
+    assert "holds a run (config.json)" in capsys.readouterr().err
+    assert sorted(p.name for p in single.iterdir()) == before
 
 
 def test_a_population_records_each_run_as_alone(tmp_path):

@@ -39,6 +39,7 @@ from curious.config import (
     parse_seeds,
     resolve,
 )
+from curious.runs.folder_layout import CONFIG_FILE
 
 if TYPE_CHECKING:
     from curious.runs.trainer import Trainer
@@ -149,6 +150,11 @@ def run(args: argparse.Namespace) -> int:
         configs = [resolve(args.preset, args.condition, seed, overrides) for seed in seeds]
         if args.stack_updates and args.seeds is None:
             raise ConfigError("--stack-updates stacks a population's updates: name --seeds")
+        if args.seeds is not None and (Path(args.out) / CONFIG_FILE).exists():
+            raise ConfigError(
+                f"{args.out} holds a run (config.json): --seeds trains each seed in "
+                "--out/seed-K, which would nest the population in it; choose another --out"
+            )
         if args.no_record and (args.spawn_viewer or args.rollout_every is not None):
             raise ConfigError(
                 "--spawn-viewer and --rollout-every need the recording: drop --no-record"
