@@ -43,6 +43,17 @@ def _runs(experiment: str, variant: str | None = None) -> list[Path]:
     return paths
 
 
+def _shipped_distractor_runs() -> list[Path]:
+    """The distractors' runs of every setting whose budget runs are all shipped."""
+    paths: list[Path] = []
+    for n in (0, 4, 7):
+        try:
+            paths += _runs("distractors", f"distractors_{n}")
+        except pytest.skip.Exception:
+            continue
+    return paths
+
+
 def _mean_std(row) -> str:
     return f"{row['mean']:.2f} ± {row['std']:.2f}"
 
@@ -109,12 +120,7 @@ def test_c4_competence_per_number_of_distractors(n_distractors):
 def test_c4_degradation_between_the_settings_shipped():
     """The degradation test over the settings whose runs are all shipped (4 and 7 until
     `distractors_0` is)."""
-    paths = []
-    for n in (0, 4, 7):
-        try:
-            paths += _runs("distractors", f"distractors_{n}")
-        except pytest.skip.Exception:
-            continue
+    paths = _shipped_distractor_runs()
     final = analysis.final_competence(analysis.load_runs(paths))
     d = analysis.compare_degradation(final, "curious", "m-uvfa")
     text = _text(RESULTS)
@@ -129,12 +135,7 @@ def test_c4_degradation_between_the_settings_shipped():
 def test_c3_no_drop_of_a_mastered_module():
     """The C3 reading over every shipped run that self-evaluates (HER does not), of the main
     comparison and of the distractors' settings whose runs are all shipped."""
-    paths = [p for p in _runs("main") if p.parent.name != "her"]
-    for n in (0, 4, 7):
-        try:
-            paths += _runs("distractors", f"distractors_{n}")
-        except pytest.skip.Exception:
-            continue
+    paths = [p for p in _runs("main") if p.parent.name != "her"] + _shipped_distractor_runs()
     table = analysis.mastery(analysis.load_runs(paths))
     runs, deepest = len(paths), float(table["deepest_fall"].max())
     assert int(table["n_drops"].sum()) == 0
