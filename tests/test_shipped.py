@@ -512,3 +512,45 @@ def test_dagster_definitions_read_shipped_data_from_the_environment(shipped, tmp
     monkeypatch.setenv("CURIOUS_BUDGET", "quick")
     with pytest.raises(ShippedDataError, match="holds runs of budget 'smoke', not 'quick'"):
         reproduction_from_environment()
+
+
+def _table() -> pd.DataFrame:
+    return pd.DataFrame(
+        {
+            "module": pd.Categorical(["reach", "stack", None, "reach"]),
+            "episode": [0, 1, 2, 3],
+            "competence": [0.0, 0.5, 0.25, 1.0],
+        }
+    )
+
+
+@pytest.mark.parametrize(
+    ("change", "same"),
+    [
+        (lambda t: t[["competence", "episode", "module"]], True),
+        (lambda t: t.assign(module=t["module"].cat.reorder_categories(["stack", "reach"])), True),
+        (lambda t: t.assign(module=pd.Categorical(["reach", "reach", None, "reach"])), False),
+        (lambda t: t.assign(module=pd.Categorical(["reach", "stack", "reach", "reach"])), False),
+        (lambda t: t.assign(competence=[0.0, 0.5, 0.25, 0.9]), False),
+        (lambda t: t.drop(columns="episode"), False),
+        (lambda t: t.iloc[:3], False),
+    ],
+    ids=[
+        "column order",
+        "category order",
+        "a value",
+        "a missing value",
+        "a number",
+        "a column",
+        "a row",
+    ],
+)
+def test_the_shipped_tables_comparison_sees_every_difference(change, same):
+    """`assert_same_table`: the check of a shipped folder's combined tables, by category codes."""
+    from shipped_check import assert_same_table
+
+    if same:
+        assert_same_table(_table(), change(_table()))
+    else:
+        with pytest.raises(AssertionError):
+            assert_same_table(_table(), change(_table()))
