@@ -23,9 +23,14 @@ from curious.config import MAX_SEED, ConfigError, resolve
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def cli(args: list[str], mujoco_gl: str, timeout: float = 240) -> subprocess.CompletedProcess:
-    """`python -m curious.cli ARGS` in a fresh process with this `MUJOCO_GL`."""
-    env = {**os.environ, "MUJOCO_GL": mujoco_gl, "OMP_NUM_THREADS": "1"}
+def cli(
+    args: list[str], mujoco_gl: str | None, timeout: float = 240
+) -> subprocess.CompletedProcess:
+    """`python -m curious.cli ARGS` in a fresh process with this `MUJOCO_GL` (None: unset)."""
+    env = {k: v for k, v in os.environ.items() if k != "MUJOCO_GL"}
+    env["OMP_NUM_THREADS"] = "1"
+    if mujoco_gl is not None:
+        env["MUJOCO_GL"] = mujoco_gl
     command = [sys.executable, "-m", "curious.cli", *args]
     return subprocess.run(
         command, env=env, cwd=ROOT, capture_output=True, text=True, timeout=timeout
@@ -70,11 +75,7 @@ def test_render_without_mujoco_gl_or_a_display_takes_a_headless_backend(tmp_path
     backend = headless_default()
     frames = tmp_path / "clip.gif"
     args = ["render", "--policy", "still", "--steps", "2", "--out", str(frames), "--no-progress"]
-    done = subprocess.run(
-        [sys.executable, "-m", "curious.cli", *args],
-        env={**os.environ, "OMP_NUM_THREADS": "1"},
-        cwd=ROOT, capture_output=True, text=True, timeout=240,
-    )  # fmt: skip
+    done = cli(args, None)
     assert "GLFW" not in done.stderr and "DISPLAY" not in done.stderr, done.stderr[-2000:]
     if backend is None:  # neither library here
         line = one_line(done.stderr)
