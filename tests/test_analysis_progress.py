@@ -9,6 +9,7 @@ from dataclasses import replace
 import pandas as pd
 import pytest
 
+from curious.analysis.loading import AnalysisError
 from curious.analysis.progress import (
     current_pace,
     experiment_progress,
@@ -102,6 +103,31 @@ def test_bad_roots_are_one_line_errors(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     assert curious_cli(["progress", str(tmp_path)]) == 2
     assert "holds no run folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("damage", "problem"),
+    [
+        (lambda run: (run / "config.json").write_text("{not json"), "not valid JSON"),
+        (lambda run: (run / "metrics.parquet").write_bytes(b"PAR1 cut short"), "cannot be read"),
+    ],
+    ids=["config", "metrics"],
+)
+def test_an_unreadable_run_is_left_out_with_its_problem(
+    campaign, tmp_path, capsys, damage, problem
+):
+    shutil.copytree(campaign / "main" / "curious-0", tmp_path / "good")
+    shutil.copytree(campaign / "main" / "her-0", tmp_path / "bad")
+    damage(tmp_path / "bad")
+    assert curious_cli(["progress", str(tmp_path)]) == 0
+    out, err = capsys.readouterr()
+    assert "| good | curious |" in out and "| bad |" not in out
+    assert f"left out {tmp_path / 'bad'}" in err and problem in err
+    with pytest.raises(AnalysisError, match=problem):  # the library raises unless told otherwise
+        progress_table(tmp_path)
+    shutil.rmtree(tmp_path / "good")
+    assert curious_cli(["progress", str(tmp_path)]) == 2
+    assert "no run folder below" in capsys.readouterr().err
 
 
 def test_a_copied_run_is_listed_once(campaign, tmp_path):

@@ -21,7 +21,7 @@ all its episodes.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from os import PathLike
 from pathlib import Path
@@ -233,13 +233,40 @@ def _planned(budget: ReproduceBudget, runs_root: Path) -> list[RunProgress]:
     return rows
 
 
+def _readable_progress(
+    path: Path,
+    epochs: int,
+    where: tuple[Path, bool],
+    on_unreadable: Callable[[Path, str], None] | None,
+) -> RunProgress | None:
+    """`_progress` of one folder; where its files cannot be read and `on_unreadable` is given,
+    None after telling it the folder and the problem (else the `AnalysisError`)."""
+    try:
+        try:
+            return _progress(path, epochs, *where)
+        except (OSError, ValueError) as exc:  # pyarrow's unreadable files, besides our own
+            if isinstance(exc, AnalysisError):
+                raise
+            raise AnalysisError(f"{path}: a table cannot be read: {exc}") from exc
+    except AnalysisError as exc:
+        if on_unreadable is None:
+            raise
+        on_unreadable(path, str(exc))
+        return None
+
+
 def progress_table(
     roots: str | PathLike[str] | Iterable[str | PathLike[str]],
     epochs: int = DEFAULT_TEST_EPOCHS,
+    on_unreadable: Callable[[Path, str], None] | None = None,
 ) -> list[RunProgress]:
     """Progress of every run folder below `roots` (one path or several), sorted by the runs'
     paths below their roots; a root that is a reproduction's output folder also lists the runs
-    its budget has not started, unless a shipped data folder among `roots` holds them."""
+    its budget has not started, unless a shipped data folder among `roots` holds them.
+
+    A folder whose config or tables cannot be read raises an `AnalysisError`, unless
+    `on_unreadable` is given: it is then called with the folder and the problem, and the folder
+    is left out (a monitor's table of the other runs, `curious progress`)."""
     if epochs < 1:
         raise AnalysisError(f"epochs must be at least 1, got {epochs}")
     paths = [Path(roots)] if isinstance(roots, (str, PathLike)) else [Path(r) for r in roots]
@@ -266,7 +293,12 @@ def progress_table(
         except AnalysisError:
             if not mine:  # a reproduction that has started no run yet is not an error
                 raise
-    rows = {str(f): _progress(f, epochs, *where) for f, where in found.items()}
+    read = {
+        str(f): _readable_progress(f, epochs, where, on_unreadable) for f, where in found.items()
+    }
+    rows = {k: r for k, r in read.items() if r is not None}
+    if found and not rows and not planned:
+        raise AnalysisError(f"no run folder below {', '.join(map(str, paths))} could be read")
     held = {r.name: k for k, r in rows.items() if r.shipped}
     live = {r.name: k for k, r in rows.items() if not r.shipped}
     for name in held.keys() & live.keys():  # one row, the folder's; shipped if the copy is whole

@@ -51,7 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "logged and left, run-hours so far, and the hours left at the pace of the runs "
         "training now (episodes per run-second of the started, unfinished runs, by their own "
         "clocks; of every run when none is training) with --at-once runs side by side: an "
-        "estimate, which assumes the runs left cost what those cost.",
+        "estimate, which assumes the runs left cost what those cost.\n\nA folder whose "
+        "config.json or tables cannot be read is left out of the tables, with its problem on "
+        "stderr; the command fails only when no folder could be read.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("roots", nargs="+", metavar="ROOT", help="run folder, or a folder of them")
@@ -98,8 +100,12 @@ def run(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"{path} does not exist; create it with the two marker lines")
     if path is not None and not os.access(path, os.W_OK):  # a read-only file or file system
         raise ValueError(f"--update {path} cannot be written (read-only)")
+
+    def skip(folder: Path, problem: str) -> None:
+        print(f"curious progress: left out {folder}: {problem}", file=sys.stderr)
+
     try:
-        rows = progress_table(args.roots, args.epochs)
+        rows = progress_table(args.roots, args.epochs, on_unreadable=skip)
     except AnalysisError as exc:
         raise ValueError(str(exc)) from exc
     base = args.roots[0] if len(args.roots) == 1 else None

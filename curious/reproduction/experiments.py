@@ -333,7 +333,7 @@ class ReproduceBudget:
         if unknown:
             raise ExperimentError(
                 f"unknown experiment(s) {', '.join(map(repr, unknown))}; "
-                f"choose from {', '.join(self.experiments)}"
+                f"budget {self.name!r} has {', '.join(self.experiments)}"
             )
         return [e for name, e in self.experiments.items() if name in wanted]
 
