@@ -72,6 +72,8 @@ def test_markdown_names_runs_below_the_root(campaign):
         "| main/mg-te-1 | mg-te | default | 1 | 0 | 24 | 0% | none | 0.00 | - | none yet |" in text
     )
     assert text.count("\n") == 2 + 3
+    run = campaign / "main" / "curious-0"  # a run given as the root goes by its own name
+    assert "| curious-0 | curious |" in progress_markdown(progress_table(run), run)
 
 
 def test_update_replaces_only_the_marked_block(campaign, tmp_path, capsys):

@@ -310,7 +310,7 @@ def progress_table(
 
 def _name(row: RunProgress, base: Path | None) -> str:
     path = Path(row.run)
-    if base is not None:
+    if base is not None and path != base:  # a run given as the root goes by its own name
         try:
             return str(path.relative_to(base))
         except ValueError:
