@@ -106,6 +106,11 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             "--runs and --repeats must be at least 1 and --cycles at least 2 (the rate is read "
             f"after each run's first cycle), got {args.runs}, {args.repeats} and {args.cycles}"
         )
+    if args.device == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            raise ValueError("--device cuda, but torch sees no GPU")
     runs = args.runs or cores
     rates: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}
     seconds: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}

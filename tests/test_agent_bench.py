@@ -152,3 +152,13 @@ def test_the_population_benchmark_refuses_what_it_cannot_measure(flags):
     population_speed.add_arguments(parser)
     with pytest.raises(ValueError, match="--cycles at least 2"):
         population_speed.measure(parser.parse_args(flags))
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="the refusal is for a machine without one")
+def test_the_population_benchmark_on_cuda_without_a_gpu_is_refused_before_training():
+    from benchmarks import population_speed
+
+    parser = argparse.ArgumentParser()
+    population_speed.add_arguments(parser)
+    with pytest.raises(ValueError, match="--device cuda, but torch sees no GPU"):
+        population_speed.measure(parser.parse_args(["--device", "cuda", "--cycles", "2"]))

@@ -623,6 +623,23 @@ def test_unknown_budget_or_experiment_is_a_clear_error(tmp_path, capsys):
     assert not (tmp_path / "a").exists()
 
 
+@pytest.mark.parametrize(
+    ("flags", "named"),
+    [
+        (["--gpus-per-run", "1"], "--gpus-per-run size"),
+        (["--cpus-per-run", "2"], "--cpus-per-run size"),
+        (
+            ["--cpus-per-run", "2", "--gpus-per-run", "0.5"],
+            "--cpus-per-run and --gpus-per-run size",
+        ),
+    ],
+)
+def test_ray_resources_without_ray_are_refused_not_ignored(flags, named, tmp_path, capsys):
+    code, err = run_cli(["--budget", "smoke", "--out", str(tmp_path / "a"), *flags], capsys)
+    assert code == 2 and named in err and "--ray-address" in err and "--device cuda" in err
+    assert not (tmp_path / "a").exists()
+
+
 def test_an_experiment_the_budget_leaves_out_is_a_one_line_error_saying_where_it_is(
     tmp_path, capsys
 ):

@@ -137,12 +137,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         "workers) runs each (on Ray, per run the cluster holds at once, no more than a node "
         "holds; on this machine, no more than fit in its memory together)",
     )
-    parser.add_argument("--cpus-per-run", type=float, default=1.0, help="Ray CPUs per run")
+    parser.add_argument(
+        "--cpus-per-run",
+        type=float,
+        default=None,
+        help="Ray CPUs per run (default 1; with --ray-address)",
+    )
     parser.add_argument(
         "--gpus-per-run",
         type=float,
         default=0.0,
-        help="Ray GPUs per run; > 0 trains the networks with device=cuda",
+        help="Ray GPUs per run; > 0 trains the networks with device=cuda (with --ray-address; "
+        "on this machine, --device cuda)",
     )
     parser.add_argument(
         "--device",
@@ -206,8 +212,9 @@ def run(args: argparse.Namespace) -> int:
         if value is not None and value < 1:
             print(f"curious reproduce: error: {option} must be >= 1, got {value}", file=sys.stderr)
             return 2
+    cpus = 1.0 if args.cpus_per_run is None else args.cpus_per_run
     resources = (
-        ("--cpus-per-run", args.cpus_per_run, args.cpus_per_run > 0, "> 0"),
+        ("--cpus-per-run", cpus, cpus > 0, "> 0"),
         ("--gpus-per-run", args.gpus_per_run, args.gpus_per_run >= 0, ">= 0"),
     )
     for option, value, fits, bound in resources:
@@ -217,6 +224,22 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 2
+    ray_only = [
+        flag
+        for flag, given in (
+            ("--cpus-per-run", args.cpus_per_run is not None),
+            ("--gpus-per-run", args.gpus_per_run > 0),
+        )
+        if given
+    ]
+    if ray_only and not args.ray_address:  # on this machine they would do nothing
+        print(
+            f"curious reproduce: error: {' and '.join(ray_only)} size the runs' Ray tasks: pass "
+            "--ray-address too, or, to train on this machine's GPU, --device cuda",
+            file=sys.stderr,
+        )
+        return 2
+    args.cpus_per_run = cpus
 
     try:
         overrides = placement_overrides(args.overrides)
@@ -379,6 +402,7 @@ def _from_data(args: argparse.Namespace) -> int:
     from pipelines.training import RunFolderMismatch
 
     given = [flag for name, flag in _TRAINING_OPTIONS.items() if getattr(args, name)]
+    given += ["--cpus-per-run"] if args.cpus_per_run is not None else []
     given += ["--gpus-per-run"] if args.gpus_per_run else []
     if given:
         print(
