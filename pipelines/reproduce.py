@@ -122,6 +122,14 @@ def check_output_folder(
             raise ReproduceError(
                 f"{out} holds a reproduction made {made}, not {asked}: choose another --out"
             )
+        recorded = _recorded_runs_dir(layout.out)
+        runs_root = out / "runs" if recorded is None else Path(recorded).resolve()
+        if from_data is None and runs_root != layout.runs_root:
+            raise ReproduceError(
+                f"{out} holds a reproduction whose runs are in {runs_root}, not "
+                f"{layout.runs_root}: pass --runs-dir {runs_root}, or leave --runs-dir out, to "
+                "go on with them, or choose another --out"
+            )
         return
     if out.is_dir() and any(out.iterdir()):
         raise ReproduceError(
@@ -149,6 +157,16 @@ def check_runs(reproduction: Reproduction, experiments: Sequence[Experiment]) ->
             state = reproduction.run_state(spec)
             counts[state] = counts.get(state, 0) + 1
     return counts
+
+
+def _recorded_runs_dir(out: Path) -> str | None:
+    """The runs folder OUT's reproduce.json records (None: OUT/runs, or no readable record;
+    `check_output_folder` names an unreadable one)."""
+    try:
+        recorded = _manifest(OutputLayout.at(out)).get("runs_dir")
+    except (OSError, ValueError):
+        return None
+    return recorded if isinstance(recorded, str) and recorded else None
 
 
 def _manifest(layout: OutputLayout) -> dict[str, Any]:
@@ -279,7 +297,10 @@ def reproduce(
         layout = OutputLayout.at(out or f"{chosen.default_out}-shipped", data.path)
     else:
         selected = chosen.select(experiments)
-        layout = OutputLayout.at(out or chosen.default_out, runs_dir)
+        out = out or chosen.default_out
+        if runs_dir is None:  # a reproduction started with --runs-dir goes on there
+            runs_dir = _recorded_runs_dir(Path(out).resolve())
+        layout = OutputLayout.at(out, runs_dir)
     _check_writable(layout)
     with _reproduction_lock(layout):
         return _reproduce(

@@ -729,6 +729,32 @@ def test_output_of_another_budget_is_refused_untouched(smoke, tmp_path, capsys):
     assert not (tmp_path / "new").exists()
 
 
+def test_a_reproduction_made_with_runs_dir_goes_on_there_without_the_flag(smoke, tmp_path, capsys):
+    """Run again without --runs-dir, it goes on with its runs instead of training them anew in
+    OUT/runs; another --runs-dir is refused, naming the one it was made with."""
+    import shutil
+
+    out, runs = tmp_path / "out", tmp_path / "shared"
+    shutil.copytree(smoke.out / "runs" / "main", runs / "main")
+    out.mkdir()
+    manifest = {"version": 1, "budget": "smoke", "runs_dir": str(runs)}
+    (out / "reproduce.json").write_text(json.dumps(manifest))
+    code = curious_cli(["reproduce", "--no-progress", "--budget", "smoke", "--out", str(out),
+                        "--experiments", "main"])  # fmt: skip
+    assert code == 0
+    assert "0 run(s) trained, 6 already finished" in capsys.readouterr().out
+    assert not (out / "runs").exists()
+    assert json.loads((out / "reproduce.json").read_text())["runs_dir"] == str(runs)
+    other = tmp_path / "other"
+    code, err = run_cli(
+        ["--budget", "smoke", "--out", str(out), "--experiments", "main", "--runs-dir", str(other)],
+        capsys,
+    )
+    assert code == 2 and f"whose runs are in {runs}, not {other}: pass --runs-dir {runs}" in err
+    assert json.loads((out / "reproduce.json").read_text())["runs_dir"] == str(runs)
+    assert not (other / "main").exists()
+
+
 def test_a_folder_that_is_not_a_reproduction_is_refused(tmp_path, capsys):
     (tmp_path / "notes.txt").write_text("mine")
     code, err = run_cli(["--budget", "smoke", "--out", str(tmp_path)], capsys)

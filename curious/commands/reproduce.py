@@ -109,7 +109,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--runs-dir",
         default=None,
-        help="where run folders go, e.g. storage every Ray node sees (default: OUT/runs)",
+        help="where run folders go, e.g. storage every Ray node sees (default: OUT/runs; for an "
+        "OUT made with --runs-dir, the folder it was made with)",
     )
     parser.add_argument(
         "--ray-address",
