@@ -214,3 +214,21 @@ def test_a_run_that_diverges_stops_in_one_line_and_keeps_its_last_checkpoint(
     trainer = run(out, resume=True, total_episodes=24)
     assert trainer.episodes == 24 and trainer.finite()
     np.testing.assert_array_equal(episodes(out / "metrics.parquet"), np.arange(24))
+
+
+def test_the_command_resumes_with_the_runs_own_settings(tmp_path, capsys):
+    """`curious train --out X --resume` needs none of the options the run started with, and a
+    total set with --set stays the run's own (the preset's would train on past it)."""
+    out, quiet = tmp_path / "r", ["--no-record", "--no-progress"]
+    start = ["train", "--preset", "smoke", "--condition", "mg-te", "--seed", "3", "--out", str(out)]
+    assert main([*start, *quiet, "--set", "total_episodes=8"]) == 0
+    resume = ["train", "--out", str(out), "--resume", *quiet]
+    assert main(resume) == 0
+    np.testing.assert_array_equal(episodes(out / "metrics.parquet"), np.arange(8))
+    assert main([*resume, "--set", "total_episodes=16"]) == 0
+    np.testing.assert_array_equal(episodes(out / "metrics.parquet"), np.arange(16))
+    config = json.loads((out / "config.json").read_text())["config"]
+    assert (config["preset"], config["condition"], config["seed"]) == ("smoke", "mg-te", 3)
+    capsys.readouterr()
+    assert main([*resume, "--seed", "4"]) == 2  # an option given must match the run's
+    assert "(seed: 3 -> 4)" in capsys.readouterr().err

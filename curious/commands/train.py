@@ -3,7 +3,7 @@
     curious train --condition curious --seed 0 --preset quick --out runs/curious-0
     curious train --condition curious --seeds 0-4 --preset quick --out runs/curious  # a population
     curious train ... --set n_workers=8 --set algorithm=td3      # override single settings
-    curious train ... --resume                                    # go on from the last checkpoint
+    curious train --out runs/curious-0 --resume   # go on from the last checkpoint, as it started
     curious train ... --restart                                   # start the run in --out over
     curious train ... --spawn-viewer --rollout-every 10           # watch it live in Rerun
 
@@ -25,14 +25,16 @@ layer for all of them.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from curious.commands import HelpFormatter, add_set_option
 from curious.config import (
     MAX_EPISODES,
     PRESETS,
+    Config,
     ConfigError,
     condition_names,
     parse_overrides,
@@ -66,12 +68,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--condition",
-        default="curious",
-        help=f"{', '.join(conditions[:-1])} or {conditions[-1]} (default curious)",
+        default=None,
+        help=f"{', '.join(conditions[:-1])} or {conditions[-1]} (default curious; with "
+        "--resume, the run's own)",
     )
     seeds = parser.add_mutually_exclusive_group()
     seeds.add_argument(
-        "--seed", type=int, default=0, help="seeds networks, rollouts and replay (default 0)"
+        "--seed",
+        type=int,
+        default=None,
+        help="seeds networks, rollouts and replay (default 0; with --resume, the run's own)",
     )
     seeds.add_argument(
         "--seeds",
@@ -90,8 +96,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--preset",
-        default="quick",
-        help=f"{', '.join(list(PRESETS)[:-1])} or {list(PRESETS)[-1]} (default quick)",
+        default=None,
+        help=f"{', '.join(list(PRESETS)[:-1])} or {list(PRESETS)[-1]} (default quick; with "
+        "--resume, the run's own)",
     )
     parser.add_argument(
         "--out",
@@ -100,7 +107,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "seed-N run folders",
     )
     add_set_option(parser, "override one setting (repeatable), e.g. --set n_workers=8")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --out")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the run in --out with the settings it was started with (config.json); "
+        "options given must match them, but for a new total_episodes and where and how fast "
+        "it runs",
+    )
     parser.add_argument(
         "--restart",
         action="store_true",
@@ -147,7 +160,7 @@ def run(args: argparse.Namespace) -> int:
         if args.no_progress:
             overrides["progress"] = False
         seeds = parse_seeds(args.seeds) if args.seeds is not None else (args.seed,)
-        configs = [resolve(args.preset, args.condition, seed, overrides) for seed in seeds]
+        configs = [_config(args, seed, overrides) for seed in seeds]
         if args.stack_updates and args.seeds is None:
             raise ConfigError("--stack-updates stacks a population's updates: name --seeds")
         if args.seeds is not None and (Path(args.out) / CONFIG_FILE).exists():
@@ -223,6 +236,26 @@ def run(args: argparse.Namespace) -> int:
     for trainer, out in zip(trainers, outs, strict=True):
         print(_summary(trainer, out))
     return 0
+
+
+def _config(args: argparse.Namespace, seed: int | None, overrides: dict[str, Any]) -> Config:
+    """The run's config: the preset's, with the condition, seed and overrides given. With
+    --resume, a run folder that holds a run goes on with the settings in its config.json
+    (what `--set total_episodes` or a placement setting was then included); the options given
+    replace them, and `check_resumable` refuses those a resume cannot change."""
+    identity = {"preset": args.preset, "condition": args.condition, "seed": seed}
+    out = Path(args.out) / f"seed-{seed}" if args.seeds is not None else Path(args.out)
+    from curious.runs.folder import RunFolder
+    from curious.runs.folder_errors import RunFolderError
+
+    if args.resume and RunFolder(out).has_config:
+        try:
+            stored = RunFolder(out).read_config()
+        except RunFolderError as exc:
+            raise ConfigError(str(exc)) from None
+        given = {k: v for k, v in identity.items() if v is not None}
+        return dataclasses.replace(stored, **given, **overrides)
+    return resolve(args.preset or "quick", args.condition or "curious", seed or 0, overrides)
 
 
 def _summary(trainer: Trainer, out: str | Path) -> str:
