@@ -197,3 +197,18 @@ def test_only_the_run_folder_module_spells_the_file_names():
                 if isinstance(node, ast.Constant) and node.value in RUN_ENTRIES:
                     spelled.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.value}")
     assert spelled == []
+
+
+def test_a_new_run_inside_another_runs_folder_is_refused(tmp_path):
+    """The search for runs stops at a run folder, so a run inside one would be lost to `curious
+    progress`, `curious ship` and the analysis; a project's own config.json is no run."""
+    config = resolve("smoke", "curious", 0)
+    outer = _written(tmp_path / "outer", "default")
+    for restart in (False, True):
+        with pytest.raises(RunFolderError, match=r"lies inside the run folder .*outer"):
+            RunFolder.prepare(outer.path / "a" / "inner", config, resume=False, restart=restart)
+    (tmp_path / "project").mkdir()
+    (tmp_path / "project" / "config.json").write_text('{"name": "my project"}')
+    RunFolder.prepare(tmp_path / "project" / "runs" / "r", config, resume=False)
+    inner = _written(outer.path / "inner", "default")  # made before the check: it still resumes
+    RunFolder.prepare(inner.path, config, resume=True)

@@ -229,6 +229,8 @@ class RunFolder:
                 "--resume goes on with a run and --restart starts it over: pass one of them"
             )
         non_empty = exists and any(folder.path.iterdir())
+        if not resume:
+            folder.check_not_nested()
         if restart:
             foreign = folder.foreign_entries()
             if foreign:
@@ -246,6 +248,29 @@ class RunFolder:
             return folder
         folder.check_resumable(config)
         return folder
+
+    @property
+    def holds_a_run(self) -> bool:
+        """Whether config.json is a run's description (a config.json of anything else, say a
+        project's own settings, is not)."""
+        if not self.has_config:
+            return False
+        try:
+            self.read_stored()
+        except RunFolderError:
+            return False
+        return True
+
+    def check_not_nested(self) -> None:
+        """A `RunFolderError` where the folder lies inside another run's folder: the search for
+        runs (`curious progress`, `curious ship`, the analysis) stops at a run folder, so a run
+        inside one would never be found."""
+        for parent in self.path.absolute().parents:
+            if RunFolder(parent).holds_a_run:
+                raise RunFolderError(
+                    f"{self.path} lies inside the run folder {parent}, where no search for runs "
+                    "would find it: choose an --out outside it"
+                )
 
     def describe(self, config: Config, spec: EnvSpec) -> dict[str, Any]:
         """The content of config.json."""
