@@ -52,6 +52,17 @@ def test_folder_without_recording_is_an_error_naming_it(
     assert "no such run folder" in capsys.readouterr().err
 
 
+def test_a_folder_of_runs_names_the_runs_below_it_that_have_a_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "main").mkdir()
+    runs = [_run_folder(tmp_path / "main", f"seed-{i}") for i in range(5)]
+    assert main(["view", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert f"It holds runs that have one: {runs[0]}, {runs[1]}, {runs[2]} and 2 more" in err
+
+
 def test_a_file_that_is_not_a_recording_is_refused_in_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -90,6 +90,19 @@ def check_recording(path: Path) -> None:
         )
 
 
+def _recordings_below(folder: Path, name: str, most: int = 3) -> str:
+    """Where `folder` is a folder of runs (a reproduction's output, a `--seeds` folder), a
+    sentence naming the runs below it that have a recording; empty where none has."""
+    if RunFolder(folder).has_config:
+        return ""
+    found = sorted(p.parent for p in folder.rglob(name) if not p.parent.name.startswith("."))
+    if not found:
+        return ""
+    named = ", ".join(str(p) for p in found[:most])
+    more = f" and {len(found) - most} more" if len(found) > most else ""
+    return f" It holds runs that have one: {named}{more}; name them (several open side by side)."
+
+
 def recording_paths(runs: list[str]) -> list[Path]:
     """The `.rrd` file of each run; a clear error for a folder without one, or for a file that
     is not a recording."""
@@ -99,11 +112,13 @@ def recording_paths(runs: list[str]) -> list[Path]:
         if path.is_dir():
             rrd = RunFolder(path).recording_path
             if not rrd.is_file():
+                below = _recordings_below(path, rrd.name)
                 shipped = shipped_run_note(path)
                 raise FileNotFoundError(
                     f"{path}: no {rrd.name} in this folder."
                     + (
-                        shipped
+                        below
+                        or shipped
                         or " A run folder gets one when `curious train` runs with recording "
                         "on; check the path, or that the run has started."
                     )
