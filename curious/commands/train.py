@@ -254,7 +254,7 @@ def _config(args: argparse.Namespace, seed: int | None, overrides: dict[str, Any
         except RunFolderError as exc:
             raise ConfigError(str(exc)) from None
         given = {k: v for k, v in identity.items() if v is not None}
-        return dataclasses.replace(stored, **given, **overrides)
+        return dataclasses.replace(stored, **{**given, **overrides})
     return resolve(args.preset or "quick", args.condition or "curious", seed or 0, overrides)
 
 

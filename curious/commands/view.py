@@ -25,6 +25,7 @@ from pathlib import Path
 
 from curious.reproduction.shipped_folder import shipped_run_note
 from curious.runs.folder import RunFolder
+from curious.runs.folder_layout import CHECKPOINTS_DIR
 from curious.watching.display import has_display
 
 RRD_MAGIC = b"RRF"
@@ -95,7 +96,15 @@ def _recordings_below(folder: Path, name: str, most: int = 3) -> str:
     sentence naming the runs below it that have a recording; empty where none has."""
     if RunFolder(folder).has_config:
         return ""
-    found = sorted(p.parent for p in folder.rglob(name) if not p.parent.name.startswith("."))
+    found: list[Path] = []
+    for visited, (where, subfolders, files) in enumerate(os.walk(folder)):
+        if name in files:
+            found.append(Path(where))
+        # a run's own folders hold no runs; hidden ones (.venv, .git) are not searched
+        subfolders[:] = [s for s in subfolders if not s.startswith(".") and s != CHECKPOINTS_DIR]
+        if visited >= 10_000:  # a home folder, say: the runs found so far are enough to name
+            break
+    found.sort()
     if not found:
         return ""
     named = ", ".join(str(p) for p in found[:most])
