@@ -242,17 +242,15 @@ def _readable_progress(
     """`_progress` of one folder; where its files cannot be read and `on_unreadable` is given,
     None after telling it the folder and the problem (else the `AnalysisError`)."""
     try:
-        try:
-            return _progress(path, epochs, *where)
-        except (OSError, ValueError) as exc:  # pyarrow's unreadable files, besides our own
-            if isinstance(exc, AnalysisError):
-                raise
-            raise AnalysisError(f"{path}: a table cannot be read: {exc}") from exc
+        return _progress(path, epochs, *where)
     except AnalysisError as exc:
-        if on_unreadable is None:
-            raise
-        on_unreadable(path, str(exc))
-        return None
+        error = exc
+    except (OSError, ValueError) as exc:  # pyarrow's unreadable files
+        error = AnalysisError(f"{path}: a table cannot be read: {exc}")
+    if on_unreadable is None:
+        raise error
+    on_unreadable(path, str(error))
+    return None
 
 
 def progress_table(
