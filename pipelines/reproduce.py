@@ -106,7 +106,7 @@ def check_output_folder(
     if layout.manifest.is_file():
         try:
             made_by = layout.budget_name()
-            made_from = _manifest(layout).get("from_data")
+            made_from = layout.read_manifest().get("from_data")
         except (OSError, ValueError) as exc:
             raise ReproduceError(f"{layout.manifest} is unreadable ({exc})") from None
         if made_by != budget.name:
@@ -122,7 +122,7 @@ def check_output_folder(
             raise ReproduceError(
                 f"{out} holds a reproduction made {made}, not {asked}: choose another --out"
             )
-        recorded = _recorded_runs_dir(layout.out)
+        recorded = layout.recorded_runs_dir()
         runs_root = out / "runs" if recorded is None else Path(recorded).resolve()
         if from_data is None and runs_root != layout.runs_root:
             raise ReproduceError(
@@ -157,23 +157,6 @@ def check_runs(reproduction: Reproduction, experiments: Sequence[Experiment]) ->
             state = reproduction.run_state(spec)
             counts[state] = counts.get(state, 0) + 1
     return counts
-
-
-def _recorded_runs_dir(out: Path) -> str | None:
-    """The runs folder OUT's reproduce.json records (None: OUT/runs, or no readable record;
-    `check_output_folder` names an unreadable one)."""
-    try:
-        recorded = _manifest(OutputLayout.at(out)).get("runs_dir")
-    except (OSError, ValueError):
-        return None
-    return recorded if isinstance(recorded, str) and recorded else None
-
-
-def _manifest(layout: OutputLayout) -> dict[str, Any]:
-    data = json.loads(layout.manifest.read_text())
-    if not isinstance(data, dict):
-        raise ValueError("it is not a JSON object")
-    return data
 
 
 def _write_manifest(
@@ -299,7 +282,7 @@ def reproduce(
         selected = chosen.select(experiments)
         out = out or chosen.default_out
         if runs_dir is None:  # a reproduction started with --runs-dir goes on there
-            runs_dir = _recorded_runs_dir(Path(out).resolve())
+            runs_dir = OutputLayout.at(out).recorded_runs_dir()
         layout = OutputLayout.at(out, runs_dir)
     _check_writable(layout)
     with _reproduction_lock(layout):

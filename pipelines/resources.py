@@ -79,10 +79,9 @@ class OutputLayout:
         if not given.is_absolute():
             candidates += [parent / given for parent in Path.cwd().parents]
         for path in candidates:
-            manifest = path / "reproduce.json"
-            if manifest.is_file():
-                data = json.loads(manifest.read_text())
-                return cls.at(path, data.get("runs_dir"))
+            layout = cls.at(path)
+            if layout.manifest.is_file():
+                return cls.at(path, layout.read_manifest().get("runs_dir"))
             if ShippedFolder(path).is_shipped:  # its runs lie in it, as in a runs root
                 return cls.at(path, path)
         raise FileNotFoundError(
@@ -95,6 +94,23 @@ class OutputLayout:
     def manifest(self) -> Path:
         return self.out / "reproduce.json"
 
+    def read_manifest(self) -> dict[str, Any]:
+        """reproduce.json's content: OSError where it cannot be read, ValueError where it is not
+        a JSON object."""
+        data = json.loads(self.manifest.read_text())
+        if not isinstance(data, dict):
+            raise ValueError("it is not a JSON object")
+        return data
+
+    def recorded_runs_dir(self) -> str | None:
+        """The runs folder reproduce.json records (None: the folder's own runs/, or no
+        readable record; `pipelines.reproduce.check_output_folder` names an unreadable one)."""
+        try:
+            recorded = self.read_manifest().get("runs_dir")
+        except (OSError, ValueError):
+            return None
+        return recorded if isinstance(recorded, str) and recorded else None
+
     def budget_name(self) -> str | None:
         """The budget that made this folder, from reproduce.json (None without one).
 
@@ -105,10 +121,8 @@ class OutputLayout:
         if not self.manifest.is_file():
             shipped = ShippedFolder(self.out)
             return shipped.read_manifest().budget if shipped.is_shipped else None
-        manifest = json.loads(self.manifest.read_text())
-        name = (
-            manifest.get("budget", manifest.get("preset")) if isinstance(manifest, dict) else None
-        )
+        manifest = self.read_manifest()
+        name = manifest.get("budget", manifest.get("preset"))
         if not isinstance(name, str):
             raise ValueError("it names no budget")
         return name

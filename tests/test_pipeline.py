@@ -28,6 +28,7 @@ from curious.watching.recording.reader import summarize
 from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
 from pipelines.reproduce import ReproduceError, check_output_folder, reproduce
+from pipelines.resources import OutputLayout
 from pipelines.training import FINISHED, folder_state, run_folder
 
 FIGURES = (
@@ -925,3 +926,21 @@ def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke,
     finally:
         server.terminate()
         server.wait(timeout=60)
+
+
+def test_an_output_folder_opens_at_the_runs_folder_it_records(tmp_path):
+    """Notebooks, `curious ship` and a re-run of `curious reproduce` all find a reproduction's
+    runs where its reproduce.json says, and refuse a record that is not one."""
+    out, runs = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    manifest = out / "reproduce.json"
+    manifest.write_text(json.dumps({"version": 1, "budget": "smoke", "runs_dir": str(runs)}))
+    assert OutputLayout.open(out).runs_root == runs.resolve()
+    assert OutputLayout.at(out).recorded_runs_dir() == str(runs)
+    manifest.write_text(json.dumps({"version": 1, "budget": "smoke"}))
+    assert OutputLayout.open(out).runs_root == out.resolve() / "runs"
+    assert OutputLayout.at(out).recorded_runs_dir() is None
+    manifest.write_text("[1, 2]")
+    with pytest.raises(ValueError, match="not a JSON object"):
+        OutputLayout.open(out)
+    assert OutputLayout.at(out).recorded_runs_dir() is None

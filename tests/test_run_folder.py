@@ -212,3 +212,25 @@ def test_a_new_run_inside_another_runs_folder_is_refused(tmp_path):
     RunFolder.prepare(tmp_path / "project" / "runs" / "r", config, resume=False)
     inner = _written(outer.path / "inner", "default")  # made before the check: it still resumes
     RunFolder.prepare(inner.path, config, resume=True)
+
+
+def test_a_folder_of_runs_given_as_a_run_names_the_runs_it_holds(tmp_path):
+    """`curious evaluate`, `render --run` and `train --resume` given a reproduction's output or
+    a `--seeds` folder instead of a run: the error names runs to choose from, not just the
+    missing config.json; a folder holding none says only what is missing."""
+    seeds = [_written(tmp_path / "runs" / f"seed-{i}", "default").path for i in range(5)]
+    (tmp_path / "runs" / "seed-0" / "checkpoints" / "x").mkdir(parents=True)
+    (tmp_path / "runs" / "seed-0" / "checkpoints" / "x" / "config.json").write_text("{}")
+    named = f"it holds runs: {seeds[0]}, {seeds[1]}, {seeds[2]} and 2 more; name one"
+    folder = RunFolder(tmp_path / "runs")
+    with pytest.raises(RunFolderError, match="is not a run folder") as info:
+        folder.read_info()
+    assert str(info.value).endswith(f"no config.json; {named}")
+    config = resolve("smoke", "curious", 0)
+    with pytest.raises(RunFolderError, match="nothing to resume") as resumed:
+        folder.check_resumable(config)
+    assert str(resumed.value).endswith(f"does not exist; {named}")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(RunFolderError) as bare:
+        RunFolder(tmp_path / "empty").read_info()
+    assert str(bare.value).endswith("it has no config.json")

@@ -24,8 +24,7 @@ import time
 from pathlib import Path
 
 from curious.reproduction.shipped_folder import shipped_run_note
-from curious.runs.folder import RunFolder
-from curious.runs.folder_layout import CHECKPOINTS_DIR
+from curious.runs.folder import RunFolder, folders_below, name_some
 from curious.watching.display import has_display
 
 RRD_MAGIC = b"RRF"
@@ -91,25 +90,16 @@ def check_recording(path: Path) -> None:
         )
 
 
-def _recordings_below(folder: Path, name: str, most: int = 3) -> str:
+def _recordings_below(folder: Path, name: str) -> str:
     """Where `folder` is a folder of runs (a reproduction's output, a `--seeds` folder), a
     sentence naming the runs below it that have a recording; empty where none has."""
     if RunFolder(folder).has_config:
         return ""
-    found: list[Path] = []
-    for visited, (where, subfolders, files) in enumerate(os.walk(folder)):
-        if name in files:
-            found.append(Path(where))
-        # a run's own folders hold no runs; hidden ones (.venv, .git) are not searched
-        subfolders[:] = [s for s in subfolders if not s.startswith(".") and s != CHECKPOINTS_DIR]
-        if visited >= 10_000:  # a home folder, say: the runs found so far are enough to name
-            break
-    found.sort()
+    found = folders_below(folder, name)
     if not found:
         return ""
-    named = ", ".join(str(p) for p in found[:most])
-    more = f" and {len(found) - most} more" if len(found) > most else ""
-    return f" It holds runs that have one: {named}{more}; name them (several open side by side)."
+    named = name_some(found)
+    return f" It holds runs that have one: {named}; name them (several open side by side)."
 
 
 def recording_paths(runs: list[str]) -> list[Path]:

@@ -53,6 +53,28 @@ def config_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     return sorted(k for k in keys if a.get(k, missing) != b.get(k, missing))
 
 
+def folders_below(folder: Path, holding: str, most_visited: int = 10_000) -> list[Path]:
+    """The folders below `folder` (itself included) that hold a file named `holding`, sorted:
+    where a command was given a folder of runs (a reproduction's output, a `--seeds` folder)
+    instead of a run, the runs it could mean. A run's checkpoints and hidden folders (.venv,
+    .git) are not searched, and the walk stops after `most_visited` folders (a home folder,
+    say: the runs found by then are enough to name)."""
+    found: list[Path] = []
+    for visited, (where, subfolders, files) in enumerate(os.walk(folder)):
+        if holding in files:
+            found.append(Path(where))
+        subfolders[:] = [s for s in subfolders if not s.startswith(".") and s != CHECKPOINTS_DIR]
+        if visited >= most_visited:
+            break
+    return sorted(found)
+
+
+def name_some(paths: list[Path], most: int = 3) -> str:
+    """`a, b, c and 4 more`: the first `most` paths, and how many were left out."""
+    named = ", ".join(str(p) for p in paths[:most])
+    return named + (f" and {len(paths) - most} more" if len(paths) > most else "")
+
+
 def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
     """Write `data` to `path` through a temporary beside it: a reader never sees half a file."""
     tmp = path.with_name(f".{path.name}.tmp")
@@ -127,7 +149,7 @@ class RunFolder:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
             raise RunFolderError(
-                f"{self.path} is not a run folder: it has no {CONFIG_FILE}"
+                f"{self.path} is not a run folder: it has no {CONFIG_FILE}{self._runs_below()}"
             ) from None
         except (OSError, UnicodeDecodeError) as exc:
             cause = getattr(exc, "strerror", None) or exc
@@ -146,6 +168,12 @@ class RunFolder:
                 f"{remedy}"
             )
         return data
+
+    def _runs_below(self) -> str:
+        """Where this folder holds runs but is none, a clause naming them (empty otherwise):
+        the hint for a folder of runs given where one run was meant."""
+        runs = folders_below(self.path, CONFIG_FILE) if self.path.is_dir() else []
+        return f"; it holds runs: {name_some(runs)}; name one" if runs else ""
 
     def read_config(self) -> Config:
         """The config stored in config.json; a `RunFolderError` naming the file when it is not
@@ -171,7 +199,9 @@ class RunFolder:
         settings this curious can run, equal to `config`'s but for `RESUMABLE_FIELDS` (a
         `ConfigMismatch` naming the differences otherwise)."""
         if not self.config_path.exists():
-            raise RunFolderError(f"nothing to resume: {self.config_path} does not exist")
+            raise RunFolderError(
+                f"nothing to resume: {self.config_path} does not exist{self._runs_below()}"
+            )
         raw = self.read_stored()["config"]
         lacking = sorted(set(setting_names()) - set(raw))
         if lacking:
