@@ -324,3 +324,14 @@ def test_a_laptop_folder_lists_the_study_on_a_mastered_module_as_not_started(tmp
         f"sensor_failure_mastered/{c}/seed-{s}" for c in ("curious", "m-uvfa") for s in (0, 1, 2)
     )
     assert all(r.episodes == 0 and r.total_episodes == 120_000 for r in rows)
+
+
+def test_a_run_past_its_budget_owes_no_episodes_and_lends_none(campaign):
+    """A run extended past its budget (or one whose config sets none) does not make another
+    run's episodes left look fewer, nor the count negative."""
+    done, *_ = progress_table(campaign)
+    over = replace(done, name="main/curious/seed-0", episodes=150, total_episodes=100)
+    short = replace(done, name="main/her/seed-0", episodes=40, total_episodes=100)
+    unbudgeted = replace(done, name="main/mg-te/seed-0", episodes=20, total_episodes=0)
+    (main,) = experiment_progress([over, short, unbudgeted])
+    assert (main.finished, main.left) == (2, 60)

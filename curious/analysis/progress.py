@@ -368,11 +368,8 @@ class ExperimentProgress:
     episodes: int
     total_episodes: int
     run_hours: float
-
-    @property
-    def left(self) -> int:
-        """Episodes its runs have still to log."""
-        return self.total_episodes - self.episodes
+    left: int
+    """Episodes its runs have still to log (a run past its budget, or without one, owes none)."""
 
     @property
     def done(self) -> float:
@@ -390,6 +387,7 @@ class ExperimentProgress:
             episodes=sum(r.episodes for r in rows),
             total_episodes=sum(r.total_episodes for r in rows),
             run_hours=sum(r.run_hours for r in rows),
+            left=sum(max(0, r.total_episodes - r.episodes) for r in rows),
         )
 
 
