@@ -39,17 +39,28 @@ better, worse = "curious", "m-uvfa"
 # %%
 layout = OutputLayout.open(out)
 df = analysis.load_runs(layout.experiment_runs("distractors"))
+tests = analysis.load_tests(layout.experiment_runs("distractors"))
 analysis.runs_table(df)[["condition", "seed", "variant", "n_distractors", "n_episodes"]]
 
 # %% [markdown]
-# ## Final success against the number of distracting modules
+# ## Competence and test success against the number of distracting modules
+#
+# Left, the competence at the end (the agent's own self-evaluations, the measure C4's tests
+# use); right, the noise-free test rollouts on the achievable modules in the last of the main
+# comparison's bins (`analysis.final_test_success`).
 
 # %%
-analysis.distractors(df, conditions=[better, worse])
+analysis.distractors(df, conditions=[better, worse], tests=tests)
 
 # %%
 final = analysis.final_competence(df)
 final.groupby(["n_distractors", "condition"], observed=True)["value"].agg(
+    ["mean", "std", "size"]
+).unstack("condition").round(3)
+
+# %%
+tested = analysis.final_test_success(tests)
+tested.groupby(["n_distractors", "condition"], observed=True)["value"].agg(
     ["mean", "std", "size"]
 ).unstack("condition").round(3)
 

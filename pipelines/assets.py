@@ -248,9 +248,15 @@ def _draw(
             fig = getattr(analysis, name)(table, condition="curious", note=note, out_dir=out_dir)
         elif name == "distractors":
             extra_runs = left_out_runs(repro, experiment)
+            try:  # runs without test rollouts: the competence panel alone
+                tests = load_tests(repro, experiment)
+            except analysis.AnalysisError:
+                tests = None
             if extra_runs:  # the settings shipped with too few runs for the statistics
-                table = analysis.load_runs(run_folders(repro, experiment) + extra_runs)
-            fig = analysis.distractors(table, note=note, out_dir=out_dir)
+                folders = run_folders(repro, experiment) + extra_runs
+                table = analysis.load_runs(folders)
+                tests = None if tests is None else analysis.load_tests(folders)
+            fig = analysis.distractors(table, note=note, out_dir=out_dir, tests=tests)
         elif name in FAILURE_FIGURES:
             tests = None
             if FAILURE_FIGURES[name]:

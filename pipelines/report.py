@@ -39,8 +39,8 @@ FIGURE_TEXT: dict[str, str] = {
     "fig2b": "Competence of every module over one CURIOUS run (paper Fig. 2b).",
     "fig2c": "Absolute learning progress of every module over the same run (paper Fig. 2c).",
     "table1": "Competence and learning progress of every CURIOUS seed (paper Table 1).",
-    "distractors": "Self-evaluated competence over the achievable modules at the end of the "
-    "runs against the number of distracting modules.",
+    "distractors": "Self-evaluated competence (left) and test success (right) over the "
+    "achievable modules at the end of the runs against the number of distracting modules.",
     "forgetting": "Competence and LP of the perturbed module around the sensory failure, one "
     "line per run.",
     "forgetting_mastered": "Test success, competence and LP of the perturbed module around the "
@@ -511,23 +511,52 @@ def _main(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
 
 
 def _distractors(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
-    lines = [*_figure(repro, "distractors")]
-    final = analysis.final_competence(tables.metrics)
-    episodes = int(final["episodes"].iat[0])
-    tests = []
-    if e.compare is not None:
-        for n_d, group in final.groupby("n_distractors", observed=True):
-            tests.append(analysis.welch_per_bin(group, *e.compare).assign(n_distractors=n_d))
-    test = pd.concat(tests, ignore_index=True).set_index("n_distractors") if tests else None
     from pipelines.assets import left_out_runs
 
-    extra = left_out_runs(repro, e)
-    if extra:  # settings shipped with too few runs for the test: shown, not tested
-        final = pd.concat(
+    lines = [*_figure(repro, "distractors")]
+    extra = left_out_runs(repro, e)  # settings shipped with too few runs: shown, not tested
+    final = analysis.final_competence(tables.metrics)
+    shown = final
+    if extra:
+        shown = pd.concat(
             [final, analysis.final_competence(analysis.load_runs(extra))], ignore_index=True
         )
+    lines += [
+        "Competence (self-evaluation success rate) over achievable modules after "
+        f"{int(final['episodes'].iat[0]):,} episodes, mean ± std over seeds:",
+        "",
+        *_per_setting(e, final, shown, "setting (competence at the end)"),
+    ]
+    if e.compare is not None:
+        lines += _degradation(shown, *e.compare)
+    if tables.tests is not None:
+        tested = analysis.final_test_success(tables.tests)
+        shown = tested
+        if extra:
+            more = analysis.final_test_success(analysis.load_tests(extra))
+            shown = pd.concat([tested, more], ignore_index=True)
+        end, width = int(tested["episodes"].iat[0]), int(tested.attrs["bin_size"])
+        lines += [
+            "Test success (the noise-free test rollouts on achievable modules, pooled per run) "
+            f"over episodes {max(end - width, 0) + 1:,}–{end:,}, mean ± std over seeds:",
+            "",
+            *_per_setting(e, tested, shown, "setting (test success at the end)"),
+        ]
+    return lines + _forgetting(e, tables.metrics)
+
+
+def _per_setting(e: Experiment, final: pd.DataFrame, shown: pd.DataFrame, what: str) -> list[str]:
+    """A measure per run (`final`, the experiment's runs; `shown`, those and the settings shipped
+    with too few runs) as a table per number of distractors, with the Welch test per setting."""
+    test = None
+    if e.compare is not None:
+        tests = [
+            analysis.welch_per_bin(group, *e.compare).assign(n_distractors=n_d)
+            for n_d, group in final.groupby("n_distractors", observed=True)
+        ]
+        test = pd.concat(tests, ignore_index=True).set_index("n_distractors")
     rows = []
-    for n_d, group in final.groupby("n_distractors", observed=True, sort=True):
+    for n_d, group in shown.groupby("n_distractors", observed=True, sort=True):
         row: list[object] = [int(n_d)]
         row += [_mean_std(group.loc[group["condition"] == c, "value"]) for c in e.conditions]
         if test is not None:
@@ -538,18 +567,12 @@ def _distractors(repro: Reproduction, e: Experiment, tables: _Tables) -> list[st
             )
         rows.append(row)
     header: tuple[str, ...] = ("distracting modules", *map(condition_label, e.conditions))
-    if test is not None:
-        header += ("Welch t", "p")
-    lines += [
-        f"Competence (self-evaluation success rate) over achievable modules after {episodes:,} "
-        "episodes, mean ± std over seeds:",
-        "",
-        *_table(header, rows),
+    if test is None:
+        return _table(header, rows)
+    return [
+        *_table((*header, "Welch t", "p"), rows),
+        *_welch_summary(test, *e.compare, what),
     ]
-    if test is not None:
-        lines += _welch_summary(test, *e.compare, "setting (competence at the end)")
-        lines += _degradation(final, *e.compare)
-    return lines + _forgetting(e, tables.metrics)
 
 
 def _degradation(final: pd.DataFrame, better: str, worse: str) -> list[str]:

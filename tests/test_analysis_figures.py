@@ -30,13 +30,16 @@ def studies(tmp_path_factory):
     root = tmp_path_factory.mktemp("studies")
     write_study(root / "main", seeds=(0, 1, 2), n_episodes=600)
     write_perturbation_study(root / "failure", perturbation=300, n_episodes=900, tests_per_epoch=40)
-    write_distractor_study(root / "distractors", counts=(0, 4, 7), seeds=(0, 1), n_episodes=300)
+    write_distractor_study(
+        root / "distractors", counts=(0, 4, 7), seeds=(0, 1), n_episodes=300, tests_per_epoch=8
+    )
     return {
         "main": analysis.load_runs(root / "main"),
         "tests": analysis.load_tests(root / "main"),
         "failure": analysis.load_runs(root / "failure"),
         "failure_tests": analysis.load_tests(root / "failure"),
         "distractors": analysis.load_runs(root / "distractors"),
+        "distractors_tests": analysis.load_tests(root / "distractors"),
     }
 
 
@@ -54,7 +57,8 @@ def _build(name, studies, out_dir=None, note=None):
     if name == "forgetting":
         return analysis.forgetting(studies["failure"], **kw)[0]
     if name == "distractors":
-        return analysis.distractors(studies["distractors"], **kw)
+        tests = studies["distractors_tests"]
+        return analysis.distractors(studies["distractors"], tests=tests, **kw)
     raise AssertionError(name)
 
 
@@ -298,6 +302,26 @@ def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies
     containers = {c.get_label(): c for c in ax.containers}
     line = containers["CURIOUS"].lines[0]
     np.testing.assert_allclose(line.get_ydata(), means.loc["curious"].to_numpy())
+
+
+def test_distractors_draws_the_test_success_beside_the_competence(studies):
+    """Given the runs' test rollouts, a second panel: each setting's test success at the end
+    (`final_test_success`), its bins named in the caption; rollouts of other runs are refused."""
+    df, tests = studies["distractors"], studies["distractors_tests"]
+    assert len(analysis.distractors(df).axes) == 1
+    fig = analysis.distractors(df, tests=tests)
+    left, right = fig.axes
+    assert left.get_ylabel().startswith("self-evaluated competence")
+    assert right.get_ylabel().startswith("test success") and list(right.get_xticks()) == [0, 4, 7]
+    final = analysis.final_test_success(tests)
+    means = final.groupby(["condition", "n_distractors"])["value"].mean()
+    for label, condition in (("CURIOUS", "curious"), ("M-UVFA", "m-uvfa")):
+        line = {c.get_label(): c for c in right.containers}[label].lines[0]
+        np.testing.assert_allclose(line.get_ydata(), means.loc[condition].to_numpy())
+    end, width = int(final["episodes"].iat[0]), final.attrs["bin_size"]
+    assert f"pooled per run over episodes {end - width + 1:,}–{end:,}" in _caption(fig)
+    with pytest.raises(analysis.AnalysisError, match="same runs"):
+        analysis.distractors(df, tests=tests[tests["n_distractors"] != 7])
 
 
 def test_distractors_names_what_it_plots_and_shows_each_settings_seeds(studies):

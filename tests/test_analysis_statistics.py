@@ -491,6 +491,21 @@ def test_final_test_success_is_read_at_the_common_budget(tmp_path):
     assert (final["episodes"] == 30).all() and (final["value"] == 1.0).all()
 
 
+def test_the_distractors_test_success_is_the_last_comparison_bin_of_the_common_budget(tmp_path):
+    """`final_test_success`: each run's test rollouts pooled over the last of the main
+    comparison's bins that every run completed (a longer run read there too)."""
+    for seed, last in ((0, 4), (1, 6)):
+        folder = _run(tmp_path, "curious", seed, np.full(100, 0.5))
+        _two_tests_an_epoch(folder, last, both_from=3 + seed)
+    tests = load_tests(tmp_path)
+    final = analysis.final_test_success(tests, bin_size=20).set_index("seed")
+    assert final.attrs["bin_size"] == 20
+    assert (final["episodes"] == 40).all() and (final["n_tests"] == 4).all()
+    np.testing.assert_allclose(final["value"], [(1 + 0 + 1 + 1) / 4, (1 + 0 + 1 + 0) / 4])
+    default = analysis.final_test_success(tests)  # 20 bins of the longest run's 60 episodes
+    assert default.attrs["bin_size"] == analysis.binned_success(tests).attrs["bin_size"]
+
+
 def test_area_under_success_averages_every_epoch_of_the_common_budget(tmp_path):
     """Each run's epochs up to the budget every run reached weigh the same (an epoch with no
     test on an achievable module is left out), whatever the bins; the result is what the Welch

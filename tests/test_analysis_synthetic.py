@@ -302,8 +302,10 @@ def write_distractor_study(
     counts: Sequence[int] = (0, 4, 7),
     seeds: Sequence[int] = (0, 1, 2),
     n_episodes: int = 800,
+    tests_per_epoch: int = 0,
 ) -> list[Path]:
-    """Made-up distractors study: final success falls with more distractors, less for curious."""
+    """Made-up distractors study: final success falls with more distractors, less for curious;
+    ``tests_per_epoch`` > 0 writes test rollouts too (`write_run`)."""
     penalty = {"curious": 0.03, "m-uvfa": 0.09}
     folders = []
     for c, per_distractor in penalty.items():
@@ -321,6 +323,7 @@ def write_distractor_study(
                         competence=curves,
                         achievable=achievable,
                         variant=f"distractors{k}",
+                        tests_per_epoch=tests_per_epoch,
                     )
                 )
     return folders

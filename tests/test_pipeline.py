@@ -101,6 +101,15 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
         f"CURIOUS and by {d['loss_m-uvfa']:.2f} for M-UVFA: a difference of "
         f"{d['difference']:+.2f} (not tested: a group with fewer than two seeds" in report
     )
+    # ... and the distractors' second measure, each setting's test success at the end
+    tests = pq.read_table(out / "metrics" / "distractors.tests.parquet").to_pandas()
+    tested = analysis.final_test_success(tests)
+    end, width = int(tested["episodes"].iat[0]), tested.attrs["bin_size"]
+    assert (
+        "Test success (the noise-free test rollouts on achievable modules, pooled per run) over "
+        f"episodes {end - width + 1:,}–{end:,}, mean ± std over seeds:" in report
+    )
+    assert "Welch's t-test per setting (test success at the end)" in report
     # the training time is read off the runs' own clocks, not a fixed sentence
     walls = [
         pq.read_table(p, columns=["wall_time"])["wall_time"].to_numpy().max()

@@ -21,6 +21,7 @@ analysis.episodes_to_test_success(tests)            # per module: episodes to 0.
 analysis.area_under_success(tests)                  # per run: success over every epoch, no bins
 analysis.learning_order(analysis.competence_crossings(runs))  # which module was learned when
 analysis.compare_degradation(analysis.final_competence(runs), "curious", "m-uvfa")  # C4's loss
+analysis.final_test_success(tests)                  # per run: test success in the last bin
 ```
 
 Fig. 2a's "success" is, as in the paper, the success of the noise-free test rollouts run after

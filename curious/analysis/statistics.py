@@ -65,6 +65,7 @@ __all__ = [
     "epoch_success",
     "final_competence",
     "final_success",
+    "final_test_success",
     "main_comparison",
     "nice_bin_size",
     "on_achievable",
@@ -418,6 +419,22 @@ def binned_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataF
     if bin_size is None:
         bin_size = comparison_bin_size(max(int(tests["episode"].max()), 1))
     return epoch_success(tests, bin_size)
+
+
+def final_test_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFrame:
+    """Each run's test success over achievable modules in the last bin every run completed: the
+    test-rollout counterpart of `final_competence` (the distractors' second measure, C4).
+
+    The bins are the main comparison's (`binned_success`: by default 20 over the longest run's
+    budget, rounded down: the last 5,000 of 100,000 episodes, 2,000 of 50,000), read by
+    `final_success` at the common budget. Returns one row per run: the run columns,
+    ``episodes`` (the bin's end), ``n_tests`` and ``value``, in the form `welch_per_bin` and
+    `across_seeds` take.
+    """
+    points = binned_success(tests, bin_size)
+    final = final_success(points)
+    final.attrs["bin_size"] = points.attrs["bin_size"]
+    return final
 
 
 def main_comparison(

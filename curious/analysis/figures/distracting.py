@@ -1,5 +1,6 @@
 """The distractors figure (`distractors`): the self-evaluated competence over the achievable
-modules at the end of the runs against the number of distracting modules."""
+modules at the end of the runs against the number of distracting modules, and beside it, where
+the runs' test rollouts are given, their test success at the end."""
 
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ from curious.analysis.loading import (
 )
 from curious.analysis.statistics import (
     final_competence,
+    final_test_success,
 )
 from curious.analysis.style import (
     budget_text,
@@ -41,16 +43,20 @@ def distractors(
     note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "distractors",
+    tests: pd.DataFrame | None = None,
 ) -> Figure:
     """Self-evaluated competence over achievable modules at the end of the runs against the
-    number of distracting modules.
+    number of distracting modules; with ``tests`` (the same runs' `load_tests` table), a second
+    panel of their test success at the end.
 
     One line per condition, mean ± std across seeds (a lone seed drawn as its value), for every
     number of distractors among the runs (their variants may differ; their achievable modules
-    must not); the x ticks say how many seeds each setting has. The value is
+    must not); the x ticks say how many seeds each setting has. The competence is
     `statistics.final_competence` (the mean over the achievable modules of the agent's own
     competence measure, the success rate of its recent self-evaluations), after episode
-    ``at_episode``, by default the last episode every run reached.
+    ``at_episode``, by default the last episode every run reached; the test success is
+    `statistics.final_test_success` (the noise-free test rollouts on achievable modules, pooled
+    over the last of the main comparison's bins every run completed).
     """
     conditions = ordered_conditions(df, conditions)
     rows = restrict(df, conditions, None)
@@ -68,54 +74,89 @@ def distractors(
         raise AnalysisError(
             f"condition '{condition}' with {n_d} distractors has several runs of seed {seed}"
         )
-    stats_table = (
-        final.groupby(["condition", "n_distractors"], observed=True)["value"]
-        .agg(mean="mean", std=lambda v: v.std(ddof=1), n="size")
-        .reset_index()
-    )
+    tested = None
+    if tests is not None:
+        tested = final_test_success(restrict(tests, conditions, None))
+        runs = set(final["run"].astype(str))
+        if set(tested["run"].astype(str)) != runs:
+            raise AnalysisError(
+                "the distractors figure's test rollouts must be those of the same runs as its "
+                "competence: load both from the same run folders"
+            )
     counts = sorted(int(n) for n in final["n_distractors"].unique())
     n_achievable = len(sets[0].split(","))
-    offsets = np.linspace(-0.12, 0.12, len(conditions)) if len(conditions) > 1 else [0.0]
     with figure_style():
-        fig = new_figure(6.4, 4.2)
-        ax = fig.add_subplot()
-        for c, dx in zip(conditions, offsets, strict=True):
-            s = stats_table[stats_table["condition"] == c].sort_values("n_distractors")
-            ax.errorbar(
-                s["n_distractors"].to_numpy(dtype=np.float64) + dx,
-                s["mean"].to_numpy(dtype=np.float64),
-                yerr=s["std"].fillna(0.0).to_numpy(dtype=np.float64),
-                color=palette.condition_color(c),
-                marker="o",
-                markersize=5,
-                capsize=3,
-                label=palette.condition_label(c),
-            )
-        ticks = sorted(set(counts) | set(PAPER_SETTINGS))
-        ax.set_xticks(ticks)
-        ax.set_xticklabels(
-            [f"{n}\n{_seeds_at(final, n) if n in counts else '(no runs)'}" for n in ticks]
+        fig = new_figure(6.4 if tested is None else 11.0, 4.2)
+        panels = [(final, f"self-evaluated competence over\nthe {n_achievable} achievable modules")]
+        if tested is not None:
+            panels.append((tested, f"test success over\nthe {n_achievable} achievable modules"))
+        axes = fig.subplots(1, len(panels), squeeze=False)[0]
+        for ax, (values, ylabel) in zip(axes, panels, strict=True):
+            _panel(ax, values, conditions, counts, final)
+            ax.set_ylabel(ylabel)
+        legend_right(axes[-1])
+        fig.suptitle(
+            "Distracting modules — competence"
+            + (" and test success" if tested is not None else "")
+            + " at the end of the runs"
         )
-        ax.set_xlim(min(min(counts), 0) - 0.6, max(max(counts), 7) + 0.6)
-        ax.set_xlabel("distracting modules")
-        ax.set_ylim(-0.03, 1.03)
-        ax.set_ylabel(f"self-evaluated competence over\nthe {n_achievable} achievable modules")
-        legend_right(ax)
-        fig.suptitle("Distracting modules — competence at the end of the runs")
         seeds = _distractor_seeds_text(final, conditions, counts)
         episodes = int(final["episodes"].iat[0])
         runs = runs_of(rows)
-        caption(
-            fig,
+        text = (
             f"{seeds}. Competence after {episodes:,} episodes (the budget every run reached; "
             f"runs of {budget_text(runs['n_episodes'])}, {setting_text(runs)}): the success "
             "rate of the agent's recent self-evaluations on each module, averaged over the "
-            f"{n_achievable} achievable modules; mean ± std across seeds (no bar: one seed). "
+            f"{n_achievable} achievable modules"
+        )
+        if tested is not None:
+            end, width = int(tested["episodes"].iat[0]), int(tested.attrs["bin_size"])
+            text += (
+                " (left). Test success (right): the noise-free "
+                "test rollouts on the achievable modules, pooled per run over episodes "
+                f"{max(end - width, 0) + 1:,}–{end:,}"
+            )
+        caption(
+            fig,
+            text + "; mean ± std across seeds (no bar: one seed). "
             f"Settings drawn: {', '.join(map(str, counts))} distracting modules"
             f"{_missing_text(counts)}.",
             note,
         )
     return finish(fig, out_dir, name)
+
+
+def _panel(
+    ax, values: pd.DataFrame, conditions: Sequence[str], counts: list[int], final: pd.DataFrame
+) -> None:
+    """One measure per run against the number of distracting modules: a line per condition,
+    mean ± std across seeds, the x ticks saying how many seeds each setting has (`final`'s)."""
+    table = (
+        values.groupby(["condition", "n_distractors"], observed=True)["value"]
+        .agg(mean="mean", std=lambda v: v.std(ddof=1))
+        .reset_index()
+    )
+    offsets = np.linspace(-0.12, 0.12, len(conditions)) if len(conditions) > 1 else [0.0]
+    for c, dx in zip(conditions, offsets, strict=True):
+        s = table[table["condition"] == c].sort_values("n_distractors")
+        ax.errorbar(
+            s["n_distractors"].to_numpy(dtype=np.float64) + dx,
+            s["mean"].to_numpy(dtype=np.float64),
+            yerr=s["std"].fillna(0.0).to_numpy(dtype=np.float64),
+            color=palette.condition_color(c),
+            marker="o",
+            markersize=5,
+            capsize=3,
+            label=palette.condition_label(c),
+        )
+    ticks = sorted(set(counts) | set(PAPER_SETTINGS))
+    ax.set_xticks(ticks)
+    ax.set_xticklabels(
+        [f"{n}\n{_seeds_at(final, n) if n in counts else '(no runs)'}" for n in ticks]
+    )
+    ax.set_xlim(min(min(counts), 0) - 0.6, max(max(counts), 7) + 0.6)
+    ax.set_xlabel("distracting modules")
+    ax.set_ylim(-0.03, 1.03)
 
 
 def _distractor_seeds_text(
