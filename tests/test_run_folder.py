@@ -218,10 +218,10 @@ def test_a_folder_of_runs_given_as_a_run_names_the_runs_it_holds(tmp_path):
     """`curious evaluate`, `render --run` and `train --resume` given a reproduction's output or
     a `--seeds` folder instead of a run: the error names runs to choose from, not just the
     missing config.json; a folder holding none says only what is missing."""
-    seeds = [_written(tmp_path / "runs" / f"seed-{i}", "default").path for i in range(5)]
+    seeds = [_written(tmp_path / "runs" / f"seed-{i}", "default").path for i in range(4)]
     (tmp_path / "runs" / "seed-0" / "checkpoints" / "x").mkdir(parents=True)
     (tmp_path / "runs" / "seed-0" / "checkpoints" / "x" / "config.json").write_text("{}")
-    named = f"it holds runs: {seeds[0]}, {seeds[1]}, {seeds[2]} and 2 more; name one"
+    named = f"it holds runs: {seeds[0]}, {seeds[1]}, {seeds[2]} and 1 more; name one"
     folder = RunFolder(tmp_path / "runs")
     with pytest.raises(RunFolderError, match="is not a run folder") as info:
         folder.read_info()
