@@ -9,6 +9,7 @@ from os import PathLike
 
 import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from curious.analysis import palette
@@ -127,7 +128,11 @@ def distractors(
 
 
 def _panel(
-    ax, values: pd.DataFrame, conditions: Sequence[str], counts: list[int], final: pd.DataFrame
+    ax: Axes,
+    values: pd.DataFrame,
+    conditions: Sequence[str],
+    counts: list[int],
+    final: pd.DataFrame,
 ) -> None:
     """One measure per run against the number of distracting modules: a line per condition,
     mean ± std across seeds, the x ticks saying how many seeds each setting has (`final`'s)."""
