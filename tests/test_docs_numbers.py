@@ -122,6 +122,18 @@ def test_c4_competence_per_number_of_distractors(n_distractors):
     assert results in RESULTS.read_text() and cell in RESULTS.read_text(), results
 
 
+@pytest.mark.parametrize("n_distractors", [0, 4, 7])
+def test_c4_test_success_per_number_of_distractors(n_distractors):
+    paths = _runs("distractors", f"distractors_{n_distractors}")
+    final = analysis.final_test_success(analysis.load_tests(paths))
+    means = analysis.across_seeds(final).set_index("condition")
+    welch = analysis.welch_per_bin(final, "curious", "m-uvfa").iloc[0]
+    curious, m_uvfa = _mean_std(means.loc["curious"]), _mean_std(means.loc["m-uvfa"])
+    row = f"| {n_distractors} | {curious} (2 seeds) | {m_uvfa} (2 seeds) | "
+    row += f"{welch['t']:.2f} | {welch['p']:.4f} |" if np.isfinite(welch["p"]) else "– | – |"
+    assert row in RESULTS.read_text(), row
+
+
 def test_c4_degradation_between_the_settings_shipped():
     """The degradation test over the settings whose runs are all shipped (4 and 7 until
     `distractors_0` is)."""
