@@ -247,15 +247,15 @@ def _draw(
         elif name in ("fig2b", "fig2c", "table1"):
             fig = getattr(analysis, name)(table, condition="curious", note=note, out_dir=out_dir)
         elif name == "distractors":
+            # the settings shipped with too few runs for the statistics are drawn beside them
             extra_runs = left_out_runs(repro, experiment)
+            folders = run_folders(repro, experiment) + extra_runs if extra_runs else None
+            if folders:
+                table = analysis.load_runs(folders)
             try:  # runs without test rollouts: the competence panel alone
-                tests = load_tests(repro, experiment)
+                tests = analysis.load_tests(folders) if folders else load_tests(repro, experiment)
             except analysis.AnalysisError:
                 tests = None
-            if extra_runs:  # the settings shipped with too few runs for the statistics
-                folders = run_folders(repro, experiment) + extra_runs
-                table = analysis.load_runs(folders)
-                tests = None if tests is None else analysis.load_tests(folders)
             fig = analysis.distractors(table, note=note, out_dir=out_dir, tests=tests)
         elif name in FAILURE_FIGURES:
             tests = None
