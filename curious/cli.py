@@ -11,8 +11,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.metadata
-import os
 import sys
+
+from curious.commands import refuse
 
 COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.train",
@@ -91,10 +92,7 @@ def _main(argv: list[str] | None, words: list[str]) -> int:
     except (ValueError, RuntimeError, FileNotFoundError, FileExistsError) as exc:
         # Bad input and unusable folders are reported in one line; CURIOUS_DEBUG=1 shows the
         # traceback.
-        if os.environ.get("CURIOUS_DEBUG"):
-            raise
-        print(f"curious {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return refuse(args.command, exc)
     return int(result or 0)
 
 

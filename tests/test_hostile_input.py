@@ -19,6 +19,7 @@ import pytest
 
 from curious.cli import main
 from curious.config import MAX_SEED, ConfigError, resolve
+from curious.reproduction.experiments import ExperimentError
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -159,6 +160,29 @@ def test_a_seed_out_of_range_is_refused_naming_the_option(tmp_path, capsys, monk
     assert "--seed must be from 0 to" in one_line(capsys.readouterr().err)
     assert sorted(tmp_path.iterdir()) == []
     assert resolve("smoke", seed=MAX_SEED).seed == MAX_SEED  # the range's top is a seed
+
+
+@pytest.mark.parametrize(
+    ("args", "error"),
+    [
+        (["train", "--preset", "smoke", "--seed", "-1", "--out", "OUT"], ConfigError),
+        (["reproduce", "--budget", "nosuch", "--out", "OUT"], ExperimentError),
+        (["progress", "OUT"], ValueError),
+    ],
+    ids=["train", "reproduce", "progress"],
+)
+def test_curious_debug_shows_the_traceback_of_every_commands_refusal(
+    args, error, tmp_path, capsys, monkeypatch
+):
+    """The one-line refusal by default; with CURIOUS_DEBUG=1 the exception itself, traceback and
+    all, from every command (docs/usage.md, "When something goes wrong")."""
+    args = [str(tmp_path / "out") if a == "OUT" else a for a in args]
+    assert main(args) == 2
+    assert one_line(capsys.readouterr().err).startswith(f"curious {args[0]}: error: ")
+    monkeypatch.setenv("CURIOUS_DEBUG", "1")
+    with pytest.raises(error):
+        main(args)
+    assert sorted(tmp_path.iterdir()) == []
 
 
 def test_an_empty_out_is_refused_instead_of_meaning_here(tmp_path, capsys, monkeypatch):

@@ -4,7 +4,20 @@ formatter and the `--set` option. `curious.cli` loads them; they import nothing 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 from collections.abc import Callable
+
+
+def refuse(command: str, exc: BaseException, status: int = 2, message: str | None = None) -> int:
+    """Print `exc` (or `message`, where it says it better) as `curious COMMAND`'s one-line error
+    on stderr and return the exit `status`; with `CURIOUS_DEBUG` set, raise `exc` instead, so
+    that its traceback shows (every command's refusals go through here, so the variable works
+    for all of them)."""
+    if os.environ.get("CURIOUS_DEBUG"):
+        raise exc
+    print(f"curious {command}: error: {message or exc}", file=sys.stderr)
+    return status
 
 
 def add_set_option(parser: argparse.ArgumentParser, help_text: str) -> None:

@@ -28,7 +28,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     ),
     "cycle": (
         "benchmarks.cycle_speed",
-        "training episodes/s of whole cycles: worker processes vs the serial path",
+        "training episodes/s of whole cycles: rollouts overlapped with updates vs the serial path",
     ),
     "rollouts": (
         "benchmarks.rollout_scaling",

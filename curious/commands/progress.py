@@ -61,7 +61,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--epochs",
         type=int,
         default=DEFAULT_TEST_EPOCHS,
-        help="pool test success over this many of each run's last epochs",
+        help="pool test success over this many of each run's last epochs (default %(default)s)",
     )
     parser.add_argument(
         "--at-once",

@@ -43,7 +43,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from curious.commands import add_set_option
+from curious.commands import add_set_option, refuse
 from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
 
 if TYPE_CHECKING:
@@ -99,7 +99,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="LIST",
         help=f"comma-separated subset of {','.join(EXPERIMENTS)} (default: all the budget's)",
     )
-    parser.add_argument("--out", default=None, help="output folder (default: runs/<budget>)")
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="output folder (default: runs/<budget>; with --from-data, runs/<budget>-shipped)",
+    )
     parser.add_argument(
         "--from-data",
         default=None,
@@ -249,8 +253,7 @@ def run(args: argparse.Namespace) -> int:
 
             check_writable(args.runs_dir, "--runs-dir", folder=True)
     except (ConfigError, RunFolderError) as exc:
-        print(f"curious reproduce: error: {exc}", file=sys.stderr)
-        return 2
+        return refuse("reproduce", exc)
     if args.device:
         overrides["device"] = args.device
     if overrides.get("device") == "cuda" and not args.ray_address:
@@ -284,8 +287,7 @@ def run(args: argparse.Namespace) -> int:
             population=args.population,
         )
     except (ExperimentError, ConfigError, ReproduceError, RunFolderMismatch, RayUnavailable) as exc:
-        print(f"curious reproduce: error: {exc}", file=sys.stderr)
-        return 2
+        return refuse("reproduce", exc)
     except PartitionFailed as exc:
         print(f"curious reproduce: a training run failed: {exc}", file=sys.stderr)
         return 1
@@ -425,8 +427,7 @@ def _from_data(args: argparse.Namespace) -> int:
             from_data=args.from_data,
         )
     except (ExperimentError, ReproduceError, RunFolderMismatch, ShippedError) as exc:
-        print(f"curious reproduce: error: {exc}", file=sys.stderr)
-        return 2
+        return refuse("reproduce", exc)
     _done(result)
     return 0
 

@@ -30,10 +30,11 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from curious.commands import HelpFormatter, add_set_option
+from curious.commands import HelpFormatter, add_set_option, refuse
 from curious.config import (
     MAX_EPISODES,
     PRESETS,
+    RESUMABLE_FIELDS,
     Config,
     ConfigError,
     condition_names,
@@ -103,16 +104,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--out",
         required=True,
-        help="run folder (must be empty unless --resume); with --seeds, the folder of the "
-        "seed-N run folders",
+        help="run folder (must be empty unless --resume or --restart); with --seeds, the "
+        "folder of the seed-N run folders",
     )
     add_set_option(parser, "override one setting (repeatable), e.g. --set n_workers=8")
     parser.add_argument(
         "--resume",
         action="store_true",
         help="continue the run in --out with the settings it was started with (config.json); "
-        "options given must match them, but for a new total_episodes and where and how fast "
-        "it runs",
+        f"options given must match them, but for {', '.join(sorted(RESUMABLE_FIELDS))} "
+        "(with --seeds, every seed-N run)",
     )
     parser.add_argument(
         "--restart",
@@ -121,10 +122,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "test rollouts, recording and checkpoints)",
     )
     parser.add_argument(
-        "--device", choices=("cpu", "cuda"), default=None, help="where networks train (default cpu)"
+        "--device",
+        choices=("cpu", "cuda"),
+        default=None,
+        help="where networks train (default cpu; with --resume, the run's own unless given)",
     )
     parser.add_argument(
-        "--variant", default=None, help="suite variant: {variants} (default: default)"
+        "--variant",
+        default=None,
+        help="suite variant: {variants} (default: default; with --resume, the run's own)",
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument(
@@ -178,8 +184,7 @@ def run(args: argparse.Namespace) -> int:
                 "(why: curious.config.MAX_EPISODES)"
             )
     except ConfigError as exc:
-        print(f"curious train: error: {exc}", file=sys.stderr)
-        return 2
+        return refuse("train", exc)
 
     from curious.runs.driver import train
     from curious.runs.population import PopulationError
@@ -213,15 +218,12 @@ def run(args: argparse.Namespace) -> int:
             )  # fmt: skip
             trainers = [run]
     except TrainingDiverged as exc:
-        print(f"curious train: error: {exc}", file=sys.stderr)
-        return 1
+        return refuse("train", exc, status=1)
     except (ConfigError, RunFolderError, CheckpointError) as exc:
-        print(f"curious train: error: {exc}", file=sys.stderr)
-        return 2
+        return refuse("train", exc)
     except OSError as exc:  # a folder that cannot be written: read-only, under a file, full disk
         where = f": {exc.filename}" if exc.filename else ""
-        print(f"curious train: error: {exc.strerror or exc}{where}", file=sys.stderr)
-        return 2
+        return refuse("train", exc, message=f"{exc.strerror or exc}{where}")
     except KeyboardInterrupt:
         if not population:
             raise
@@ -231,8 +233,7 @@ def run(args: argparse.Namespace) -> int:
         )
         return 130
     except PopulationError as exc:
-        print(f"curious train: error: {exc}", file=sys.stderr)
-        return 1
+        return refuse("train", exc, status=1)
     for trainer, out in zip(trainers, outs, strict=True):
         print(_summary(trainer, out))
     return 0

@@ -23,6 +23,7 @@ import sys
 import time
 from pathlib import Path
 
+from curious.commands import refuse
 from curious.reproduction.shipped_folder import shipped_run_note
 from curious.runs.folder import RunFolder, folders_below, name_some
 from curious.watching.display import has_display
@@ -64,13 +65,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--web-port",
         type=int,
         default=DEFAULT_WEB_PORT,
-        help=f"web viewer port, 1 to {MAX_PORT} (with --web)",
+        help=f"web viewer port, 1 to {MAX_PORT} (with --web; default {DEFAULT_WEB_PORT})",
     )
     parser.add_argument(
         "--grpc-port",
         type=int,
         default=DEFAULT_GRPC_PORT,
-        help=f"gRPC port, 1 to {MAX_PORT} (with --web)",
+        help=f"gRPC port, 1 to {MAX_PORT} (with --web; default {DEFAULT_GRPC_PORT})",
     )
     parser.set_defaults(func=run)
 
@@ -249,8 +250,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         paths = recording_paths(args.runs)
     except FileNotFoundError as exc:
-        print(f"curious view: {exc}", file=sys.stderr)
-        return 2
+        return refuse("view", exc)
     files = [str(p) for p in paths]
     if args.web:
         busy = busy_ports_error(args.web_port, args.grpc_port)

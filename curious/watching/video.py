@@ -105,7 +105,7 @@ def check_timing(fps: float, option: str, given: float, hold: float) -> None:
     if hold > MAX_HOLD:
         raise ValueError(
             f"--hold must be at most {MAX_HOLD:g} seconds, got {hold:g} (why: "
-            "curious.video.MAX_HOLD)"
+            "curious.watching.video.MAX_HOLD)"
         )
 
 
