@@ -10,8 +10,8 @@ interleaved step by step, so that load from other processes hits them alike:
   control step advancing every copy by its substeps from the last call's states, with the
   controls (finger commands, mocap targets) ours just stepped with, on the models ours runs
   (one shared model where the copies' are the same). No task logic, no observation, no reset.
-- peer: `LocalEnvs` (`curious.envs.batch`), the suite stepping each copy in turn, as the
-  training loop does today in one process.
+- peer: `LocalEnvs` (`curious.envs.batch`), the suite stepping each copy in turn, as a run
+  steps its copies in its own process (`env_processes=1`, the default).
 
 `batch_physics` in the detail is the physics of ours alone (`suite.lockstep_physics` with the
 same controls: `mujoco.batch`, which also computes the positions and velocities the observation

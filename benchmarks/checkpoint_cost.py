@@ -8,7 +8,7 @@ in interleaved rounds (the order alternates), each into a fresh folder and fsync
 
 * ours: milliseconds of a checkpoint that writes only the episodes since the one before (segments);
 * peer: milliseconds of one that rewrites the whole replay (`replay.npz`, what a replay that has
-  evicted episodes gets, and what every checkpoint did before segments);
+  evicted episodes gets, and what every checkpoint wrote at the commits before 447379f);
 * bound: milliseconds to write and fsync the new episodes' bytes alone, as one raw file.
 
 The disk that the two checkpoints a run keeps take is reported for both.

@@ -20,8 +20,11 @@ rounds collected during the untimed warm-up stand for those still in flight at t
   process per core, prefetched minibatches, the compiled update and acting on CPU copies;
 * workers_prefetch, workers_compiled, workers_act_on_cpu: the workers with one of those
   settings each, to tell what each one costs or gains on a GPU node;
-* ours_workers_prefetch: overlap, workers and prefetched minibatches (the fastest on a 16-core
-  node with an H100, 2026-11-26: docs/scaling.md).
+* workers_prefetch_compiled: the workers with prefetched minibatches and the compiled update
+  (the fastest synchronous contender measured on 16-core nodes with an H100: 51.0 episodes/s
+  on node F, 2026-11-26, docs/benchmarks.md);
+* ours_workers_prefetch: overlap, workers and prefetched minibatches (48.2 episodes/s on the
+  first such node, 2026-11-26, with the learner of 86f245c: docs/scaling.md).
 
 The default list leaves out the GPU node's contenders (the compiled update takes minutes to
 compile on a CPU): `--device cuda --contenders ours_gpu,workers` and the like ask for them.

@@ -3,8 +3,8 @@ against the physics bound of as many cores.
 
 Rollouts alone (no policy, no learner): `n_workers` copies of the preset's size reset on random
 modules and goals, then stepped together for one episode with random actions, as the training
-loop steps them. `peer` is today's default, every copy stepped in the training process
-(`LocalEnvs`); `ours` is the copies spread over one worker process per core (`ProcessEnvs`,
+loop steps them. `peer` is the default (`env_processes=1`), every copy stepped in the training
+process (`LocalEnvs`); `ours` is the copies spread over one worker process per core (`ProcessEnvs`,
 `--set env_processes=0`); the detail has every process count from 1 to the cores. `bound` is
 the physics alone, one core stepping the suite's compiled model for one episode's 50 control
 steps, times the cores used; `<p>_over_bound` says how much of it p processes reach.

@@ -195,10 +195,10 @@ class Config:
     """`ddpg` (the authors') or `td3` (twin critics, target smoothing, delayed actor)."""
     learner_backend: str = "autograd"
     """How the update runs, the same arithmetic each: `autograd` (the reference, readable),
-    `compiled` (each step, losses, backward and Adam, through `torch.compile`; on CUDA it asks
-    for CUDA graphs with a capturable Adam, which inductor skipped in training runs on an H100,
-    docs/scaling.md) or `workspace` (both passes written out into preallocated buffers; the
-    fastest on a CPU, docs/benchmarks.md)."""
+    `compiled` (each step, losses, backward and Adam, through `torch.compile`; on CUDA each step
+    one CUDA graph with a capturable Adam, DDPG's backward traced into it, docs/scaling.md) or
+    `workspace` (both passes written out into preallocated buffers; the fastest on a CPU,
+    docs/benchmarks.md)."""
     hidden: int = 256
     """Units per hidden layer of actor and critic. Authors: 256."""
     layers: int = 3

@@ -1,31 +1,35 @@
 #!/usr/bin/env bash
-# The checks a GPU node owes the project (docs/scaling.md). By default the population benchmark
-# and the CUDA tests, within one device call of 10 minutes; "bench one side" (309 s on a 16-core
-# node with an H100, 2026-11-26) and "resume" are a second call's:
+# The checks a GPU node owes the project (docs/scaling.md). STEPS picks the steps; the default,
+# "population tests", is the population benchmark and the CUDA tests, whose time limits (420 s
+# and 120 s) fit one device call of 10 minutes. "bench one side" (the cycle benchmark and the
+# runs) and "resume" are a second call's; "tests bench one side" took 309 s on a 16-core node with
+# an H100 (node D of docs/benchmarks.md, 2026-11-26, three contenders, two runs side by side):
 #
 #   bash tools/gpu_checks.sh OUT            # on a node with a CUDA device: results into OUT/
-#   PRESET=smoke DEVICE=cpu bash tools/gpu_checks.sh OUT   # the same steps on a CPU, in minutes
+#   STEPS="bench one side" bash tools/gpu_checks.sh OUT    # steps 2-4
+#   PRESET=smoke DEVICE=cpu bash tools/gpu_checks.sh OUT   # the same steps on a CPU
 #
-# 0. (STEPS with "population", first by default) `curious bench population`: POPULATION_RUNS
-#    (15) `paper` runs as one population against as many processes side by side, into
-#    OUT/population.json;
-# 1. the CUDA tests (tests/test_agent_learner.py and tests/test_agent_runs.py, -k cuda), into OUT/cuda-tests.txt;
-# 2. `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
-# 3. one short run with the fastest synchronous settings, into OUT/one-run/;
-# 4. for each N of SIDE_BY_SIDE, N such runs side by side, each with 1/N of the cores, into
-#    OUT/N-runs/ (what several runs sharing one node give: docs/scaling.md's projections of the
-#    whole reproduction rest on it);
+# 0. (STEPS with "population") `curious bench population`: POPULATION_RUNS (15) `paper` runs as
+#    one population against as many processes side by side, into OUT/population.json;
+# 1. (STEPS with "tests") the CUDA tests (tests/test_agent_learner.py and
+#    tests/test_agent_runs.py, -k cuda), into OUT/cuda-tests.txt;
+# 2. (STEPS with "bench") `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
+# 3. (STEPS with "one") one short run with a worker process per core and prefetched minibatches
+#    (the autograd update), into OUT/one-run/;
+# 4. (STEPS with "side") for each N of SIDE_BY_SIDE, N such runs side by side, each with 1/N of
+#    the cores, into OUT/N-runs/ (what several runs sharing one node give: docs/scaling.md's
+#    projections of the whole reproduction rest on it);
 # 5. (STEPS with "resume") one run stopped by a time limit, as a node's time limit ends it,
 #    then resumed from its last checkpoint with --resume and stopped again: OUT/resume/ holds its
 #    metrics, both logs and, after each stop, the checkpoints and replay segments it held
 #    (listings and each checkpoint's replay.json; the run folder itself stays in RESUME_DIR).
-# Each step has a time limit of its own, so that a slow one leaves the others their turn; OUT/env.txt
-# says on what it ran. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two
-# epochs of `paper`), CONTENDERS, SIDE_BY_SIDE (2; "2 4" adds four runs, about 2.5 minutes more),
-# STEPS (which steps run: "population tests" by default; "bench one side" the cycle benchmark
-# and runs, one alone and N side by side; "resume" step 5), POPULATION_RUNS (15),
-# POPULATION_CYCLES (3), RESUME_SECONDS (170: each leg of
-# step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
+# Each step has a time limit of its own, so that a slow one leaves the others their turn;
+# OUT/env.txt says on what it ran, and where runs were trained the script prints each run's
+# episodes/s. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two epochs of
+# `paper`), CONTENDERS (workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu),
+# SIDE_BY_SIDE (2; "2 4 8" adds four and eight runs, N runs each within 80 + 25 N s), STEPS
+# ("population tests"), POPULATION_RUNS (15), POPULATION_CYCLES (3), RESUME_SECONDS (170: each
+# leg of step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
 out=${1:?usage: bash tools/gpu_checks.sh OUT}
