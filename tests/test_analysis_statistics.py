@@ -484,11 +484,14 @@ def _two_tests_an_epoch(folder, last: int, both_from: int) -> None:
 
 
 def test_final_test_success_is_read_at_the_common_budget(tmp_path):
-    for seed, last in ((0, 3), (1, 5)):
+    """Seed 1 runs two epochs longer, and its stack test succeeds only from its fifth epoch:
+    read at the budget both runs reached (30 episodes) it is at 0.5, at its own end at 1.0."""
+    for seed, last, both_from in ((0, 3, 2), (1, 5, 4)):
         folder = _run(tmp_path, "curious", seed, np.full(100, 0.5))
-        _two_tests_an_epoch(folder, last, both_from=2)
+        _two_tests_an_epoch(folder, last, both_from=both_from)
     final = final_success(epoch_success(load_tests(tmp_path))).set_index("seed")
-    assert (final["episodes"] == 30).all() and (final["value"] == 1.0).all()
+    assert (final["episodes"] == 30).all()
+    assert final["value"].tolist() == [1.0, 0.5]
 
 
 def test_the_distractors_test_success_is_the_last_comparison_bin_of_the_common_budget(tmp_path):
@@ -502,8 +505,9 @@ def test_the_distractors_test_success_is_the_last_comparison_bin_of_the_common_b
     assert final.attrs["bin_size"] == 20
     assert (final["episodes"] == 40).all() and (final["n_tests"] == 4).all()
     np.testing.assert_allclose(final["value"], [(1 + 0 + 1 + 1) / 4, (1 + 0 + 1 + 0) / 4])
-    default = analysis.final_test_success(tests)  # 20 bins of the longest run's 60 episodes
-    assert default.attrs["bin_size"] == analysis.binned_success(tests).attrs["bin_size"]
+    default = analysis.final_test_success(tests)  # 20 bins of 60 episodes, rounded down to 2
+    assert default.attrs["bin_size"] == 2
+    assert (default["episodes"] == 40).all()  # the last such bin every run completed
 
 
 def test_area_under_success_averages_every_epoch_of_the_common_budget(tmp_path):

@@ -89,11 +89,20 @@ def test_segments_no_kept_checkpoint_lists_are_removed(tmp_path):
 
 
 def test_an_unreadable_manifest_keeps_every_segment(tmp_path):
+    """While a kept checkpoint's manifest cannot be read, it might list any segment: even one
+    that no readable manifest lists stays; once the manifest reads again, that one goes."""
     paths = save_run(tmp_path, [3, 6])
+    unlisted = tmp_path / checkpoint.SEGMENTS / "episodes-000000000006-000000000009.npz"
+    unlisted.write_bytes(b"a segment no readable manifest lists")
+    good = (paths[0] / checkpoint.MANIFEST).read_text()
     (paths[0] / checkpoint.MANIFEST).write_text("{")
     before = segment_files(tmp_path)
     checkpoint.prune(tmp_path)
-    assert segment_files(tmp_path) == before
+    assert segment_files(tmp_path) == before and unlisted.name in before
+    (paths[0] / checkpoint.MANIFEST).write_text(good)
+    checkpoint.prune(tmp_path)
+    assert unlisted.name not in segment_files(tmp_path)
+    assert len(segment_files(tmp_path)) == 2
 
 
 def test_without_a_checkpoint_to_build_on_the_whole_replay_is_one_segment(tmp_path):
