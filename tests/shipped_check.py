@@ -18,12 +18,14 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 from pathlib import Path
 
 import pandas as pd
 import pytest
 
 from curious import analysis
+from curious.agent.conditions import CONDITION_CLASSES
 from curious.cli import main as curious_cli
 from curious.reproduction.experiments import get_budget
 from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
@@ -126,6 +128,16 @@ def check_shipped_folder(data: Path, out: Path) -> str:
         tests = tests[tests["run"].astype(str).isin(paths)].reset_index(drop=True)
         final_test = analysis.final_success(analysis.epoch_success(tests)).set_index("run")
         final_competence = analysis.final_competence(runs).set_index("run")["value"]
+        # every run that self-evaluates (all but her) has a final competence: one left out of
+        # the table would read None below, rendered "–" as her's, and pass unnoticed
+        competence = {str(run): value for run, value in final_competence.items()}
+        conditions = runs.groupby("run", observed=True)["condition"].first()
+        for run, condition in conditions.items():
+            if CONDITION_CLASSES[str(condition)].self_evaluates:
+                value = competence.get(str(run))
+                assert value is not None and math.isfinite(value), (
+                    f"{experiment}: {run} self-evaluates, yet has no final competence ({value})"
+                )
         for run, rows in runs.groupby("run", observed=True):
             relative = Path(str(run)).relative_to(data.resolve()).as_posix()
             line = next(x for x in report.splitlines() if x.startswith(f"| {relative} |"))

@@ -143,6 +143,42 @@ def test_td3_has_twin_critics_and_delays_the_actor():
     )
 
 
+def test_td3_target_is_the_smaller_target_critic_on_the_clipped_smoothed_action():
+    """TD3's target (Fujimoto et al. 2018): r + gamma * min(Q1', Q2') on the target action
+    smoothed by noise scaled by `td3_target_noise`, clipped to +-`td3_noise_clip`, the action
+    then clamped to [-1, 1]. Non-default settings, so that no hard-coded constant passes; the
+    critics differ row by row, so that neither critic alone (nor the larger) passes."""
+    config = small_config(algorithm="td3", gamma=0.9, td3_target_noise=0.1, td3_noise_clip=0.3)
+    learner = Learner(10, 4, config, seed=2)
+    _x, _a, reward, x_next = batch(seed=4)
+    with torch.no_grad():  # returns well inside [-1/(1-gamma), 0]: the return's clip is idle
+        for critic in learner.critics_target:
+            critic.net[-1].bias.fill_(-3.0)
+        learner.critics_target[1].net[-1].bias.add_(0.05)
+        learner.actor_target.net[-1].bias.copy_(torch.tensor([4.0, -4.0, 0.0, 0.0]))
+        learner.actor_target.net[-1].weight[2:].mul_(0.2)  # actions 2 and 3 near 0
+        pi = learner.actor_target(x_next)
+    # raw standard normal draws: scaled by 0.1, +-5 is clipped to +-0.3, 1.0 becomes 0.1
+    noise = torch.tensor([50.0, -50.0, 50.0, 1.0]).expand(len(x_next), 4)
+    assert torch.all(pi[:, 0] + 0.3 > 1) and torch.all(pi[:, 1] - 0.3 < -1)  # clamped
+    assert torch.all(pi[:, 2].abs() < 0.5)  # only the noise's clip bounds it
+    smoothed = torch.stack([pi.new_ones(64), -pi.new_ones(64), pi[:, 2] + 0.3, pi[:, 3] + 0.1], 1)
+    seen = []
+    for critic in learner.critics_target:
+        critic.register_forward_hook(lambda _m, args, _out: seen.append(args[1].clone()))
+    target = learner.td_target(reward, x_next, noise)
+    assert len(seen) == 2
+    for action in seen:  # both target critics judge the one smoothed action
+        torch.testing.assert_close(action, smoothed)
+
+    with torch.no_grad():
+        q1, q2 = (critic(x_next, smoothed) for critic in learner.critics_target)
+    assert torch.any(q1 < q2) and torch.any(q2 < q1)  # each critic is the smaller on some rows
+    want = reward + 0.9 * torch.minimum(q1, q2)
+    assert torch.all(want > -10) and torch.all(want < 0)
+    torch.testing.assert_close(target, want)
+
+
 def test_state_dict_round_trip_gives_identical_updates():
     a = Learner(10, 4, small_config(algorithm="td3"), seed=1)
     x, act, r, x2 = batch()
