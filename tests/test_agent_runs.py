@@ -51,18 +51,20 @@ UNCOMPARED = ("elapsed",)
 Everything else, torch's global generator (`torch_rng`) included, a resumed run restores."""
 
 
-def assert_same_state(a: Any, b: Any, where: str = "") -> None:
+def assert_same_state(
+    a: Any, b: Any, where: str = "", uncompared: tuple[str, ...] = UNCOMPARED
+) -> None:
     """Equal nested checkpoint states (dicts, lists, tuples, tensors and arrays bit for bit),
-    but for the keys in `UNCOMPARED`."""
+    but for the keys in `uncompared`."""
     assert type(a) is type(b), f"{where}: {type(a).__name__} != {type(b).__name__}"
     if isinstance(a, dict):
         assert a.keys() == b.keys(), where
-        for key in (k for k in a if k not in UNCOMPARED):
-            assert_same_state(a[key], b[key], f"{where}/{key}")
+        for key in (k for k in a if k not in uncompared):
+            assert_same_state(a[key], b[key], f"{where}/{key}", uncompared)
     elif isinstance(a, list | tuple):
         assert len(a) == len(b), where
         for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            assert_same_state(x, y, f"{where}/{i}")
+            assert_same_state(x, y, f"{where}/{i}", uncompared)
     elif isinstance(a, torch.Tensor):
         assert a.dtype == b.dtype and torch.equal(a, b), where
     elif isinstance(a, np.ndarray):

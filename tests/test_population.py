@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
-import torch
 from pipeline_pools import InterruptingPool, OrderPool
+from test_agent_runs import assert_same_state
 
 from curious.agent.update_lockstep import UpdateLockstep, stack_alike
 from curious.cli import main
@@ -60,22 +60,9 @@ def _state(folder):
 
 
 def _assert_same(a, b, where=""):
-    """Equal nested states: tensors and arrays bit for bit, timings left out."""
-    if isinstance(a, dict):
-        assert a.keys() == b.keys(), where
-        for key in a:
-            if key not in ("elapsed", "torch_rng"):
-                _assert_same(a[key], b[key], f"{where}/{key}")
-    elif isinstance(a, list | tuple):
-        assert len(a) == len(b), where
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            _assert_same(x, y, f"{where}/{i}")
-    elif isinstance(a, torch.Tensor):
-        assert torch.equal(a, b), where
-    elif isinstance(a, np.ndarray):
-        np.testing.assert_array_equal(a, b, err_msg=where)
-    else:
-        assert a == b, where
+    """Equal nested states: tensors and arrays bit for bit, timings and torch's global generator
+    left out."""
+    assert_same_state(a, b, where, uncompared=("elapsed", "torch_rng"))
 
 
 @pytest.fixture(scope="module")
