@@ -21,8 +21,8 @@ Run it from the campaign's worktree, so that the code that trains is the campaig
 
 One fixed commit per experiment: an experiment that commit does not know trains from its own
 commit's worktree, with `--only` naming its runs, into the same output folder
-(`tools/campaign.sh` runs `--only 'sensor_failure_mastered/*'` from ~/campaign-c5 once the
-9972821 queue ends).
+(`tools/campaign.sh` runs `--only 'sensor_failure_mastered/*'` from ~/campaign-c5 between the
+budget's runs and the seeds beyond them, both from 9972821).
 
 With `--seeds EXPERIMENT=SEEDS` an experiment gets seeds beyond the budget's: runs identical to
 the budget's in every setting but the seed (`dataclasses.replace` of the budget's experiment, so

@@ -6,28 +6,31 @@
 #
 # Installs torch and this checkout when they are missing, adds each phase's worktree (one fixed
 # commit, outside the repository) when it is gone, and starts the queue in the background, unless
-# a campaign.py is already training into the same folder: two phases, one after the other, each
-# tools/campaign.py run from its own worktree, so that every experiment trains from one commit.
-# Each trains the runs the campaign lacks, two at a time, leaving out those data/laptop holds
-# finished, and ships and commits each run into data/laptop the moment it finishes.
+# a campaign.py is already training into the same folder: three phases, one after the other, each
+# tools/campaign.py run from the worktree of its experiments' commit, so that every experiment
+# trains from one commit. Each trains the runs the campaign lacks, two at a time, leaving out
+# those data/laptop holds finished, and ships and commits each run into data/laptop the moment
+# it finishes.
 #
 #   phase 1, from CAMPAIGN_COMMIT (9972821) in CAMPAIGN_WORKTREE (~/campaign): the `laptop`
-#     budget's runs, then further seeds beyond them (tools/campaign.py's DEFAULT_SEEDS: main's
-#     seeds 3 and 4, the distractors' seed 2);
-#   phase 2, from C5_COMMIT in CAMPAIGN_C5_WORKTREE (~/campaign-c5): the sensory failure on a
-#     mastered module (`--only 'sensor_failure_mastered/*'`), which 9972821 does not know, into
-#     the same output folder. It starts when phase 1 ends, reading C5_COMMIT from this file then;
-#     while C5_COMMIT is the placeholder TO_BE_SET, it refuses to start and says so.
+#     budget's runs (`--seeds none`);
+#   phase 2, from C5_COMMIT (8d18b17) in CAMPAIGN_C5_WORKTREE (~/campaign-c5): the sensory
+#     failure on a mastered module (`--only 'sensor_failure_mastered/*'`), which 9972821 does not
+#     know, into the same output folder;
+#   phase 3, from CAMPAIGN_COMMIT again: the seeds beyond the budget's (tools/campaign.py's
+#     DEFAULT_SEEDS: main's seeds 3 and 4, the distractors' seed 2).
+# Phase 2 comes before phase 3 because C5 has no reading on a mastered module until its runs are
+# trained, while C1 and C4 already have theirs at the budget's seeds; the extra seeds sharpen them.
 #
 # A campaign.py started from an earlier checkout goes on with its own queue until it ends: this
 # script starts the new one once it has (or once it is stopped; the runs in flight resume from
 # their checkpoints). Settings (environment): CAMPAIGN_COMMIT, CAMPAIGN_WORKTREE,
 # CAMPAIGN_C5_COMMIT (overrides C5_COMMIT), CAMPAIGN_C5_WORKTREE, CAMPAIGN_RUNS.
 # The background job is `campaign.sh --queue` (phase 1, then `campaign.sh --phase2`, which runs
-# phase 2 alone in the foreground).
+# phase 2 and then `campaign.sh --phase3`); each later phase is read anew from this file.
 set -euo pipefail
 
-# The commit `sensor_failure_mastered` trains from: set it once that experiment is merged.
+# The commit `sensor_failure_mastered` trains from.
 C5_COMMIT=8d18b17
 
 main() {
@@ -40,10 +43,11 @@ main() {
     repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
     queue=(python "$repo/tools/campaign.py" --out "$runs/laptop" --shipped "$repo/data/laptop"
            --ship --set torch_threads=1)
+    phase1=(--seeds none)
     phase2=(--only 'sensor_failure_mastered/*')
 
     case "$mode" in
-        "" | --dry-run | --queue | --phase2) ;;
+        "" | --dry-run | --queue | --phase2 | --phase3) ;;
         *) echo "campaign.sh: unknown option $mode (--dry-run)" >&2; return 2 ;;
     esac
     python -c "import torch" 2>/dev/null || python -m pip install -q torch==2.13.0
@@ -52,49 +56,46 @@ main() {
     case "$mode" in
         --dry-run)
             checkout "$worktree" "$commit"
-            echo "phase 1, from ${commit} in $worktree:"
+            checkout "$c5_worktree" "$c5_commit"
+            echo "phase 1, the budget's runs, from ${commit} in $worktree:"
+            in_worktree "$worktree" "${queue[@]}" "${phase1[@]}" --dry-run
+            echo "phase 2, once phase 1 ends, from ${c5_commit} in $c5_worktree:"
+            in_worktree "$c5_worktree" "${queue[@]}" "${phase2[@]}" --dry-run
+            echo "phase 3, once phase 2 ends, the seeds beyond the budget's, from ${commit}" \
+                 "in $worktree (with the runs phase 1 has not finished):"
             in_worktree "$worktree" "${queue[@]}" --dry-run
-            if c5_set "$c5_commit"; then
-                checkout "$c5_worktree" "$c5_commit"
-                echo "phase 2, from ${c5_commit} in $c5_worktree, once phase 1 ends:"
-                in_worktree "$c5_worktree" "${queue[@]}" "${phase2[@]}" --dry-run
-            else
-                echo "phase 2, sensor_failure_mastered/*: $(c5_refusal)"
-            fi
             ;;
         --queue)
             checkout "$worktree" "$commit"
             echo "campaign.sh: phase 1 from ${commit} in $worktree, $(date -u '+%F %T UTC')"
-            in_worktree "$worktree" "${queue[@]}"
-            # read anew, so that a C5_COMMIT set while phase 1 trained is the one phase 2 uses
+            in_worktree "$worktree" "${queue[@]}" "${phase1[@]}"
+            # read anew, so that an edit made while phase 1 trained is the one phase 2 uses
             exec bash "$repo/tools/campaign.sh" --phase2
             ;;
         --phase2)
-            if ! c5_set "$c5_commit"; then
-                echo "campaign.sh: phase 2 not started: $(c5_refusal)" >&2
-                return 2
-            fi
             refuse_if_training "$runs"
             checkout "$c5_worktree" "$c5_commit"
             echo "campaign.sh: phase 2 from ${c5_commit} in $c5_worktree, $(date -u '+%F %T UTC')"
             in_worktree "$c5_worktree" "${queue[@]}" "${phase2[@]}"
+            exec bash "$repo/tools/campaign.sh" --phase3
+            ;;
+        --phase3)
+            refuse_if_training "$runs"
+            checkout "$worktree" "$commit"
+            echo "campaign.sh: phase 3 from ${commit} in $worktree, $(date -u '+%F %T UTC')"
+            in_worktree "$worktree" "${queue[@]}"
             ;;
         "")
             checkout "$worktree" "$commit"
-            if c5_set "$c5_commit"; then
-                checkout "$c5_worktree" "$c5_commit"
-            else
-                echo "campaign.sh: phase 1 only for now; phase 2 will not start: $(c5_refusal)"
-            fi
+            checkout "$c5_worktree" "$c5_commit"
             if pgrep -f "tools/campaign.py --out $runs/laptop" >/dev/null; then
                 echo "campaign.sh: the campaign is already training (pgrep -af tools/campaign.py)"
                 return 0
             fi
             mkdir -p "$runs"
             nohup nice -n 5 bash "$repo/tools/campaign.sh" --queue >>"$runs/laptop-main.log" 2>&1 &
-            local then="then phase 2 from ${c5_commit} in $c5_worktree"
-            c5_set "$c5_commit" || then="then phase 2 if C5_COMMIT is set when it ends"
-            echo "campaign.sh: training (pid $!) phase 1 from ${commit} in $worktree, $then;" \
+            echo "campaign.sh: training (pid $!) phase 1 from ${commit} in $worktree, then" \
+                 "phase 2 from ${c5_commit} in $c5_worktree, then phase 3 from ${commit};" \
                  "runs in $runs/laptop, log $runs/laptop-main.log"
             ;;
     esac
@@ -126,16 +127,6 @@ in_worktree() {
     (cd "$dir" && PYTHONPATH=$dir MUJOCO_GL=disable "$@")
 }
 
-c5_set() {
-    [ "$1" != TO_BE_SET ]
-}
-
-c5_refusal() {
-    echo "C5_COMMIT is still the placeholder TO_BE_SET: set it at the top of" \
-         "tools/campaign.sh to the commit that defines sensor_failure_mastered, then run" \
-         "bash tools/campaign.sh again"
-}
-
 # refuse_if_training RUNS: stop where a campaign.py already trains into RUNS/laptop.
 refuse_if_training() {
     if pgrep -f "tools/campaign.py --out $1/laptop" >/dev/null; then
@@ -144,5 +135,5 @@ refuse_if_training() {
     fi
 }
 
-# one line, read whole before it runs: the file may be edited (C5_COMMIT set) while it trains
+# one line, read whole before it runs: the file may be edited while it trains
 main "$@"; exit $?
