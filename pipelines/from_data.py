@@ -18,7 +18,9 @@ versions add settings.
 An experiment of several variants whose runs DATA holds finished for some variants only stands
 for those (`ShippedData.stands_for`): a campaign that trained `distractors_7` alone rebuilds the
 distractors' figure and report for 7 distracting modules, and the report names the variants left
-out. Seeds beyond the budget's count too: a seed of which DATA holds every run of an experiment
+out. Likewise an experiment whose runs DATA holds finished for some of the budget's seeds only
+(a campaign part-way through it) stands for those seeds, and the report names the seeds left out.
+Seeds beyond the budget's count too: a seed of which DATA holds every run of an experiment
 (each condition of each variant it stands for) shipped finished is added to the experiment
 (`Experiment.with_seeds`), so that a campaign that trained seeds 3 and 4 of the main comparison
 from the same protocol is read with all five, and the report says which seeds are beyond the
@@ -131,10 +133,12 @@ class ShippedData:
     def stands_for(self, budget: ReproduceBudget) -> ReproduceBudget:
         """`budget` as DATA can stand for it: an experiment of several variants whose runs DATA
         holds finished for some variants only (a campaign that trained `distractors_7` alone) is
-        cut to those variants (`Experiment.with_variants`, the others named as left out); every
-        other experiment stays whole, and `select` says what it lacks. Then each experiment gets
-        the seeds beyond the budget's whose runs (of the variants it stands for) DATA holds all
-        finished (`extra_seeds`)."""
+        cut to those variants (`Experiment.with_variants`, the others named as left out). One
+        still lacking runs whose runs DATA holds finished for some seeds only (a campaign that
+        shipped seed 0 of every condition) is cut to those seeds (`Experiment.with_seeds_only`,
+        the others named as left out); every other experiment stays whole, and `select` says
+        what it lacks. Then each experiment gets the seeds beyond the budget's whose runs (of
+        the variants it stands for) DATA holds all finished (`extra_seeds`)."""
         experiments = {}
         for name, experiment in budget.experiments.items():
             if len(experiment.variants) > 1:
@@ -145,13 +149,19 @@ class ShippedData:
                 ]
                 if 0 < len(complete) < len(experiment.variants):
                     experiment = experiment.with_variants(complete)
-            extra = [
-                seed
-                for seed in self.seeds_beyond(experiment)
-                if not self.missing(replace(experiment, seeds=(seed,), extra_seeds=()))
-            ]
+            if self.missing(experiment):
+                complete_seeds = [s for s in experiment.seeds if self._seed_complete(experiment, s)]
+                if complete_seeds:
+                    experiment = experiment.with_seeds_only(complete_seeds)
+            extra = [s for s in self.seeds_beyond(experiment) if self._seed_complete(experiment, s)]
             experiments[name] = experiment.with_seeds(extra)
         return replace(budget, experiments=experiments)
+
+    def _seed_complete(self, experiment: Experiment, seed: int) -> bool:
+        """Whether DATA holds every run of `experiment` (its variants, each condition) with
+        `seed` finished."""
+        alone = replace(experiment, seeds=(seed,), extra_seeds=(), left_out_seeds=())
+        return not self.missing(alone)
 
     def left_out_runs(self, experiment: Experiment) -> list[RunSpec]:
         """The finished runs DATA holds of the variants `experiment` leaves out
@@ -176,7 +186,7 @@ class ShippedData:
 
     def seeds_beyond(self, experiment: Experiment) -> list[int]:
         """The seeds, in order, of the runs DATA holds finished in `experiment`'s folder that are
-        not among its seeds (the path's last part, `seed-<s>`)."""
+        neither among its seeds nor the budget's left out (the path's last part, `seed-<s>`)."""
         seeds = set()
         for run in self.manifest.runs:
             parts = PurePosixPath(run.run).parts
@@ -184,7 +194,7 @@ class ShippedData:
                 seed = parts[2].removeprefix("seed-")
                 if parts[2].startswith("seed-") and seed.isdigit():
                     seeds.add(int(seed))
-        return sorted(seeds - set(experiment.seeds))
+        return sorted(seeds - set(experiment.seeds) - set(experiment.left_out_seeds))
 
     def select(self, budget: ReproduceBudget, names: Sequence[str] | None) -> list[Experiment]:
         """The experiments to build from DATA: those named (each complete in DATA, else a

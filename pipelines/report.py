@@ -979,8 +979,16 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
                 f"{', '.join(e.variants)} alone.{_shown_anyway(repro, e)}",
                 "",
             ]
+        if e.left_out_seeds:
+            kept = ", ".join(map(str, e.seeds))
+            lines += [
+                f"Seeds left out: {', '.join(map(str, e.left_out_seeds))}, whose runs the data "
+                f"this report was built from does not hold all finished; read from "
+                f"{'seed' if len(e.seeds) == 1 else 'seeds'} {kept} alone.",
+                "",
+            ]
         if e.extra_seeds:
-            extra, own = e.extra_seeds, e.budget_seeds
+            extra, own = e.extra_seeds, sorted(e.budget_seeds + e.left_out_seeds)
             lines += [
                 f"Seeds beyond the budget's: {', '.join(map(str, extra))} (the budget trains "
                 f"{', '.join(map(str, own))}), trained with the budget's settings in all but the "

@@ -8,10 +8,11 @@ combined tables behind the report being the shipped tables, and the report's per
 (episodes, final competence, final test success) those computed from them, with a section on
 spontaneous forgetting in each experiment that nothing perturbs, saying "no drop" exactly where
 `analysis.mastery_drops` finds none; the runs read are those the folder stands for
-(`ShippedData.stands_for`: the variants shipped whole, and the seeds beyond the budget's whose
-runs are all shipped finished, which the report names). A folder with no experiment whose runs
-are all shipped finished (a progress snapshot, or a campaign shipped run by run as its runs
-finish) has no report: once its runs are loaded, the check is skipped with that reason.
+(`ShippedData.stands_for`: the variants shipped whole, else the seeds shipped whole, and the
+seeds beyond the budget's whose runs are all shipped finished, which the report names). A
+folder with no experiment of which some seed is shipped whole (a progress snapshot, or a
+campaign shipped run by run as its runs finish) has no report: once its runs are loaded, the
+check is skipped with that reason.
 """
 
 from __future__ import annotations
@@ -121,6 +122,9 @@ def check_shipped_folder(data: Path, out: Path) -> str:
         if chosen.extra_seeds:
             beyond = ", ".join(map(str, chosen.extra_seeds))
             assert f"Seeds beyond the budget's: {beyond} (" in report, "extra seeds named"
+        if chosen.left_out_seeds:
+            left = ", ".join(map(str, chosen.left_out_seeds))
+            assert f"Seeds left out: {left}, whose runs" in report, "left-out seeds named"
         runs = analysis.load_runs(data / experiment)
         runs = runs[runs["run"].astype(str).isin(paths)].reset_index(drop=True)
         assert_same_table(combined, runs)

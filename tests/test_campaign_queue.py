@@ -226,3 +226,18 @@ def test_a_finished_run_is_shipped_beside_the_runs_held_and_committed(
     status = subprocess.run(["git", "-C", str(repo), "status", "--porcelain"], capture_output=True)
     assert status.stdout == b""
     assert hashes(data) == hashes(shipped.data)  # her's runs shipped, the rest as they were
+
+
+def test_a_start_with_the_budgets_seeds_only_keeps_the_plan_recorded(
+    campaign, extra_seed, tmp_path, capsys
+):
+    """`tools/campaign.sh` starts `--seeds none` (the budget's runs) before the seeds beyond
+    them: that start must not erase the plan an earlier one wrote into reproduce.json, which
+    `curious progress` reads."""
+    out = tmp_path / "out"
+    shutil.copytree(extra_seed.out, out, ignore=shutil.ignore_patterns("*.rrd", "checkpoints"))
+    args = ["--budget", "smoke", "--out", str(out), "--shipped", str(extra_seed.data)]
+    assert campaign.main([*args, "--only", "main/*", "--seeds", "none"]) == 0
+    assert "0 runs queued" in capsys.readouterr().out
+    manifest = json.loads((out / "reproduce.json").read_text())
+    assert manifest["extra_seeds"] == {"main": [2]}

@@ -168,6 +168,23 @@ def test_seeds_beyond_the_budgets_are_its_runs_but_for_the_seed_and_named():
         replace(main, extra_seeds=(7,))
 
 
+def test_an_experiment_cut_to_some_seeds_names_the_same_run_folders_and_the_seeds_left_out():
+    """What a shipped data folder holding seed 0 of every run stands for: those runs, at the
+    same paths, the budget's other seeds named in `left_out_seeds`, the extra ones dropped."""
+    whole = get_budget("laptop").experiments["sensor_failure_mastered"]
+    cut = whole.with_seeds_only([0])
+    assert cut.seeds == (0,) and cut.left_out_seeds == (1, 2) and cut.budget_seeds == (0,)
+    assert cut.runs() == [r for r in whole.runs() if r.seed == 0]
+    more = get_budget("laptop").experiments["main"].with_seeds([3, 4]).with_seeds_only([2, 0, 3])
+    assert more.seeds == (0, 2, 3) and more.extra_seeds == (3,) and more.left_out_seeds == (1,)
+    with pytest.raises(ExperimentError, match="no seed"):
+        whole.with_seeds_only([7])
+    with pytest.raises(ExperimentError, match="at least one seed"):
+        whole.with_seeds_only([])
+    with pytest.raises(ExperimentError, match="both kept and left out"):
+        replace(cut, left_out_seeds=(0,))
+
+
 def test_the_quick_budget_is_the_default_and_small():
     quick = get_budget(DEFAULT_BUDGET)
     assert quick.name == "quick" and quick.default_out == "runs/quick"

@@ -302,6 +302,42 @@ def test_a_seed_beyond_the_budgets_is_read_with_its_seeds_once_all_its_runs_are_
     assert "| main | curious, mg-te, her | default | 0, 1 |" in report
 
 
+def test_an_experiment_shipped_whole_for_some_seeds_is_read_from_those(extra_seed, tmp_path):
+    """A campaign part-way through an experiment: main's seed 1 lacks its HER run, so main is
+    read from seed 0 and seed 2 (beyond the budget's, shipped whole), and the report names
+    seed 1 as left out; once no seed is whole, main is not built at all."""
+    data = tmp_path / "data" / "smoke"
+    shutil.copytree(extra_seed.data, data)
+    folder = ShippedFolder(data)
+
+    def drop(run: str) -> None:
+        shutil.rmtree(data / run)
+        manifest = folder.read_manifest()
+        folder.write_manifest(
+            type(manifest)("smoke", tuple(r for r in manifest.runs if r.run != run))
+        )
+
+    drop("main/her/seed-1")
+    report = check_shipped_folder(data, tmp_path / "out")
+    assert "| main | curious, mg-te, her | default | 0, 2 (2; 2 beyond the budget's) |" in report
+    assert (
+        "Seeds left out: 1, whose runs the data this report was built from does not hold all "
+        "finished; read from seeds 0, 2 alone." in report
+    )
+    assert "Seeds beyond the budget's: 2 (the budget trains 0, 1)" in report
+    assert "main/curious/seed-1" not in report and report.count("Seeds left out") == 1
+    metrics = pd.read_parquet(tmp_path / "out" / "metrics" / "main.parquet")
+    assert sorted(metrics["seed"].unique()) == [0, 2]
+
+    drop("main/her/seed-2")
+    drop("main/mg-te/seed-0")
+    report = check_shipped_folder(data, tmp_path / "none")
+    assert (
+        "## Main comparison" not in report
+        and "Not in this report (not shipped yet): main" in report
+    )
+
+
 def test_the_shipped_smoke_folder_passes_the_repository_data_check(shipped, tmp_path):
     """The check test_shipped_data.py applies to data/, on a folder known to be good."""
     report = check_shipped_folder(shipped.data, tmp_path / "out")
@@ -356,6 +392,18 @@ def test_unfinished_runs_are_shipped_only_when_asked_and_marked(smoke, tmp_path,
     assert entry is not None and not entry.finished and entry.episodes == 12
     assert len(analysis.load_runs(snapshot / "main" / "curious" / "seed-0")) == 12
 
+    # seed 1 is shipped whole: main is read from it, seed 0 named as left out
+    code, _, err = cli(["reproduce", "--from-data", str(snapshot), "--out", "seed-1"])
+    assert code == 0, err
+    report = (tmp_path / "seed-1" / "report.md").read_text()
+    assert "Seeds left out: 0, whose runs the data this report was built from" in report
+    assert "| main | curious, mg-te, her | default | 1 |" in report
+
+    # no seed whole: refused, naming the unfinished runs
+    folder = RunFolder(root / "runs" / "main" / "her" / "seed-1")
+    pq.write_table(pq.read_table(folder.metrics_path).slice(0, 12), folder.metrics_path)
+    code, stdout, _ = cli(["ship", str(root), "--out", str(snapshot), "--unfinished"])
+    assert code == 0 and "4 finished run(s) and 2 unfinished" in stdout
     for extra in (["--experiments", "main"], []):
         code, _, err = cli(["reproduce", "--from-data", str(snapshot), *extra])
         assert code == 2 and err.count("\n") == 1, err

@@ -31,7 +31,8 @@ the budget's runs, pattern by pattern of `--only` again and seed by seed. The de
 `laptop` budget (`DEFAULT_SEEDS`) is the evidence campaign's: the main comparison to five seeds, as
 the paper's, and the distractors to three. Their seeds are written in the folder's
 `reproduce.json` (`extra_seeds`), so that `curious progress` lists those not started as it lists
-the budget's; `curious ship` ships them, and `curious reproduce --from-data` reads a seed beyond the
+the budget's; a later start with fewer (`--seeds none`, the budget's runs alone) keeps them
+there. `curious ship` ships them, and `curious reproduce --from-data` reads a seed beyond the
 budget's once every run of it in an experiment is shipped finished.
 
 With `--ship`, each run that finishes is shipped at once into the `--shipped` folder (`curious
@@ -179,6 +180,15 @@ def queue(
     return list(queued.values())
 
 
+def recorded_seeds(layout: OutputLayout) -> dict[str, tuple[int, ...]]:
+    """The seeds beyond the budget's that the folder's reproduce.json records (`extra_seeds`),
+    none where it has no reproduce.json yet."""
+    if not layout.manifest.is_file():
+        return {}
+    extra = json.loads(layout.manifest.read_text()).get("extra_seeds") or {}
+    return {name: tuple(seeds) for name, seeds in extra.items()}
+
+
 def record_seeds(layout: OutputLayout, added: dict[str, tuple[int, ...]]) -> None:
     """Write the seeds beyond the budget's into the folder's reproduce.json (`extra_seeds`),
     which `curious progress` reads; nothing where none is added."""
@@ -285,8 +295,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {spec.relative_path} ({spec.total_episodes:,} episodes)", flush=True)
     if args.dry_run:
         return 0
+    # a phase that queues fewer seeds (`--seeds none`) keeps the plan an earlier one recorded
+    plan = recorded_seeds(layout)
+    for name, extra in added.items():
+        plan[name] = tuple(dict.fromkeys(plan.get(name, ()) + extra))
     _write_manifest(layout, budget)
-    record_seeds(layout, added)
+    record_seeds(layout, plan)
     jobs = [Job(spec, str(layout.runs_root), overrides) for spec in specs]
     tic = time.time()
     pool = LocalPool(args.workers)

@@ -24,7 +24,8 @@ as far as its runs go (`SHIPPED_BESIDE`; --no-shipped leaves it out).
 --from-data DATA trains nothing: it reads the runs from a shipped data folder (`curious ship`;
 the repository's data/<budget>), every experiment it holds complete unless --experiments says
 otherwise (an experiment of several variants, complete for some of them only, from those
-variants, the report naming the others), with its budget unless --budget says otherwise, and
+variants; one complete for some of its seeds only, from those seeds; the report naming the others
+left out), with its budget unless --budget says otherwise, and
 builds the same report and figures into --out (default runs/<budget>-shipped). DATA is only
 read.
 

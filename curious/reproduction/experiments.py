@@ -149,6 +149,10 @@ class Experiment:
     """The seeds among `seeds` that are not the budget's (`with_seeds`): runs of the same
     protocol trained beyond it (a campaign that adds seeds), which a shipped data folder or a
     campaign's output folder holds."""
+    left_out_seeds: tuple[int, ...] = ()
+    """The budget's seeds of this experiment that it lacks (`with_seeds_only`): a shipped data
+    folder that holds every run finished for some seeds only (a campaign part-way through an
+    experiment) stands for those alone."""
 
     def __post_init__(self) -> None:
         if self.name not in EXPERIMENTS:
@@ -184,6 +188,8 @@ class Experiment:
             raise ExperimentError(
                 f"{self.name}: extra seeds {self.extra_seeds} not among its seeds"
             )
+        if set(self.left_out_seeds) & set(self.seeds):
+            raise ExperimentError(f"{self.name}: seeds both kept and left out")
 
     @property
     def condition_keys(self) -> tuple[str, ...]:
@@ -242,9 +248,28 @@ class Experiment:
             return self
         return replace(self, seeds=self.seeds + added, extra_seeds=self.extra_seeds + added)
 
+    def with_seeds_only(self, seeds: Iterable[int]) -> Experiment:
+        """This experiment with `seeds` only (kept in its order); the budget's others are left
+        out (`left_out_seeds`), extra ones dropped. Its runs keep their paths and partition
+        keys, so that they name the same run folders."""
+        wanted = {int(s) for s in seeds}
+        if unknown := sorted(wanted - set(self.seeds)):
+            raise ExperimentError(
+                f"{self.name}: no seed(s) {unknown}; its seeds: {', '.join(map(str, self.seeds))}"
+            )
+        if not wanted:
+            raise ExperimentError(f"{self.name}: keep at least one seed")
+        dropped = tuple(s for s in self.budget_seeds if s not in wanted)
+        return replace(
+            self,
+            seeds=tuple(s for s in self.seeds if s in wanted),
+            extra_seeds=tuple(s for s in self.extra_seeds if s in wanted),
+            left_out_seeds=tuple(sorted(self.left_out_seeds + dropped)),
+        )
+
     @property
     def budget_seeds(self) -> tuple[int, ...]:
-        """Its seeds less `extra_seeds`: the budget's own."""
+        """Its seeds less `extra_seeds`: the budget's own that it holds."""
         return tuple(s for s in self.seeds if s not in self.extra_seeds)
 
     def run(self, partition_key: str) -> RunSpec:
