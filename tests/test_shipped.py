@@ -306,6 +306,9 @@ def test_an_experiment_shipped_whole_for_some_seeds_is_read_from_those(extra_see
     """A campaign part-way through an experiment: main's seed 1 lacks its HER run, so main is
     read from seed 0 and seed 2 (beyond the budget's, shipped whole), and the report names
     seed 1 as left out; once no seed is whole, main is not built at all."""
+    from curious.reproduction.experiments import get_budget
+    from pipelines.from_data import ShippedData
+
     data = tmp_path / "data" / "smoke"
     shutil.copytree(extra_seed.data, data)
     folder = ShippedFolder(data)
@@ -331,11 +334,14 @@ def test_an_experiment_shipped_whole_for_some_seeds_is_read_from_those(extra_see
 
     drop("main/her/seed-2")
     drop("main/mg-te/seed-0")
-    report = check_shipped_folder(data, tmp_path / "none")
-    assert (
-        "## Main comparison" not in report
-        and "Not in this report (not shipped yet): main" in report
-    )
+    stands_for = ShippedData.open(data).stands_for(get_budget("smoke"))
+    main = stands_for.experiments["main"]
+    assert main.seeds == (0, 1) and not main.left_out_seeds and not main.extra_seeds
+    assert "main" not in [e.name for e in ShippedData.open(data).select(stands_for, None)]
+    args = ["reproduce", "--from-data", str(data), "--experiments", "main"]
+    code, _, err = cli([*args, "--out", str(tmp_path / "none")])
+    assert code == 2 and not (tmp_path / "none").exists()
+    assert "lacks runs of main: main/mg-te/seed-0 (not shipped)" in err
 
 
 def test_the_shipped_smoke_folder_passes_the_repository_data_check(shipped, tmp_path):
