@@ -170,6 +170,8 @@ def _write_manifest(
         data["from_data"] = str(from_data)
     if layout.manifest.is_file():
         old = json.loads(layout.manifest.read_text())
+        if old.get("extra_seeds") and old.get("budget") == budget.name:
+            data["extra_seeds"] = old["extra_seeds"]  # a campaign's plan (tools/campaign.py)
         if old == data:
             return
     tmp = layout.manifest.with_name(f".{layout.manifest.name}.tmp")

@@ -953,3 +953,19 @@ def test_an_output_folder_opens_at_the_runs_folder_it_records(tmp_path):
     with pytest.raises(ValueError, match="not a JSON object"):
         OutputLayout.open(out)
     assert OutputLayout.at(out).recorded_runs_dir() is None
+
+
+def test_reproduce_json_rewritten_keeps_a_campaigns_planned_seeds(tmp_path):
+    """`curious reproduce` resuming a folder that tools/campaign.py started keeps the seeds it
+    plans beyond the budget's (`extra_seeds`, which `curious progress` lists); another budget's
+    plan is not carried over."""
+    from pipelines.reproduce import _write_manifest
+
+    layout = OutputLayout.at(tmp_path / "out")
+    layout.out.mkdir()
+    plan = {"version": 1, "budget": "smoke", "extra_seeds": {"main": [2]}}
+    layout.manifest.write_text(json.dumps(plan))
+    _write_manifest(layout, get_budget("smoke"))
+    assert json.loads(layout.manifest.read_text())["extra_seeds"] == {"main": [2]}
+    _write_manifest(layout, get_budget("quick"))
+    assert "extra_seeds" not in json.loads(layout.manifest.read_text())

@@ -295,7 +295,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {spec.relative_path} ({spec.total_episodes:,} episodes)", flush=True)
     if args.dry_run:
         return 0
-    # a phase that queues fewer seeds (`--seeds none`) keeps the plan an earlier one recorded
+    # a phase that queues fewer seeds (`--seeds none`) keeps the plan an earlier one recorded;
+    # read here, not left to `_write_manifest`, whose copy at the campaign's commits drops it
     plan = recorded_seeds(layout)
     for name, extra in added.items():
         plan[name] = tuple(dict.fromkeys(plan.get(name, ()) + extra))
