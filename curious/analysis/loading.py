@@ -44,6 +44,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
+from pandas.api.types import union_categoricals
 
 from curious.reproduction.shipped_folder import ShippedError, shipped_drops
 from curious.runs.folder import RunFolder
@@ -272,19 +273,38 @@ def _identity(info: RunInfo, n: int) -> pd.DataFrame:
         "achievable_modules": ",".join(info.achievable_modules),
         "n_distractors": len(info.module_names) - len(info.achievable_modules),
     }
-    front = pd.DataFrame({k: np.repeat(np.array([v]), n) for k, v in identity.items()})
-    front["seed"] = front["seed"].astype(np.int64)
-    front["n_distractors"] = front["n_distractors"].astype(np.int64)
-    front["perturbation_episode"] = pd.array([info.perturbation_episode] * n, dtype=pd.Int64Dtype())
-    front["failure_competence"] = pd.array([info.failure_competence] * n, dtype=pd.Float64Dtype())
-    front["perturbed_modules"] = ",".join(info.sensor_failure_modules)
+    front = pd.DataFrame(
+        {
+            k: _repeated(v, n) if isinstance(v, str) else np.full(n, v, dtype=np.int64)
+            for k, v in identity.items()
+        }
+    )
+    front["perturbation_episode"] = _repeated_or_missing(info.perturbation_episode, n, np.int64)
+    front["failure_competence"] = _repeated_or_missing(info.failure_competence, n, np.float64)
+    front["perturbed_modules"] = _repeated(",".join(info.sensor_failure_modules), n)
     window = (info.settings or {}).get("lp_window")
-    front["lp_window"] = pd.array([window] * n, dtype=pd.Int64Dtype())
+    front["lp_window"] = _repeated_or_missing(window, n, np.int64)
     return front
 
 
+def _repeated(value: str, n: int) -> pd.Categorical:
+    """`value` on `n` rows as a categorical of one category: no string is built per row."""
+    return pd.Categorical.from_codes(np.zeros(n, dtype=np.int8), categories=pd.Index([value]))
+
+
+def _repeated_or_missing(
+    value: float | None, n: int, dtype: type
+) -> pd.api.extensions.ExtensionArray:
+    """`value` on `n` rows as a nullable array (Int64 or Float64), all missing where None."""
+    missing = np.full(n, value is None)
+    values = np.full(n, 0 if value is None else value, dtype=dtype)
+    kind = pd.arrays.IntegerArray if dtype is np.int64 else pd.arrays.FloatingArray
+    return kind(values, missing)
+
+
 def load_run(path: str | PathLike[str]) -> pd.DataFrame:
-    """One run folder as a table: identity columns, then the columns of ``metrics.parquet``."""
+    """One run folder as a table: identity columns (its strings categorical, as in
+    `load_runs`), then the columns of ``metrics.parquet``."""
     info = read_run_info(path)
     metrics = _read_metrics(info)
     return pd.concat([_identity(info, len(metrics)), metrics], axis=1)
@@ -327,11 +347,25 @@ def _combined(tables: list[pd.DataFrame]) -> pd.DataFrame:
                 f"[{first[1]}] (achievable [{first[2]}]) but {table['run'].iat[0]} has "
                 f"[{modules[0]}] (achievable [{modules[1]}])"
             )
-    table = pd.concat(tables, axis=0, ignore_index=True, sort=False)
+    # Categorical columns are joined by their categories' union: concatenated as they are,
+    # columns of different categories would turn into one string per row first.
+    shared = [c for c in _CATEGORICAL if all(c in table for table in tables)]
+    unions = {
+        column: union_categoricals(
+            [table[column].astype("category") for table in tables], sort_categories=True
+        )
+        for column in shared
+    }
+    table = pd.concat(
+        [t.drop(columns=shared) for t in tables], axis=0, ignore_index=True, sort=False
+    )
     for column in _CATEGORICAL:
-        if column in table:  # a shipped run's metrics have no `module`
+        if column in unions:
+            table[column] = unions[column]
+        elif column in table:  # a shipped run's metrics have no `module`
             table[column] = table[column].astype("category")
-    return table
+    columns = list(dict.fromkeys(c for t in tables for c in t.columns))
+    return table[columns]
 
 
 def _read_tests(info: RunInfo) -> pd.DataFrame:
