@@ -179,6 +179,15 @@ def test_a_run_killed_three_times_records_what_an_uninterrupted_run_does(
     assert len(list_checkpoints(out / "checkpoints")) == 2
 
 
+@pytest.fixture(scope="module")
+def killed_at_24(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A run SIGKILLed right after its checkpoint at 24 episodes (an epoch's end); each test
+    damages and resumes a copy of it."""
+    out = tmp_path_factory.mktemp("killed") / "killed"
+    train_killed_at(24, [*TRAIN, "--out", str(out)])
+    return out
+
+
 def float32_points(rows: list) -> list:
     """Points with their values rounded to float32, the precision of the run's tables."""
 
@@ -191,7 +200,7 @@ def float32_points(rows: list) -> list:
 
 @pytest.mark.parametrize("damage", ["deleted", "cut", "overwritten"])
 def test_a_resume_rebuilds_a_missing_or_damaged_recording_from_the_tables(
-    tmp_path: Path, uninterrupted_run: Path, damage: str
+    tmp_path: Path, uninterrupted_run: Path, killed_at_24: Path, damage: str
 ) -> None:
     """Killed after its checkpoint at 24 with its recording then deleted, cut short or
     overwritten, a run resumed holds every series its tables hold as an uninterrupted run does
@@ -201,7 +210,7 @@ def test_a_resume_rebuilds_a_missing_or_damaged_recording_from_the_tables(
     from curious.watching.recording.resume import NOT_IN_TABLES
 
     out = tmp_path / "killed"
-    train_killed_at(24, [*TRAIN, "--out", str(out)])
+    shutil.copytree(killed_at_24, out)
     recording = out / RECORDING_FILE
     if damage == "deleted":
         recording.unlink()
