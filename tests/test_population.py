@@ -197,11 +197,12 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     seed list is one line and exit status 2, nothing written. `--stack-updates` trains the same
     runs, and needs `--seeds`."""
     out = tmp_path / "curious"
+    short = ["--set", "total_episodes=8"]  # two cycles: what matters here is where they go
     argv = ["train", "--preset", "smoke", "--out", str(out), "--no-record", "--no-progress"]
-    assert main([*argv, "--seeds", "0-1"]) == 0
+    assert main([*argv, *short, "--seeds", "0-1"]) == 0
     printed = capsys.readouterr().out
     assert sorted(p.name for p in out.iterdir()) == ["seed-0", "seed-1"]
-    assert f"24 episodes in {out / 'seed-1'}" in printed
+    assert f"8 episodes in {out / 'seed-1'}" in printed
     assert main([*argv, "--seeds", "2-x"]) == 2
     assert "write them as 0-4 or 0,2,5" in capsys.readouterr().err
     assert main([*argv, "--seeds", "0-1"]) == 2  # the folders hold runs: nothing trains
@@ -209,7 +210,7 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     stacked = ["train", "--preset", "smoke", "--no-record", "--no-progress", "--stack-updates"]
     assert main([*stacked, "--out", str(tmp_path / "one"), "--seed", "0"]) == 2
     assert "name --seeds" in capsys.readouterr().err
-    assert main([*stacked, "--out", str(tmp_path / "stacked"), "--seeds", "0-1"]) == 0
+    assert main([*stacked, *short, "--out", str(tmp_path / "stacked"), "--seeds", "0-1"]) == 0
     metrics = "seed-1/metrics.parquet"
     _assert_same_table(out / metrics, tmp_path / "stacked" / metrics)
     single = out / "seed-0"  # a run folder: a population is not nested in it
