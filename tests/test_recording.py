@@ -588,11 +588,11 @@ stream.set_sinks(rr.FileSink(str(path)))
 for i in range(200):
     stream.set_time("step", sequence=i)
     stream.log("points", rr.Points3D(np.random.default_rng(i).random((500, 3))))
-try:
-    rrd_files.end_file(stream, path, timeout=20)
+try:  # short waits: a flush on a dead writer either raises at once or waits them out
+    rrd_files.end_file(stream, path, timeout=5)
 except OSError as exc:
     print(f"curious train: error: {exc}", file=sys.stderr)
-    rrd_files.disconnect(stream)  # as the recorder gives up a recording it cannot write
+    rrd_files.disconnect(stream, timeout=2)  # as the recorder gives up a recording it cannot write
 sys.stderr.flush()
 os._exit(0)  # a stream whose writer died may wait for it at the interpreter's exit
 """
