@@ -260,7 +260,7 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     assert "C4" in closing and "C5, the recovery of a mastered module's test success" in closing
 
     shutil.rmtree(beside)
-    assert curious_cli([*args, "--no-shipped"]) == 0
+    assert curious_cli([*args, "--experiments", "distractors", "--no-shipped"]) == 0  # one figure
     stdout = capsys.readouterr().out
     assert not beside.exists() and "shipped run(s) read" not in stdout
     assert "What each output can show:" in stdout and "smoke-shipped" not in stdout
