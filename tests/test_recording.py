@@ -6,12 +6,14 @@ Recordings are read back with Rerun's own reader (`rerun.chunk.RrdReader`, throu
 
 from __future__ import annotations
 
+import errno
 import multiprocessing as mp
 import os
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -627,3 +629,80 @@ def test_a_full_disk_under_the_recording_is_reported_by_curious_alone(tmp_path):
     assert len(lines) == 1, done.stderr[-2000:]
     assert lines[0].startswith("curious train: error: [Errno 28] No space left on device")
     assert f"{disk}/recording.rrd" in lines[0]
+
+
+class _DeadWriter:
+    """A stream whose file writer died: its flush waits out the time it is given, then raises
+    (what Rerun's does on a full disk, some of the time), and its disconnect never returns."""
+
+    def __init__(self) -> None:
+        self.flushes: list[float] = []
+
+    def flush(self, *, timeout_sec: float) -> None:
+        self.flushes.append(timeout_sec)
+        time.sleep(timeout_sec)
+        raise RuntimeError("flush timed out")
+
+    def disconnect(self) -> None:
+        threading.Event().wait()
+
+
+@pytest.mark.parametrize("disk_full", [True, False])
+def test_a_flush_on_a_dead_writer_ends_once_the_disk_is_seen_full(tmp_path, monkeypatch, disk_full):
+    """The flush at a checkpoint gives up on a writer that died on a full disk within one
+    `FLUSH_POLL_SECONDS` step, not after its whole timeout (five minutes); on a disk with room,
+    the same stalled flush is waited for to the end of its timeout."""
+    from curious.watching.recording import rrd_files
+
+    monkeypatch.setattr(rrd_files, "FLUSH_POLL_SECONDS", 0.2)
+    monkeypatch.setattr(rrd_files, "has_room_for", lambda path, size: not disk_full)
+    path = tmp_path / "recording.rrd"
+    path.write_bytes(b"chunks")
+    stream = _DeadWriter()
+    tic = time.monotonic()
+    with pytest.raises(rrd_files.RecordingWriteError) as caught:
+        rrd_files.flush_to_file(stream, path, timeout=1.0)
+    waited = time.monotonic() - tic
+    if disk_full:
+        assert len(stream.flushes) == 1 and waited < 0.6
+        assert caught.value.errno == errno.ENOSPC and caught.value.filename == str(path)
+    else:
+        assert len(stream.flushes) >= 4 and waited >= 0.95
+        assert "the recording could not be written to" in str(caught.value)
+
+
+def test_a_disconnect_given_up_takes_rerun_off_the_interpreters_exit(monkeypatch):
+    """Rerun's shutdown at exit waits for every sink: after a disconnect that never returned,
+    it would hold the process forever, so it is unregistered."""
+    from curious.watching.recording import rrd_files
+
+    unregistered = []
+    monkeypatch.setattr(rrd_files.rr, "unregister_shutdown", lambda: unregistered.append(1))
+    assert rrd_files.disconnect(_DeadWriter(), timeout=0.1) is False
+    assert unregistered == [1]
+
+
+def test_a_run_whose_disk_fills_ends_with_one_line(tmp_path):
+    """`curious train` recording onto a 1 MiB disk (a tmpfs in a mount namespace of its own):
+    one line naming the file that could not be written, exit status 2, and the process ends
+    (Rerun's writer dies with the disk, and neither its flush nor its shutdown at exit may
+    wait on it)."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    train = [sys.executable, "-m", "curious.cli", "train", "--preset", "smoke"]
+    train += ["--set", "total_episodes=36", "--rollout-every", "1", "--no-progress"]
+    command = f"mount -t tmpfs -o size=1m tmpfs {disk} || exit 99; exec {' '.join(train)} --out "
+    env = {**os.environ, "MUJOCO_GL": "disable", "OMP_NUM_THREADS": "1"}
+    try:
+        done = subprocess.run(
+            ["unshare", "--mount", "--map-root-user", "sh", "-c", f"{command}{disk / 'run'}"],
+            env=env, capture_output=True, text=True, timeout=240,
+        )  # fmt: skip
+    except FileNotFoundError:
+        pytest.skip("no unshare here")
+    if done.returncode == 99 or "unshare:" in done.stderr:
+        pytest.skip(f"no tmpfs can be mounted here: {done.stderr.strip()}")
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr[-2000:]
+    assert lines[0].startswith("curious train: error: No space left on device"), lines[0]
+    assert f"{disk / 'run'}/" in lines[0]

@@ -234,3 +234,40 @@ def test_a_folder_of_runs_given_as_a_run_names_the_runs_it_holds(tmp_path):
     with pytest.raises(RunFolderError) as bare:
         RunFolder(tmp_path / "empty").read_info()
     assert str(bare.value).endswith("it has no config.json")
+
+
+def test_a_metrics_file_that_cannot_be_written_is_named_and_left_as_it_was(tmp_path, monkeypatch):
+    """pyarrow's error on a full disk names neither the file nor the cause alone ("Error
+    writing bytes to file. Detail: [errno 28] ..."): the log's is an OSError with the errno,
+    its reason and the file, and the last good file stays, with no temporary file beside it."""
+    import errno
+
+    import numpy as np
+    import pyarrow as pa
+
+    from curious.runs import metrics
+
+    log = metrics.MetricsLog(tmp_path / "metrics.parquet", ["reach"])
+    rows = {
+        field.name: np.array(["reach"])
+        if pa.types.is_string(field.type)
+        else np.zeros(1, dtype=field.type.to_pandas_dtype())
+        for field in log.schema
+    }
+    log.append(rows)
+    log.flush()
+    good = (tmp_path / "metrics.parquet").read_bytes()
+
+    def full_disk(table, where, **kwargs):
+        Path(where).write_bytes(b"PAR1 cut")
+        raise OSError(errno.ENOSPC, "Error writing bytes to file. Detail: [errno 28] No space")
+
+    monkeypatch.setattr(metrics.pq, "write_table", full_disk)
+    log.append(rows)
+    with pytest.raises(OSError) as caught:
+        log.flush()
+    assert caught.value.errno == errno.ENOSPC
+    assert caught.value.strerror == "No space left on device"
+    assert caught.value.filename == str(tmp_path / "metrics.parquet")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["metrics.parquet"]
+    assert (tmp_path / "metrics.parquet").read_bytes() == good

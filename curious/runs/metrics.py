@@ -101,12 +101,19 @@ class TableLog:
         self._tables = [table.filter(keep(table["episode"], pa.scalar(n_episodes, pa.int64())))]
 
     def flush(self) -> None:
-        """Rewrite the file atomically with every row so far."""
+        """Rewrite the file atomically with every row so far. A failed write (a full disk)
+        leaves the file as it was and raises an OSError naming it (pyarrow's names neither the
+        file nor, in its strerror, the cause alone)."""
         table = self.table()
         tmp = self.path.with_name(f".{self.path.name}.tmp")
-        pq.write_table(table, tmp)
-        with open(tmp, "rb") as handle:
-            os.fsync(handle.fileno())
+        try:
+            pq.write_table(table, tmp)
+            with open(tmp, "rb") as handle:
+                os.fsync(handle.fileno())
+        except OSError as exc:
+            tmp.unlink(missing_ok=True)
+            reason = os.strerror(exc.errno) if exc.errno else str(exc)
+            raise OSError(exc.errno, reason, str(self.path)) from exc
         os.replace(tmp, self.path)
 
 

@@ -20,6 +20,7 @@ import errno
 import os
 import shutil
 import threading
+import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -59,15 +60,40 @@ FLUSH_TIMEOUT_SECONDS = 300.0
 writer that died (a full disk), and a healthy one takes seconds even for a whole run."""
 
 
+FLUSH_POLL_SECONDS = 2.0
+"""How often a flush looks for a writer that died on a full disk: Rerun's flush sometimes fails
+at once then, and sometimes waits out its whole timeout."""
+
+
 def flush_to_file(
     stream: rr.RecordingStream, path: Path, timeout: float = FLUSH_TIMEOUT_SECONDS
 ) -> None:
     """`stream.flush()`, with a failure of its file sink writing `path` raised as a
-    `RecordingWriteError` naming the file (and a full disk, when it is one)."""
+    `RecordingWriteError` naming the file (and a full disk, when it is one).
+
+    The wait is cut into steps of `FLUSH_POLL_SECONDS`: a step that times out with `path` no
+    longer growing on a full disk ends the wait there, not after `timeout`."""
+    deadline = time.monotonic() + timeout
+    while True:
+        remaining = deadline - time.monotonic()
+        step = min(FLUSH_POLL_SECONDS, remaining)
+        size, started = _size(path), time.monotonic()
+        try:
+            stream.flush(timeout_sec=max(step, 1e-3))
+            return
+        except RuntimeError as exc:
+            timed_out = time.monotonic() - started >= 0.9 * step
+            stalled = _size(path) == size and not _has_room(path)
+            if not timed_out or step >= remaining or stalled:
+                raise _write_error(path, exc) from exc
+
+
+def _size(path: Path) -> int:
+    """The file's size, -1 where there is none."""
     try:
-        stream.flush(timeout_sec=timeout)
-    except RuntimeError as exc:
-        raise _write_error(path, exc) from exc
+        return path.stat().st_size
+    except OSError:
+        return -1
 
 
 def open_rrd(path: str | os.PathLike[str]) -> RrdReader:
@@ -94,7 +120,11 @@ file writer that died (a full disk), as its flush can."""
 
 def disconnect(stream: rr.RecordingStream, timeout: float = DISCONNECT_TIMEOUT_SECONDS) -> bool:
     """`stream.disconnect()`, given up after `timeout` seconds (in a daemon thread, so that a
-    writer that died cannot hold the run); whether it returned."""
+    writer that died cannot hold the run); whether it returned.
+
+    Given up, it also takes Rerun's shutdown off the interpreter's exit (`unregister_shutdown`):
+    that shutdown waits for every sink, the dead writer's too, and the process would never end.
+    """
     done = threading.Event()
 
     def run() -> None:
@@ -102,7 +132,10 @@ def disconnect(stream: rr.RecordingStream, timeout: float = DISCONNECT_TIMEOUT_S
         done.set()
 
     threading.Thread(target=run, name="rerun-disconnect", daemon=True).start()
-    return done.wait(timeout)
+    if done.wait(timeout):
+        return True
+    rr.unregister_shutdown()
+    return False
 
 
 def end_file(
@@ -126,12 +159,16 @@ def has_room_for(path: Path, size: int) -> bool:
     return shutil.disk_usage(path.parent).free >= size + _NEARLY_FULL
 
 
-def _write_error(path: Path, cause: BaseException) -> RecordingWriteError:
+def _has_room(path: Path) -> bool:
+    """`has_room_for(path, 0)`, True where the disk cannot be asked."""
     try:
-        full = not has_room_for(path, 0)
+        return has_room_for(path, 0)
     except OSError:
-        full = False
-    if full:
+        return True
+
+
+def _write_error(path: Path, cause: BaseException) -> RecordingWriteError:
+    if not _has_room(path):
         return RecordingWriteError(
             errno.ENOSPC,
             f"No space left on device: the recording could not be written ({cause})",
