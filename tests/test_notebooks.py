@@ -9,6 +9,7 @@ as its `out` parameter the way papermill does it (a cell injected after the one 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -62,15 +63,13 @@ def execute(name: str, out: Path) -> list[nbformat.NotebookNode]:
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_notebook_executes_against_the_smoke_output_and_its_shipped_data(
-    name, smoke, shipped, tmp_path_factory
-):
+def test_notebook_executes_against_the_smoke_output_and_its_shipped_data(name, smoke, shipped):
     """The notebook runs on the smoke output and draws figures; with `out` set to the same runs
     shipped into a data folder, it runs on the shipped tables alone and draws the same figures,
     byte for byte, and prints the same text (outputs that name a run folder aside: its path
     differs)."""
     assert shipped.source.out == smoke.out
-    base = str(tmp_path_factory.getbasetemp())
+    base = os.path.commonpath([smoke.out, shipped.data])  # the temp folder above both
 
     def shown(outputs: list[nbformat.NotebookNode]) -> tuple[list[str], list[str], int]:
         images, texts, with_paths = [], [], 0
