@@ -68,7 +68,7 @@ fi
 
 if wanted tests; then
     step CUDA tests
-    timeout 120 python3 -m pytest -p no:cacheprovider tests/test_agent_learner.py tests/test_agent_runs.py -k cuda -rs -q \
+    timeout 120 python3 -m pytest -p no:cacheprovider -n 0 tests/test_agent_learner.py tests/test_agent_runs.py -k cuda -rs -q \
         >"$out/cuda-tests.txt" 2>&1
     tail -1 "$out/cuda-tests.txt"
 fi
