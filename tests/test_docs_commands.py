@@ -16,9 +16,12 @@ from curious.cli import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = sorted(
-    [ROOT / "README.md", ROOT / "data" / "README.md"]
-    + list((ROOT / "docs").glob("*.md"))
-    + list((ROOT / "notebooks").glob("*.md")),
+    [
+        ROOT / "README.md",
+        ROOT / "data" / "README.md",
+        *(ROOT / "docs").glob("*.md"),
+        *(ROOT / "notebooks").glob("*.md"),
+    ]
 )
 
 
