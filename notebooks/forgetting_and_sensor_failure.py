@@ -25,16 +25,18 @@
 # metrics (the first episode with `sensor_failure` on). A recovery is measured only in runs
 # where the failure started and push_cube3 was learned before it; the others say why not.
 #
-# Part 1 reads the `sensor_failure` experiment; part 2 looks for spontaneous forgetting in the
-# CURIOUS runs of the `main` experiment. `out` is the output folder of `curious reproduce`, or
-# a shipped data folder such as the repository's `data/laptop` (default: the quick budget's
-# output). The `quick` budget leaves the sensory failure out (`curious reproduce --budget laptop
-# --experiments sensor_failure` trains it): where the folder has no `sensor_failure` runs, part
-# 1's cells say so and do nothing, and part 2 runs all the same.
+# Part 1 reads the `sensor_failure` experiment (the failure starts once push_cube3 is learned);
+# part 2 the `sensor_failure_mastered` experiment (once it is mastered), read by its fixed rules:
+# recovery by test success first, the Welch test on the episodes to recover; part 3 looks for
+# spontaneous forgetting in the `main` and `distractors` runs. `out` is the output folder of
+# `curious reproduce`, or a shipped data folder such as the repository's `data/laptop` (default:
+# the quick budget's output). The `quick` budget leaves both sensory-failure experiments out
+# (`curious reproduce --budget laptop --experiments sensor_failure,sensor_failure_mastered`
+# trains them): where the folder has no runs of one, its part says so and does nothing, and the
+# other parts run all the same.
 
 # %%
 # %matplotlib inline
-import numpy as np
 import pandas as pd
 from IPython.display import display
 
@@ -107,28 +109,86 @@ if has_failure:
     display(started[["condition", "seed", "perturbation_episode", *columns]].round(3))
 
 # %% [markdown]
-# ## Part 2: spontaneous forgetting in the main runs
+# ## Part 2: the sensory failure on a mastered module
 #
-# For every CURIOUS run of the `main` experiment and every achievable module: the largest fall
-# of competence from a running peak, where it happened, and the module's LP there.
+# The same failure, starting once push_cube3's competence reaches 0.9 (a mastered module, as the
+# authors perturbed it), in runs long enough after it for a recovery to be seen. Its rules were
+# fixed before its runs were read (docs/results.md, C5): the primary measure is the module's
+# test success (noise-free test rollouts on modules drawn uniformly, so both conditions are
+# measured alike) pooled over 5 epochs, back at `fraction` of its level over the 5 epochs before
+# the onset, pooling only epochs tested after it; the secondary, the agent's own competence, as
+# in part 1. A run still training is read as far as it got.
 
 # %%
-main = analysis.load_runs(layout.experiment_runs("main"))
-main = main[main["condition"] == "curious"].sort_values(["run", "episode"])
-rows = []
-for seed, run in main.groupby("seed", observed=True):
-    _, achievable = analysis.run_modules(main, str(run["run"].iat[0]))
-    for m in achievable:
-        competence = run[f"competence/{m}"].to_numpy(dtype=np.float64)
-        fall = np.maximum.accumulate(competence) - competence
-        at = int(np.argmax(fall))
-        rows.append(
-            {
-                "seed": seed,
-                "module": m,
-                "largest fall": float(fall[at]),
-                "at episode": int(run["episode"].iat[at]),
-                "LP there": float(run[f"lp/{m}"].iat[at]),
-            }
-        )
-pd.DataFrame(rows).round(3)
+mastered_runs = layout.experiment_runs("sensor_failure_mastered")
+has_mastered = any(mastered_runs.rglob(METRICS_FILE))
+if has_mastered:
+    dfm = analysis.load_runs(mastered_runs)
+    tests_m = analysis.load_tests(mastered_runs)
+    onsets = analysis.failure_onsets(dfm)["onset"]
+    fig, per_run_m = analysis.forgetting(
+        dfm, fraction=fraction, tests=tests_m, name="forgetting_mastered"
+    )
+    display(fig)
+else:
+    print(
+        f"{layout.out} holds no sensor_failure_mastered runs, so part 2 is skipped. "
+        + get_budget(layout.budget_name()).why_absent("sensor_failure_mastered")
+    )
+
+# %% [markdown]
+# Per run (`analysis.recovery_by_tests`): the onset, the test success before it (over
+# `n_before` rollouts), the lowest pooled rate after it, and the episodes to recover from the
+# onset, or why there is no number (`status`: `no_onset`, the failure never started;
+# `no_level`, nothing tested before it; `note` says it in words). Beside it, the recovery of
+# the competence (`recovery_episodes_competence`, NaN where not measured or not regained).
+
+# %%
+if has_mastered:
+    by_tests = analysis.recovery_by_tests(tests_m, onsets, fraction=fraction)
+    competence = per_run_m.set_index("run")["recovery_episodes"]
+    by_tests = by_tests.join(competence.rename("recovery_episodes_competence"), on="run")
+    columns = ["condition", "seed", "status", "onset", "level_before", "n_before", "trough"]
+    columns += ["recovery_episodes", "recovery_episodes_competence", "note"]
+    with pd.option_context("display.max_colwidth", None):  # each note whole
+        display(by_tests[columns].round(3))
+
+# %% [markdown]
+# One-tailed Welch's t-test on the episodes to recover by test success, CURIOUS faster than
+# M-UVFA (the experiment's comparison), at alpha 0.01; a run not recovered by its end is listed
+# and given no number, and with fewer than two recovered runs a side `p` is NaN (not tested).
+
+# %%
+if has_mastered:
+    faster, slower = get_budget(layout.budget_name()).experiments["sensor_failure_mastered"].compare
+    test = analysis.compare_recoveries(by_tests, faster, slower)
+    display(pd.Series({k: v for k, v in test.items() if k != "unrecovered"}))
+    with pd.option_context("display.max_colwidth", None):
+        display(test["unrecovered"][["condition", "seed", "note"]])
+
+# %% [markdown]
+# ## Part 3: spontaneous forgetting
+#
+# In every run of the `main` and `distractors` experiments that has self-evaluations (HER has
+# none), each achievable module is read by the rule of `curious.analysis.drops`: mastered once
+# its competence over a full window has stood at or above 0.9 for half a window of
+# self-evaluations; a drop is a fall of 0.2 or more below its peak since mastery. First, per run
+# and module, the deepest fall of its competence below its peak while mastered
+# (`analysis.mastery`; NaN: never mastered); then every drop (`analysis.mastery_drops`) with
+# its LP, p_LP and practice share before and over its course. An empty table of drops is a
+# result: no mastered module was forgotten.
+
+# %%
+folders = [layout.experiment_runs(e) for e in ("main", "distractors")]
+spontaneous = analysis.load_runs([f for f in folders if any(f.rglob(METRICS_FILE))])
+read = analysis.mastery(spontaneous)
+read = read[read["evaluated"]].astype({"condition": str, "variant": str, "module": str})
+modules = list(dict.fromkeys(read["module"]))  # in the runs' order
+falls = read.pivot(index=["condition", "variant", "seed"], columns="module", values="deepest_fall")
+display(falls[modules].round(2))
+
+# %%
+drops = analysis.mastery_drops(spontaneous)
+columns = ["condition", "variant", "seed", "module", "drop_episode", "peak", "trough"]
+columns += ["lp_before", "lp_trough", "p_lp_before", "p_lp_after", "recovery_episodes"]
+drops[columns].round(3)

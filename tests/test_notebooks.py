@@ -92,7 +92,8 @@ def test_notebook_executes_against_the_smoke_output_and_its_shipped_data(name, s
 
 
 def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(smoke, tmp_path):
-    """The quick budget trains no sensor_failure runs: part 1 says why and skips, part 2 runs.
+    """The quick budget trains neither sensory-failure experiment: parts 1 and 2 say why and
+    skip, part 3 (spontaneous forgetting) runs.
 
     The smoke output, copied without its sensor_failure runs and relabelled as made by `quick`,
     stands for a quick output folder.
@@ -103,10 +104,14 @@ def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(
     (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "quick"}))
     outputs = execute("forgetting_and_sensor_failure", out)
     printed = "".join(o.get("text", "") for o in outputs if o.get("output_type") == "stream")
-    why = get_budget("quick").why_absent("sensor_failure")
-    assert printed == f"{out.resolve()} holds no sensor_failure runs, so part 1 is skipped. {why}\n"
+    quick = get_budget("quick")
+    assert printed == "".join(
+        f"{out.resolve()} holds no {e} runs, so part {part} is skipped. {quick.why_absent(e)}\n"
+        for part, e in ((1, "sensor_failure"), (2, "sensor_failure_mastered"))
+    )
     tables = [o["data"]["text/plain"] for o in outputs if "text/plain" in o.get("data", {})]
-    assert len(tables) == 1 and "largest fall" in tables[0]  # part 2's table, and only that
+    # part 3's two tables, and only those: the deepest falls per run and module, the drops
+    assert len(tables) == 2 and "push_cube1" in tables[0] and "drop_episode" in tables[1]
 
 
 def test_the_documented_default_viewer_setting_opens_py_files_as_notebooks(tmp_path):
