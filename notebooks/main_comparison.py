@@ -88,6 +88,31 @@ print(
 welch.iloc[:: max(1, len(welch) // 10)]
 
 # %% [markdown]
+# ## Without bins: the area under each run's curve
+#
+# Each run's test success averaged over every epoch up to the budget all runs reached
+# (`analysis.area_under_success`: the area under its Fig. 2a curve over the budget), which
+# depends on no bin edges; then the same one-tailed Welch's t-test across seeds.
+
+# %%
+area = analysis.area_under_success(tests)
+display(area.pivot(index="condition", columns="seed", values="value").round(3))
+analysis.welch_per_bin(area, better, worse)
+
+# %% [markdown]
+# ## Episodes to a level of test success, per run and module
+#
+# The training episodes each run needed for a module's test success, pooled over 5 epochs, to
+# reach 0.5 and 0.9 (`analysis.episodes_to_test_success`; NA: not within the run).
+
+# %%
+milestones = analysis.episodes_to_test_success(tests).astype({"condition": str, "module": str})
+modules = list(dict.fromkeys(milestones["module"]))  # in slot order
+milestones.pivot(
+    index=["module", "level"], columns=["condition", "seed"], values="episodes"
+).reindex(modules, level="module")
+
+# %% [markdown]
 # ## The competence, for comparison
 #
 # The agent's own success measure (its self-evaluations), which drives learning progress and
