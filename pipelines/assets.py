@@ -29,7 +29,7 @@ import dagster as dg
 import pandas as pd
 from dagster import AssetExecutionContext
 
-from curious.reproduction.experiments import Experiment
+from curious.reproduction.experiments import FIGURES, Experiment
 from pipelines.resources import Reproduction
 from pipelines.training import FINISHED
 
@@ -37,13 +37,6 @@ RESOURCE = "reproduction"
 
 # The figures of each experiment: asset name -> (function of (reproduction, table) that draws
 # it, what it shows).
-FIGURES: dict[str, tuple[str, ...]] = {
-    "main": ("fig2a", "fig2b", "fig2c", "table1"),
-    "distractors": ("distractors",),
-    "sensor_failure": ("forgetting",),
-    "sensor_failure_mastered": ("forgetting_mastered",),
-}
-
 FAILURE_FIGURES: dict[str, bool] = {"forgetting": False, "forgetting_mastered": True}
 """The sensory-failure figures (`analysis.forgetting`, one per experiment of the variant), and
 whether each draws the runs' test success: the primary measure of the study on a mastered module
@@ -150,16 +143,6 @@ def run_folders(repro: Reproduction, experiment: Experiment) -> list[Path]:
     return [root.joinpath(*s.relative_path.parts) for s in experiment.runs()]
 
 
-def left_out_runs(repro: Reproduction, experiment: Experiment) -> list[Path]:
-    """The run folders of the variants the experiment leaves out that shipped data holds
-    finished for every condition (`ShippedData.left_out_runs`; none when training): the
-    distractors figure and the report show them beside the experiment's, untested."""
-    if repro.data is None:
-        return []
-    root = repro.layout.runs_root
-    return [root.joinpath(*s.relative_path.parts) for s in repro.data.left_out_runs(experiment)]
-
-
 def load_tests(repro: Reproduction, experiment: Experiment) -> pd.DataFrame:
     """The combined test rollouts the `metrics` asset wrote; where it wrote none (a run without
     test rollouts), reading the run folders raises the `AnalysisError` that names that run."""
@@ -248,7 +231,7 @@ def _draw(
             fig = getattr(analysis, name)(table, condition="curious", note=note, out_dir=out_dir)
         elif name == "distractors":
             # the settings shipped with too few runs for the statistics are drawn beside them
-            extra_runs = left_out_runs(repro, experiment)
+            extra_runs = repro.left_out_runs(experiment)
             folders = run_folders(repro, experiment) + extra_runs if extra_runs else None
             if folders:
                 table = analysis.load_runs(folders)

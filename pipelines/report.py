@@ -28,7 +28,13 @@ import pandas as pd
 
 from curious import analysis
 from curious.analysis.palette import condition_label, module_label
-from curious.reproduction.experiments import BUDGETS, Experiment, ReproduceBudget, get_budget
+from curious.reproduction.experiments import (
+    BUDGETS,
+    FIGURES,
+    Experiment,
+    ReproduceBudget,
+    get_budget,
+)
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
 from pipelines.resources import Reproduction
@@ -511,10 +517,8 @@ def _main(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
 
 
 def _distractors(repro: Reproduction, e: Experiment, tables: _Tables) -> list[str]:
-    from pipelines.assets import left_out_runs
-
     lines = [*_figure(repro, "distractors")]
-    extra = left_out_runs(repro, e)  # settings shipped with too few runs: shown, not tested
+    extra = repro.left_out_runs(e)  # settings shipped with too few runs: shown, not tested
     final = analysis.final_competence(tables.metrics)
     shown = final
     if extra:
@@ -636,8 +640,6 @@ def _recovery_rows(summary: pd.DataFrame) -> list[tuple[str, ...]]:
 def _failure_runs(repro: Reproduction, e: Experiment) -> tuple[list[str], pd.DataFrame | None]:
     """A sensory-failure experiment's figure and the opening of its section, with the per-run
     recovery of competence its figure asset wrote beside it (None before it is drawn)."""
-    from pipelines.assets import FIGURES
-
     name = FIGURES[e.name][0]
     lines = [*_figure(repro, name)]
     csv = repro.layout.figures / f"{name}.csv"
@@ -916,9 +918,7 @@ def _built_from(budget: ReproduceBudget, tables: dict[str, pd.DataFrame]) -> lis
 
 def _shown_anyway(repro: Reproduction, e: Experiment) -> str:
     """The runs of left-out variants the figure and the table still show, in a sentence."""
-    from pipelines.assets import left_out_runs
-
-    extra = left_out_runs(repro, e)
+    extra = repro.left_out_runs(e)
     if not extra:
         return ""
     names = ", ".join("/".join(p.parts[-3:]) for p in extra)

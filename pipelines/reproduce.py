@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 
 from curious.config import ConfigError
 from curious.reproduction.experiments import (
+    FIGURES,
     Experiment,
     ExperimentError,
     ReproduceBudget,
@@ -356,7 +357,7 @@ def _reproduce(
 ) -> ReproduceResult:
     import dagster as dg
 
-    from pipelines.assets import FIGURES, figure_key, metrics_key, partitions_of, runs_key
+    from pipelines.assets import figure_key, metrics_key, partitions_of, runs_key
     from pipelines.definitions import build_definitions
     from pipelines.executors import make_pool as default_pool
 

@@ -193,6 +193,15 @@ class Reproduction:
     def experiment(self, name: str) -> Experiment:
         return self.budget.experiments[name]
 
+    def left_out_runs(self, experiment: Experiment) -> list[Path]:
+        """The run folders of the variants the experiment leaves out that shipped data holds
+        finished for every condition (`ShippedData.left_out_runs`; none when training): the
+        distractors figure and the report show them beside the experiment's, untested."""
+        if self.data is None:
+            return []
+        root = self.layout.runs_root
+        return [root.joinpath(*s.relative_path.parts) for s in self.data.left_out_runs(experiment)]
+
     def run_state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished`: of the run folder (`pipelines.training.folder_state`),
         or of the shipped run where the runs are read from shipped data

@@ -22,10 +22,10 @@ import pytest
 from pipeline_pools import InterruptingPool, OrderPool
 
 from curious.cli import main as curious_cli
+from curious.reproduction.experiments import FIGURES as FIGURES_OF
 from curious.reproduction.experiments import get_budget
 from curious.runs.provenance import machine, machine_text
 from curious.watching.recording.reader import summarize
-from pipelines.assets import FIGURES as FIGURES_OF
 from pipelines.executors import LocalPool
 from pipelines.reproduce import ReproduceError, check_output_folder, reproduce
 from pipelines.resources import OutputLayout

@@ -61,6 +61,16 @@ from curious.config import LEARNED_COMPETENCE, PRESETS, Config, condition_names,
 EXPERIMENTS: tuple[str, ...] = ("main", "distractors", "sensor_failure", "sensor_failure_mastered")
 """Experiment names, in the order they are trained and reported."""
 
+FIGURES: dict[str, tuple[str, ...]] = {
+    "main": ("fig2a", "fig2b", "fig2c", "table1"),
+    "distractors": ("distractors",),
+    "sensor_failure": ("forgetting",),
+    "sensor_failure_mastered": ("forgetting_mastered",),
+}
+"""The figures each experiment redraws (`figures/NAME.png`), the first the one its report
+section opens with: the `curious.analysis` function of that name, or the forgetting figure of
+each sensory-failure study."""
+
 VARIANT_SEPARATOR = "@"
 """Joins condition and variant on the condition axis of experiments with several variants."""
 
