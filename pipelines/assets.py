@@ -35,8 +35,6 @@ from pipelines.training import FINISHED
 
 RESOURCE = "reproduction"
 
-# The figures of each experiment: asset name -> (function of (reproduction, table) that draws
-# it, what it shows).
 FAILURE_FIGURES: dict[str, bool] = {"forgetting": False, "forgetting_mastered": True}
 """The sensory-failure figures (`analysis.forgetting`, one per experiment of the variant), and
 whether each draws the runs' test success: the primary measure of the study on a mastered module
