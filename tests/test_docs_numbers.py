@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pyarrow.parquet as pq
 import pytest
 
 from curious import analysis
@@ -210,3 +211,27 @@ def test_c1_area_under_success_per_seed_and_its_welch_test():
         assert _mean_std(means) in text, condition
     test = analysis.welch_per_bin(area, "curious", "mg-te").iloc[0]
     assert f"t = {test['t']:.2f}, p = {test['p']:.2g}" in text
+
+
+def test_the_laptop_budgets_time_is_the_pace_its_shipped_runs_trained_at():
+    """The `laptop` budget's notes, the README's budgets table and docs/scaling.md give its time
+    on 2 cores from the paces of the runs shipped here (episodes per hour of each run's own
+    clock, as `curious progress` reads them), which fall in two groups, by machine: the faster
+    boots' runs at 6 episodes/s and over, the slower ones' under."""
+    paces = []
+    for metrics in sorted(DATA.rglob("metrics.parquet")):
+        wall = pq.read_table(metrics, columns=["wall_time"]).column("wall_time").to_numpy()
+        paces.append(len(wall) / float(wall.max()))
+    paces = np.asarray(paces)
+    fast, slow = paces[paces >= 6], paces[paces < 6]
+    episodes = sum(r.total_episodes for r in get_budget("laptop").runs())
+    hours = [round(episodes / (2 * p.mean()) / 3600 / 5) * 5 for p in (fast, slow)]
+    notes = re.sub(r"\s+", " ", get_budget("laptop").notes)
+    for group in (fast, slow):
+        assert f"{group.min():.1f} to {group.max():.1f}" in notes
+    assert f"{episodes / 1e6:.2f} M episodes" in notes
+    assert f"about {hours[0]} h on 2 cores at the faster pace and {hours[1]} h" in notes
+    assert f"about {hours[0]} to {hours[1]} h on 2 cores" in _text(ROOT / "docs" / "scaling.md")
+    words = {2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven"}
+    days = f"{words[round(hours[0] / 24)]} to {words[round(hours[1] / 24)]} days on 2 cores"
+    assert days in _text(README) and days in get_budget("laptop").description
