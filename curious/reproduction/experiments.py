@@ -536,12 +536,13 @@ BUDGETS: dict[str, ReproduceBudget] = {
             "laptop",
             "two to five days on 2 cores (hours on more, or with --ray-address)",
             "Training preset `laptop` (4 workers x 2 episodes and 40 updates of 512 per cycle). "
-            "The runs of data/laptop trained two at a time on 2-core machines, test rollouts "
-            "included, at 6.8 to 8.6 episodes/s each on some and 1.9 to 4.1 on others (the "
-            "slowest while other work shared the cores), so the budget's 2.46 M episodes take "
-            "about 45 h on 2 cores at the faster pace and 110 h at the slower, a quarter of "
-            "that on 8. The runs are independent: `--workers` runs them side by side, "
-            "`--ray-address` across a cluster; an interrupted reproduction resumes.",
+            "The 25 runs of data/laptop's main comparison, distractors and first sensory "
+            "failure trained two at a time on 2-core machines, test rollouts included, at 6.8 "
+            "to 8.6 episodes/s each on some and 1.9 to 4.1 on others (the slowest while other "
+            "work shared the cores), so the budget's 2.46 M episodes take about 45 h on 2 cores "
+            "at the faster pace and 110 h at the slower, a quarter of that on 8. The runs are "
+            "independent: `--workers` runs them side by side, `--ray-address` across a cluster; "
+            "an interrupted reproduction resumes.",
             "Budget laptop (reduced): a third of the paper's episodes per run and fewer seeds.",
             _main("laptop", (0, 1, 2), 100_000),
             _distractors("laptop", (0, 1), 50_000),
