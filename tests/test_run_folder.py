@@ -87,6 +87,9 @@ def test_config_json_records_the_machine_of_every_start(tmp_path, monkeypatch):
     and cores of the first start, and of each resume; none for starts that predate the record."""
     here = machine()
     assert here["cpu"] and here["cores"] >= 1 and here["gpu"] is None
+    if Path("/proc/cpuinfo").exists():  # Linux: the generation behind the model name
+        assert here["cpu_generation"].startswith("family ")
+        assert machine_text(here).startswith(f"{here['cpu']} ({here['cpu_generation']}), ")
     run = _written(tmp_path / "run", "default")
     assert json.loads(run.config_path.read_text())["machine"] == here
     assert run.read_info().machines == (machine_text(here),)
@@ -271,3 +274,26 @@ def test_a_metrics_file_that_cannot_be_written_is_named_and_left_as_it_was(tmp_p
     assert caught.value.filename == str(tmp_path / "metrics.parquet")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["metrics.parquet"]
     assert (tmp_path / "metrics.parquet").read_bytes() == good
+
+
+@pytest.mark.parametrize(
+    ("fields", "generation"),
+    [
+        (
+            {"cpu family": "25", "model": "17", "flags": "fpu avx avx2 avx512f"},
+            "family 25 model 17, AVX512",
+        ),
+        (
+            {"cpu family": "25", "model": "1", "flags": "fpu avx avx2 fma"},
+            "family 25 model 1, AVX2",
+        ),
+        ({"cpu family": "6", "model": "85", "flags": "fpu sse2"}, "family 6 model 85"),
+        ({"model name": "AMD EPYC", "flags": "avx2"}, None),
+    ],
+)
+def test_the_cpu_generation_tells_apart_what_one_model_name_hides(fields, generation):
+    """Two boots of a virtual `AMD EPYC` can be different generations, and a run's pace differs
+    with them: family, model and the widest vector instructions say which."""
+    from curious.runs.provenance import _cpu_generation
+
+    assert _cpu_generation(fields) == generation

@@ -25,18 +25,35 @@ def library_versions() -> dict[str, str | None]:
     return versions
 
 
-def _cpu_model() -> str:
-    """The processor's model name (Linux's /proc/cpuinfo), else what `platform` knows."""
+def _cpuinfo() -> dict[str, str]:
+    """The first processor's fields of Linux's /proc/cpuinfo (empty elsewhere)."""
+    fields: dict[str, str] = {}
     with contextlib.suppress(OSError):
         for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name") and ":" in line:
-                return line.split(":", 1)[1].strip()
-    return platform.processor() or platform.machine()
+            if not line.strip():
+                break  # the end of the first processor's block
+            key, sep, value = line.partition(":")
+            if sep:
+                fields.setdefault(key.strip(), value.strip())
+    return fields
+
+
+def _cpu_generation(fields: Mapping[str, str]) -> str | None:
+    """Family, model and the widest vector instructions, e.g. ``family 25 model 1, AVX2``: what
+    tells apart the generations behind one model name (a virtual machine's ``AMD EPYC`` may be
+    any of them, and a run's pace differs with it); None where /proc/cpuinfo does not say."""
+    if "cpu family" not in fields or "model" not in fields:
+        return None
+    flags = set(fields.get("flags", "").split())
+    vector = next((v for v in ("avx512f", "avx2", "avx") if v in flags), None)
+    text = f"family {fields['cpu family']} model {fields['model']}"
+    return f"{text}, {vector.removesuffix('f').upper()}" if vector else text
 
 
 def machine(device: str = "cpu") -> dict[str, Any]:
-    """What a run starts or resumes on, for the compute an experiment took: the processor, its
-    logical cores, the system and, with ``device`` `cuda`, the GPU (no host name)."""
+    """What a run starts or resumes on, for the compute an experiment took: the processor (its
+    model name and generation), its logical cores, the system and, with ``device`` `cuda`, the
+    GPU (no host name)."""
     gpu = None
     if device.startswith("cuda"):
         import torch
@@ -45,8 +62,10 @@ def machine(device: str = "cpu") -> dict[str, Any]:
             gpu = torch.cuda.get_device_name(torch.device(device))
     affinity = getattr(os, "sched_getaffinity", None)  # the cores this process may use (Linux)
     cores = len(affinity(0)) if affinity is not None else os.cpu_count()
+    fields = _cpuinfo()
     return {
-        "cpu": _cpu_model(),
+        "cpu": fields.get("model name") or platform.processor() or platform.machine(),
+        "cpu_generation": _cpu_generation(fields),
         "cores": cores,
         "system": f"{platform.system()} {platform.release()}",
         "gpu": gpu,
@@ -54,10 +73,14 @@ def machine(device: str = "cpu") -> dict[str, Any]:
 
 
 def machine_text(entry: Mapping[str, Any]) -> str:
-    """One line for a `machine` entry, e.g. ``AMD EPYC 7B13, 2 cores``; empty where none."""
+    """One line for a `machine` entry, e.g. ``AMD EPYC (family 25 model 1, AVX2), 2 cores``
+    (entries written before the generation was recorded: ``AMD EPYC, 2 cores``); empty where
+    none."""
     if not entry.get("cpu"):
         return ""
     text = str(entry["cpu"])
+    if entry.get("cpu_generation"):
+        text += f" ({entry['cpu_generation']})"
     if entry.get("cores"):
         text += f", {entry['cores']} cores"
     if entry.get("gpu"):
