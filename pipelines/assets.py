@@ -31,7 +31,7 @@ from dagster import AssetExecutionContext
 
 from curious.reproduction.experiments import FIGURES, Experiment
 from pipelines.resources import Reproduction
-from pipelines.training import FINISHED
+from pipelines.training import FINISHED, run_folder
 
 RESOURCE = "reproduction"
 
@@ -137,8 +137,7 @@ def load_metrics(repro: Reproduction, experiment: str) -> pd.DataFrame:
 
 def run_folders(repro: Reproduction, experiment: Experiment) -> list[Path]:
     """The run folders of an experiment, in its partition order."""
-    root = repro.layout.runs_root
-    return [root.joinpath(*s.relative_path.parts) for s in experiment.runs()]
+    return [run_folder(s, repro.layout.runs_root) for s in experiment.runs()]
 
 
 def load_tests(repro: Reproduction, experiment: Experiment) -> pd.DataFrame:

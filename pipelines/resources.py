@@ -199,8 +199,7 @@ class Reproduction:
         distractors figure and the report show them beside the experiment's, untested."""
         if self.data is None:
             return []
-        root = self.layout.runs_root
-        return [root.joinpath(*s.relative_path.parts) for s in self.data.left_out_runs(experiment)]
+        return [run_folder(s, self.layout.runs_root) for s in self.data.left_out_runs(experiment)]
 
     def run_state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished`: of the run folder (`pipelines.training.folder_state`),

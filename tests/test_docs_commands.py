@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import io
 import re
 from pathlib import Path
@@ -32,12 +33,13 @@ def _sub_commands(parser: argparse.ArgumentParser) -> dict[str, argparse.Argumen
     return {}
 
 
-def _options(parser: argparse.ArgumentParser) -> set[str]:
+@functools.cache
+def _options(parser: argparse.ArgumentParser) -> frozenset[str]:
     # A benchmark's parser adds its options when it first parses; the missing required
     # arguments then end the parse, which is all this needs.
     with contextlib.redirect_stderr(io.StringIO()), contextlib.suppress(SystemExit):
         parser.parse_known_args([])
-    return set(parser._option_string_actions)
+    return frozenset(parser._option_string_actions)
 
 
 COMMANDS = _sub_commands(build_parser())

@@ -14,10 +14,10 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 import pytest
 
 from curious import analysis
+from curious.analysis.progress import progress_table
 from curious.reproduction.experiments import get_budget
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -220,12 +220,8 @@ def test_the_laptop_budgets_time_is_the_pace_its_shipped_runs_trained_at():
     `curious progress` reads them), which fall in two groups, by machine: the faster boots' runs
     at 6 episodes/s and over, the slower ones' under. Runs shipped later (the study on a
     mastered module, seeds beyond the budget's) leave these numbers as they are."""
-    paces = []
-    for run in [p for e in ("main", "distractors", "sensor_failure") for p in _runs(e)]:
-        metrics = run / "metrics.parquet"
-        wall = pq.read_table(metrics, columns=["wall_time"]).column("wall_time").to_numpy()
-        paces.append(len(wall) / float(wall.max()))
-    paces = np.asarray(paces)
+    runs = [p for e in ("main", "distractors", "sensor_failure") for p in _runs(e)]
+    paces = np.asarray([r.episodes / (r.run_hours * 3600) for r in progress_table(runs)])
     fast, slow = paces[paces >= 6], paces[paces < 6]
     episodes = sum(r.total_episodes for r in get_budget("laptop").runs())
     hours = [round(episodes / (2 * p.mean()) / 3600 / 5) * 5 for p in (fast, slow)]
