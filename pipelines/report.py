@@ -883,6 +883,23 @@ def _versions(table: pd.DataFrame) -> str:
     return text
 
 
+def _software(tables: dict[str, pd.DataFrame]) -> list[str]:
+    """The libraries and commit the runs were trained with, one line; per experiment where the
+    experiments' first runs differ (a campaign can train a later experiment from its own
+    commit)."""
+    by_text: dict[str, list[str]] = {}
+    for name, table in tables.items():
+        text = _versions(table)
+        if text:
+            by_text.setdefault(text, []).append(name)
+    if not by_text:
+        return []
+    if len(by_text) == 1:
+        return [f"Software: {next(iter(by_text))}.", ""]
+    parts = [f"{', '.join(names)}: {text}" for text, names in by_text.items()]
+    return [f"Software, per experiment (the first run of each): {'; '.join(parts)}.", ""]
+
+
 def _episodes_count(n: int) -> str:
     """``"1.46 M"`` from a million on, else ``"24,000"``."""
     return f"{n / 1e6:.2f} M" if n >= 1_000_000 else f"{n:,}"
@@ -956,9 +973,7 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
     if not included:
         lines += ["No experiment has finished yet.", ""]
     else:
-        versions = _versions(next(iter(tables.values())))
-        if versions:
-            lines += [f"Software: {versions}.", ""]
+        lines += _software(tables)
         lines += ["## Budgets", ""]
         lines += _budgets(repro, included)
         lines += _compute(tables)

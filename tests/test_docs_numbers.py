@@ -203,6 +203,44 @@ def test_c5_refocus_and_recoveries():
     assert not table.loc[("m-uvfa", 0), "recovered"]
 
 
+def _whole_seeds(experiment: str) -> list[Path]:
+    """The budget's runs of `experiment` whose seed data/laptop holds whole (every condition's
+    run of it), the seeds the report reads; skipped while it holds none."""
+    by_seed: dict[int, list[Path]] = {}
+    for r in get_budget("laptop").experiments[experiment].runs():
+        by_seed.setdefault(r.seed, []).append(DATA / r.relative_path)
+    paths = [p for runs in by_seed.values() if all(p.is_dir() for p in runs) for p in runs]
+    if not paths:
+        pytest.skip(f"no seed of {experiment} shipped whole yet")
+    return paths
+
+
+def test_c5_on_a_mastered_module_by_its_fixed_rules():
+    """Each run's row of the study on a mastered module (onset, level before, trough, primary
+    and secondary recoveries) and the README's recoveries by test success."""
+    paths = _whole_seeds("sensor_failure_mastered")
+    runs = analysis.load_runs(paths)
+    onsets = analysis.failure_onsets(runs)["onset"]
+    by_tests = analysis.recovery_by_tests(analysis.load_tests(paths), onsets, fraction=0.9)
+    competence = analysis.recovery(runs).set_index(["condition", "seed"])
+    results, readme = RESULTS.read_text(), _text(README)
+    labels = {"curious": "CURIOUS", "m-uvfa": "M-UVFA"}
+    for t in by_tests.itertuples():
+        assert t.status == "measured" and t.recovered, t.note
+        c = competence.loc[(t.condition, t.seed)]
+        cells = (
+            f"| {labels[t.condition]} | {t.seed} | {int(t.onset):,} | "
+            f"{t.level_before:.2f} ({t.n_before}) | {t.trough:.2f} at {int(t.trough_episode):,} |"
+        )
+        recovered = (
+            f"| {int(t.recovery_episodes):,} episodes | {int(c['recovery_episodes']):,} episodes |"
+        )
+        assert cells in results and recovered in results, cells
+        episodes = f"{int(t.recovery_episodes):,}"
+        quoted = {"curious": f"{episodes} episodes (CURIOUS)", "m-uvfa": f"{episodes} (M-UVFA)"}
+        assert quoted[t.condition] in readme, quoted[t.condition]
+
+
 def test_c1_area_under_success_per_seed_and_its_welch_test():
     """C1's reading without bins: each seed's success over every epoch, and the Welch test."""
     area = analysis.area_under_success(analysis.load_tests(_runs("main")))

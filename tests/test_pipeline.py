@@ -415,6 +415,34 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
     assert f"| {mean:,.0f} |" in row
 
 
+def test_the_report_names_each_commit_its_experiments_were_trained_from(tmp_path):
+    """A campaign can train a later experiment from its own commit: the report's software line
+    then says which experiment came from which, where one commit is one line."""
+    import json
+
+    import pandas as pd
+
+    from curious.config import resolve
+    from curious.envs.goal_env import SuiteEnv
+    from curious.runs.folder import RunFolder
+    from pipelines.report import _software
+
+    tables = {}
+    for name, commit in (("main", "a" * 40), ("sensor_failure_mastered", "b" * 40)):
+        run = RunFolder(tmp_path / name)
+        run.write_config(resolve("smoke", "curious", 0), SuiteEnv("default", seed=0).spec)
+        data = json.loads(run.config_path.read_text())
+        data["git"] = {"commit": commit, "dirty": False}
+        run.config_path.write_text(json.dumps(data))
+        tables[name] = pd.DataFrame({"run": [str(run.path)]})
+    both = _software(tables)[0]
+    assert both.startswith("Software, per experiment (the first run of each): main: ")
+    assert "; git aaaaaaaaaa; sensor_failure_mastered: " in both
+    assert both.endswith("; git bbbbbbbbbb.")
+    one = _software({"main": tables["main"]})[0]
+    assert one.startswith("Software: python ") and one.endswith("; git aaaaaaaaaa.")
+
+
 def test_spontaneous_drops_are_reported_per_run_with_their_response(tmp_path):
     """The forgetting section of the main comparison: a row per run (HER: no self-evaluations)
     and a row per drop, its numbers those of `analysis.mastery_drops`."""
