@@ -204,15 +204,15 @@ def test_c5_refocus_and_recoveries():
 
 
 def _whole_seeds(experiment: str) -> list[Path]:
-    """The budget's runs of `experiment` whose seed data/laptop holds whole (every condition's
-    run of it), the seeds the report reads; skipped while it holds none."""
-    by_seed: dict[int, list[Path]] = {}
-    for r in get_budget("laptop").experiments[experiment].runs():
-        by_seed.setdefault(r.seed, []).append(DATA / r.relative_path)
-    paths = [p for runs in by_seed.values() if all(p.is_dir() for p in runs) for p in runs]
-    if not paths:
+    """The runs of `experiment` the report reads from data/laptop: those of the seeds shipped
+    whole (`ShippedData.stands_for`); skipped while it holds none."""
+    from pipelines.from_data import ShippedData
+
+    shipped = ShippedData.open(DATA)
+    e = shipped.stands_for(get_budget("laptop")).experiments[experiment]
+    if shipped.missing(e):
         pytest.skip(f"no seed of {experiment} shipped whole yet")
-    return paths
+    return [DATA / r.relative_path for r in e.runs()]
 
 
 def test_c5_on_a_mastered_module_by_its_fixed_rules():
