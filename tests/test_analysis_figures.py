@@ -264,6 +264,12 @@ def test_forgetting_with_test_rollouts_draws_the_primary_measure_above(studies):
         for label in labels
     )
     assert top.get_xlim()[1] > by_tests["recovery_episodes"].max()
+    # the per-run legend sits under the panels, so that however long its entries the panels
+    # keep the figure's width
+    fig.draw_without_rendering()
+    legend = bottom.get_legend().get_window_extent()
+    assert legend.y1 < bottom.get_window_extent().y0
+    assert all(ax.get_position().width > 0.8 for ax in (tested, top, bottom))
     assert "Top: its test success (noise-free test rollouts" in _caption(fig)
     assert "pooled over 5 epochs (100 episodes)" in _caption(fig)
 

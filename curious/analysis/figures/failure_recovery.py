@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.transforms import ScaledTranslation
 
 from curious.analysis import DEFAULT_TEST_EPOCHS, palette
 from curious.analysis.figures.parts import (
@@ -44,6 +45,10 @@ from curious.analysis.style import (
     figure_style,
     new_figure,
 )
+
+_LEGEND_HEIGHT = (0.45, 0.16)
+"""Inches the figure grows by for the per-run legend under its panels: its gap and title, then
+each run's entry (so that the panels keep their height however many runs are drawn)."""
 
 
 def forgetting(
@@ -95,13 +100,14 @@ def forgetting(
         tests = tests[tests["run"].isin(per_run["run"])]
         starts = per_run.set_index("run")["perturbation_episode"]
         tested = _Tested(tests, recovery_by_tests(tests, starts, module, fraction), module)
+    grow = _LEGEND_HEIGHT[0] + _LEGEND_HEIGHT[1] * len(onsets) if len(onsets) else 0.0
     with figure_style():
         if tested is None:
-            fig = new_figure(9.2, 5.8)
+            fig = new_figure(9.2, 5.8 + grow)
             top, bottom = fig.subplots(2, 1, sharex=True)
             first = top
         else:
-            fig = new_figure(9.2, 8.2)
+            fig = new_figure(9.2, 8.2 + grow)
             first, top, bottom = fig.subplots(3, 1, sharex=True)
         if onsets.empty:
             text = _draw_unstarted(top, bottom, rows, module, conditions, per_run)
@@ -372,13 +378,18 @@ def _draw_aligned(
     episodes_axis(top, label=False)
     episodes_axis(bottom)
     bottom.set_xlabel("episodes since the sensory failure")
+    # under the x axis's label (a fixed 32 points below the axes, whatever the figure's size),
+    # where its width does not narrow the panels; constrained layout makes room for it
+    below = bottom.transAxes + ScaledTranslation(0, -32 / 72, bottom.get_figure().dpi_scale_trans)
     bottom.legend(
         handles,
         labels,
         loc="upper left",
-        bbox_to_anchor=(1.02, 1.0),
+        bbox_to_anchor=(0.0, 0.0),
+        bbox_transform=below,
         borderaxespad=0.0,
         title="each run",
+        alignment="left",
         fontsize=7.5,
         title_fontsize=8,
     )
