@@ -17,7 +17,12 @@ from curious.envs.goal_env import SuiteEnv
 from curious.reproduction.experiments import get_budget
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import ConfigMismatch, RunFolderError
-from curious.runs.folder_layout import RUN_ENTRIES, checkpoint_name, list_checkpoints
+from curious.runs.folder_layout import (
+    RUN_ENTRIES,
+    SHIPPED_MANIFEST_FILE,
+    checkpoint_name,
+    list_checkpoints,
+)
 from curious.runs.provenance import machine, machine_text
 from pipelines.training import PARTIAL, RunFolderMismatch, folder_state, run_folder
 
@@ -215,6 +220,29 @@ def test_a_new_run_inside_another_runs_folder_is_refused(tmp_path):
     RunFolder.prepare(tmp_path / "project" / "runs" / "r", config, resume=False)
     inner = _written(outer.path / "inner", "default")  # made before the check: it still resumes
     RunFolder.prepare(inner.path, config, resume=True)
+
+
+@pytest.mark.parametrize(
+    ("where", "resume", "restart"),
+    [
+        ("main/curious/seed-0", True, False),  # `train --resume` on a shipped run
+        ("main/curious/seed-0", False, True),  # `--restart` would replace its tables
+        ("main/curious/seed-9", False, False),  # a new run among the shipped ones
+    ],
+)
+def test_no_run_trains_in_a_shipped_data_folder(tmp_path, where, resume, restart):
+    """A shipped data folder holds finished runs' tables for the analysis, committed with the
+    repository: a resume has no checkpoint there, and `--restart` or a new run would overwrite or
+    mix with what the report reads. Refused before anything is written, naming the folder."""
+    data = tmp_path / "data"
+    _written(data / "main" / "curious" / "seed-0", "default")
+    (data / SHIPPED_MANIFEST_FILE).write_text('{"format": 2, "budget": null, "runs": []}')
+    before = sorted(p.relative_to(data) for p in data.rglob("*"))
+    config = resolve("smoke", "curious", 0)
+    with pytest.raises(RunFolderError, match=f"lies in the shipped data folder {data}"):
+        RunFolder.prepare(data / where, config, resume=resume, restart=restart)
+    assert sorted(p.relative_to(data) for p in data.rglob("*")) == before
+    RunFolder.prepare(tmp_path / "elsewhere", config, resume=False)
 
 
 def test_a_folder_of_runs_given_as_a_run_names_the_runs_it_holds(tmp_path):

@@ -46,7 +46,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-MANIFEST_FILE = "shipped.json"
+from curious.runs.folder_layout import SHIPPED_MANIFEST_FILE, shipped_root
+
+MANIFEST_FILE = SHIPPED_MANIFEST_FILE
 FORMAT = 2
 """1: shipped without `module` and `eval` (the order of learning cannot be read from it)."""
 SHIPPED_KEY = b"curious.shipped"
@@ -164,16 +166,6 @@ class ShippedFolder:
 
     def write_manifest(self, manifest: ShippedManifest) -> None:
         self.manifest_path.write_text(json.dumps(manifest.to_dict(), indent=2) + "\n")
-
-
-def shipped_root(run: str | os.PathLike) -> Path | None:
-    """The shipped data folder that holds the run folder `run` (the nearest folder at or above it
-    with a `shipped.json`), or None for a run folder of a training."""
-    path = Path(run).resolve()
-    for folder in (path, *path.parents):
-        if (folder / MANIFEST_FILE).is_file():
-            return folder
-    return None
 
 
 def shipped_run_note(run: str | os.PathLike) -> str:

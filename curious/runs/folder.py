@@ -8,13 +8,14 @@ Who reads what: training (`prepare`, `write_config`, the paths), `curious evalua
 `newest_checkpoint`), the reproduction pipeline (`check_resumable`, `finished_at`), `curious ship`
 (`read_info`, `finished_at`).
 
-`prepare` checks a folder before anything is written: a non-empty folder is only accepted with
-`resume=True`, and then only for the same config (`check_resumable`: fields in
-`RESUMABLE_FIELDS` may change), or with `restart=True` when it holds a run's files and nothing
-else (`clear` removes them once every check has passed). A config.json that is not a run's
-(damaged, hand-edited into another shape, a setting of the wrong type) is a `RunFolderError`
-naming the file. While one process trains in a folder, `curious.runs.folder_lock` keeps others
-out.
+`prepare` checks a folder before anything is written: none inside a shipped data folder
+(`check_not_shipped`), none new inside another run's folder (`check_not_nested`); a non-empty
+folder is only accepted with `resume=True`, and then only for the same config
+(`check_resumable`: fields in `RESUMABLE_FIELDS` may change), or with `restart=True` when it
+holds a run's files and nothing else (`clear` removes them once every check has passed). A
+config.json that is not a run's (damaged, hand-edited into another shape, a setting of the wrong
+type) is a `RunFolderError` naming the file. While one process trains in a folder,
+`curious.runs.folder_lock` keeps others out.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from curious.runs.folder_layout import (
     TESTS_FILE,
     checkpoint_episodes,
     list_checkpoints,
+    shipped_root,
 )
 from curious.runs.provenance import git_commit, library_versions, machine
 from curious.runs.run_info import RunInfo, parse_info
@@ -254,6 +256,7 @@ class RunFolder:
         exists = folder.path.exists()
         if exists and not folder.path.is_dir():
             raise RunFolderError(f"{folder.path} exists and is not a folder")
+        folder.check_not_shipped()
         if resume and restart:
             raise RunFolderError(
                 "--resume goes on with a run and --restart starts it over: pass one of them"
@@ -301,6 +304,18 @@ class RunFolder:
                     f"{self.path} lies inside the run folder {parent}, where no search for runs "
                     "would find it: choose an --out outside it"
                 )
+
+    def check_not_shipped(self) -> None:
+        """A `RunFolderError` where the folder lies in a shipped data folder (`curious ship`'s
+        output): its runs are finished runs' tables, without checkpoints to go on from, and what
+        `--restart` or a new run wrote there would replace or mix with what the analysis reads."""
+        root = shipped_root(self.path)
+        if root is not None:
+            raise RunFolderError(
+                f"{self.path} lies in the shipped data folder {root}: shipped runs are finished "
+                "runs' tables (no checkpoints to resume from) and no run trains there; choose an "
+                "--out outside it"
+            )
 
     def describe(self, config: Config, spec: EnvSpec) -> dict[str, Any]:
         """The content of config.json."""

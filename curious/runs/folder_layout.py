@@ -6,6 +6,10 @@ agrees on the layout:
     tests.parquet     one row per test rollout (`curious.runs.metrics`)
     recording.rrd     the Rerun recording (written by `curious.watching.recording`)
     checkpoints/      resumable checkpoints, `ep-<episodes, 12 digits>/` (`curious.runs.checkpoint`)
+
+and the mark of a shipped data folder, `shipped.json` at its root
+(`curious.reproduction.shipped_folder`): the runs below it are finished runs' tables, read by the
+analysis and never trained into.
 """
 
 from __future__ import annotations
@@ -31,6 +35,9 @@ EVALUATION_RECORDING_FILE = "evaluation.rrd"
 """Where `curious evaluate --record` writes without a FILE: the current folder, never a run
 folder (a run folder holds a run's files only: `--restart` refuses one with more)."""
 
+SHIPPED_MANIFEST_FILE = "shipped.json"
+"""The manifest at the root of a shipped data folder (`curious ship`'s output)."""
+
 CHECKPOINT_PREFIX = "ep-"
 _CHECKPOINT_NAME = re.compile(r"ep-(\d{12})")
 
@@ -52,3 +59,13 @@ def list_checkpoints(directory: Path) -> list[Path]:
         return []
     found = [p for p in directory.iterdir() if p.is_dir() and checkpoint_episodes(p) is not None]
     return sorted(found, key=lambda p: checkpoint_episodes(p) or 0)
+
+
+def shipped_root(path: str | os.PathLike) -> Path | None:
+    """The shipped data folder that holds `path` (the nearest folder at or above it with a
+    `shipped.json`), or None for a path outside any."""
+    resolved = Path(path).resolve()
+    for folder in (resolved, *resolved.parents):
+        if (folder / SHIPPED_MANIFEST_FILE).is_file():
+            return folder
+    return None
