@@ -44,7 +44,7 @@ from curious.reproduction.experiments import (
     ReproduceBudget,
     get_budget,
 )
-from curious.reproduction.shipped_folder import ShippedFolder
+from curious.reproduction.shipped_folder import shipped_root
 from pipelines.resources import OutputLayout, Reproduction
 from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy
 
@@ -102,8 +102,16 @@ def check_output_folder(
     out = layout.out
     if out.exists() and not out.is_dir():
         raise ReproduceError(f"--out {out} exists and is not a folder")
-    if ShippedFolder(out).is_shipped:
-        raise ReproduceError(f"--out {out} is a shipped data folder: choose another --out")
+    written = [("--out", out)] + ([] if from_data else [("--runs-dir", layout.runs_root)])
+    for option, path in written:  # from shipped data, the folder read stands for the runs
+        shipped = shipped_root(path)
+        if shipped is not None:
+            what = "is a shipped data folder"
+            if shipped != path.resolve():
+                what = f"lies in the shipped data folder {shipped}"
+            raise ReproduceError(
+                f"{option} {path} {what} (finished runs' tables only): choose another {option}"
+            )
     if layout.manifest.is_file():
         try:
             made_by = layout.budget_name()

@@ -732,6 +732,31 @@ def test_reproduce_given_preset_says_it_takes_budget(tmp_path, capsys):
     assert not (tmp_path / "a").exists()
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--out", "{data}"], "--out {data} is a shipped data folder"),
+        (["--out", "{data}/report"], "--out {data}/report lies in the shipped data folder {data}"),
+        (
+            ["--out", "{tmp}/new", "--runs-dir", "{data}/runs"],
+            "--runs-dir {data}/runs lies in the shipped data folder {data}",
+        ),
+    ],
+)
+def test_a_reproduction_writes_nothing_into_a_shipped_data_folder(args, message, tmp_path, capsys):
+    """A data folder `curious ship` wrote (committed with the repository) holds finished runs'
+    tables only: a reproduction's output or runs inside it are refused before any run starts,
+    and the folder is left as it was."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "shipped.json").write_text('{"format": 2, "budget": null, "runs": []}')
+    fill = {"data": str(data), "tmp": str(tmp_path)}
+    code, err = run_cli(["--budget", "smoke", *(a.format(**fill) for a in args)], capsys)
+    assert code == 2 and message.format(**fill) in err
+    assert [p.name for p in data.iterdir()] == ["shipped.json"]
+    assert not (tmp_path / "new").exists()
+
+
 def test_an_output_folder_whose_manifest_says_preset_is_read_as_its_budget(tmp_path):
     """reproduce.json of an earlier version names the budget `preset`: the folder still goes on."""
     from pipelines.resources import OutputLayout
