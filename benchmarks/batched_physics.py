@@ -32,17 +32,24 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks import AtLeast
+
 NAMES = ("ours", "bound", "peer", "batch_physics")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--copies", type=int, default=38, help="environment copies (default 38: 2 runs x 19)"
+        "--copies",
+        type=AtLeast(1),
+        default=38,
+        help="environment copies (default 38: 2 runs x 19)",
     )
-    parser.add_argument("--threads", type=int, default=2, help="native threads (default 2)")
-    parser.add_argument("--rounds", type=int, default=5, help="timed episodes each (default 5)")
+    parser.add_argument("--threads", type=AtLeast(1), default=2, help="native threads (default 2)")
+    parser.add_argument(
+        "--rounds", type=AtLeast(1), default=5, help="timed episodes each (default 5)"
+    )
     parser.add_argument("--variant", default="default", help="suite variant (default: default)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=AtLeast(0), default=0)
 
 
 class _Clocks:
@@ -118,8 +125,6 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     from suite.lockstep_physics import LockstepPhysics
 
     copies, threads, rounds = int(args.copies), int(args.threads), int(args.rounds)
-    if copies < 1 or threads < 1 or rounds < 1:
-        raise ValueError("--copies, --threads and --rounds must be at least 1")
     started = time.perf_counter()
     load = os.getloadavg()[0]
     peer = LocalEnvs(make_suite_envs(args.variant, args.seed, copies))

@@ -27,19 +27,21 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks import AtLeast
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--episodes", type=int, default=20_000, help="episodes in the replay (20,000)"
+        "--episodes", type=AtLeast(1), default=20_000, help="episodes in the replay (20,000)"
     )
     parser.add_argument(
         "--every",
-        type=int,
+        type=AtLeast(1),
         default=800,
         help="episodes since the checkpoint before (800: a `laptop` run's interval)",
     )
     parser.add_argument("--variant", default="default", help="the suite's variant (default)")
-    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (3)")
+    parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
     parser.add_argument(
         "--dir", default=None, help="folder to write in (a temporary one under TMPDIR)"
     )
@@ -89,11 +91,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Times the three writes; returns ours/bound/peer/unit and the disk each kind keeps."""
     from curious.runs import checkpoint
 
-    if args.episodes < 1 or args.rounds < 1 or not 0 < args.every <= args.episodes:
-        raise SystemExit(
-            "curious bench checkpoint: --episodes and --rounds must be >= 1, and --every "
-            "between 1 and --episodes"
-        )
+    if args.every > args.episodes:
+        raise ValueError(f"--every ({args.every}) cannot exceed --episodes ({args.episodes})")
     full = _replay(args.variant, args.episodes)
     before = _prefix(full, args.episodes - args.every)
     after = _prefix(full, args.episodes)

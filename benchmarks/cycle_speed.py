@@ -47,11 +47,15 @@ from typing import Any
 import numpy as np
 import torch
 
+from benchmarks import AtLeast
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", default="laptop", help="training preset (default laptop)")
-    parser.add_argument("--cycles", type=int, default=4, help="timed cycles each (default 4)")
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    parser.add_argument(
+        "--cycles", type=AtLeast(1), default=4, help="timed cycles each (default 4)"
+    )
+    parser.add_argument("--threads", type=AtLeast(1), default=1, help="torch threads (default 1)")
     parser.add_argument(
         "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train"
     )

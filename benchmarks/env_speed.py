@@ -30,16 +30,21 @@ import warnings
 import mujoco
 import numpy as np
 
+from benchmarks import AtLeast
+
 EPISODE = 50
 _STATE = mujoco.mjtState.mjSTATE_INTEGRATION
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--episodes", type=int, default=30, help="timed episodes per contestant (default 30)"
+        "--episodes",
+        type=AtLeast(1),
+        default=30,
+        help="timed episodes per contestant (default 30)",
     )
     parser.add_argument("--variant", default="default", help="suite variant (default: default)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=AtLeast(0), default=0)
     parser.add_argument("--no-peer", action="store_true", help="skip gymnasium-robotics")
 
 

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from benchmarks import AtLeast
 from curious.config import Config, resolve
 from curious.envs.goal_env import EnvSpec, RowsByModule
 
@@ -37,10 +38,10 @@ STATE, GOAL, TASKS, ACTIONS = 49, 21, 7, 4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--batch", type=int, default=256, help="minibatch (default 256)")
-    parser.add_argument("--hidden", type=int, default=256, help="units per layer (256)")
-    parser.add_argument("--layers", type=int, default=3, help="hidden layers (3)")
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
+    parser.add_argument("--batch", type=AtLeast(1), default=256, help="minibatch (default 256)")
+    parser.add_argument("--hidden", type=AtLeast(1), default=256, help="units per layer (256)")
+    parser.add_argument("--layers", type=AtLeast(1), default=3, help="hidden layers (3)")
+    parser.add_argument("--threads", type=AtLeast(1), default=1, help="torch threads (1)")
     parser.add_argument(
         "--seconds",
         type=float,

@@ -27,16 +27,25 @@ import time
 from pathlib import Path
 from typing import Any
 
+from benchmarks import AtLeast
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", default="laptop", help="training preset (default laptop)")
-    parser.add_argument("--runs", type=int, default=None, help="runs each (default: one per core)")
+    parser.add_argument(
+        "--runs", type=AtLeast(1), default=None, help="runs each (default: one per core)"
+    )
     parser.add_argument(
         "--condition", default="curious", help="the runs' condition (default curious)"
     )
-    parser.add_argument("--cycles", type=int, default=6, help="cycles per run (default 6)")
     parser.add_argument(
-        "--repeats", type=int, default=1, help="alternations of the two (default 1)"
+        "--cycles",
+        type=AtLeast(2, "the rate is read after each run's first cycle"),
+        default=6,
+        help="cycles per run (default 6)",
+    )
+    parser.add_argument(
+        "--repeats", type=AtLeast(1), default=1, help="alternations of the two (default 1)"
     )
     parser.add_argument(
         "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train"
@@ -101,11 +110,6 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     from curious.config import resolve
 
     cores = os.cpu_count() or 1
-    if (args.runs is not None and args.runs < 1) or args.cycles < 2 or args.repeats < 1:
-        raise ValueError(
-            "--runs and --repeats must be at least 1 and --cycles at least 2 (the rate is read "
-            f"after each run's first cycle), got {args.runs}, {args.repeats} and {args.cycles}"
-        )
     if args.device == "cuda":
         import torch
 

@@ -26,22 +26,23 @@ import time
 from pathlib import Path
 from typing import Any
 
+from benchmarks import AtLeast
 from curious.config import resolve
 from curious.runs.folder import RunFolder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", default="quick", help="preset of the timed run (quick)")
-    parser.add_argument("--episodes", type=int, default=200, help="episodes per run (200)")
-    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (3)")
+    parser.add_argument("--episodes", type=AtLeast(1), default=200, help="episodes per run (200)")
+    parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
     parser.add_argument(
         "--rollout-every",
-        type=int,
+        type=AtLeast(0),
         default=None,
         metavar="K",
         help="3-D rollout every K evaluation episodes (default: RecorderSettings')",
     )
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
+    parser.add_argument("--threads", type=AtLeast(1), default=1, help="torch threads (1)")
 
 
 def _settings(args: argparse.Namespace) -> Any:
@@ -83,8 +84,6 @@ def _fixed_bytes(variant: str, settings: Any, folder: Path) -> int:
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Times the run with and without recording; returns ours/bound/peer/unit and detail."""
-    if args.episodes < 1 or args.rounds < 1:
-        raise SystemExit("curious bench recording: --episodes and --rounds must be >= 1")
     os.environ.setdefault("MUJOCO_GL", "disable")
     config = resolve(
         args.preset,

@@ -26,15 +26,19 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks import AtLeast
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--batch", type=int, default=512, help="minibatch (512: `laptop`; `paper`: 4864)"
+        "--batch", type=AtLeast(1), default=512, help="minibatch (512: `laptop`; `paper`: 4864)"
     )
-    parser.add_argument("--episodes", type=int, default=2_000, help="episodes stored (2,000)")
+    parser.add_argument(
+        "--episodes", type=AtLeast(1), default=2_000, help="episodes stored (2,000)"
+    )
     parser.add_argument("--variant", default="default", help="the suite's variant (default)")
     parser.add_argument("--seconds", type=float, default=1.0, help="seconds per contender")
-    parser.add_argument("--rounds", type=int, default=3, help="interleaved rounds (3)")
+    parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
 
 
 def _per_module(env: Any) -> Any:

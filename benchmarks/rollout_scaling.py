@@ -19,12 +19,19 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks import AtLeast
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", default="paper", help="training preset (default paper)")
-    parser.add_argument("--episodes", type=int, default=3, help="timed rounds each (default 3)")
     parser.add_argument(
-        "--max-processes", type=int, default=0, help="largest process count (default: cores)"
+        "--episodes", type=AtLeast(1), default=3, help="timed rounds each (default 3)"
+    )
+    parser.add_argument(
+        "--max-processes",
+        type=AtLeast(0),
+        default=0,
+        help="largest process count (default: cores)",
     )
 
 

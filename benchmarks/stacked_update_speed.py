@@ -26,23 +26,28 @@ from typing import Any
 
 import torch
 
+from benchmarks import AtLeast, CountList
+
 STATE, GOAL, TASKS, ACTIONS = 49, 21, 7, 4
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "--runs", default="2,4", help="learners stepped together, a list (default 2,4)"
+        "--runs",
+        type=CountList(1),
+        default=[2, 4],
+        help="learners stepped together, a list (default 2,4)",
     )
-    parser.add_argument("--batch", type=int, default=512, help="minibatch (default 512)")
-    parser.add_argument("--hidden", type=int, default=256, help="units per layer (256)")
-    parser.add_argument("--layers", type=int, default=3, help="hidden layers (3)")
-    parser.add_argument("--threads", type=int, default=1, help="torch threads (1)")
+    parser.add_argument("--batch", type=AtLeast(1), default=512, help="minibatch (default 512)")
+    parser.add_argument("--hidden", type=AtLeast(1), default=256, help="units per layer (256)")
+    parser.add_argument("--layers", type=AtLeast(1), default=3, help="hidden layers (3)")
+    parser.add_argument("--threads", type=AtLeast(1), default=1, help="torch threads (1)")
     parser.add_argument("--algorithm", default="ddpg", choices=("ddpg", "td3"))
     parser.add_argument(
         "--backend", default="autograd", help="the learners' own backend (default autograd)"
     )
     parser.add_argument(
-        "--updates", type=int, default=20, help="updates per learner and round (default 20)"
+        "--updates", type=AtLeast(1), default=20, help="updates per learner and round (default 20)"
     )
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
 
@@ -170,7 +175,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         ),
     }
     out: dict[str, Any] = {"unit": "learner updates/s"}
-    for runs in (int(r) for r in str(args.runs).split(",")):
+    for runs in args.runs:
         learners, batches = _learners(args, runs)
         for run in contenders.values():  # warm-up: allocations, caches, the optimisers' state
             run(learners, batches, 2, sync)
@@ -181,7 +186,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         for name, rate in best.items():
             out[f"{name}_{runs}"] = rate
         out[f"ours_over_peer_{runs}"] = best["ours"] / best["peer"]
-    last = max(int(r) for r in str(args.runs).split(","))
+    last = max(args.runs)
     out["ours"], out["peer"] = out[f"ours_{last}"], out[f"peer_{last}"]
     products = functools.partial(_rate, bound_steps(args)[0]["bound"], sync)
     out["bound"] = max(_in_thread(products) for _ in range(3))

@@ -1,13 +1,17 @@
-"""`curious bench learner`: the FLOP accounting of the bound, and the result's shape."""
+"""`curious bench`: the learner bound's FLOP accounting, each benchmark's result, and the
+options every benchmark refuses."""
 
 import argparse
+import importlib
 
 import pytest
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
+from benchmarks import AtLeast, CountList
 from benchmarks.learner_speed import add_arguments, measure, update_gemms
 from curious.agent.learner import Learner
+from curious.commands.bench import BENCHMARKS
 from curious.config import resolve
 
 
@@ -139,19 +143,48 @@ def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
     assert 0 < result["rewards_met"] < 1  # some relabelled goals met, some not
 
 
-@pytest.mark.parametrize(
-    "flags",
-    [["--runs", "0"], ["--cycles", "1"], ["--repeats", "0"]],
-    ids=["runs", "cycles", "repeats"],
-)
-def test_the_population_benchmark_refuses_what_it_cannot_measure(flags):
-    """Zero runs used to fall back on one run per core; one cycle leaves no rate to read."""
-    from benchmarks import population_speed
+def _benchmark_parser(name: str) -> argparse.ArgumentParser:
+    """`curious bench NAME`'s own options, as the command line builds them."""
+    parser = argparse.ArgumentParser(prog=f"curious bench {name}", exit_on_error=False)
+    importlib.import_module(BENCHMARKS[name][0]).add_arguments(parser)
+    return parser
 
-    parser = argparse.ArgumentParser()
-    population_speed.add_arguments(parser)
-    with pytest.raises(ValueError, match="--cycles at least 2"):
-        population_speed.measure(parser.parse_args(flags))
+
+def _count_options() -> list[tuple[str, str, int]]:
+    """(benchmark, option, minimum) for every count option of every benchmark."""
+    found = []
+    for name in BENCHMARKS:
+        for action in _benchmark_parser(name)._actions:
+            if isinstance(action.type, (AtLeast, CountList)):
+                found.append((name, action.option_strings[0], action.type.minimum))
+    return found
+
+
+@pytest.mark.parametrize("name", sorted(BENCHMARKS))
+def test_every_whole_number_option_of_a_benchmark_has_a_floor(name):
+    """A count given as a bare `int` took 0 or -3 into the benchmark, which then failed deep
+    inside (a ZeroDivisionError, numpy's "negative dimensions")."""
+    bare = [a.option_strings[0] for a in _benchmark_parser(name)._actions if a.type is int]
+    assert bare == []
+
+
+@pytest.mark.parametrize(("name", "option", "minimum"), _count_options())
+def test_a_count_below_its_floor_is_refused_naming_the_option(name, option, minimum):
+    parser = _benchmark_parser(name)
+    with pytest.raises(argparse.ArgumentError, match=f"must be at least {minimum}"):
+        parser.parse_args([option, str(minimum - 1)])
+    assert parser.parse_args([option, str(minimum)]) is not None
+
+
+def test_the_population_benchmark_needs_two_cycles_and_says_why(capsys):
+    """One cycle leaves no rate to read (the rate is read after each run's first cycle)."""
+    from curious.cli import main
+
+    with pytest.raises(SystemExit) as refused:  # argparse's own refusal: status 2
+        main(["bench", "population", "--cycles", "1"])
+    assert refused.value.code == 2
+    err = capsys.readouterr().err
+    assert "--cycles: must be at least 2 (the rate is read after each run's first cycle)" in err
 
 
 @pytest.mark.skipif(torch.cuda.is_available(), reason="the refusal is for a machine without one")
