@@ -245,8 +245,7 @@ def run(args: argparse.Namespace) -> int:
     """Open (or serve) the recordings; exit status 2 when a run has no recording."""
     for port, flag in ((args.web_port, "--web-port"), (args.grpc_port, "--grpc-port")):
         if not 1 <= port <= MAX_PORT:
-            print(f"curious view: {flag} must be from 1 to {MAX_PORT}, got {port}", file=sys.stderr)
-            return 2
+            return refuse("view", ValueError(f"{flag} must be from 1 to {MAX_PORT}, got {port}"))
     try:
         paths = recording_paths(args.runs)
     except FileNotFoundError as exc:
@@ -255,8 +254,7 @@ def run(args: argparse.Namespace) -> int:
     if args.web:
         busy = busy_ports_error(args.web_port, args.grpc_port)
         if busy:
-            print(f"curious view: {busy}", file=sys.stderr)
-            return 2
+            return refuse("view", OSError(busy))
         command = [
             *viewer_command(),
             "--serve-web",
