@@ -333,7 +333,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     if args.threads:
         torch.set_num_threads(args.threads)
     if args.device == "cuda" and not torch.cuda.is_available():
-        raise SystemExit("curious bench learner: --device cuda, but torch sees no CUDA device")
+        raise ValueError("--device cuda, but torch sees no CUDA device")
     started = time.perf_counter()
     steps, sample_ms = our_steps(args)
     bound, flops = bound_steps(args)
