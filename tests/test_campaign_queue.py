@@ -144,6 +144,30 @@ def test_a_bad_seeds_option_is_refused(campaign, value, why, tmp_path, capsys):
     assert why in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "args, why",
+    [
+        (["--only", "mian/*"], "--only mian/* matches no run of budget laptop"),
+        (["--workers", "0"], "--workers must be at least 1, got 0"),
+        (["--shipped", "{tmp}/nowhere"], "no shipped data folder there (no shipped.json)"),
+        (["--set", "nope=1"], "unknown config key 'nope'"),
+        (["--budget", "huge"], "unknown budget 'huge'"),
+    ],
+)
+def test_a_bad_campaign_option_is_one_line_before_anything_is_written(
+    campaign, args, why, tmp_path, capsys
+):
+    """Each refusal is argparse's: one line naming the option, status 2, no traceback; a glob
+    that matches no run would otherwise queue nothing without a word."""
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as refused:
+        campaign.main(["--out", str(out), *(a.format(tmp=tmp_path) for a in args)])
+    assert refused.value.code == 2
+    err = capsys.readouterr().err
+    assert why in err and "Traceback" not in err
+    assert not out.exists()
+
+
 def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extra_seed, tmp_path):
     """`--seeds main=2` on the smoke budget, whose main has seeds 0 and 1 shipped: main's seed 2
     is trained, shipped beside the runs held, and recorded in reproduce.json, whose plan
@@ -174,7 +198,7 @@ def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extr
 
 
 def test_a_dry_run_leaves_out_what_the_data_folder_holds_finished_and_writes_nothing(
-    campaign, shipped, tmp_path
+    campaign, shipped, tmp_path, capsys
 ):
     out = tmp_path / "runs"
     stdout = io.StringIO()
@@ -187,8 +211,9 @@ def test_a_dry_run_leaves_out_what_the_data_folder_holds_finished_and_writes_not
 
     manifest = json.loads((shipped.data / "shipped.json").read_text())
     assert all(r["finished"] for r in manifest["runs"])  # the smoke ship holds every run finished
-    with pytest.raises(SystemExit, match="no shipped data folder"):
+    with pytest.raises(SystemExit):
         campaign.main(["--budget", "smoke", "--out", str(out), "--shipped", str(tmp_path)])
+    assert "no shipped data folder" in capsys.readouterr().err
 
 
 def test_a_finished_run_is_shipped_beside_the_runs_held_and_committed(

@@ -74,7 +74,7 @@ except ModuleNotFoundError:  # a campaign commit from before the sub-packages (9
     from curious.experiments import RunSpec, get_budget
     from curious.shipped import ShippedFolder
 from pipelines.executors import Job, LocalPool, run_all
-from pipelines.reproduce import _write_manifest, check_output_folder
+from pipelines.reproduce import ReproduceError, _write_manifest, check_output_folder
 from pipelines.resources import OutputLayout
 from pipelines.training import PartitionResult
 
@@ -146,7 +146,7 @@ def shipped_finished(data: Path | None) -> set[str]:
         return set()
     folder = ShippedFolder(data)
     if not folder.is_shipped:
-        raise SystemExit(f"--shipped {data}: no shipped data folder there (no shipped.json)")
+        raise ValueError(f"--shipped {data}: no shipped data folder there (no shipped.json)")
     return {run.run for run in folder.read_manifest().runs if run.finished}
 
 
@@ -159,7 +159,8 @@ def queue(
     """The runs to train without the shipped ones: pattern by pattern of `only`, and in the
     budget's order (experiment by experiment, seed by seed) within a pattern; then the runs of
     the seeds `seeds` (experiment -> seeds) adds beyond the budget's, in the same way. A run that
-    several patterns match is queued at the first."""
+    several patterns match is queued at the first. A `ValueError` for a pattern that matches no
+    run of the budget or of the seeds added (a typo would otherwise queue nothing, silently)."""
     experiments = get_budget(budget).experiments
     added = beyond(budget, seeds or {})
     phases = [
@@ -170,6 +171,12 @@ def queue(
             for spec in dataclasses.replace(experiments[name], seeds=extra).runs()
         ],
     ]
+    every = [str(spec.relative_path) for specs in phases for spec in specs]
+    if unmatched := [p for p in only if not fnmatch.filter(every, p)]:
+        raise ValueError(
+            f"--only {' '.join(unmatched)} matches no run of budget {budget} (its runs look "
+            f"like {every[0]}, {every[-1]})"
+        )
     queued: dict[str, RunSpec] = {}
     for specs in phases:
         for pattern in only:
@@ -268,19 +275,21 @@ def main(argv: list[str] | None = None) -> int:
     if args.ship and args.shipped is None:
         parser.error("--ship needs --shipped: the data folder to ship into")
 
-    budget = get_budget(args.budget)
-    layout = OutputLayout.at(args.out)
-    check_output_folder(layout, budget)
-    overrides = parse_overrides(args.set)
-    try:
+    if args.workers < 1:
+        parser.error(f"--workers must be at least 1, got {args.workers}")
+    try:  # every refusal before anything is written, in one line
+        budget = get_budget(args.budget)
+        layout = OutputLayout.at(args.out)
+        check_output_folder(layout, budget)
+        overrides = parse_overrides(args.set)
         seeds = parse_seed_options(args.seeds) if args.seeds else DEFAULT_SEEDS.get(budget.name, {})
         added = beyond(budget.name, seeds)
-    except ValueError as exc:
+        shipped = shipped_finished(args.shipped)
+        specs = queue(budget.name, tuple(args.only or DEFAULT_ONLY), shipped, seeds)
+        for spec in specs:
+            spec.config(overrides)  # a bad setting or seed
+    except (ValueError, ReproduceError) as exc:
         parser.error(str(exc))
-    shipped = shipped_finished(args.shipped)
-    specs = queue(budget.name, tuple(args.only or DEFAULT_ONLY), shipped, seeds)
-    for spec in specs:
-        spec.config(overrides)  # a bad setting or seed fails before anything is written
 
     beyond_text = "; ".join(
         f"{name} seed{'s' * (len(extra) > 1)} {', '.join(map(str, extra))}"
