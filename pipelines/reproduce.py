@@ -102,16 +102,7 @@ def check_output_folder(
     out = layout.out
     if out.exists() and not out.is_dir():
         raise ReproduceError(f"--out {out} exists and is not a folder")
-    written = [("--out", out)] + ([] if from_data else [("--runs-dir", layout.runs_root)])
-    for option, path in written:  # from shipped data, the folder read stands for the runs
-        shipped = shipped_root(path)
-        if shipped is not None:
-            what = "is a shipped data folder"
-            if shipped != path.resolve():
-                what = f"lies in the shipped data folder {shipped}"
-            raise ReproduceError(
-                f"{option} {path} {what} (finished runs' tables only): choose another {option}"
-            )
+    _refuse_shipped("--out", out)
     if layout.manifest.is_file():
         try:
             made_by = layout.budget_name()
@@ -131,6 +122,8 @@ def check_output_folder(
             raise ReproduceError(
                 f"{out} holds a reproduction made {made}, not {asked}: choose another --out"
             )
+        if from_data is None:
+            _refuse_shipped("--runs-dir", layout.runs_root)
         recorded = layout.recorded_runs_dir()
         runs_root = out / "runs" if recorded is None else Path(recorded).resolve()
         if from_data is None and runs_root != layout.runs_root:
@@ -144,6 +137,21 @@ def check_output_folder(
         raise ReproduceError(
             f"{out} is not empty and was not made by `curious reproduce` (no "
             f"{layout.manifest.name}): choose another --out"
+        )
+    if from_data is None:  # from shipped data, the folder read stands for the runs
+        _refuse_shipped("--runs-dir", layout.runs_root)
+
+
+def _refuse_shipped(option: str, path: Path) -> None:
+    """A `ReproduceError` where `path`, which a reproduction writes in, is or lies in a shipped
+    data folder: that holds finished runs' tables only, which a new ship replaces."""
+    shipped = shipped_root(path)
+    if shipped is not None:
+        what = "is a shipped data folder"
+        if shipped != path.resolve():
+            what = f"lies in the shipped data folder {shipped}"
+        raise ReproduceError(
+            f"{option} {path} {what} (finished runs' tables only): choose another {option}"
         )
 
 
