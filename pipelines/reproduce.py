@@ -122,8 +122,6 @@ def check_output_folder(
             raise ReproduceError(
                 f"{out} holds a reproduction made {made}, not {asked}: choose another --out"
             )
-        if from_data is None:
-            _refuse_shipped("--runs-dir", layout.runs_root)
         recorded = layout.recorded_runs_dir()
         runs_root = out / "runs" if recorded is None else Path(recorded).resolve()
         if from_data is None and runs_root != layout.runs_root:
@@ -132,8 +130,7 @@ def check_output_folder(
                 f"{layout.runs_root}: pass --runs-dir {runs_root}, or leave --runs-dir out, to "
                 "go on with them, or choose another --out"
             )
-        return
-    if out.is_dir() and any(out.iterdir()):
+    elif out.is_dir() and any(out.iterdir()):
         raise ReproduceError(
             f"{out} is not empty and was not made by `curious reproduce` (no "
             f"{layout.manifest.name}): choose another --out"
