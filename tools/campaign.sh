@@ -51,7 +51,9 @@ main() {
         *) echo "campaign.sh: unknown option $mode (--dry-run)" >&2; return 2 ;;
     esac
     python -c "import torch" 2>/dev/null || python -m pip install -q torch==2.13.0
-    python -c "import curious, dagster, pytest" 2>/dev/null || python -m pip install -q -e "$repo[test]"
+    # from /, so that the checkout itself on the path does not pass for an installed curious
+    (cd / && python -c "import curious, dagster, pytest" 2>/dev/null) ||
+        python -m pip install -q -e "$repo[test]"
 
     case "$mode" in
         --dry-run)
