@@ -119,6 +119,9 @@ BOTH = "37 runs queued (beyond the budget's: main seeds 3, 4; distractors seed 2
         (["--seeds", "main=3,4", "--seeds", "distractors=0-2"], BOTH),
         (["--seeds", "none"], "25 runs queued"),
         ([], BOTH),
+        # the line names the seeds beyond the budget's that the queue holds, not the whole plan
+        (["--only", "sensor_failure_mastered/*"], "6 runs queued"),
+        (["--only", "main/curious/*"], "5 runs queued (beyond the budget's: main seeds 3, 4)"),
     ],
 )
 def test_seeds_options_add_to_the_budgets_and_the_default_is_issue_51s(

@@ -291,13 +291,17 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, ReproduceError) as exc:
         parser.error(str(exc))
 
+    # the seeds beyond the budget's that this queue trains, not the whole plan (`--only` and
+    # the runs shipped leave some out)
+    queued = {(spec.experiment, spec.seed) for spec in specs}
     beyond_text = "; ".join(
-        f"{name} seed{'s' * (len(extra) > 1)} {', '.join(map(str, extra))}"
+        f"{name} seed{'s' * (len(shown) > 1)} {', '.join(map(str, shown))}"
         for name, extra in added.items()
+        if (shown := [seed for seed in extra if (name, seed) in queued])
     )
     print(
         f"curious from {Path(curious.__file__).parent}; {len(specs)} runs queued"
-        + (f" (beyond the budget's: {beyond_text})" if added else ""),
+        + (f" (beyond the budget's: {beyond_text})" if beyond_text else ""),
         flush=True,
     )
     for spec in specs:
