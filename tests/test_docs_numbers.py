@@ -219,7 +219,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     """Each run's row of the study on a mastered module as the report writes it (onset, level
     before, trough, the primary and secondary recoveries), and the README's recoveries by test
     success."""
-    from pipelines.report import _primary_cell, _secondary_cell
+    from pipelines.report.sensor_failure import primary_cell, secondary_cell
 
     paths = _whole_seeds("sensor_failure_mastered")
     runs = analysis.load_runs(paths)
@@ -235,7 +235,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
             f"| {labels[t.condition]} | {t.seed} | {int(t.onset):,} | "
             f"{t.level_before:.2f} ({t.n_before}) | {t.trough:.2f} at {int(t.trough_episode):,} |"
         )
-        recoveries = f"| {_primary_cell(t)} | {_secondary_cell(c)} |"
+        recoveries = f"| {primary_cell(t)} | {secondary_cell(c)} |"
         assert cells in results and recoveries in results, cells + recoveries
         if t.recovered:
             n = f"{int(t.recovery_episodes):,}"

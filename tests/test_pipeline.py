@@ -310,7 +310,8 @@ def test_runs_without_test_rollouts_get_no_fig2a_and_the_report_says_why(smoke, 
 
     from curious.analysis import AnalysisError
     from pipelines.assets import load_tests
-    from pipelines.report import NO_TESTS, write_report
+    from pipelines.report import write_report
+    from pipelines.report.blocks import NO_TESTS
     from pipelines.resources import OutputLayout, Reproduction
 
     out = tmp_path / "out"
@@ -332,7 +333,8 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
     from test_analysis_synthetic import FAILURE_MODULES, failure_curves, write_run
 
     from curious import analysis
-    from pipelines.report import _sensor_failure, _Tables
+    from pipelines.report.blocks import ExperimentTables
+    from pipelines.report.sensor_failure import sensor_failure
     from pipelines.resources import OutputLayout, Reproduction
 
     # A short laptop run's case: push_cube3 never reaches the 0.5 that would start the failure.
@@ -354,7 +356,7 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
     _, per_run = analysis.forgetting(table, out_dir=figures)
     per_run.drop(columns=["run"]).to_csv(figures / "forgetting.csv", index=False)
     text = "\n".join(
-        _sensor_failure(repro, laptop.experiments["sensor_failure"], _Tables(table, None))
+        sensor_failure(repro, laptop.experiments["sensor_failure"], ExperimentTables(table, None))
     )
     assert "The failure starts when the perturbed module's competence reaches 0.5." in text
     assert "It never started in any of the 2 runs." in text
@@ -396,7 +398,8 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
     from test_analysis_synthetic import write_perturbation_study
 
     from curious import analysis
-    from pipelines.report import _sensor_failure, _Tables
+    from pipelines.report.blocks import ExperimentTables
+    from pipelines.report.sensor_failure import sensor_failure
     from pipelines.resources import OutputLayout, Reproduction
 
     write_perturbation_study(tmp_path / "runs", perturbation=300, n_episodes=900, seeds=(0, 1))
@@ -405,7 +408,9 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
     repro = Reproduction(paper, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
     _, per_run = analysis.forgetting(table, out_dir=repro.layout.figures)
     per_run.drop(columns=["run"]).to_csv(repro.layout.figures / "forgetting.csv", index=False)
-    lines = _sensor_failure(repro, paper.experiments["sensor_failure"], _Tables(table, None))
+    lines = sensor_failure(
+        repro, paper.experiments["sensor_failure"], ExperimentTables(table, None)
+    )
     assert "The failure starts at episode 237,500. It started at episode 300 in every run." in (
         "\n".join(lines)
     )
@@ -425,7 +430,7 @@ def test_the_report_names_each_commit_its_experiments_were_trained_from(tmp_path
     from curious.config import resolve
     from curious.envs.goal_env import SuiteEnv
     from curious.runs.folder import RunFolder
-    from pipelines.report import _software
+    from pipelines.report.overview import software
 
     tables = {}
     for name, commit in (("main", "a" * 40), ("sensor_failure_mastered", "b" * 40)):
@@ -435,11 +440,11 @@ def test_the_report_names_each_commit_its_experiments_were_trained_from(tmp_path
         data["git"] = {"commit": commit, "dirty": False}
         run.config_path.write_text(json.dumps(data))
         tables[name] = pd.DataFrame({"run": [str(run.path)]})
-    both = _software(tables)[0]
+    both = software(tables)[0]
     assert both.startswith("Software, per experiment (the first run of each): main: ")
     assert "; git aaaaaaaaaa; sensor_failure_mastered: " in both
     assert both.endswith("; git bbbbbbbbbb.")
-    one = _software({"main": tables["main"]})[0]
+    one = software({"main": tables["main"]})[0]
     assert one.startswith("Software: python ") and one.endswith("; git aaaaaaaaaa.")
 
 
@@ -451,7 +456,7 @@ def test_spontaneous_drops_are_reported_per_run_with_their_response(tmp_path):
     from test_analysis_synthetic import write_run
 
     from curious import analysis
-    from pipelines.report import _forgetting
+    from pipelines.report.forgetting import spontaneous_forgetting
 
     curves = {"reach": _reach(), "push_cube1": _unmastered(), "cube1_above_cube2": _wiggle()}
     write_run(
@@ -462,7 +467,7 @@ def test_spontaneous_drops_are_reported_per_run_with_their_response(tmp_path):
     table = analysis.load_runs(tmp_path)
     for column in [c for c in table.columns if c.startswith("competence/")]:
         table.loc[table["condition"] == "her", column] = np.nan  # HER never self-evaluates
-    lines = _forgetting(get_budget("laptop").experiments["main"], table)
+    lines = spontaneous_forgetting(get_budget("laptop").experiments["main"], table)
     text = "\n".join(lines)
     assert lines[0] == "### Spontaneous forgetting"
     assert "for 25 consecutive self-evaluations (a window: 50)" in text

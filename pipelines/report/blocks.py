@@ -1,0 +1,119 @@
+"""The pieces every section of `report.md` is written with: numbers and tables as Markdown,
+figures, the order of rows, the Welch summary sentence, and an experiment's combined tables."""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from curious import analysis
+from curious.analysis.palette import condition_label
+from curious.reproduction.experiments import Experiment
+from pipelines.resources import Reproduction
+
+FIGURE_TEXT: dict[str, str] = {
+    "fig2a": "Average test success over the achievable modules per condition, in the episode "
+    "bins of the statistics below (paper Fig. 2a).",
+    "fig2b": "Competence of every module over one CURIOUS run (paper Fig. 2b).",
+    "fig2c": "Absolute learning progress of every module over the same run (paper Fig. 2c).",
+    "table1": "Competence and learning progress of every CURIOUS seed (paper Table 1).",
+    "distractors": "Self-evaluated competence (left) and test success (right) over the "
+    "achievable modules at the end of the runs against the number of distracting modules.",
+    "forgetting": "Competence and LP of the perturbed module around the sensory failure, one "
+    "line per run.",
+    "forgetting_mastered": "Test success, competence and LP of the perturbed module around the "
+    "sensory failure, one line per run.",
+}
+
+
+@dataclass
+class ExperimentTables:
+    """One experiment's combined tables: the metrics, and the test rollouts where the runs have
+    them, with the test success points drawn from those once."""
+
+    metrics: pd.DataFrame
+    tests: pd.DataFrame | None
+
+    @functools.cached_property
+    def points(self) -> pd.DataFrame | None:
+        """`analysis.epoch_success` of the test rollouts (None without them)."""
+        return None if self.tests is None else analysis.epoch_success(self.tests)
+
+
+def fmt(value: float, digits: int = 2) -> str:
+    return "–" if value is None or not math.isfinite(float(value)) else f"{value:.{digits}f}"
+
+
+def mean_std(values: Sequence[float]) -> str:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return "–"
+    if v.size == 1:
+        return f"{v[0]:.2f} (1 seed)"
+    return f"{v.mean():.2f} ± {v.std(ddof=1):.2f} ({v.size} seeds)"
+
+
+def markdown_table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> list[str]:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return [*lines, ""]
+
+
+def figure(repro: Reproduction, name: str) -> list[str]:
+    png = repro.layout.figures / f"{name}.png"
+    if not png.is_file():
+        return [f"*Figure `{name}` has not been drawn yet.*", ""]
+    rel = png.relative_to(repro.layout.out).as_posix()
+    svg = Path(rel).with_suffix(".svg").as_posix()
+    return [f"![{name}]({rel})", "", f"{FIGURE_TEXT[name]} ([SVG]({svg}))", ""]
+
+
+def fmt_episodes(value: object) -> str:
+    """An episode count, or – where there is none (NaN or NA)."""
+    return "–" if pd.isna(value) or not math.isfinite(float(value)) else f"{float(value):,.0f}"
+
+
+def fmt_p(value: float) -> str:
+    return "–" if not math.isfinite(value) else f"{value:.3g}"
+
+
+def in_order(frame: pd.DataFrame, e: Experiment) -> pd.DataFrame:
+    """Rows by the experiment's order of conditions, then seed."""
+    rank = {c: i for i, c in enumerate(e.conditions)}
+    key = frame["condition"].astype(str).map(rank).fillna(len(rank))
+    return (
+        frame.assign(_rank=key).sort_values(["_rank", "seed"], kind="stable").drop(columns="_rank")
+    )
+
+
+def welch_summary(
+    test: pd.DataFrame, better: str, worse: str, what: str, unit: str = ""
+) -> list[str]:
+    """One sentence on a table of `analysis.welch_per_bin` results."""
+    tested = int(test["p"].notna().sum())
+    text = (
+        f"One-tailed Welch's t-test per {what}, {condition_label(better)} > "
+        f"{condition_label(worse)}, alpha = {analysis.ALPHA:g}: significant in "
+        f"{int(test['significant'].sum())} of {len(test)}{unit}"
+    )
+    if tested == 0 and len(test):
+        few = int(min(test["n_better"].min(), test["n_worse"].min())) < 2
+        why = "fewer than two seeds a side" if few else "no variance across seeds"
+        text += f" (none could be tested: {why})"
+    elif tested < len(test):
+        text += f" ({len(test) - tested} could not be tested: fewer than two seeds or no variance)"
+    return [text + ".", ""]
+
+
+NO_TESTS = (
+    "These runs have no test rollouts (`tests.parquet`: trained before test rollouts were "
+    "logged, or with `test_rollouts_per_worker=0`), so Fig. 2a and its statistics, which the "
+    "paper measured on test rollouts, are not reported; retrain the runs."
+)

@@ -1,0 +1,121 @@
+"""`report.md` as a whole: the opening, then one section per experiment the tables hold."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from curious.reproduction.experiments import Experiment
+from pipelines.report.blocks import ExperimentTables
+from pipelines.report.distractors import distractors
+from pipelines.report.main_comparison import main
+from pipelines.report.overview import budgets, built_from, compute, runs_table, software
+from pipelines.report.sensor_failure import sensor_failure, sensor_failure_mastered
+from pipelines.resources import Reproduction
+
+SECTIONS = {
+    "main": main,
+    "distractors": distractors,
+    "sensor_failure": sensor_failure,
+    "sensor_failure_mastered": sensor_failure_mastered,
+}
+
+
+def _shown_anyway(repro: Reproduction, e: Experiment) -> str:
+    """The runs of left-out variants the figure and the table still show, in a sentence."""
+    extra = repro.left_out_runs(e)
+    if not extra:
+        return ""
+    names = ", ".join("/".join(p.parts[-3:]) for p in extra)
+    return (
+        f" The finished runs shipped of those ({names}) are drawn in the figure and listed in "
+        "the table below, without a test."
+    )
+
+
+def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
+    """Write report.md for every experiment whose metrics table exists; returns (path, names)."""
+    layout, budget = repro.layout, repro.budget
+    tables = {
+        name: pd.read_parquet(layout.metrics(name))
+        for name in budget.experiments
+        if layout.metrics(name).is_file()
+    }
+    by_experiment = {
+        name: ExperimentTables(
+            table,
+            pd.read_parquet(layout.tests(name)) if layout.tests(name).is_file() else None,
+        )
+        for name, table in tables.items()
+    }
+    included = [budget.experiments[name] for name in tables]
+    lines = [
+        f"# CURIOUS reproduction — budget `{budget.name}`",
+        "",
+        *built_from(budget, tables),
+        budget.notes,
+        "",
+    ]
+    if budget.omitted:
+        lines += [" ".join(budget.why_absent(name) for name in budget.omitted), ""]
+    if not included:
+        lines += ["No experiment has finished yet.", ""]
+    else:
+        lines += software(tables)
+        lines += ["## Budgets", ""]
+        lines += budgets(repro, included)
+        lines += compute(tables)
+        lines += [
+            "Fig. 2a and the main comparison's numbers are the success of the test rollouts "
+            "(noise-free, after every epoch, modules drawn uniformly), pooled over those on the "
+            "achievable modules, as in the paper; the other figures and numbers read the "
+            "competence (the moving success rate of the agent's self-evaluations). x axes count "
+            "training episodes (self-evaluations included, test rollouts not).",
+            "",
+        ]
+    for e in included:
+        lines += [f"## {e.title}", ""]
+        if e.left_out_variants:
+            lines += [
+                f"Variants left out: {', '.join(e.left_out_variants)}, whose runs the data this "
+                f"report was built from does not hold finished; read from "
+                f"{', '.join(e.variants)} alone.{_shown_anyway(repro, e)}",
+                "",
+            ]
+        if e.left_out_seeds:
+            kept = ", ".join(map(str, e.seeds))
+            lines += [
+                f"Seeds left out: {', '.join(map(str, e.left_out_seeds))}, whose runs the data "
+                f"this report was built from does not hold all finished; read from "
+                f"{'seed' if len(e.seeds) == 1 else 'seeds'} {kept} alone.",
+                "",
+            ]
+        if e.extra_seeds:
+            extra, own = e.extra_seeds, sorted(e.budget_seeds + e.left_out_seeds)
+            lines += [
+                f"Seeds beyond the budget's: {', '.join(map(str, extra))} (the budget trains "
+                f"{', '.join(map(str, own))}), trained with the budget's settings in all but the "
+                f"seed; read with the others, {len(e.seeds)} seeds of every condition.",
+                "",
+            ]
+        lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
+        lines += ["### Runs", "", *runs_table(by_experiment[e.name])]
+    missing = [name for name in budget.experiments if name not in tables]
+    command = f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`"
+    if missing and included and repro.data is not None:
+        lines += [
+            f"Not in this report (not shipped yet): {', '.join(missing)}, whose runs the data "
+            f"this report was built from does not hold all finished; {command} trains them.",
+            "",
+        ]
+    elif missing and included:
+        lines += [
+            f"Not in this report (not reproduced yet): {', '.join(missing)}; run {command}.",
+            "",
+        ]
+    layout.out.mkdir(parents=True, exist_ok=True)
+    tmp = layout.report.with_name(f".{layout.report.name}.tmp")
+    tmp.write_text("\n".join(lines).rstrip() + "\n", encoding="utf-8")
+    tmp.replace(layout.report)
+    return layout.report, [e.name for e in included]
