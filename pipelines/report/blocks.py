@@ -47,10 +47,12 @@ class ExperimentTables:
 
 
 def fmt(value: float, digits: int = 2) -> str:
+    """A number to `digits` decimals, or – where there is none (None, NaN, inf)."""
     return "–" if value is None or not math.isfinite(float(value)) else f"{value:.{digits}f}"
 
 
 def mean_std(values: Sequence[float]) -> str:
+    """``"0.82 ± 0.04 (3 seeds)"`` over the finite values, one seed said as such, none as –."""
     v = np.asarray(values, dtype=np.float64)
     v = v[np.isfinite(v)]
     if v.size == 0:
@@ -61,12 +63,15 @@ def mean_std(values: Sequence[float]) -> str:
 
 
 def markdown_table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> list[str]:
+    """A Markdown table's lines, with the blank line that ends it."""
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
     return [*lines, ""]
 
 
 def figure(repro: Reproduction, name: str) -> list[str]:
+    """A figure's image linked relatively (the output folder moves whole) with its caption and
+    SVG, or a line saying it has not been drawn."""
     png = repro.layout.figures / f"{name}.png"
     if not png.is_file():
         return [f"*Figure `{name}` has not been drawn yet.*", ""]
@@ -81,6 +86,7 @@ def fmt_episodes(value: object) -> str:
 
 
 def fmt_p(value: float) -> str:
+    """A p-value to three significant digits, or – where untested (NaN)."""
     return "–" if not math.isfinite(value) else f"{value:.3g}"
 
 

@@ -158,6 +158,8 @@ def _learning_order(e: Experiment, table: pd.DataFrame) -> list[str]:
 
 
 def main(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
+    """The main comparison's section: Fig. 2a and its statistics from the test rollouts, Fig.
+    2b, 2c and Table 1, the order of learning, then spontaneous forgetting."""
     lines = [*figure(repro, "fig2a")]
     points = tables.points
     if tables.tests is None or points is None:  # both or neither

@@ -78,6 +78,8 @@ def _failure_runs(repro: Reproduction, e: Experiment) -> tuple[list[str], pd.Dat
 
 
 def sensor_failure(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
+    """The sensory failure on a module just learned: per run, the competence before, the drop,
+    LP and p_LP around the onset and the episodes to regain 90 % of it; then per condition."""
     lines, per_run = _failure_runs(repro, e)
     if per_run is None:
         return lines
