@@ -219,7 +219,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     """Each run's row of the study on a mastered module as the report writes it (onset, level
     before, trough, the primary and secondary recoveries), and the README's recoveries by test
     success."""
-    from pipelines.report.sensor_failure import primary_cell, secondary_cell
+    from pipelines.report.sensory_failures import primary_cell, secondary_cell
 
     paths = _whole_seeds("sensor_failure_mastered")
     runs = analysis.load_runs(paths)

@@ -334,7 +334,7 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
 
     from curious import analysis
     from pipelines.report.blocks import ExperimentTables
-    from pipelines.report.sensor_failure import sensor_failure
+    from pipelines.report.sensory_failures import sensor_failure
     from pipelines.resources import OutputLayout, Reproduction
 
     # A short laptop run's case: push_cube3 never reaches the 0.5 that would start the failure.
@@ -399,7 +399,7 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
 
     from curious import analysis
     from pipelines.report.blocks import ExperimentTables
-    from pipelines.report.sensor_failure import sensor_failure
+    from pipelines.report.sensory_failures import sensor_failure
     from pipelines.resources import OutputLayout, Reproduction
 
     write_perturbation_study(tmp_path / "runs", perturbation=300, n_episodes=900, seeds=(0, 1))
@@ -456,7 +456,7 @@ def test_spontaneous_drops_are_reported_per_run_with_their_response(tmp_path):
     from test_analysis_synthetic import write_run
 
     from curious import analysis
-    from pipelines.report.forgetting import spontaneous_forgetting
+    from pipelines.report.spontaneous_forgetting import spontaneous_forgetting
 
     curves = {"reach": _reach(), "push_cube1": _unmastered(), "cube1_above_cube2": _wiggle()}
     write_run(

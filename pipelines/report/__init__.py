@@ -15,8 +15,8 @@ same bytes. An experiment appears once its metrics table exists, and one the bud
 output folder can be moved or shared as a whole.
 
 `document` assembles it: the opening (`overview`), then one section per experiment
-(`main_comparison`, `distractors`, `sensor_failure`; `forgetting` for the experiments nothing
-perturbs), each written with the pieces of `blocks`.
+(`main_comparison`, `distracting_modules`, `sensory_failures`; `spontaneous_forgetting` for the
+experiments nothing perturbs), each written with the pieces of `blocks`.
 """
 
 from __future__ import annotations

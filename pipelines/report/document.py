@@ -8,10 +8,10 @@ import pandas as pd
 
 from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import ExperimentTables
-from pipelines.report.distractors import distractors
+from pipelines.report.distracting_modules import distractors
 from pipelines.report.main_comparison import main
 from pipelines.report.overview import budgets, built_from, compute, runs_table, software
-from pipelines.report.sensor_failure import sensor_failure, sensor_failure_mastered
+from pipelines.report.sensory_failures import sensor_failure, sensor_failure_mastered
 from pipelines.resources import Reproduction
 
 SECTIONS = {

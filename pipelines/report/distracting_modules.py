@@ -19,7 +19,7 @@ from pipelines.report.blocks import (
     mean_std,
     welch_summary,
 )
-from pipelines.report.forgetting import spontaneous_forgetting
+from pipelines.report.spontaneous_forgetting import spontaneous_forgetting
 from pipelines.resources import Reproduction
 
 
