@@ -25,6 +25,8 @@ def _seeds(e: Experiment) -> str:
 
 
 def budgets(repro: Reproduction, experiments: list[Experiment]) -> list[str]:
+    """The budgets table: per experiment its conditions, variants, seeds, episodes per run,
+    when its sensory failure starts, its training preset and its number of runs."""
     rows = []
     for e in experiments:
         config = e.runs()[0].config(repro.overrides)

@@ -178,6 +178,7 @@ def secondary_cell(r: object) -> str:
 
 
 def _share(before: float, after: float) -> str:
+    """``"25% → 56%"``: the share of episodes that practised the module, before and after."""
     if not (math.isfinite(before) and math.isfinite(after)):
         return "–"
     return f"{before:.0%} → {after:.0%}"
