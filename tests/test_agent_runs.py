@@ -673,7 +673,10 @@ def test_a_damaged_recording_does_not_stop_a_resume(tmp_path):
     )
     (tmp_path / "r" / "recording.rrd").write_bytes(b"RRF2 cut")
     longer = resolve("smoke", "curious", 0, {**SMALL, "total_episodes": 24})
-    with pytest.warns(RuntimeWarning, match="could not be read"):
+    with (
+        pytest.warns(RuntimeWarning, match="could not be read"),
+        pytest.warns(RuntimeWarning, match="had no readable recording to resume"),
+    ):
         train(
             longer,
             tmp_path / "r",
