@@ -8,7 +8,9 @@ MuJoCo (`gl_for_command`), and `curious render` first checks that the backend lo
 (`rendering_problem`), refusing in one line with the fix when it does not. With `MUJOCO_GL`
 unset on a machine without a display (a server, a container, CI), dm_control would try GLFW,
 warn that DISPLAY is missing and fail to make a context; `curious render` then takes the
-headless backend whose library is installed, EGL before OSMesa (`headless_default`).
+headless backend whose library is installed, EGL before OSMesa (`headless_default`). An empty
+`MUJOCO_GL` (`export MUJOCO_GL=`) is unset here as it is for MuJoCo and dm_control, which both
+take their default, GLFW, for it.
 
 Nothing here imports MuJoCo at module level: this runs before the argument parser is built.
 """
@@ -39,10 +41,10 @@ def gl_for_command(argv: list[str]) -> None:
     """Switch GL off (`MUJOCO_GL=disable`) for every command line that does not render, whatever
     the variable said: stepping the physics needs no GL, and a value MuJoCo cannot load would
     otherwise fail the import of MuJoCo, and so the command. A command line that renders gets
-    `headless_default` where `MUJOCO_GL` is unset."""
+    `headless_default` where `MUJOCO_GL` is unset or empty."""
     if not renders(argv):
         os.environ["MUJOCO_GL"] = "disable"
-    elif "MUJOCO_GL" not in os.environ:
+    elif _chosen() is None:
         backend = headless_default()
         if backend is not None:
             os.environ["MUJOCO_GL"] = backend
@@ -72,7 +74,7 @@ def headless_default() -> str | None:
 def rendering_problem() -> str | None:
     """Why MuJoCo cannot render with this `MUJOCO_GL`, in one line with the fix; None when its
     backend loads (a context that fails later is reported where it is made)."""
-    value = os.environ.get("MUJOCO_GL")
+    value = _chosen()
     shown = f"MUJOCO_GL={value}" if value is not None else "MUJOCO_GL (unset)"
     if value is not None and value.strip().lower() in OFF:
         return f"{shown} switches rendering off; {GL_FIX}"
@@ -87,6 +89,12 @@ def rendering_problem() -> str | None:
         hint = f", is {library} installed?" if library else ""
         return f"{shown} cannot be used here ({type(exc).__name__}: {cause}{hint}); {GL_FIX}"
     return None
+
+
+def _chosen() -> str | None:
+    """The backend `MUJOCO_GL` names; None where it is unset or empty."""
+    value = os.environ.get("MUJOCO_GL")
+    return value if value is not None and value.strip() else None
 
 
 def _has_display() -> bool:

@@ -65,10 +65,14 @@ def test_a_mujoco_gl_that_cannot_load_breaks_no_command_but_render(tmp_path):
     assert "export MUJOCO_GL=egl" in line and not frames.exists()
 
 
-def test_render_without_mujoco_gl_or_a_display_takes_a_headless_backend(tmp_path, monkeypatch):
-    """A server or a container: no DISPLAY, MUJOCO_GL unset. dm_control alone would try GLFW
-    and fail; render takes EGL (or OSMesa) where its library is installed, and otherwise says in
-    one line what to install."""
+@pytest.mark.parametrize("mujoco_gl", [None, ""], ids=["unset", "empty"])
+def test_render_without_mujoco_gl_or_a_display_takes_a_headless_backend(
+    tmp_path, monkeypatch, mujoco_gl
+):
+    """A server or a container: no DISPLAY, MUJOCO_GL unset or empty (`export MUJOCO_GL=`, which
+    MuJoCo and dm_control read as unset). dm_control alone would try GLFW and fail; render takes
+    EGL (or OSMesa) where its library is installed, and otherwise says in one line what to
+    install."""
     from curious.gl import headless_default
 
     for name in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY"):
@@ -76,7 +80,7 @@ def test_render_without_mujoco_gl_or_a_display_takes_a_headless_backend(tmp_path
     backend = headless_default()
     frames = tmp_path / "clip.gif"
     args = ["render", "--policy", "still", "--steps", "2", "--out", str(frames), "--no-progress"]
-    done = cli(args, None)
+    done = cli(args, mujoco_gl)
     assert "GLFW" not in done.stderr and "DISPLAY" not in done.stderr, done.stderr[-2000:]
     if backend is None:  # neither library here
         line = one_line(done.stderr)
