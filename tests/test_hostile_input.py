@@ -22,6 +22,7 @@ from curious.config import MAX_SEED, ConfigError, resolve
 from curious.reproduction.experiments import ExperimentError
 
 ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "data" / "laptop"
 
 
 def cli(
@@ -199,6 +200,14 @@ def test_an_empty_out_is_refused_instead_of_meaning_here(tmp_path, capsys, monke
     assert main(["render", "--out", ""]) == 2
     assert "--out is empty" in one_line(capsys.readouterr().err)
     assert sorted(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("source", [[], ["--from-data", str(DATA)]], ids=["train", "from-data"])
+def test_an_empty_budget_is_refused_instead_of_meaning_the_default(source, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["reproduce", "--budget", "", *source, "--out", str(out)]) == 2
+    assert "unknown budget ''; choose one of smoke, quick" in one_line(capsys.readouterr().err)
+    assert not out.exists()
 
 
 def test_refused_commands_leave_no_lock_file_and_no_folder(tmp_path, capsys):

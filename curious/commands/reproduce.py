@@ -213,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
             return 2
     if args.from_data is not None:
         return _from_data(args)
-    args.budget = args.budget or DEFAULT_BUDGET
+    args.budget = DEFAULT_BUDGET if args.budget is None else args.budget  # '' is unknown
     for option, value in (("--workers", args.workers), ("--population", args.population)):
         if value is not None and value < 1:
             print(f"curious reproduce: error: {option} must be >= 1, got {value}", file=sys.stderr)
@@ -421,7 +421,7 @@ def _from_data(args: argparse.Namespace) -> int:
         if budget is None and folder.is_shipped:
             budget = folder.read_manifest().budget
         result = reproduce(
-            budget or DEFAULT_BUDGET,
+            DEFAULT_BUDGET if budget is None else budget,
             experiments=_experiments(args.experiments),
             out=args.out,
             progress=not args.no_progress,
