@@ -202,12 +202,32 @@ def test_an_empty_out_is_refused_instead_of_meaning_here(tmp_path, capsys, monke
     assert sorted(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("source", [[], ["--from-data", str(DATA)]], ids=["train", "from-data"])
-def test_an_empty_budget_is_refused_instead_of_meaning_the_default(source, tmp_path, capsys):
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["reproduce", "--budget", ""], "unknown budget ''; choose one of smoke, quick"),
+        (["reproduce", "--budget", "", "--from-data", str(DATA)], "unknown budget ''; choose"),
+        (["train", "--preset", ""], "unknown preset ''; choose one of smoke, quick"),
+        (["train", "--condition", ""], "unknown condition ''; choose one of curious"),
+    ],
+    ids=["reproduce", "reproduce-from-data", "train-preset", "train-condition"],
+)
+def test_an_empty_name_is_refused_instead_of_meaning_the_default(args, message, tmp_path, capsys):
+    """`--budget ''` (an unset shell variable in a script) is a name no budget has, not the
+    default budget trained in its place."""
     out = tmp_path / "out"
-    assert main(["reproduce", "--budget", "", *source, "--out", str(out)]) == 2
-    assert "unknown budget ''; choose one of smoke, quick" in one_line(capsys.readouterr().err)
+    assert main([*args, "--out", str(out)]) == 2
+    assert message in one_line(capsys.readouterr().err)
     assert not out.exists()
+
+
+def test_evaluate_refuses_an_empty_variant_instead_of_taking_the_runs(tmp_path, capsys):
+    run = tmp_path / "run"
+    train = ["train", "--preset", "smoke", "--set", "total_episodes=8", "--no-record"]
+    assert main([*train, "--no-progress", "--out", str(run)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(run), "--variant", "", "--episodes", "2", "--no-progress"]) == 2
+    assert "unknown suite variant ''; variants: default" in one_line(capsys.readouterr().err)
 
 
 def test_refused_commands_leave_no_lock_file_and_no_folder(tmp_path, capsys):

@@ -277,7 +277,7 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
     from suite.render import check_gl_backend, render_episode
 
     check_gl_backend()
-    variant = args.variant or "default"
+    variant = "default" if args.variant is None else args.variant  # '' is no variant
     modules = args.module or ["push_cube1"]
     env = suite.load(variant, seed=args.seed)
     for name in modules:

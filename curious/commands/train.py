@@ -256,7 +256,9 @@ def _config(args: argparse.Namespace, seed: int | None, overrides: dict[str, Any
             raise ConfigError(str(exc)) from None
         given = {k: v for k, v in identity.items() if v is not None}
         return dataclasses.replace(stored, **{**given, **overrides})
-    return resolve(args.preset or "quick", args.condition or "curious", seed or 0, overrides)
+    preset = "quick" if args.preset is None else args.preset  # '' is no preset, not the default
+    condition = "curious" if args.condition is None else args.condition
+    return resolve(preset, condition, 0 if seed is None else seed, overrides)
 
 
 def _summary(trainer: Trainer, out: str | Path) -> str:

@@ -302,7 +302,7 @@ def open_run(
             + shipped_run_note(folder.path)
         )
     path, state, _ = latest
-    variant = variant or config.variant
+    variant = config.variant if variant is None else variant  # '' is no variant
     n = max(1, min(episodes, copies or config.n_workers))
     fns = suite_env_fns(variant, seed, n, stream=EVAL_STREAM)
     workers = min(n, config.processes if processes is None else processes)
