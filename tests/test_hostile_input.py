@@ -209,12 +209,13 @@ def test_an_empty_out_is_refused_instead_of_meaning_here(tmp_path, capsys, monke
         (["reproduce", "--budget", "", "--from-data", str(DATA)], "unknown budget ''; choose"),
         (["train", "--preset", ""], "unknown preset ''; choose one of smoke, quick"),
         (["train", "--condition", ""], "unknown condition ''; choose one of curious"),
+        (["reproduce", "--ray-address", ""], "--ray-address is empty: name a cluster"),
     ],
-    ids=["reproduce", "reproduce-from-data", "train-preset", "train-condition"],
+    ids=["reproduce", "reproduce-from-data", "train-preset", "train-condition", "ray-address"],
 )
 def test_an_empty_name_is_refused_instead_of_meaning_the_default(args, message, tmp_path, capsys):
-    """`--budget ''` (an unset shell variable in a script) is a name no budget has, not the
-    default budget trained in its place."""
+    """An empty name (`--budget "$BUDGET"` with the variable unset) names nothing: refused, not
+    taken for the default, which would train something nobody asked for."""
     out = tmp_path / "out"
     assert main([*args, "--out", str(out)]) == 2
     assert message in one_line(capsys.readouterr().err)

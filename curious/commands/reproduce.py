@@ -206,10 +206,15 @@ def run(args: argparse.Namespace) -> int:
     from curious.reproduction.experiments import ExperimentError
     from curious.runs.folder_errors import RunFolderError
 
-    options = (("--out", args.out), ("--runs-dir", args.runs_dir), ("--from-data", args.from_data))
-    for option, value in options:
+    options = (
+        ("--out", args.out, "a folder"),
+        ("--runs-dir", args.runs_dir, "a folder"),
+        ("--from-data", args.from_data, "a folder"),
+        ("--ray-address", args.ray_address, "a cluster, HOST:PORT or auto"),
+    )
+    for option, value, what in options:
         if value is not None and not value.strip():
-            print(f"curious reproduce: error: {option} is empty: name a folder", file=sys.stderr)
+            print(f"curious reproduce: error: {option} is empty: name {what}", file=sys.stderr)
             return 2
     if args.from_data is not None:
         return _from_data(args)
