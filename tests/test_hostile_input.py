@@ -459,3 +459,15 @@ def test_a_read_only_file_to_update_is_refused_before_the_tables(tmp_path, capsy
     finally:
         if os.geteuid() == 0:
             subprocess.run(["chattr", "-i", str(doc)], check=True)
+
+
+@pytest.mark.parametrize(
+    ("target", "message"),
+    [("", "--update is empty: name the Markdown file"), ("{tmp}", "is a folder: name the")],
+    ids=["empty", "folder"],
+)
+def test_an_update_that_names_no_file_is_refused_saying_so(target, message, tmp_path, capsys):
+    """`--update ''` is not the current folder, and a folder is not a file to create."""
+    target = target.format(tmp=tmp_path)
+    assert main(["progress", str(tmp_path / "nothing"), "--update", target]) == 2
+    assert message in one_line(capsys.readouterr().err)

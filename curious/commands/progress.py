@@ -95,7 +95,11 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--epochs must be at least 1, got {args.epochs}")
     if args.at_once < 1:
         raise ValueError(f"--at-once must be at least 1, got {args.at_once}")
+    if args.update is not None and not args.update.strip():
+        raise ValueError("--update is empty: name the Markdown file whose block to replace")
     path = Path(args.update) if args.update is not None else None
+    if path is not None and path.is_dir():
+        raise ValueError(f"--update {path} is a folder: name the Markdown file in it")
     if path is not None and not path.is_file():
         raise FileNotFoundError(f"{path} does not exist; create it with the two marker lines")
     if path is not None and not os.access(path, os.W_OK):  # a read-only file or file system
