@@ -471,3 +471,29 @@ def test_an_update_that_names_no_file_is_refused_saying_so(target, message, tmp_
     target = target.format(tmp=tmp_path)
     assert main(["progress", str(tmp_path / "nothing"), "--update", target]) == 2
     assert message in one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize(
+    ("args", "argument"),
+    [
+        (["progress", ""], "ROOT"),
+        (["evaluate", ""], "RUN"),
+        (["ship", ""], "ROOT"),
+        (["view", ""], "RUN_DIR"),
+        (["render", "--run", ""], "--run"),
+    ],
+    ids=["progress", "evaluate", "ship", "view", "render"],
+)
+def test_an_empty_folder_argument_is_refused_instead_of_meaning_here(
+    args, argument, tmp_path, capsys, monkeypatch
+):
+    """A folder named by an unset shell variable is refused by the parser, not read as the
+    current folder (whose runs the command would then report, ship or open)."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    with pytest.raises(SystemExit) as exit_:
+        main(args)
+    assert exit_.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last == f"curious {args[0]}: error: argument {argument}: is empty: name a folder"
+    assert sorted(tmp_path.iterdir()) == []

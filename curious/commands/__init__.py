@@ -1,5 +1,6 @@
 """Sub-commands of the `curious` command line, one module each, and what they share: the help
-formatter and the `--set` option. `curious.cli` loads them; they import nothing from it."""
+formatter, the `--set` option and the check of a folder argument. `curious.cli` loads them; they
+import nothing from it."""
 
 from __future__ import annotations
 
@@ -18,6 +19,14 @@ def refuse(command: str, exc: BaseException, status: int = 2, message: str | Non
         raise exc
     print(f"curious {command}: error: {message or exc}", file=sys.stderr)
     return status
+
+
+def folder_name(text: str) -> str:
+    """An argparse `type` for a folder argument: an empty one (an unset shell variable) names
+    nothing, and is refused rather than read as the current folder."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty: name a folder")
+    return text
 
 
 def add_set_option(parser: argparse.ArgumentParser, help_text: str) -> None:

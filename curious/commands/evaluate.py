@@ -37,7 +37,7 @@ RECORD_EPISODES = 2
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious evaluate`."""
-    from curious.commands import HelpFormatter
+    from curious.commands import HelpFormatter, folder_name
     from curious.config import MAX_SEED
     from curious.watching.evaluation import MAX_EPISODES
 
@@ -47,7 +47,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=HelpFormatter,
     )
-    parser.add_argument("run", metavar="RUN", help="run folder (as `curious train --out`)")
+    parser.add_argument(
+        "run", metavar="RUN", type=folder_name, help="run folder (as `curious train --out`)"
+    )
     parser.add_argument(
         "--episodes",
         type=int,

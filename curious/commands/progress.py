@@ -20,6 +20,8 @@ import os
 import sys
 from pathlib import Path
 
+from curious.commands import folder_name
+
 BEGIN = "<!-- progress:begin -->"
 END = "<!-- progress:end -->"
 
@@ -56,7 +58,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "stderr; the command fails only when no folder could be read.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("roots", nargs="+", metavar="ROOT", help="run folder, or a folder of them")
+    parser.add_argument(
+        "roots", nargs="+", metavar="ROOT", type=folder_name, help="run folder, or a folder of them"
+    )
     parser.add_argument(
         "--epochs",
         type=int,

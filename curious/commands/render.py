@@ -30,7 +30,7 @@ import argparse
 import math
 from typing import Any
 
-from curious.commands import HelpFormatter
+from curious.commands import HelpFormatter, folder_name
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -50,6 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--run",
         metavar="RUN",
+        type=folder_name,
         help="run folder whose trained agent plays (its newest checkpoint); without it the arm "
         "acts as --policy says",
     )

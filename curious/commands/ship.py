@@ -22,6 +22,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from curious.commands import folder_name
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious ship`."""
@@ -31,7 +33,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("root", metavar="ROOT", help="reproduction output, or folder of runs")
+    parser.add_argument(
+        "root", metavar="ROOT", type=folder_name, help="reproduction output, or folder of runs"
+    )
     parser.add_argument(
         "--out",
         default=None,

@@ -23,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-from curious.commands import refuse
+from curious.commands import folder_name, refuse
 from curious.reproduction.shipped_folder import shipped_run_note
 from curious.runs.folder import RunFolder, folders_below, name_some
 from curious.watching.display import has_display
@@ -54,6 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "runs",
         nargs="+",
         metavar="RUN_DIR",
+        type=folder_name,
         help="run folder holding recording.rrd (or the path of an .rrd file)",
     )
     parser.add_argument(
