@@ -217,8 +217,9 @@ def _whole_seeds(experiment: str) -> list[Path]:
 
 def test_c5_on_a_mastered_module_by_its_fixed_rules():
     """Each run's row of the study on a mastered module as the report writes it (onset, level
-    before, trough, the primary and secondary recoveries), and the README's recoveries by test
-    success."""
+    before, trough, the primary and secondary recoveries), the README's recoveries by test
+    success, and the Welch test on them once it can be computed."""
+    from pipelines.report.blocks import fmt, fmt_p
     from pipelines.report.sensory_failures import primary_cell, secondary_cell
 
     paths = _whole_seeds("sensor_failure_mastered")
@@ -228,7 +229,8 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     competence = analysis.recovery(runs).set_index(["condition", "seed"])
     results, readme = RESULTS.read_text(), _text(README)
     labels = {"curious": "CURIOUS", "m-uvfa": "M-UVFA"}
-    for t in by_tests.itertuples():
+    recovered: dict[str, list[str]] = {"curious": [], "m-uvfa": []}
+    for t in by_tests.sort_values("seed").itertuples():
         assert t.status == "measured", t.note
         c = next(competence.loc[[(t.condition, t.seed)]].itertuples())
         cells = (
@@ -238,9 +240,16 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
         recoveries = f"| {primary_cell(t)} | {secondary_cell(c)} |"
         assert cells in results and recoveries in results, cells + recoveries
         if t.recovered:
-            n = f"{int(t.recovery_episodes):,}"
-            quoted = {"curious": f"{n} episodes (CURIOUS)", "m-uvfa": f"{n} (M-UVFA)"}
-            assert quoted[t.condition] in readme, quoted[t.condition]
+            recovered[t.condition].append(f"{int(t.recovery_episodes):,}")
+    for condition, ns in recovered.items():
+        listed = " and ".join([", ".join(ns[:-1]), ns[-1]] if len(ns) > 1 else ns)
+        quoted = f"{listed} episodes (CURIOUS)" if condition == "curious" else f"{listed} (M-UVFA)"
+        assert not ns or quoted in readme, quoted
+    test = analysis.compare_recoveries(by_tests, "curious", "m-uvfa")
+    if np.isfinite(test["p"]):
+        welch = f"t = {fmt(test['t'])}, p = {fmt_p(test['p'])}"
+        assert welch in _text(RESULTS), welch
+        assert f"p = {fmt_p(test['p'])}" in readme, welch
 
 
 def test_c1_area_under_success_per_seed_and_its_welch_test():
