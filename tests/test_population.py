@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+import torch
 from pipeline_pools import InterruptingPool, OrderPool
 from test_agent_runs import assert_same_state
 
@@ -122,6 +123,28 @@ def test_a_population_with_stacked_updates_is_each_run_alone(alone, tmp_path):
     train_population(configs, stacked, updates=UpdateLockstep(slow_stacking))
     assert max(stacks) > 1  # some calls stepped several runs' learners
     _assert_same_runs(alone, stacked)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+def test_on_cuda_a_population_is_each_run_alone_and_stacked_updates_finish_every_run(tmp_path):
+    """With the networks on a GPU: runs trained together, each learner stepping alone, write
+    what each writes alone on that GPU, bit for bit (the same kernels on the same shapes); with
+    their updates stacked (batched products, float rounding apart) every run trains to its end
+    and writes as many episodes and test rollouts as alone."""
+    cuda = dict(SMALL, device="cuda")
+    configs = [resolve("smoke", c, s, cuda) for c, s in MEMBERS]
+    alone = [tmp_path / "alone" / f"{c}-{s}" for c, s in MEMBERS]
+    for config, out in zip(configs, alone, strict=True):
+        train(config, out)
+    together = [tmp_path / "together" / f"{c}-{s}" for c, s in MEMBERS]
+    train_population(configs, together)
+    _assert_same_runs(alone, together)
+    stacked = [tmp_path / "stacked" / f"{c}-{s}" for c, s in MEMBERS]
+    trainers = train_population(configs, stacked, updates=UpdateLockstep())
+    assert [t.episodes for t in trainers] == [24, 24, 24]
+    for a, b in zip(alone, stacked, strict=True):
+        for name in ("metrics.parquet", "tests.parquet"):
+            assert len(_table(b / name)) == len(_table(a / name))
 
 
 def test_a_population_resumes_from_its_runs_checkpoints(tmp_path):

@@ -11,6 +11,7 @@ from curious.agent.update_backends import adam
 from curious.config import resolve
 
 torch.set_num_threads(1)
+CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 D, A = 10, 4
 UPDATES = 50
 """Updates compared in each test (the targets follow every 5th)."""
@@ -21,12 +22,12 @@ def config(**changes):
     return dataclasses.replace(resolve("smoke"), **{**base, **changes})
 
 
-def minibatch(seed, n=128):
+def minibatch(seed, n=128, device="cpu"):
     g = torch.Generator().manual_seed(seed)
     x = torch.randn(n, D, generator=g)
     action = torch.rand(n, A, generator=g) * 2 - 1
     reward = -(torch.rand(n, generator=g) < 0.7).float()
-    return x, action, reward, torch.randn(n, D, generator=g)
+    return tuple(t.to(device) for t in (x, action, reward, torch.randn(n, D, generator=g)))
 
 
 def stacked_update(learners, minibatches, batched_products=None):
@@ -46,18 +47,18 @@ def adam_state(learner):
         yield from (opt.state[param][k] for k in ("exp_avg", "exp_avg_sq", "step"))
 
 
-def train_both(algorithm, compare, batched_products=None):
+def train_both(algorithm, compare, batched_products=None, device="cpu"):
     """Three learners updated one by one and three copies updated as one stack, on the same
-    minibatches; `compare(want, got)` on every loss, then on every network, Adam moment and
-    step count. The third learner took one update more first (alone), so that TD3's delay
-    steps its actor at other updates than the others'."""
-    cfg = config(algorithm=algorithm)
+    minibatches, their networks on `device`; `compare(want, got)` on every loss, then on every
+    network, Adam moment and step count. The third learner took one update more first (alone),
+    so that TD3's delay steps its actor at other updates than the others'."""
+    cfg = config(algorithm=algorithm, device=device)
     alone = [Learner(D, A, cfg, seed=s) for s in range(3)]
     stacked = [Learner(D, A, cfg, seed=s) for s in range(3)]
     for learner in (alone[2], stacked[2]):
-        learner.update(*minibatch(99))
+        learner.update(*minibatch(99, device=device))
     for step in range(UPDATES):
-        minibatches = [minibatch(10 * step + r) for r in range(3)]
+        minibatches = [minibatch(10 * step + r, device=device) for r in range(3)]
         wants = [learner.update(*mb) for learner, mb in zip(alone, minibatches, strict=True)]
         gots = stacked_update(stacked, minibatches, batched_products)
         for want, got in zip(wants, gots, strict=True):
@@ -159,3 +160,16 @@ def test_workspace_learners_stack_with_the_reference_arithmetic():
     for one, other in zip(alone, stacked, strict=True):
         for p, q in zip(one.actor.parameters(), other.actor.parameters(), strict=True):
             torch.testing.assert_close(q, p, rtol=1e-4, atol=1e-4)
+
+
+@CUDA
+@pytest.mark.parametrize("algorithm", ["ddpg", "td3"])
+def test_on_cuda_the_stacked_steps_follow_the_learners_alone(algorithm):
+    """On a GPU, where a population's stacked updates run by default, one batched product per
+    layer for all runs follows each learner updated alone on the same device to float rounding,
+    held to the CPU's tolerance (`test_batched_products_follow_the_learners_alone`)."""
+
+    def close(want, got):
+        torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-4)
+
+    train_both(algorithm, close, device="cuda")

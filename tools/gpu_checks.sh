@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The checks a GPU node owes the project (docs/scaling.md). STEPS picks the steps; the default,
-# "population tests", is the population benchmark and the CUDA tests, whose time limits (420 s
-# and 120 s) fit one device call of 10 minutes. "bench one side" (the cycle benchmark and the
+# "population tests", is the population benchmark and the CUDA tests, whose time limits (400 s
+# and 140 s) fit one device call of 10 minutes with the wheels' install. "bench one side" (the cycle benchmark and the
 # runs) and "resume" are a second call's; "tests bench one side" took 309 s on a 16-core node with
 # an H100 (node D of docs/benchmarks.md, 2026-11-26, three contenders, two runs side by side):
 #
@@ -11,8 +11,8 @@
 #
 # 0. (STEPS with "population") `curious bench population`: POPULATION_RUNS (15) `paper` runs as
 #    one population against as many processes side by side, into OUT/population.json;
-# 1. (STEPS with "tests") the CUDA tests (tests/test_agent_learner.py and
-#    tests/test_agent_runs.py, -k cuda), into OUT/cuda-tests.txt;
+# 1. (STEPS with "tests") the CUDA tests (-k cuda of the learner's, the runs', the stacked
+#    update's and the population's tests), into OUT/cuda-tests.txt;
 # 2. (STEPS with "bench") `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
 # 3. (STEPS with "one") one short run with a worker process per core and prefetched minibatches
 #    (the autograd update), into OUT/one-run/;
@@ -59,7 +59,7 @@ torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version
 if wanted population; then
     step population of "${POPULATION_RUNS:-15}" runs against as many processes
     # each contender's rate reaches population.err as it ends, should the limit end the rest
-    timeout 420 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
+    timeout 400 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
         --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" --json \
         >"$out/population.json" 2>"$out/population.err"
     echo "exit $?"
@@ -68,7 +68,8 @@ fi
 
 if wanted tests; then
     step CUDA tests
-    timeout 120 python3 -m pytest -p no:cacheprovider -n 0 tests/test_agent_learner.py tests/test_agent_runs.py -k cuda -rs -q \
+    timeout 140 python3 -m pytest -p no:cacheprovider -n 0 tests/test_agent_learner.py \
+        tests/test_agent_runs.py tests/test_stacked_update.py tests/test_population.py -k cuda -rs -q \
         >"$out/cuda-tests.txt" 2>&1
     tail -1 "$out/cuda-tests.txt"
 fi
