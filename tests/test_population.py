@@ -28,8 +28,6 @@ from curious.runs.driver import train
 from curious.runs.folder_lock import folder_lock
 from curious.runs.population import PopulationError, train_population
 from curious.watching.recording import RecorderSettings
-from curious.watching.recording.reader import read_points
-from curious.watching.recording.rollout_capture import recorder_factory
 from pipelines.executors import Job, LocalPool, PartitionFailed, run_all
 from pipelines.reproduce import reproduce
 from pipelines.resources import OutputLayout, Reproduction
@@ -247,6 +245,9 @@ def test_a_population_records_each_run_as_alone(tmp_path):
     """Recorded in a population (their copies stepped in MuJoCo's threads, the 3-D rollouts
     read from the copies' own simulators), two runs of different variants write recordings
     that hold the same points as each run recorded alone."""
+    from curious.watching.recording.reader import read_points  # rerun: only where recorded
+    from curious.watching.recording.rollout_capture import recorder_factory
+
     configs = [
         resolve("smoke", "m-uvfa", 3, SMALL),
         resolve("smoke", "curious", 0, {**SMALL, "variant": "distractors_4"}),
@@ -364,6 +365,8 @@ def test_a_population_of_a_reproduction_goes_on_with_each_run_as_its_folder_says
     left as it is, the partial one resumes and the new one starts, each recorded as alone;
     every run ends as the same run trained alone, one run per process (the smoke
     reproduction's)."""
+    from curious.watching.recording.reader import read_points  # rerun: only where recorded
+
     finished, partial, new = get_budget("smoke").experiments["main"].runs()[:3]
     shutil.copytree(run_folder(finished, smoke.out / "runs"), run_folder(finished, tmp_path))
     run_partition(partial, tmp_path, stop_after_cycles=1)
