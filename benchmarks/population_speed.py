@@ -12,7 +12,9 @@ summed over the runs, so that imports and the first cycle's allocations count fo
 
 `bound` is the physics alone: one core stepping the suite's model for an episode's control
 steps, times the machine's cores (`benchmarks.cycle_speed.physics_episodes_per_second`).
-`--repeats` alternates the two contenders that many times and reports the median of each.
+`--repeats` alternates the contenders that many times and reports the median of each;
+`--contenders` leaves one of ours out (its keys are then null), where a device's minutes are
+few.
 """
 
 from __future__ import annotations
@@ -50,6 +52,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train"
     )
+    parser.add_argument(
+        "--contenders",
+        type=_contenders,
+        default=OURS,
+        help=f"which of ours run beside the peer, comma-separated (default {','.join(OURS)})",
+    )
+
+
+OURS = ("ours", "ours_stacked")
+"""The population's contenders: its learners stepping alone, and stacked (`--stack-updates`)."""
+
+
+def _contenders(text: str) -> tuple[str, ...]:
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = sorted(set(names) - set(OURS))
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(
+            f"{', '.join(unknown) or 'none named'}: the contenders are {', '.join(OURS)}"
+        )
+    return tuple(n for n in OURS if n in names)
 
 
 def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -> list[str]:
@@ -127,24 +149,33 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             seconds["peer"].append(_run(commands))
             rates["peer"].append(_steady_rate([peer / f"seed-{i}" for i in range(runs)]))
             _report("peer", rates, seconds)
-            for name, extra in (("ours", []), ("ours_stacked", ["--stack-updates"])):
+            for name in args.contenders:
+                extra = ["--stack-updates"] if name == "ours_stacked" else []
                 ours = Path(tmp) / f"{name}-{repeat}"
                 command = _train_command(args, ours, f"0-{runs - 1}", "--seeds") + extra
                 seconds[name].append(_run([command]))
                 rates[name].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
                 _report(name, rates, seconds)
     config = resolve(args.preset)
+
+    def median(values: list[float]) -> float | None:
+        return statistics.median(values) if values else None
+
     out: dict[str, Any] = {
-        "ours": statistics.median(rates["ours"]),
+        "ours": median(rates["ours"]),
         "bound": physics_episodes_per_second(config.variant) * cores,
         "peer": statistics.median(rates["peer"]),
         "unit": "episodes/s",
     }
-    out["ours_stacked"] = statistics.median(rates["ours_stacked"])
-    out["ours_over_peer"] = out["ours"] / out["peer"]
-    out["ours_stacked_over_ours"] = out["ours_stacked"] / out["ours"]
-    out["ours_command_s"] = statistics.median(seconds["ours"])
-    out["ours_stacked_command_s"] = statistics.median(seconds["ours_stacked"])
+    out["ours_stacked"] = median(rates["ours_stacked"])
+    out["ours_over_peer"] = out["ours"] / out["peer"] if rates["ours"] else None
+    out["ours_stacked_over_peer"] = (
+        out["ours_stacked"] / out["peer"] if rates["ours_stacked"] else None
+    )
+    both = rates["ours"] and rates["ours_stacked"]
+    out["ours_stacked_over_ours"] = out["ours_stacked"] / out["ours"] if both else None
+    out["ours_command_s"] = median(seconds["ours"])
+    out["ours_stacked_command_s"] = median(seconds["ours_stacked"])
     out["peer_command_s"] = statistics.median(seconds["peer"])
     out["cores"] = cores
     out["shape"] = (

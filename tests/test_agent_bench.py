@@ -187,6 +187,15 @@ def test_the_population_benchmark_needs_two_cycles_and_says_why(capsys):
     assert "--cycles: must be at least 2 (the rate is read after each run's first cycle)" in err
 
 
+def test_the_population_benchmark_names_its_contenders_when_one_is_unknown(capsys):
+    from curious.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", "population", "--contenders", "ours,fast"])
+    assert exit_.value.code == 2
+    assert "fast: the contenders are ours, ours_stacked" in capsys.readouterr().err
+
+
 @pytest.mark.skipif(torch.cuda.is_available(), reason="the refusal is for a machine without one")
 def test_the_population_benchmark_on_cuda_without_a_gpu_is_refused_before_training():
     from benchmarks import population_speed

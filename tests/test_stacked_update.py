@@ -1,6 +1,7 @@
 """Several learners' updates computed as one stacked step (`curious.agent.stacked_update`)."""
 
 import dataclasses
+import warnings
 
 import pytest
 import torch
@@ -173,3 +174,17 @@ def test_on_cuda_the_stacked_steps_follow_the_learners_alone(algorithm):
         torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-4)
 
     train_both(algorithm, close, device="cuda")
+
+
+def test_with_a_torch_before_the_layout_policy_the_steps_follow_and_are_quiet(monkeypatch):
+    """torch < 2.13 has no `torch.autograd.enforce_grad_layout_policy` (the GPU nodes' images
+    carry 2.11): the batched products' gradients, views of the stacks (not dense), still follow
+    each learner alone, without autograd's layout warning."""
+    monkeypatch.delattr(torch.autograd, "enforce_grad_layout_policy", raising=False)
+
+    def close(want, got):
+        torch.testing.assert_close(got, want, rtol=1e-5, atol=1e-4)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        train_both("td3", close, batched_products=True)

@@ -28,7 +28,8 @@
 # episodes/s. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two epochs of
 # `paper`), CONTENDERS (workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu),
 # SIDE_BY_SIDE (2; "2 4 8" adds four and eight runs, N runs each within 80 + 25 N s), STEPS
-# ("population tests"), POPULATION_RUNS (15), POPULATION_CYCLES (3), RESUME_SECONDS (170: each
+# ("population tests"), POPULATION_RUNS (15), POPULATION_CYCLES (3), POPULATION_CONTENDERS (ours,ours_stacked:
+# the population's contenders beside the processes), RESUME_SECONDS (170: each
 # leg of step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
@@ -60,7 +61,8 @@ if wanted population; then
     step population of "${POPULATION_RUNS:-15}" runs against as many processes
     # each contender's rate reaches population.err as it ends, should the limit end the rest
     timeout 400 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
-        --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" --json \
+        --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" \
+        --contenders "${POPULATION_CONTENDERS:-ours,ours_stacked}" --json \
         >"$out/population.json" 2>"$out/population.err"
     echo "exit $?"
     cat "$out/population.json"

@@ -32,7 +32,9 @@ copy per network per step, a few hundred kilobytes per run at the authors' sizes
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Sequence
+import contextlib
+import warnings
+from collections.abc import Callable, Hashable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
 import torch
@@ -234,11 +236,26 @@ def adam_steps(optimizers: Sequence[torch.optim.Adam], grads: Sequence[torch.Ten
         )
 
 
+@contextlib.contextmanager
+def _relaxed_grad_layout() -> Iterator[None]:
+    """Autograd's gradient layout contract relaxed (`torch.autograd.enforce_grad_layout_policy`,
+    torch >= 2.13); with an earlier torch, the same gradients with the contract's warning
+    silenced."""
+    relax = getattr(torch.autograd, "enforce_grad_layout_policy", None)
+    if relax is not None:
+        with relax(False):
+            yield
+        return
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*gradient layout contract")
+        yield
+
+
 def _backward(losses: torch.Tensor) -> None:
     """The gradients of the k losses' sum, accumulated in place into the stacks' gradient
     tensors. Their views are not dense (a run's row is P apart from the next), which autograd's
     layout contract would warn about: it is the layout the gradients are wanted in."""
-    with torch.autograd.enforce_grad_layout_policy(False):
+    with _relaxed_grad_layout():
         losses.sum().backward()
 
 
