@@ -112,14 +112,8 @@ class Pool(Protocol):
     """What `run_all` needs from an executor."""
 
     description: str
-    slots: int
-    """Runs it trains at once where each job holds one: its worker processes, or the runs the
-    Ray cluster's nodes hold."""
     largest_group: int | None
     """The most runs one job may hold (on Ray, the most one node holds); None: no limit."""
-    gpus_per_run: float
-    """GPUs it gives each run (> 0: the run trains its networks with device=cuda); 0 where the
-    runs' own settings say."""
 
     def submit(self, job: Job) -> Any: ...
 
@@ -140,11 +134,9 @@ class LocalPool:
     """`workers` worker processes on this machine (started on first use, then reused)."""
 
     largest_group = None
-    gpus_per_run = 0.0
 
     def __init__(self, workers: int | None = None) -> None:
         self.workers = max(1, int(workers or os.cpu_count() or 1))
-        self.slots = self.workers
         self._pool: cf.ProcessPoolExecutor | None = None
         self.description = f"{self.workers} local worker process{'es' if self.workers > 1 else ''}"
 
@@ -374,9 +366,8 @@ class RayPool:
         self.gpus_per_run = float(gpus_per_run)
         self.address, self._connected, nodes = connect_ray(address)
         held = [self._runs_held(n) for n in nodes]
-        self.slots = sum(held)
         self.largest_group = max(held, default=0)
-        if not self.slots:
+        if not self.largest_group:
             self.close()
             have = "; ".join(f"{n.get('CPU', 0):g} CPU, {n.get('GPU', 0):g} GPU" for n in nodes)
             raise RayUnavailable(

@@ -9,7 +9,7 @@ cluster), or the shipped data folder read in place of training (`curious reprodu
 It sends an experiment's runs to the pool in populations (`curious reproduce --population`,
 `Reproduction.population_size`): the runs still to train, in the budget's order, cut into groups
 that each train in one process, their physics stepped as one batch; a group of one is a run
-alone, the default on a CPU.
+alone, the default.
 
 Output folder layout (`OutputLayout`):
 
@@ -28,7 +28,6 @@ Output folder layout (`OutputLayout`):
 from __future__ import annotations
 
 import json
-import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -215,28 +214,21 @@ class Reproduction:
         return any(spec.config(self.overrides).processes > 1 for spec in specs)
 
     def population_size(self, specs: Sequence[RunSpec]) -> int:
-        """Runs per population for the runs of `specs`, an experiment's runs still to train:
-        `population` where given; else 1, unless the networks train on a GPU (`device=cuda`,
-        or Ray tasks with GPUs) and the runs step their copies in their own process
-        (`env_processes=1`, the budgets' default): then as many populations as the pool trains
-        runs at once (`Pool.slots`: one local worker by default with `--device cuda`), each of
-        ceil(runs / slots) runs, so that every run of the experiment trains at once and no
-        worker waits; on Ray, no more than one node holds; on this machine, no more than fit
-        in its memory together (`curious.runs.population.runs_that_fit`), the rest in further
-        populations after them."""
-        if self.population is not None:
-            return self.population
-        pool = self.pool
-        on_gpu = self.overrides.get("device") == "cuda" or pool.gpus_per_run > 0
-        if not on_gpu or self.copies_in_processes(specs):
+        """Runs per population for the runs of `specs`, an experiment's runs still to train: 1
+        (one run per process) unless `population` is given, on CPUs and GPUs alike: on a
+        16-core node with a GPU, fifteen `paper` runs as processes trained 2.2 to 3.2 times the
+        episodes of the same runs as one population (docs/benchmarks.md). A given `population`
+        is kept, except that on this machine a population holds no more runs than fit in its
+        memory together (`curious.runs.population.runs_that_fit`), the rest in further
+        populations after them (on Ray, `check_population` refuses more than a node holds)."""
+        if self.population is None or self.population == 1:
             return 1
-        size = math.ceil(len(specs) / pool.slots)
-        if pool.largest_group is not None:  # Ray: its nodes' memory is theirs to check
-            return max(1, min(size, pool.largest_group))
+        if self.pool.largest_group is not None:  # Ray: its nodes' memory is theirs to check
+            return self.population
         from curious.runs.population import runs_that_fit
 
-        configs = [spec.config(self.overrides) for spec in specs[:size]]
-        return max(1, min(size, runs_that_fit(configs)))
+        configs = [spec.config(self.overrides) for spec in specs[: self.population]]
+        return max(1, min(self.population, runs_that_fit(configs)))
 
     def check_population(self, specs: Sequence[RunSpec]) -> None:
         """A `ConfigError` where the given `population` cannot train the runs of `specs`: fewer

@@ -18,6 +18,11 @@ from typing import TypeVar
 import pytest
 from filelock import FileLock
 
+# As every command but `render` runs on a machine without a display (`curious.gl`): no test
+# imports dm_control with MUJOCO_GL unset, where it would try GLFW and warn; the tests of that
+# behaviour and of rendering set their own environment.
+os.environ.setdefault("MUJOCO_GL", "disable")
+
 from curious.cli import main as curious_cli
 
 
@@ -55,7 +60,6 @@ def _once_per_session(tmp_path_factory, name: str, build: Callable[[Path], Built
     """`build(folder)` in a new temp folder, once per test session. Under pytest-xdist the
     first worker that needs it builds it in the session's shared temp folder while holding a
     file lock; the other workers wait for it and read what it returned."""
-    os.environ.setdefault("MUJOCO_GL", "disable")
     if os.environ.get("PYTEST_XDIST_WORKER") is None:  # one process: nothing to share
         return build(tmp_path_factory.mktemp(name))
     folder = tmp_path_factory.getbasetemp().parent / name  # the workers' common parent

@@ -12,7 +12,7 @@ class InterruptingPool:
     one cycle and a Ctrl-C, as a kill between two checkpoints would; `jobs`: what was sent."""
 
     description = "this process (interrupting the second job)"
-    slots, largest_group, gpus_per_run = 1, None, 0.0
+    largest_group = None
 
     def __init__(self) -> None:
         self.jobs: list = []

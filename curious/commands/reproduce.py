@@ -4,8 +4,7 @@
     curious reproduce --budget smoke --out /tmp/smoke   # seconds per run
     curious reproduce --experiments main,distractors    # a subset of the experiments
     curious reproduce --budget paper --ray-address auto --runs-dir /shared/curious
-    curious reproduce --budget paper --device cuda --workers 4 \
-        --set env_processes=4 --set prefetch_minibatches=true   # one GPU node (docs/scaling.md)
+    curious reproduce --budget paper --device cuda      # one GPU node: a run per core, sharing it
     curious reproduce --budget paper --device cuda --workers 4 --population 4  # in populations
     curious reproduce --from-data data/laptop           # the report and figures from shipped runs
 
@@ -127,8 +126,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--workers",
         type=int,
         default=None,
-        help="worker processes training runs at once on this machine (default: one per core; "
-        "with --device cuda, one, which trains the runs in populations; ignored with Ray)",
+        help="worker processes training runs at once on this machine (default: one per core, "
+        "with --device cuda too, the processes sharing the GPU; ignored with Ray)",
     )
     parser.add_argument(
         "--population",
@@ -136,12 +135,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="N",
         help="runs trained together in one process (a worker or a Ray task), their physics "
-        "stepped as one batch: worth it where the networks train on a GPU; on a 2-core CPU a "
-        "population of 2 trained 0.85 x the episodes of 2 processes, so there the default is 1 "
-        "run per process. Default: 1; with --device cuda or Ray GPUs (and env_processes=1), "
-        "each experiment's runs to train are cut into one population per worker, ceil(runs / "
-        "workers) runs each (on Ray, per run the cluster holds at once, no more than a node "
-        "holds; on this machine, no more than fit in its memory together)",
+        "stepped as one batch; on this machine no more than fit in its memory together, on Ray "
+        "no more than a node holds. Default: 1 run per process: a population of 2 trained 0.85 "
+        "x the episodes of 2 processes on a 2-core CPU, and one of 15 `paper` runs 0.31 x 15 "
+        "processes on a 16-core node with a GPU (docs/benchmarks.md)",
     )
     parser.add_argument(
         "--cpus-per-run",
@@ -273,12 +270,8 @@ def run(args: argparse.Namespace) -> int:
     from pipelines.reproduce import ReproduceError, reproduce
     from pipelines.training import RunFolderMismatch
 
-    workers = args.workers
-    if workers is None and overrides.get("device") == "cuda" and not args.ray_address:
-        workers = 1  # one process drives the GPU, its runs in populations (--population)
-
     def pool():
-        return make_pool(args.ray_address, workers, args.cpus_per_run, args.gpus_per_run)
+        return make_pool(args.ray_address, args.workers, args.cpus_per_run, args.gpus_per_run)
 
     try:
         result = reproduce(
