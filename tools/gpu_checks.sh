@@ -9,6 +9,10 @@
 #   STEPS="bench one side" bash tools/gpu_checks.sh OUT    # steps 2-4
 #   PRESET=smoke DEVICE=cpu bash tools/gpu_checks.sh OUT   # the same steps on a CPU
 #
+# A node that has torch but not the suite's libraries and cannot reach a package index takes
+# them as wheels made beside the repository (`bash tools/offline_wheels.sh DIR`, which says how
+# to install them there).
+#
 # 0. (STEPS with "population") `curious bench population`: POPULATION_RUNS (15) `paper` runs as
 #    one population against as many processes side by side, into OUT/population.json;
 # 1. (STEPS with "tests") the CUDA tests (-k cuda of the learner's, the runs', the stacked
