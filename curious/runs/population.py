@@ -17,7 +17,8 @@ differently, within float precision.
 Torch runs the updates' arithmetic and MuJoCo the physics outside Python's lock, so the runs'
 threads overlap where the work is; what is Python (the conditions, the replay's bookkeeping)
 takes turns. `curious bench population` measures a population against the same runs in
-processes side by side.
+processes side by side: the processes were faster on a 2-core CPU and on a 16-core node with a
+GPU (docs/benchmarks.md), so `curious reproduce` trains one run per process unless asked.
 
 Ctrl-C (or `stop.set()`) asks every run to stop at the end of its cycle, after a checkpoint:
 `--resume` goes on from there. A run that fails leaves the locksteps; the others train to their
