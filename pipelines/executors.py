@@ -446,20 +446,29 @@ def run_all(
     on_progress: Callable[[int, int], None] | None = None,
     on_done: Callable[[Job, PartitionResult], None] | None = None,
     poll_seconds: float = 1.0,
+    at_once: int | None = None,
 ) -> list[PartitionResult]:
     """Train every job on `pool`; one result per run, in the order of `jobs` and of their runs.
 
     `on_progress(episodes_done, episodes_total)` is called about every `poll_seconds` with the
     episodes found in every run's folder; `on_done(run, result)` after each run, `run` its job
-    of one (`Job.runs`), once its job has ended.
+    of one (`Job.runs`), once its job has ended. `at_once`: at most that many jobs handed to the
+    pool at a time, the next as one ends (None: all at once, the pool queueing them).
     """
     results: dict[int, list[PartitionResult]] = {}
-    handles = {pool.submit(job): i for i, job in enumerate(jobs)}
+    handles: dict[Any, int] = {}
+    waiting = list(enumerate(jobs))
     total = sum(spec.total_episodes for job in jobs for spec in job.specs)
-    pending = list(handles)
+    pending: list[Any] = []
     folders = [[run_folder(spec, job.runs_root) for spec in job.specs] for job in jobs]
+    limit = len(jobs) if at_once is None else max(1, at_once)
     try:
-        while pending:
+        while waiting or pending:
+            while waiting and len(pending) < limit:
+                i, job = waiting.pop(0)
+                handle = pool.submit(job)
+                handles[handle] = i
+                pending.append(handle)
             done, pending = pool.wait(pending, poll_seconds)
             for handle in done:
                 i = handles[handle]

@@ -27,6 +27,8 @@ Output folder layout (`OutputLayout`):
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import json
 import sys
 import time
@@ -312,6 +314,19 @@ class Reproduction:
         self.results.extend(results)
         return results
 
+    def at_once(self, jobs: Sequence[Job]) -> int | None:
+        """Jobs trained at a time on this machine: as many, in order, as fit in its memory
+        together (`curious.runs.population.runs_that_fit` over their runs), since each run
+        checks its own memory as it starts, not that of the runs beside it, and a `paper`
+        run's replay grows to about 5 GB; None on Ray, whose tasks hold their nodes' memory."""
+        if self.pool.largest_group is not None:
+            return None
+        from curious.runs.population import runs_that_fit
+
+        fit = runs_that_fit([spec.config(self.overrides) for job in jobs for spec in job.specs])
+        runs = list(itertools.accumulate(len(job.specs) for job in jobs))
+        return max(1, bisect.bisect_right(runs, fit))
+
     def _train(self, experiment: Experiment, jobs: list[Job]) -> dict[str, PartitionResult]:
         from tqdm.auto import tqdm
 
@@ -341,7 +356,7 @@ class Reproduction:
             )
 
         try:
-            results = run_all(self.pool, jobs, on_progress, on_done)
+            results = run_all(self.pool, jobs, on_progress, on_done, at_once=self.at_once(jobs))
         finally:
             bar.close()
         self.say(

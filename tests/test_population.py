@@ -360,6 +360,51 @@ def test_run_all_reads_and_reports_every_run_of_every_population(smoke):
         run_all(ListingPool(fails="main: her seed 0"), jobs)
 
 
+def test_run_all_hands_the_pool_no_more_jobs_at_a_time_than_it_is_told(tmp_path):
+    """With `at_once=2`, six jobs go to the pool two at a time, the next as one ends; every
+    run's result still comes, in order."""
+    runs = get_budget("smoke").experiments["main"].runs()
+    jobs = [Job(run, str(tmp_path)) for run in runs]
+    pool = ListingPool()
+    in_flight = []
+    wait = pool.wait
+
+    def counting(handles, timeout):
+        in_flight.append(len(handles))
+        return wait(handles, timeout)
+
+    pool.wait = counting
+    results = run_all(pool, jobs, poll_seconds=0, at_once=2)
+    assert max(in_flight) == 2 and len(pool.jobs) == 6
+    assert [r.partition_key for r in results] == [s.partition_key for s in runs]
+
+
+def test_a_machine_trains_at_a_time_only_the_runs_that_fit_in_its_memory(tmp_path, monkeypatch):
+    """Each run checks its own memory as it starts, not that of the runs beside it: with room
+    for two and a half runs, main's six smoke runs train two at a time, a population of two
+    alone; on Ray the nodes' own memory decides."""
+    from curious.runs import population
+    from curious.runs.memory import SUITE_COPY_BYTES, USABLE, memory_parts
+
+    budget = get_budget("smoke")
+    runs = budget.experiments["main"].runs()
+    one = max(
+        sum(p.nbytes for p in memory_parts(*run, SUITE_COPY_BYTES))
+        for run in population._sized_runs([spec.config() for spec in runs])
+    )
+    monkeypatch.setattr(population, "available_memory", lambda: int(2.5 * one / USABLE))
+    repro = Reproduction(budget, OutputLayout.at(tmp_path), lambda: LocalPool(4), {})
+    root = str(tmp_path)
+    assert repro.at_once([Job(run, root) for run in runs]) == 2
+    assert repro.at_once([Job(tuple(runs[i : i + 2]), root) for i in (0, 2, 4)]) == 1
+    monkeypatch.setattr(population, "available_memory", lambda: int(100 * one / USABLE))
+    assert repro.at_once([Job(run, root) for run in runs]) == 6
+    ray_like = ListingPool()
+    ray_like.largest_group = 2
+    on_ray = Reproduction(budget, OutputLayout.at(tmp_path), lambda: ray_like, {})
+    assert on_ray.at_once([Job(run, root) for run in runs]) is None
+
+
 def test_a_population_of_a_reproduction_goes_on_with_each_run_as_its_folder_says(smoke, tmp_path):
     """One population over a finished run, a partial one and a new one: the finished run is
     left as it is, the partial one resumes and the new one starts, each recorded as alone;
