@@ -127,7 +127,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=None,
         help="worker processes training runs at once on this machine (default: one per core, "
-        "with --device cuda too, the processes sharing the GPU; ignored with Ray)",
+        "with --device cuda too, the processes sharing the GPU), given no more runs at a time "
+        "than fit in its memory together; ignored with Ray",
     )
     parser.add_argument(
         "--population",
