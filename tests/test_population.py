@@ -379,25 +379,36 @@ def test_run_all_hands_the_pool_no_more_jobs_at_a_time_than_it_is_told(tmp_path)
     assert [r.partition_key for r in results] == [s.partition_key for s in runs]
 
 
-def test_a_machine_trains_at_a_time_only_the_runs_that_fit_in_its_memory(tmp_path, monkeypatch):
-    """Each run checks its own memory as it starts, not that of the runs beside it: with room
-    for two and a half runs, main's six smoke runs train two at a time, a population of two
-    alone; on Ray the nodes' own memory decides."""
+def _room_for_runs(runs, monkeypatch):
+    """`room_for(k)` makes this machine's available memory that of k of the largest of `runs`,
+    as `curious.runs.population.runs_that_fit` reads it."""
     from curious.runs import population
     from curious.runs.memory import SUITE_COPY_BYTES, USABLE, memory_parts
 
-    budget = get_budget("smoke")
-    runs = budget.experiments["main"].runs()
     one = max(
         sum(p.nbytes for p in memory_parts(*run, SUITE_COPY_BYTES))
         for run in population._sized_runs([spec.config() for spec in runs])
     )
-    monkeypatch.setattr(population, "available_memory", lambda: int(2.5 * one / USABLE))
+
+    def room_for(k: float) -> None:
+        monkeypatch.setattr(population, "available_memory", lambda: int(k * one / USABLE))
+
+    return room_for
+
+
+def test_a_machine_trains_at_a_time_only_the_runs_that_fit_in_its_memory(tmp_path, monkeypatch):
+    """Each run checks its own memory as it starts, not that of the runs beside it: with room
+    for two and a half runs, main's six smoke runs train two at a time, a population of two
+    alone; on Ray the nodes' own memory decides."""
+    budget = get_budget("smoke")
+    runs = budget.experiments["main"].runs()
+    room_for = _room_for_runs(runs, monkeypatch)
+    room_for(2.5)
     repro = Reproduction(budget, OutputLayout.at(tmp_path), lambda: LocalPool(4), {})
     root = str(tmp_path)
     assert repro.at_once([Job(run, root) for run in runs]) == 2
     assert repro.at_once([Job(tuple(runs[i : i + 2]), root) for i in (0, 2, 4)]) == 1
-    monkeypatch.setattr(population, "available_memory", lambda: int(100 * one / USABLE))
+    room_for(100)
     assert repro.at_once([Job(run, root) for run in runs]) == 6
     ray_like = ListingPool()
     ray_like.largest_group = 2
@@ -480,20 +491,14 @@ def test_a_population_given_holds_no_more_runs_than_fit_in_memory(tmp_path, monk
     """With room for two and a half runs, `--population 6` on this machine trains main's six
     smoke runs in populations of two (`runs_that_fit`), not one population that the memory
     check refuses."""
-    from curious.runs import population
-    from curious.runs.memory import SUITE_COPY_BYTES, USABLE, memory_parts
-
     budget = get_budget("smoke")
     runs = budget.experiments["main"].runs()
-    one = max(
-        sum(p.nbytes for p in memory_parts(*run, SUITE_COPY_BYTES))
-        for run in population._sized_runs([spec.config() for spec in runs])
-    )
-    monkeypatch.setattr(population, "available_memory", lambda: int(2.5 * one / USABLE))
+    room_for = _room_for_runs(runs, monkeypatch)
+    room_for(2.5)
     layout = OutputLayout.at(tmp_path)
     repro = Reproduction(budget, layout, lambda: LocalPool(1), {"device": "cuda"}, population=6)
     assert repro.population_size(runs) == 2
-    monkeypatch.setattr(population, "available_memory", lambda: int(0.5 * one / USABLE))
+    room_for(0.5)
     assert repro.population_size(runs) == 1  # a run too big alone meets its own error
 
 
