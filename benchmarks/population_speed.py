@@ -14,7 +14,7 @@ summed over the runs, so that imports and the first cycle's allocations count fo
 steps, times the machine's cores (`benchmarks.cycle_speed.physics_episodes_per_second`).
 `--repeats` alternates the contenders that many times and reports the median of each;
 `--contenders` leaves one of ours out (its keys are then null), where a device's minutes are
-few.
+few; `--set` gives every run a training setting (the learner's backend, say).
 """
 
 from __future__ import annotations
@@ -27,9 +27,12 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from benchmarks import AtLeast
+
+if TYPE_CHECKING:
+    from curious.config import Config
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -53,6 +56,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train"
     )
     parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        dest="settings",
+        help="a training setting for every run of every contender (`curious train --set`)",
+    )
+    parser.add_argument(
         "--contenders",
         type=_contenders,
         default=OURS,
@@ -74,15 +85,22 @@ def _contenders(text: str) -> tuple[str, ...]:
     return tuple(n for n in OURS if n in names)
 
 
-def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -> list[str]:
-    from curious.config import resolve
+def _config(args: argparse.Namespace) -> Config:
+    """The runs' config (seed 0): the preset, the condition and `--set`, checked before any run
+    starts."""
+    from curious.config import parse_overrides, resolve
 
-    episodes = args.cycles * resolve(args.preset).episodes_per_cycle
+    return resolve(args.preset, args.condition, 0, parse_overrides(args.settings))
+
+
+def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -> list[str]:
+    episodes = args.cycles * _config(args).episodes_per_cycle
     return [
         sys.executable, "-m", "curious.cli", "train", "--preset", args.preset,
         "--condition", args.condition, flag, seeds, "--out", str(out), "--no-record",
         "--no-progress", "--set", f"total_episodes={episodes}", "--set", "torch_threads=1",
         "--set", "test_rollouts_per_worker=0", "--device", args.device,
+        *(part for setting in args.settings for part in ("--set", setting)),
     ]  # fmt: skip
 
 
@@ -129,8 +147,8 @@ def _report(name: str, rates: dict[str, list[float]], seconds: dict[str, list[fl
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """ours, bound, peer (episodes/s) and the commands' wall times."""
     from benchmarks.cycle_speed import physics_episodes_per_second
-    from curious.config import resolve
 
+    config = _config(args)
     cores = os.cpu_count() or 1
     if args.device == "cuda":
         import torch
@@ -156,7 +174,6 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                 seconds[name].append(_run([command]))
                 rates[name].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
                 _report(name, rates, seconds)
-    config = resolve(args.preset)
 
     def median(values: list[float]) -> float | None:
         return statistics.median(values) if values else None
@@ -181,7 +198,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     out["shape"] = (
         f"{runs} {args.condition} runs of preset {args.preset}, {args.cycles} cycles of "
         f"{config.episodes_per_cycle} episodes and {config.n_updates} updates of "
-        f"{config.batch_size} each, networks on {args.device}; {args.repeats} alternation(s), "
-        "medians"
+        f"{config.batch_size} each, networks on {args.device}"
+        + "".join(f", {setting}" for setting in args.settings)
+        + f"; {args.repeats} alternation(s), medians"
     )
     return out

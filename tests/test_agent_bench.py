@@ -3,6 +3,8 @@ options every benchmark refuses."""
 
 import argparse
 import importlib
+import sys
+from pathlib import Path
 
 import pytest
 import torch
@@ -185,6 +187,24 @@ def test_the_population_benchmark_needs_two_cycles_and_says_why(capsys):
     assert refused.value.code == 2
     err = capsys.readouterr().err
     assert "--cycles: must be at least 2 (the rate is read after each run's first cycle)" in err
+
+
+def test_the_population_benchmark_gives_every_run_its_settings_and_refuses_bad_ones(capsys):
+    """`--set` reaches every run's `curious train` (and the episodes a cycle, which settings
+    may change); an unknown key is one line before any run starts."""
+    from benchmarks import population_speed
+    from curious.cli import main
+
+    parser = argparse.ArgumentParser()
+    population_speed.add_arguments(parser)
+    args = parser.parse_args(["--preset", "smoke", "--cycles", "3", "--set", "n_workers=3"])
+    command = population_speed._train_command(args, Path("out"), "0", "--seed")
+    assert command[-2:] == ["--set", "n_workers=3"]
+    assert "total_episodes=18" in command  # 3 cycles of 3 workers x 2 episodes
+    with pytest.raises(SystemExit) as exit_:
+        sys.exit(main(["bench", "population", "--set", "nonsense=1"]))
+    assert exit_.value.code == 2
+    assert "curious bench: error: unknown config key 'nonsense'" in capsys.readouterr().err
 
 
 def test_the_population_benchmark_names_its_contenders_when_one_is_unknown(capsys):

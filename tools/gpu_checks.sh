@@ -33,7 +33,8 @@
 # `paper`), CONTENDERS (workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu),
 # SIDE_BY_SIDE (2; "2 4 8" adds four and eight runs, N runs each within 80 + 25 N s), STEPS
 # ("population tests"), POPULATION_RUNS (15), POPULATION_CYCLES (3), POPULATION_CONTENDERS (ours,ours_stacked:
-# the population's contenders beside the processes), RESUME_SECONDS (170: each
+# the population's contenders beside the processes), POPULATION_SET (settings for every run, e.g.
+# "learner_backend=compiled"), RESUME_SECONDS (170: each
 # leg of step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
@@ -64,9 +65,11 @@ torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version
 if wanted population; then
     step population of "${POPULATION_RUNS:-15}" runs against as many processes
     # each contender's rate reaches population.err as it ends, should the limit end the rest
+    population_set=()
+    for setting in ${POPULATION_SET:-}; do population_set+=(--set "$setting"); done
     timeout 400 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
         --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" \
-        --contenders "${POPULATION_CONTENDERS:-ours,ours_stacked}" --json \
+        --contenders "${POPULATION_CONTENDERS:-ours,ours_stacked}" "${population_set[@]}" --json \
         >"$out/population.json" 2>"$out/population.err"
     echo "exit $?"
     cat "$out/population.json"
