@@ -8,8 +8,10 @@ import hashlib
 import importlib.util
 import io
 import json
+import os
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -269,3 +271,20 @@ def test_a_start_with_the_budgets_seeds_only_keeps_the_plan_recorded(
     assert "0 runs queued" in capsys.readouterr().out
     manifest = json.loads((out / "reproduce.json").read_text())
     assert manifest["extra_seeds"] == {"main": [2]}
+
+
+def test_without_the_worktree_on_the_path_the_queue_says_how_to_start_it(tmp_path):
+    """campaign.py leaves out editable installs on purpose (one commit's code per run), so a
+    plain `python tools/campaign.py` finds no curious: one line saying how to run it, status 2."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "tools" / "campaign.py"), "--help"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "PYTHONPATH" in done.stderr and "tools/campaign.sh" in done.stderr
+    assert "Traceback" not in done.stderr

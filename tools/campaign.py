@@ -64,7 +64,16 @@ sys.meta_path[:] = [
     if not getattr(finder, "__module__", "").startswith("__editable__")
 ]
 
-import curious
+try:
+    import curious
+except ModuleNotFoundError:
+    print(
+        "campaign.py: no curious on the path: it imports the campaign's code from its worktree "
+        "only, so run it there with PYTHONPATH set (cd ~/campaign && PYTHONPATH=$PWD python "
+        f"{Path(__file__).resolve()} ...), or start the campaign with `bash tools/campaign.sh`",
+        file=sys.stderr,
+    )
+    sys.exit(2)
 from curious.config import parse_overrides
 
 try:
