@@ -1,11 +1,11 @@
 """The numbers README.md and docs/results.md quote are those the shipped runs give.
 
 Each headline number of the README's results table (and the C1 bins table of docs/results.md) is
-computed here with `curious.analysis` from `data/laptop`, the budget's seeds only (the runs the
-pages read; a seed shipped beyond the budget's changes the report only once all its runs are
-there, and then these pages with it), formatted as the pages print it, and looked for in the
-page's text. A number that changes with the shipped data, or a page edited by hand away from the
-data, fails here.
+computed here with `curious.analysis` from `data/laptop`, from the runs the report reads there
+(the budget's seeds, and a seed beyond them once all its runs of an experiment are shipped:
+`_whole_seeds`), formatted as the pages print it, and looked for in the page's text. A number
+that changes with the shipped data (a seed shipped whole, as the campaign goes on), or a page
+edited by hand away from the data, fails here.
 """
 
 from __future__ import annotations
@@ -52,10 +52,18 @@ def _runs(experiment: str, variant: str | None = None) -> list[Path]:
     return paths
 
 
-def _shipped_distractor_runs() -> list[Path]:
-    """The distractors' runs of every setting whose budget runs are all shipped."""
-    settings = [_budget_runs("distractors", f"distractors_{n}") for n in (0, 4, 7)]
-    return [p for paths in settings if all(p.is_dir() for p in paths) for p in paths]
+def _whole_seeds(experiment: str, variant: str | None = None) -> list[Path]:
+    """The runs of `experiment` (of one `variant`) that the report reads from data/laptop
+    (`ShippedData.stands_for`): the budget's seeds, and each seed beyond them whose runs of the
+    experiment are all shipped finished; skipped while it holds none."""
+    from pipelines.from_data import ShippedData
+
+    shipped = ShippedData.open(DATA)
+    e = shipped.stands_for(get_budget("laptop")).experiments[experiment]
+    runs = [r for r in e.runs() if variant is None or r.variant == variant]
+    if shipped.missing(e) or not runs:
+        pytest.skip(f"no seed of {experiment} {variant or ''} shipped whole yet")
+    return [DATA / r.relative_path for r in runs]
 
 
 def _mean_std(row) -> str:
@@ -65,7 +73,7 @@ def _mean_std(row) -> str:
 @pytest.fixture(scope="module")
 def main_bins():
     """The main comparison's test success in 5,000-episode bins, and the Welch test per bin."""
-    points = analysis.epoch_success(analysis.load_tests(_runs("main")), bin_size=5_000)
+    points = analysis.epoch_success(analysis.load_tests(_whole_seeds("main")), bin_size=5_000)
     means = analysis.across_seeds(points).set_index(["condition", "episodes"])
     return means, analysis.welch_per_bin(points, "curious", "mg-te")
 
@@ -97,20 +105,16 @@ def test_c1_bins_table_of_results_md(main_bins):
 
 
 def test_c2_order_of_learning_in_every_curious_seed():
-    runs = analysis.load_runs([p for p in _runs("main") if p.parent.name == "curious"])
-    order = analysis.learning_order(analysis.competence_crossings(runs))
+    paths = [p for p in _whole_seeds("main") if p.parent.name == "curious"]
+    order = analysis.learning_order(analysis.competence_crossings(analysis.load_runs(paths)))
     seeds = len(order)
-    assert seeds == 3 and order["follows_paper"].all(), order
+    assert seeds == len(paths) and order["follows_paper"].all(), order
     assert f"the same order in all {seeds} CURIOUS seeds" in _text(README)
 
 
 def _shipped_setting(n_distractors: int) -> list[Path]:
-    """The budget's runs of one distractors setting that data/laptop holds (a setting whose
-    second seeds are still training is quoted with the seeds it has); skipped while none is."""
-    paths = [p for p in _budget_runs("distractors", f"distractors_{n_distractors}") if p.is_dir()]
-    if not paths:
-        pytest.skip(f"no run of distractors_{n_distractors} shipped yet")
-    return paths
+    """The runs of one distractors setting that the report reads (`_whole_seeds`)."""
+    return _whole_seeds("distractors", f"distractors_{n_distractors}")
 
 
 def _seeds_cell(row) -> str:
@@ -160,7 +164,7 @@ def test_c4_test_success_per_number_of_distractors(n_distractors):
 def test_c4_degradation_between_the_settings_shipped():
     """The degradation test over the settings whose runs are all shipped (4 and 7 until
     `distractors_0` is)."""
-    paths = _shipped_distractor_runs()
+    paths = _whole_seeds("distractors")
     final = analysis.final_competence(analysis.load_runs(paths))
     d = analysis.compare_degradation(final, "curious", "m-uvfa")
     text = _text(RESULTS)
@@ -175,7 +179,8 @@ def test_c4_degradation_between_the_settings_shipped():
 def test_c3_no_drop_of_a_mastered_module():
     """The C3 reading over every shipped run that self-evaluates (HER does not), of the main
     comparison and of the distractors' settings whose runs are all shipped."""
-    paths = [p for p in _runs("main") if p.parent.name != "her"] + _shipped_distractor_runs()
+    paths = [p for p in _whole_seeds("main") if p.parent.name != "her"]
+    paths += _whole_seeds("distractors")
     table = analysis.mastery(analysis.load_runs(paths))
     runs, deepest = len(paths), float(table["deepest_fall"].max())
     assert int(table["n_drops"].sum()) == 0
@@ -201,18 +206,6 @@ def test_c5_refocus_and_recoveries():
         episodes = f"{recovered[(condition, seed)]:,}"
         assert f"{episodes} episodes" in results and episodes in readme, (condition, seed)
     assert not table.loc[("m-uvfa", 0), "recovered"]
-
-
-def _whole_seeds(experiment: str) -> list[Path]:
-    """The runs of `experiment` the report reads from data/laptop: those of the seeds shipped
-    whole (`ShippedData.stands_for`); skipped while it holds none."""
-    from pipelines.from_data import ShippedData
-
-    shipped = ShippedData.open(DATA)
-    e = shipped.stands_for(get_budget("laptop")).experiments[experiment]
-    if shipped.missing(e):
-        pytest.skip(f"no seed of {experiment} shipped whole yet")
-    return [DATA / r.relative_path for r in e.runs()]
 
 
 def test_c5_on_a_mastered_module_by_its_fixed_rules():
@@ -254,7 +247,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
 
 def test_c1_area_under_success_per_seed_and_its_welch_test():
     """C1's reading without bins: each seed's success over every epoch, and the Welch test."""
-    area = analysis.area_under_success(analysis.load_tests(_runs("main")))
+    area = analysis.area_under_success(analysis.load_tests(_whole_seeds("main")))
     text = _text(RESULTS)
     for condition, means in analysis.across_seeds(area).set_index("condition").iterrows():
         assert _mean_std(means) in text, condition
