@@ -10,8 +10,10 @@ edited by hand away from the data, fails here.
 
 from __future__ import annotations
 
+import functools
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
@@ -19,6 +21,10 @@ import pytest
 from curious import analysis
 from curious.analysis.progress import progress_table
 from curious.reproduction.experiments import get_budget
+
+if TYPE_CHECKING:
+    from curious.reproduction.experiments import ReproduceBudget
+    from pipelines.from_data import ShippedData
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "laptop"
@@ -52,14 +58,22 @@ def _runs(experiment: str, variant: str | None = None) -> list[Path]:
     return paths
 
 
-def _whole_seeds(experiment: str, variant: str | None = None) -> list[Path]:
-    """The runs of `experiment` (of one `variant`) that the report reads from data/laptop
-    (`ShippedData.stands_for`): the budget's seeds, and each seed beyond them whose runs of the
-    experiment are all shipped finished; skipped while it holds none."""
+@functools.cache
+def _read_by_report() -> tuple[ShippedData, ReproduceBudget]:
+    """data/laptop opened once, and the `laptop` budget as it stands for it
+    (`ShippedData.stands_for`)."""
     from pipelines.from_data import ShippedData
 
     shipped = ShippedData.open(DATA)
-    e = shipped.stands_for(get_budget("laptop")).experiments[experiment]
+    return shipped, shipped.stands_for(get_budget("laptop"))
+
+
+def _whole_seeds(experiment: str, variant: str | None = None) -> list[Path]:
+    """The runs of `experiment` (of one `variant`) that the report reads from data/laptop: the
+    budget's seeds, and each seed beyond them whose runs of the experiment are all shipped
+    finished; skipped while it holds none."""
+    shipped, budget = _read_by_report()
+    e = budget.experiments[experiment]
     runs = [r for r in e.runs() if variant is None or r.variant == variant]
     if shipped.missing(e) or not runs:
         pytest.skip(f"no seed of {experiment} {variant or ''} shipped whole yet")
@@ -112,11 +126,6 @@ def test_c2_order_of_learning_in_every_curious_seed():
     assert f"the same order in all {seeds} CURIOUS seeds" in _text(README)
 
 
-def _shipped_setting(n_distractors: int) -> list[Path]:
-    """The runs of one distractors setting that the report reads (`_whole_seeds`)."""
-    return _whole_seeds("distractors", f"distractors_{n_distractors}")
-
-
 def _seeds_cell(row) -> str:
     """A condition's cell of the C4 tables: mean ± std (N seeds), or the value (1 seed)."""
     if int(row["n"]) == 1:
@@ -126,7 +135,7 @@ def _seeds_cell(row) -> str:
 
 @pytest.mark.parametrize("n_distractors", [0, 4, 7])
 def test_c4_competence_per_number_of_distractors(n_distractors):
-    runs = analysis.load_runs(_shipped_setting(n_distractors))
+    runs = analysis.load_runs(_whole_seeds("distractors", f"distractors_{n_distractors}"))
     final = analysis.final_competence(runs)
     means = analysis.across_seeds(final).set_index("condition")
     p = float(analysis.welch_per_bin(final, "curious", "m-uvfa")["p"].iloc[0])
@@ -151,7 +160,7 @@ def test_c4_competence_per_number_of_distractors(n_distractors):
 
 @pytest.mark.parametrize("n_distractors", [0, 4, 7])
 def test_c4_test_success_per_number_of_distractors(n_distractors):
-    paths = _shipped_setting(n_distractors)
+    paths = _whole_seeds("distractors", f"distractors_{n_distractors}")
     final = analysis.final_test_success(analysis.load_tests(paths))
     means = analysis.across_seeds(final).set_index("condition")
     welch = analysis.welch_per_bin(final, "curious", "m-uvfa").iloc[0]
