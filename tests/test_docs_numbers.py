@@ -220,7 +220,8 @@ def test_c5_refocus_and_recoveries():
 def test_c5_on_a_mastered_module_by_its_fixed_rules():
     """Each run's row of the study on a mastered module as the report writes it (onset, level
     before, trough, the primary and secondary recoveries), the README's recoveries by test
-    success, and the Welch test on them once it can be computed."""
+    success, the episodes a run not recovered by its end had left, and the Welch test on the
+    recovered runs once it can be computed."""
     from pipelines.report.blocks import fmt, fmt_p
     from pipelines.report.sensory_failures import primary_cell, secondary_cell
 
@@ -243,6 +244,9 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
         assert cells in results and recoveries in results, cells + recoveries
         if t.recovered:
             recovered[t.condition].append(f"{int(t.recovery_episodes):,}")
+        else:
+            unrecovered = f"not within the {int(t.episodes_left):,} episodes"
+            assert unrecovered in readme and unrecovered in results, unrecovered
     for condition, ns in recovered.items():
         listed = " and ".join([", ".join(ns[:-1]), ns[-1]] if len(ns) > 1 else ns)
         quoted = f"{listed} episodes (CURIOUS)" if condition == "curious" else f"{listed} (M-UVFA)"
