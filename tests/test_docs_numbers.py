@@ -222,6 +222,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     before, trough, the primary and secondary recoveries), the README's recoveries by test
     success, the episodes a run not recovered by its end had left, and the Welch test on the
     recovered runs once it can be computed."""
+    from curious.analysis.palette import condition_label
     from pipelines.report.blocks import fmt, fmt_p
     from pipelines.report.sensory_failures import primary_cell, secondary_cell
 
@@ -230,14 +231,13 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     onsets = analysis.failure_onsets(runs)["onset"]
     by_tests = analysis.recovery_by_tests(analysis.load_tests(paths), onsets, fraction=0.9)
     competence = analysis.recovery(runs).set_index(["condition", "seed"])
-    results, readme = RESULTS.read_text(), _text(README)
-    labels = {"curious": "CURIOUS", "m-uvfa": "M-UVFA"}
+    results, readme = _text(RESULTS), _text(README)
     recovered: dict[str, list[str]] = {"curious": [], "m-uvfa": []}
     for t in by_tests.sort_values("seed").itertuples():
         assert t.status == "measured", t.note
         c = next(competence.loc[[(t.condition, t.seed)]].itertuples())
         cells = (
-            f"| {labels[t.condition]} | {t.seed} | {int(t.onset):,} | "
+            f"| {condition_label(t.condition)} | {t.seed} | {int(t.onset):,} | "
             f"{t.level_before:.2f} ({t.n_before}) | {t.trough:.2f} at {int(t.trough_episode):,} |"
         )
         recoveries = f"| {primary_cell(t)} | {secondary_cell(c)} |"
@@ -254,7 +254,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     test = analysis.compare_recoveries(by_tests, "curious", "m-uvfa")
     if np.isfinite(test["p"]):
         welch = f"t = {fmt(test['t'])}, p = {fmt_p(test['p'])}"
-        assert welch in _text(RESULTS), welch
+        assert welch in results, welch
         assert f"p = {fmt_p(test['p'])}" in readme, welch
 
 
