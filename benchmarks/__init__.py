@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import dataclass
 
 
@@ -26,6 +27,28 @@ class AtLeast:
                 f"must be at least {self.minimum}{reason}, got {value}"
             )
         return value
+
+
+def positive_seconds(text: str) -> float:
+    """The argparse type of a duration option: a finite number of seconds above 0 (0 would
+    time nothing, NaN would never end the timing loop)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return value
+
+
+def check_device(device: str) -> None:
+    """A `ValueError` for `--device cuda` where torch sees no CUDA device, before anything is
+    built on it."""
+    if device == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            raise ValueError("--device cuda, but torch sees no CUDA device")
 
 
 @dataclass(frozen=True)

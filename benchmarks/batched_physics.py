@@ -49,7 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--rounds", type=AtLeast(1), default=5, help="timed episodes each (default 5)"
     )
     parser.add_argument("--variant", default="default", help="suite variant (default: default)")
-    parser.add_argument("--seed", type=AtLeast(0), default=0)
+    parser.add_argument(
+        "--seed", type=AtLeast(0), default=0, help="seed of the environments and actions (0)"
+    )
 
 
 class _Clocks:

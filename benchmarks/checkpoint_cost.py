@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks import AtLeast
+from curious.runs.folder_lock import check_writable
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -43,7 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--variant", default="default", help="the suite's variant (default)")
     parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
     parser.add_argument(
-        "--dir", default=None, help="folder to write in (a temporary one under TMPDIR)"
+        "--dir",
+        default=None,
+        help="folder to write in, made if missing (default: a temporary one under TMPDIR)",
     )
 
 
@@ -91,6 +94,9 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Times the three writes; returns ours/bound/peer/unit and the disk each kind keeps."""
     from curious.runs import checkpoint
 
+    if args.dir is not None:
+        check_writable(args.dir, "--dir", folder=True)
+        Path(args.dir).mkdir(parents=True, exist_ok=True)
     if args.every > args.episodes:
         raise ValueError(f"--every ({args.every}) cannot exceed --episodes ({args.episodes})")
     full = _replay(args.variant, args.episodes)

@@ -44,7 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="timed episodes per contestant (default 30)",
     )
     parser.add_argument("--variant", default="default", help="suite variant (default: default)")
-    parser.add_argument("--seed", type=AtLeast(0), default=0)
+    parser.add_argument(
+        "--seed", type=AtLeast(0), default=0, help="seed of the environments and actions (0)"
+    )
     parser.add_argument("--no-peer", action="store_true", help="skip gymnasium-robotics")
 
 

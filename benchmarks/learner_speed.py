@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from benchmarks import AtLeast
+from benchmarks import AtLeast, check_device, positive_seconds
 from curious.config import Config, resolve
 from curious.envs.goal_env import EnvSpec, RowsByModule
 
@@ -44,11 +44,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=AtLeast(1), default=1, help="torch threads (1)")
     parser.add_argument(
         "--seconds",
-        type=float,
+        type=positive_seconds,
         default=1.5,
-        help="seconds per contender and round (3 interleaved rounds)",
+        help="seconds per contender and round, 3 interleaved rounds (1.5)",
     )
-    parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
+    parser.add_argument(
+        "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train (cpu)"
+    )
     parser.add_argument("--no-peer", action="store_true", help="skip Stable-Baselines3")
     parser.add_argument("--no-cycle", action="store_true", help="skip the training cycles")
 
@@ -332,8 +334,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Everything above, in one dict (keys ours, bound, peer, unit first)."""
     if args.threads:
         torch.set_num_threads(args.threads)
-    if args.device == "cuda" and not torch.cuda.is_available():
-        raise ValueError("--device cuda, but torch sees no CUDA device")
+    check_device(args.device)
     started = time.perf_counter()
     steps, sample_ms = our_steps(args)
     bound, flops = bound_steps(args)

@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from benchmarks import AtLeast
+from benchmarks import AtLeast, check_device
 
 if TYPE_CHECKING:
     from curious.config import Config
@@ -150,11 +150,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
 
     config = _config(args)
     cores = os.cpu_count() or 1
-    if args.device == "cuda":
-        import torch
-
-        if not torch.cuda.is_available():
-            raise ValueError("--device cuda, but torch sees no GPU")
+    check_device(args.device)
     runs = args.runs or cores
     rates: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}
     seconds: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}

@@ -32,6 +32,8 @@ from curious.runs.folder import RunFolder
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from curious.watching.recording.settings import RecorderSettings
+
     parser.add_argument("--preset", default="quick", help="preset of the timed run (quick)")
     parser.add_argument("--episodes", type=AtLeast(1), default=200, help="episodes per run (200)")
     parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
@@ -40,7 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=AtLeast(0),
         default=None,
         metavar="K",
-        help="3-D rollout every K evaluation episodes (default: RecorderSettings')",
+        help="3-D rollout every K evaluation episodes, 0 for none (default: the recorder's, "
+        f"{RecorderSettings.rollout_every})",
     )
     parser.add_argument("--threads", type=AtLeast(1), default=1, help="torch threads (1)")
 

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks import AtLeast
+from benchmarks import AtLeast, positive_seconds
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,7 +37,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--episodes", type=AtLeast(1), default=2_000, help="episodes stored (2,000)"
     )
     parser.add_argument("--variant", default="default", help="the suite's variant (default)")
-    parser.add_argument("--seconds", type=float, default=1.0, help="seconds per contender")
+    parser.add_argument(
+        "--seconds",
+        type=positive_seconds,
+        default=1.0,
+        help="seconds per contender and round (1.0)",
+    )
     parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
 
 

@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--max-processes",
         type=AtLeast(0),
         default=0,
-        help="largest process count (default: cores)",
+        help="largest process count, at most the preset's n_workers (default 0: the cores)",
     )
 
 

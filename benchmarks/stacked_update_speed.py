@@ -26,7 +26,7 @@ from typing import Any
 
 import torch
 
-from benchmarks import AtLeast, CountList
+from benchmarks import AtLeast, CountList, check_device
 
 STATE, GOAL, TASKS, ACTIONS = 49, 21, 7, 4
 
@@ -42,14 +42,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--hidden", type=AtLeast(1), default=256, help="units per layer (256)")
     parser.add_argument("--layers", type=AtLeast(1), default=3, help="hidden layers (3)")
     parser.add_argument("--threads", type=AtLeast(1), default=1, help="torch threads (1)")
-    parser.add_argument("--algorithm", default="ddpg", choices=("ddpg", "td3"))
+    parser.add_argument(
+        "--algorithm", default="ddpg", choices=("ddpg", "td3"), help="the learners' update (ddpg)"
+    )
     parser.add_argument(
         "--backend", default="autograd", help="the learners' own backend (default autograd)"
     )
     parser.add_argument(
         "--updates", type=AtLeast(1), default=20, help="updates per learner and round (default 20)"
     )
-    parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"))
+    parser.add_argument(
+        "--device", default="cpu", choices=("cpu", "cuda"), help="where networks train (cpu)"
+    )
 
 
 def _learners(args: argparse.Namespace, runs: int) -> tuple[list[Any], list[tuple]]:
@@ -165,6 +169,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     from benchmarks.learner_speed import bound_steps
     from curious.agent.update_lockstep import stack_alike
 
+    check_device(args.device)
     torch.set_num_threads(args.threads)
     sync = torch.cuda.synchronize if args.device == "cuda" else lambda: None
     contenders: dict[str, Callable[..., float]] = {

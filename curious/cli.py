@@ -12,6 +12,9 @@ import argparse
 import importlib
 import importlib.metadata
 import sys
+import warnings
+from collections.abc import Callable
+from pathlib import Path
 
 from curious.commands import refuse
 
@@ -58,12 +61,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warnings(command: str | None, default: Callable[..., str]) -> Callable[..., str]:
+    """A `warnings.formatwarning` that prints curious's own warnings (a damaged checkpoint
+    passed over, ...) as one line, as its errors are, and other libraries' as they are."""
+    package = Path(__file__).resolve().parent
+
+    def format_warning(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        line: str | None = None,
+    ) -> str:
+        if not Path(filename).resolve().is_relative_to(package):
+            return default(message, category, filename, lineno, line)
+        return f"{f'curious {command}' if command else 'curious'}: warning: {message}\n"
+
+    return format_warning
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `curious` console script. Bad input is one line on stderr (exit
-    status 2), and so is a Ctrl-C, whenever it comes (exit status 130)."""
+    status 2), and so is a Ctrl-C, whenever it comes (exit status 130), and each of curious's
+    own warnings."""
     words = list(sys.argv[1:] if argv is None else argv)
     command = next((w for w in words if w[:1] != "-"), None)
+    default_format = warnings.formatwarning
     try:
+        warnings.formatwarning = _one_line_warnings(command, default_format)
         return _main(argv, words)
     except KeyboardInterrupt:
         print(
@@ -71,6 +96,8 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 130
+    finally:
+        warnings.formatwarning = default_format
 
 
 def _main(argv: list[str] | None, words: list[str]) -> int:
@@ -89,9 +116,9 @@ def _main(argv: list[str] | None, words: list[str]) -> int:
         return 2
     try:
         result = args.func(args)
-    except (ValueError, RuntimeError, FileNotFoundError, FileExistsError) as exc:
-        # Bad input and unusable folders are reported in one line; CURIOUS_DEBUG=1 shows the
-        # traceback.
+    except (ValueError, RuntimeError, OSError) as exc:
+        # Bad input and unusable paths (missing, a file for a folder, no permission, a full
+        # disk) are reported in one line; CURIOUS_DEBUG=1 shows the traceback.
         return refuse(args.command, exc)
     return int(result or 0)
 

@@ -557,6 +557,8 @@ def parse_seeds(text: str) -> tuple[int, ...]:
             or (dash and int(last) < int(first))
         ):
             raise ConfigError(f"seeds {text!r}: write them as 0-4 or 0,2,5")
+        if int(last if dash else first) > MAX_SEED:
+            raise ConfigError(f"seeds {text!r}: each must be from 0 to {MAX_SEED:,}")
         seeds += range(int(first), int(last) + 1) if dash else [int(first)]
     return tuple(dict.fromkeys(seeds))
 

@@ -82,7 +82,7 @@ class OutputLayout:
         for path in candidates:
             layout = cls.at(path)
             if layout.manifest.is_file():
-                return cls.at(path, layout.read_manifest().get("runs_dir"))
+                return cls.at(path, layout.manifest_runs_dir())
             if ShippedFolder(path).is_shipped:  # its runs lie in it, as in a runs root
                 return cls.at(path, path)
         raise FileNotFoundError(
@@ -103,14 +103,26 @@ class OutputLayout:
             raise ValueError("it is not a JSON object")
         return data
 
-    def recorded_runs_dir(self) -> str | None:
-        """The runs folder reproduce.json records (None: the folder's own runs/, or no
-        readable record; `pipelines.reproduce.check_output_folder` names an unreadable one)."""
+    def manifest_runs_dir(self) -> str | None:
+        """The runs folder reproduce.json records (None: the folder's own runs/); a ValueError
+        naming the file where it cannot be read or its runs_dir is not a folder path."""
         try:
             recorded = self.read_manifest().get("runs_dir")
-        except (OSError, ValueError):
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"{self.manifest} is unreadable ({exc})") from None
+        if recorded is not None and not isinstance(recorded, str):
+            raise ValueError(
+                f"{self.manifest} is damaged: runs_dir must be a folder path, got {recorded!r}"
+            )
+        return recorded or None
+
+    def recorded_runs_dir(self) -> str | None:
+        """`manifest_runs_dir`, or None where reproduce.json is unreadable or damaged
+        (`pipelines.reproduce.check_output_folder` names it)."""
+        try:
+            return self.manifest_runs_dir()
+        except ValueError:
             return None
-        return recorded if isinstance(recorded, str) and recorded else None
 
     def budget_name(self) -> str | None:
         """The budget that made this folder, from reproduce.json (None without one).

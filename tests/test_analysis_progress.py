@@ -90,14 +90,24 @@ def test_update_replaces_only_the_marked_block(campaign, tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    "content", ["no markers\n", f"{END}\n{BEGIN}\n", f"{BEGIN}\n{BEGIN}\n{END}\n"]
+    ("content", "message"),
+    [
+        ("no markers\n", "must hold one line"),
+        (f"{END}\n{BEGIN}\n", "must hold one line"),
+        (f"{BEGIN}\n{BEGIN}\n{END}\n", "must hold one line"),
+        (f"{BEGIN}\n\xe9t\xe9\n{END}\n".encode("latin-1"), "is not UTF-8 text (invalid"),
+    ],
+    ids=["no-markers", "reversed", "twice", "latin-1"],
 )
-def test_update_refuses_a_file_without_one_block(campaign, tmp_path, capsys, content):
+def test_update_refuses_a_file_without_one_block(campaign, tmp_path, capsys, content, message):
+    """Refused before any run is read, naming the file, which is left as it was."""
     doc = tmp_path / "results.md"
-    doc.write_text(content)
+    data = content if isinstance(content, bytes) else content.encode()
+    doc.write_bytes(data)
     assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 2
-    assert "must hold one line" in capsys.readouterr().err
-    assert doc.read_text() == content
+    err = capsys.readouterr().err
+    assert message in err and str(doc) in err and "Traceback" not in err
+    assert doc.read_bytes() == data
 
 
 def test_bad_roots_are_one_line_errors(tmp_path, capsys):

@@ -41,7 +41,7 @@ def test_wilson_interval_known_values():
 
 def test_json_has_a_row_per_chosen_module(runs, capsys):
     args = ["evaluate", str(runs / "curious"), "--episodes", "2", "--json", "--no-progress"]
-    assert curious_cli([*args, "--modules", "reach", "stack"]) == 0
+    assert curious_cli([*args, "--modules", "reach", "stack", "reach"]) == 0  # each once
     out = json.loads(capsys.readouterr().out)
     assert out["condition"] == "curious" and out["episode"] == 24
     assert [row["module"] for row in out["modules"]] == ["reach", "stack"]

@@ -8,7 +8,9 @@ refused commands.
 from __future__ import annotations
 
 import ctypes.util
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -393,6 +395,7 @@ REPRODUCE = ["reproduce", "--budget", "smoke", "--out", "{tmp}/r", "--no-progres
         (["view", "--web", "--web-port", "-1", "{tmp}"], "--web-port must be from 1 to 65535"),
         (["view", "--web", "--web-port", "99999", "{tmp}"], "--web-port must be from 1 to 65535"),
         (["view", "--web", "--grpc-port", "65536", "{tmp}"], "--grpc-port must be from 1 to"),
+        (["view", "--web", "--web-port", "9877", "--grpc-port", "9877", "{tmp}"], "both 9877"),
         ([*REPRODUCE, "--cpus-per-run", "nan"], "--cpus-per-run must be a number > 0, got nan"),
         ([*REPRODUCE, "--gpus-per-run", "nan"], "--gpus-per-run must be a number >= 0, got nan"),
         ([*REPRODUCE, "--gpus-per-run", "inf"], "--gpus-per-run must be a number >= 0, got inf"),
@@ -425,6 +428,8 @@ def test_the_bounds_of_render_are_its_help_and_its_edges_are_taken(tmp_path, cap
 
 # ------------------------------------------------------------------------------ folders
 
+POPULATION = ["train", "--preset", "smoke", "--seeds", "0-1", "--no-record", "--no-progress"]
+
 
 @pytest.mark.parametrize(
     ("args", "message"),
@@ -432,7 +437,10 @@ def test_the_bounds_of_render_are_its_help_and_its_edges_are_taken(tmp_path, cap
         (["progress", "{file}"], "{file} is a file, not a folder: name a run folder"),
         (["progress", "{tmp}", "{file}"], "{file} is a file, not a folder"),
         (["reproduce", "--from-data", "{file}", "--out", "{tmp}/r"], "--from-data {file} is a"),
+        ([*POPULATION, "--out", "{file}"], "--out {file}: {file} is a file, not a folder"),
+        (["bench", "checkpoint", "--dir", "{file}"], "--dir {file}: {file} is a file, not a"),
     ],
+    ids=["progress", "progress-second", "reproduce", "train-seeds", "bench-checkpoint"],
 )
 def test_a_file_where_a_folder_is_read_is_one_line(args, message, tmp_path, capsys):
     file = tmp_path / "notes.txt"
@@ -497,3 +505,105 @@ def test_an_empty_folder_argument_is_refused_instead_of_meaning_here(
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert last == f"curious {args[0]}: error: argument {argument}: is empty: name a folder"
     assert sorted(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------------------ damaged files
+
+
+@pytest.mark.parametrize(
+    ("command", "manifest", "message"),
+    [
+        (
+            "ship",
+            {"budget": "smoke", "runs_dir": 5},
+            "is damaged: runs_dir must be a folder path, got 5",
+        ),
+        (
+            "progress",
+            {"budget": "smoke", "runs_dir": 5},
+            "is damaged: runs_dir must be a folder path",
+        ),
+        ("ship", {"budget": "bogus"}, "is damaged: unknown budget 'bogus'; choose one of smoke"),
+        ("ship", "{", "is unreadable (Expecting property name"),
+    ],
+    ids=["ship-runs-dir", "progress-runs-dir", "ship-budget", "ship-not-json"],
+)
+def test_a_damaged_reproduce_json_is_named_in_one_line(
+    command, manifest, message, tmp_path, capsys
+):
+    """A reproduce.json edited by hand or cut short: the refusal names the file and what is
+    wrong in it, and ships nothing."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "reproduce.json").write_text(
+        manifest if isinstance(manifest, str) else json.dumps(manifest)
+    )
+    args = [command, str(out), *(["--out", str(tmp_path / "data")] if command == "ship" else [])]
+    assert main(args) == 2
+    assert f"reproduce.json {message}" in one_line(capsys.readouterr().err)
+    assert sorted(tmp_path.iterdir()) == [out]
+
+
+@pytest.mark.parametrize("command", ["evaluate", "render", "ship"])
+def test_a_file_where_the_checkpoints_folder_should_be_is_one_line(
+    command, smoke, tmp_path, capsys, monkeypatch
+):
+    """A run whose checkpoints/ is a file (a copy gone wrong): every command that looks for
+    its checkpoints refuses it naming the file, not with an OS error's traceback."""
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
+    run = tmp_path / "run"
+    source = smoke.out / "runs" / "main" / "curious" / "seed-0"
+    shutil.copytree(source, run, ignore=shutil.ignore_patterns("checkpoints", "*.rrd"))
+    (run / "checkpoints").write_text("not a folder")
+    args = {
+        "evaluate": ["evaluate", str(run)],
+        "render": ["render", "--run", str(run), "--out", str(tmp_path / "x.gif")],
+        "ship": ["ship", str(run), "--out", str(tmp_path / "data")],
+    }[command]
+    assert main(args) == 2
+    message = one_line(capsys.readouterr().err)
+    assert "checkpoints is a file, not a folder of checkpoints: move it away" in message
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["relabel", "--seconds", "0"], "argument --seconds: must be a positive number of seconds"),
+        (["learner", "--seconds", "nan"], "argument --seconds: must be a positive number of"),
+        (["learner", "--seconds", "-1"], "argument --seconds: must be a positive number of"),
+    ],
+)
+def test_a_benchmark_timed_for_no_time_is_refused_by_the_parser(args, message, capsys):
+    """0 seconds would divide by zero, NaN would never end the timing loop."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", *args])
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("which", ["learner", "stacked", "population"])
+def test_a_benchmark_on_cuda_without_a_gpu_is_one_line(which, capsys):
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("this machine has a CUDA device")
+    assert main(["bench", which, "--device", "cuda"]) == 2
+    assert "--device cuda, but torch sees no CUDA device" in one_line(capsys.readouterr().err)
+
+
+def test_a_warning_of_curious_is_one_line_like_its_errors(tmp_path):
+    """A damaged newest checkpoint passed over on --resume is said in one line naming the
+    command, not as a UserWarning with its source line."""
+    out = tmp_path / "run"
+    train = ["train", "--preset", "smoke", "--out", str(out), "--no-record", "--no-progress"]
+    train += ["--set", "checkpoint_every_cycles=1"]
+    assert cli([*train, "--set", "total_episodes=8"], "disable").returncode == 0
+    newest = max((out / "checkpoints").glob("ep-*"))
+    (newest / "state.pt").write_bytes(b"not a checkpoint")
+    done = cli([*train, "--set", "total_episodes=12", "--resume"], "disable")
+    assert done.returncode == 0, done.stderr[-2000:]
+    warned = [line for line in done.stderr.splitlines() if "warning" in line.lower()]
+    assert len(warned) == 1 and warned[0].startswith("curious train: warning: "), done.stderr
+    assert f"resuming from the one before, {newest.name}" not in warned[0]
+    assert "resuming from the one before, ep-" in warned[0]

@@ -226,6 +226,10 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     assert f"8 episodes in {out / 'seed-1'}" in printed
     assert main([*argv, "--seeds", "2-x"]) == 2
     assert "write them as 0-4 or 0,2,5" in capsys.readouterr().err
+    assert main([*argv, "--seeds", "4294967295-4294967296"]) == 2  # named as --seeds
+    assert "seeds '4294967295-4294967296': each must be from 0 to 4,294,967,295" in (
+        capsys.readouterr().err
+    )
     assert main([*argv, "--seeds", "0-1"]) == 2  # the folders hold runs: nothing trains
     assert "is not empty" in capsys.readouterr().err
     stacked = ["train", "--preset", "smoke", "--no-record", "--no-progress", "--stack-updates"]

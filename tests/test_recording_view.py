@@ -50,6 +50,8 @@ def test_folder_without_recording_is_an_error_naming_it(
     assert str(empty) in err and "no recording.rrd" in err
     assert main(["view", str(tmp_path / "missing")]) == 2
     assert "no such run folder" in capsys.readouterr().err
+    assert main(["view", str(tmp_path / "missing.rrd")]) == 2
+    assert "missing.rrd: no such recording" in capsys.readouterr().err
 
 
 def test_a_folder_of_runs_names_the_runs_below_it_that_have_a_recording(

@@ -421,6 +421,14 @@ def test_unfinished_runs_are_shipped_only_when_asked_and_marked(smoke, tmp_path,
     assert not (tmp_path / "runs").exists()
 
 
+def test_a_run_whose_metrics_are_damaged_is_named_so_not_as_not_started(smoke, tmp_path):
+    root = tmp_path / "out"
+    folder = RunFolder(partial_copy(smoke, root))
+    folder.metrics_path.write_bytes(b"PAR1 cut short")
+    code, stdout, _ = cli(["ship", str(root), "--out", str(tmp_path / "data"), "--unfinished"])
+    assert code == 0 and "main/curious/seed-0 (its metrics.parquet is damaged)" in stdout
+
+
 def test_keep_adds_to_an_earlier_ship_whose_run_folders_are_gone(smoke, shipped, tmp_path):
     """Run folders gone (a new machine): the data folder holds every smoke run shipped; the new runs
     root holds only main's, one of them still training. `--keep` ships main's finished runs again

@@ -194,6 +194,11 @@ def test_output_kind_by_suffix(tmp_path):
     assert output_kind(tmp_path / "frames.v2") == "png"  # a folder that exists
     with pytest.raises(ValueError, match="unsupported --out suffix"):
         output_kind("clip.mov")
+    (tmp_path / "clip.gif").mkdir()  # a folder with a video's name: no file can be written
+    with pytest.raises(ValueError, match=r"clip.gif is a folder: name a \.gif file"):
+        output_kind(tmp_path / "clip.gif")
+    with pytest.raises(ValueError, match=r"--out \.webp names no file"):  # not a PNG folder
+        output_kind(".webp")
 
 
 def test_real_time_and_kept_steps():

@@ -193,6 +193,8 @@ def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
         data = json.loads(manifest.read_text(encoding="utf-8"))
         budget = get_budget(str(data.get("budget", data.get("preset"))))
         runs_dir = data.get("runs_dir")
+        if runs_dir is not None and not isinstance(runs_dir, str):
+            raise ValueError(f"runs_dir must be a folder path, got {runs_dir!r}")
         extra = data.get("extra_seeds") or {}
         if not isinstance(extra, dict) or not set(extra) <= set(budget.experiments):
             raise ExperimentError(f"extra_seeds {extra!r} names no experiment of {budget.name}")

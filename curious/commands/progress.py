@@ -91,6 +91,15 @@ def replace_block(text: str, block: str, path: Path) -> str:
     return f"{head}{BEGIN}\n{block}{END}{tail}"
 
 
+def _read_text(path: Path) -> str:
+    """`path`'s text, or a ValueError naming it where it is not UTF-8."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        problem = f"{exc.reason} at byte {exc.start:,}"
+        raise ValueError(f"--update {path} is not UTF-8 text ({problem})") from None
+
+
 def run(args: argparse.Namespace) -> int:
     from curious.analysis import AnalysisError
     from curious.analysis.progress import progress_markdown, progress_table, summary_markdown
@@ -108,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"{path} does not exist; create it with the two marker lines")
     if path is not None and not os.access(path, os.W_OK):  # a read-only file or file system
         raise ValueError(f"--update {path} cannot be written (read-only)")
+    if path is not None:
+        replace_block(_read_text(path), "", path)  # the markers, before any run is read
 
     def skip(folder: Path, problem: str) -> None:
         print(f"curious progress: left out {folder}: {problem}", file=sys.stderr)
@@ -125,6 +136,6 @@ def run(args: argparse.Namespace) -> int:
     roots = " ".join(str(r) for r in args.roots)
     at_once = f" --at-once {args.at_once}" if args.at_once != 1 else ""
     block = f"Computed by `curious progress {roots}{at_once}` at {now}.\n\n{table}"
-    path.write_text(replace_block(path.read_text(encoding="utf-8"), block, path), encoding="utf-8")
+    path.write_text(replace_block(_read_text(path), block, path), encoding="utf-8")
     print(f"updated {path} ({len(rows)} runs)")
     return 0

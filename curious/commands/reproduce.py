@@ -242,9 +242,10 @@ def run(args: argparse.Namespace) -> int:
         if given
     ]
     if ray_only and not args.ray_address:  # on this machine they would do nothing
+        gpu = ", or, to train on this machine's GPU, --device cuda" if args.gpus_per_run else ""
         print(
             f"curious reproduce: error: {' and '.join(ray_only)} size the runs' Ray tasks: pass "
-            "--ray-address too, or, to train on this machine's GPU, --device cuda",
+            f"--ray-address too{gpu}",
             file=sys.stderr,
         )
         return 2

@@ -59,6 +59,7 @@ def _megabytes(n: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from curious.reproduction.experiments import ExperimentError, get_budget
     from curious.reproduction.shipped_folder import MANIFEST_FILE
     from curious.reproduction.shipping import ship
     from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
@@ -73,6 +74,10 @@ def run(args: argparse.Namespace) -> int:
             budget = layout.budget_name()
         except (OSError, ValueError) as exc:
             raise ValueError(f"{layout.manifest} is unreadable ({exc})") from None
+        try:
+            get_budget(budget)
+        except ExperimentError as exc:
+            raise ValueError(f"{layout.manifest} is damaged: {exc}") from None
         runs_root = layout.runs_root
     if args.out is not None and not args.out.strip():
         raise ValueError("--out is empty: name a folder")

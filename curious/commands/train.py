@@ -204,8 +204,10 @@ def run(args: argparse.Namespace) -> int:
     try:
         if population:
             from curious.agent.update_lockstep import UpdateLockstep
+            from curious.runs.folder_lock import check_writable
             from curious.runs.population import train_population
 
+            check_writable(args.out, "--out", folder=True)  # the seeds' common folder, first
             updates = UpdateLockstep() if args.stack_updates else None
             trainers = train_population(
                 configs, outs, resume=args.resume, restart=args.restart,

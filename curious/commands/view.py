@@ -130,7 +130,8 @@ def recording_paths(runs: list[str]) -> list[Path]:
         elif path.exists():
             raise FileNotFoundError(f"{path}: not a run folder or an .rrd file")
         else:
-            raise FileNotFoundError(f"{path}: no such run folder")
+            what = "recording" if path.suffix == ".rrd" else "run folder"
+            raise FileNotFoundError(f"{path}: no such {what}")
     for path in paths:
         check_recording(path)
     return paths
@@ -247,6 +248,10 @@ def run(args: argparse.Namespace) -> int:
     for port, flag in ((args.web_port, "--web-port"), (args.grpc_port, "--grpc-port")):
         if not 1 <= port <= MAX_PORT:
             return refuse("view", ValueError(f"{flag} must be from 1 to {MAX_PORT}, got {port}"))
+    if args.web and args.web_port == args.grpc_port:
+        message = f"--web-port and --grpc-port are both {args.web_port}: the page and the "
+        message += "recordings are served on two ports; choose two"
+        return refuse("view", ValueError(message))
     try:
         paths = recording_paths(args.runs)
     except FileNotFoundError as exc:

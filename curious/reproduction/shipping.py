@@ -86,10 +86,21 @@ class _Found:
     def progress(self) -> str:
         """How far an unfinished run has got, in words."""
         if self.episodes == 0:
-            return f"{self.run} (not started)"
+            return f"{self.run} ({_metrics_problem(self.folder) or 'not started'})"
         if self.episodes >= self.total:
             return f"{self.run} (all {self.total:,} episodes, but no checkpoint at the end)"
         return f"{self.run} ({self.episodes:,} of {self.total:,} episodes)"
+
+
+def _metrics_problem(folder: RunFolder) -> str | None:
+    """Why a run's metrics.parquet that is there cannot be read (None: absent, or readable)."""
+    if not folder.metrics_path.is_file():
+        return None
+    try:
+        pq.read_metadata(folder.metrics_path)
+    except (OSError, ValueError):
+        return f"its {folder.metrics_path.name} is damaged"
+    return None
 
 
 def _inside(path: Path, other: Path) -> bool:

@@ -18,6 +18,8 @@ import os
 import re
 from pathlib import Path
 
+from curious.runs.folder_errors import RunFolderError
+
 CONFIG_FILE = "config.json"
 METRICS_FILE = "metrics.parquet"
 TESTS_FILE = "tests.parquet"
@@ -54,9 +56,12 @@ def checkpoint_episodes(path: str | os.PathLike) -> int | None:
 
 
 def list_checkpoints(directory: Path) -> list[Path]:
-    """Complete checkpoints, oldest first (temporaries, `.tmp-ep-...`, are not listed)."""
+    """Complete checkpoints, oldest first (temporaries, `.tmp-ep-...`, are not listed); a
+    `RunFolderError` where `directory` is a file."""
     if not directory.exists():
         return []
+    if not directory.is_dir():
+        raise RunFolderError(f"{directory} is a file, not a folder of checkpoints: move it away")
     found = [p for p in directory.iterdir() if p.is_dir() and checkpoint_episodes(p) is not None]
     return sorted(found, key=lambda p: checkpoint_episodes(p) or 0)
 

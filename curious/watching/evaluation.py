@@ -131,9 +131,9 @@ class EvaluationSession:
         return len(self.envs)
 
     def modules(self, names: Sequence[str] | None) -> list[str]:
-        """The modules to play: `names` (checked against the run's, `EnvSpec.module_index`) or
-        all of them."""
-        chosen = list(names) if names else list(self.spec.module_names)
+        """The modules to play: `names` (checked against the run's, `EnvSpec.module_index`; a
+        module named twice is played once) or all of them."""
+        chosen = list(dict.fromkeys(names)) if names else list(self.spec.module_names)
         for name in chosen:
             self.spec.module_index(name)
         return chosen

@@ -58,12 +58,20 @@ RED = (255, 110, 100)
 
 def output_kind(out: str | os.PathLike[str]) -> str:
     """'mp4', 'gif', 'webp', or 'png' (a folder of PNG frames: a path without a suffix, or a
-    folder that exists); a `ValueError` names the suffixes for anything else."""
+    folder that exists, unless it bears a video's suffix); a `ValueError` says what to name
+    for anything else."""
     path = Path(out)
     if not str(out).strip():
         raise ValueError("--out is empty: name a folder for PNG frames or a .mp4/.gif/.webp file")
     suffix = path.suffix.lower()
+    if path.name.lower() in VIDEO_SUFFIXES:  # `.gif` is a hidden name without a suffix
+        raise ValueError(f"--out {out} names no file: give it a name, e.g. clip{path.name}")
     if suffix in VIDEO_SUFFIXES:
+        if path.is_dir():
+            raise ValueError(
+                f"--out {out} is a folder: name a {suffix} file, or a folder without a suffix "
+                "for PNG frames"
+            )
         return VIDEO_SUFFIXES[suffix]
     if not suffix or path.is_dir():
         return "png"
