@@ -149,6 +149,17 @@ def test_bad_config_is_named(tmp_path, change, message):
         load_runs(folder)
 
 
+@pytest.mark.parametrize("total", ["abc", -1, 2.5, True])
+def test_a_budget_that_is_no_count_of_episodes_is_named(tmp_path, total):
+    """`total_episodes` is read by ship, progress and the report: a hand edit that breaks it is
+    named with the file, not met as an int() error without one."""
+    folder = _flat_run(tmp_path / "run")
+    settings = json.loads((folder / "config.json").read_text())["config"]
+    _edit_config(folder, config={**settings, "total_episodes": total})
+    with pytest.raises(AnalysisError, match=r"config\.json: 'total_episodes' must be a non-neg"):
+        load_runs(folder)
+
+
 def test_config_that_is_not_json_is_named(tmp_path):
     folder = _flat_run(tmp_path / "run")
     (folder / "config.json").write_text("{not json")

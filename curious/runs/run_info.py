@@ -141,6 +141,11 @@ def parse_info(data: dict[str, Any], folder: Path, config_path: Path) -> RunInfo
             f"{recorded!r}"
         )
     settings = data["config"]
+    total = settings.get("total_episodes", 0)
+    if not isinstance(total, int) or isinstance(total, bool) or total < 0:
+        raise RunFolderError(
+            f"{config_path}: 'total_episodes' must be a non-negative integer, got {total!r}"
+        )
     resumed = data.get("resumed")
     return RunInfo(
         path=folder.resolve(),
