@@ -259,6 +259,11 @@ def test_a_shipped_run_says_shipped_runs_carry_no_recording_and_no_checkpoint(
     assert err.count("\n") == 1 and "no recording.rrd" in err
     assert "shipped runs carry config.json and their tables only" in err
     assert "no recording.rrd and no checkpoints" in err and "--from-data" in err
+    assert f"It lies in the shipped data folder {data.resolve()} (written by" in err
+    assert main(["view", str(data)]) == 2  # the data folder itself: the same sentence
+    assert f"It lies in the shipped data folder {data.resolve()} (written by" in (
+        capsys.readouterr().err
+    )
     assert main(["evaluate", str(run), "--episodes", "1", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "holds no checkpoint" in err and "no recording.rrd and no checkpoints" in err

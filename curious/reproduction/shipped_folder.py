@@ -175,7 +175,7 @@ def shipped_run_note(run: str | os.PathLike) -> str:
     if root is None:
         return ""
     return (
-        f" It is a shipped run (of the data folder {root}, written by `curious ship`): shipped "
+        f" It lies in the shipped data folder {root} (written by `curious ship`): shipped "
         "runs carry config.json and their tables only, no recording.rrd and no checkpoints. "
         f"`curious reproduce --from-data {root}` and the notebooks read them; to watch or "
         "evaluate a run, train one (`curious train`)."
