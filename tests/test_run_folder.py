@@ -267,6 +267,27 @@ def test_a_folder_of_runs_given_as_a_run_names_the_runs_it_holds(tmp_path):
     assert str(bare.value).endswith("it has no config.json")
 
 
+def test_a_table_of_another_run_is_refused_naming_its_columns(tmp_path):
+    """A run goes on only from its own tables: a shipped one (most columns dropped) or one of
+    other modules is refused in a line naming what differs, not with both column lists."""
+    import pyarrow.parquet as pq
+
+    from curious.runs import metrics
+
+    path = tmp_path / "metrics.parquet"
+    schema = metrics.metrics_schema(["reach", "stack"])
+    shipped = [n for n in schema.names if n not in ("worker", "g0", "g1", "g2", "success")]
+    pq.write_table(schema.empty_table().select(shipped), path)
+    with pytest.raises(ValueError, match=r"it lacks worker, g0, g1, g2, success \(a table of"):
+        metrics.MetricsLog(path, ["reach", "stack"])
+    pq.write_table(metrics.metrics_schema(["reach", "push"]).empty_table(), path)
+    with pytest.raises(ValueError) as caught:
+        metrics.MetricsLog(path, ["reach", "stack"])
+    message = str(caught.value)
+    assert "it lacks competence/stack, lp/stack, p_lp/stack; it has competence/push, " in message
+    assert len(message) < 400
+
+
 def test_a_metrics_file_that_cannot_be_written_is_named_and_left_as_it_was(tmp_path, monkeypatch):
     """pyarrow's error on a full disk names neither the file nor the cause alone ("Error
     writing bytes to file. Detail: [errno 28] ..."): the log's is an OSError with the errno,

@@ -70,10 +70,22 @@ class TableLog:
         if self.path.exists():
             table = pq.read_table(self.path)
             if table.schema.names != self.schema.names:
-                raise ValueError(
-                    f"{self.path} has columns {table.schema.names}, expected {self.schema.names}"
-                )
+                raise ValueError(f"{self.path} is not this run's table: {self._differences(table)}")
             self._tables.append(table.cast(self.schema))
+
+    def _differences(self, table: pa.Table) -> str:
+        """How `table`'s columns differ from the schema's, in a line (a shipped table lacks
+        most of them; another run's names other modules)."""
+        names, wanted = table.schema.names, self.schema.names
+        missing = [n for n in wanted if n not in names]
+        extra = [n for n in names if n not in wanted]
+        said = [f"it lacks {', '.join(missing)}"] if missing else []
+        said += [f"it has {', '.join(extra)}, which this run does not write"] if extra else []
+        said = said or ["its columns are in another order"]
+        return "; ".join(said) + (
+            " (a table of another run, or one reduced by `curious ship`: a run goes on only from"
+            " its own tables)"
+        )
 
     @property
     def n_rows(self) -> int:
