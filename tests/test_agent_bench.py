@@ -214,13 +214,3 @@ def test_the_population_benchmark_names_its_contenders_when_one_is_unknown(capsy
         main(["bench", "population", "--contenders", "ours,fast"])
     assert exit_.value.code == 2
     assert "fast: the contenders are ours, ours_stacked" in capsys.readouterr().err
-
-
-@pytest.mark.skipif(torch.cuda.is_available(), reason="the refusal is for a machine without one")
-def test_the_population_benchmark_on_cuda_without_a_gpu_is_refused_before_training():
-    from benchmarks import population_speed
-
-    parser = argparse.ArgumentParser()
-    population_speed.add_arguments(parser)
-    with pytest.raises(ValueError, match="--device cuda, but torch sees no GPU"):
-        population_speed.measure(parser.parse_args(["--device", "cuda", "--cycles", "2"]))
