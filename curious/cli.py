@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _one_line_warnings(command: str | None, default: Callable[..., str]) -> Callable[..., str]:
+def _one_line_warnings(prefix: str, default: Callable[..., str]) -> Callable[..., str]:
     """A `warnings.formatwarning` that prints curious's own warnings (a damaged checkpoint
     passed over, ...) as one line, as its errors are, and other libraries' as they are."""
     package = Path(__file__).resolve().parent
@@ -75,7 +75,7 @@ def _one_line_warnings(command: str | None, default: Callable[..., str]) -> Call
     ) -> str:
         if not Path(filename).resolve().is_relative_to(package):
             return default(message, category, filename, lineno, line)
-        return f"{f'curious {command}' if command else 'curious'}: warning: {message}\n"
+        return f"{prefix}: warning: {message}\n"
 
     return format_warning
 
@@ -86,15 +86,13 @@ def main(argv: list[str] | None = None) -> int:
     own warnings."""
     words = list(sys.argv[1:] if argv is None else argv)
     command = next((w for w in words if w[:1] != "-"), None)
+    prefix = f"curious {command}" if command else "curious"
     default_format = warnings.formatwarning
     try:
-        warnings.formatwarning = _one_line_warnings(command, default_format)
+        warnings.formatwarning = _one_line_warnings(prefix, default_format)
         return _main(argv, words)
     except KeyboardInterrupt:
-        print(
-            f"curious {command}: interrupted" if command else "curious: interrupted",
-            file=sys.stderr,
-        )
+        print(f"{prefix}: interrupted", file=sys.stderr)
         return 130
     finally:
         warnings.formatwarning = default_format

@@ -249,9 +249,10 @@ def run(args: argparse.Namespace) -> int:
         if not 1 <= port <= MAX_PORT:
             return refuse("view", ValueError(f"{flag} must be from 1 to {MAX_PORT}, got {port}"))
     if args.web and args.web_port == args.grpc_port:
-        message = f"--web-port and --grpc-port are both {args.web_port}: the page and the "
-        message += "recordings are served on two ports; choose two"
-        return refuse("view", ValueError(message))
+        return refuse("view", ValueError(
+            f"--web-port and --grpc-port are both {args.web_port}: the page and the recordings "
+            "are served on two ports; choose two"
+        ))  # fmt: skip
     try:
         paths = recording_paths(args.runs)
     except FileNotFoundError as exc:
