@@ -75,21 +75,27 @@ LAPTOP_17 = (
 )
 
 
-def test_issue_51s_queue_goes_on_after_the_budgets_with_main_seeds_3_and_4_then_distractors_2(
+def test_issue_51s_queue_goes_on_after_the_budgets_with_distractors_2_then_main_seeds_3_and_4(
     campaign,
 ):
     """The laptop campaign's default queue once distractors_4 seed 0 is shipped: the budget's
     runs left (distractors_4 seed 1, then distractors_0, in flight when the seeds were added, so
-    a restart resumes them first), then main's seeds 3 and 4 seed by seed, then the distractors'
-    seed 2 of every variant."""
+    a restart resumes them first), then the distractors' seed 2 of every variant, then main's
+    seeds 3 and 4 seed by seed."""
     done = {*LAPTOP_17, *(f"distractors/{c}@distractors_4/seed-0" for c in ("curious", "m-uvfa"))}
     assert set(paths(campaign.queue("laptop", campaign.DEFAULT_ONLY[:3], set()))) <= done
     seeds = campaign.DEFAULT_SEEDS["laptop"]
-    assert seeds == {"main": (0, 1, 2, 3, 4), "distractors": (0, 1, 2)}
+    assert seeds == {"distractors": (0, 1, 2), "main": (0, 1, 2, 3, 4)}
     distractor = "distractors/{}@distractors_{}/seed-{}"
     assert paths(campaign.queue("laptop", campaign.DEFAULT_ONLY, done, seeds)) == [
         *(distractor.format(c, 4, 1) for c in ("curious", "m-uvfa")),
         *(distractor.format(c, 0, s) for s in (0, 1) for c in ("curious", "m-uvfa")),
+        *(distractor.format(c, n, 2) for n in (7, 4, 0) for c in ("curious", "m-uvfa")),
+        *(f"main/{c}/seed-{s}" for s in (3, 4) for c in ("curious", "mg-te", "her")),
+    ]
+    # the seeds added are queued in the order `--seeds` names their experiments
+    main_first = {"main": seeds["main"], "distractors": seeds["distractors"]}
+    assert paths(campaign.queue("laptop", campaign.DEFAULT_ONLY, done, main_first))[6:] == [
         *(f"main/{c}/seed-{s}" for s in (3, 4) for c in ("curious", "mg-te", "her")),
         *(distractor.format(c, n, 2) for n in (7, 4, 0) for c in ("curious", "m-uvfa")),
     ]
@@ -111,14 +117,18 @@ def test_a_run_beyond_the_budgets_seeds_is_the_budgets_run_but_for_the_seed(camp
         assert spec.config().seed == spec.seed
 
 
-BOTH = "37 runs queued (beyond the budget's: main seeds 3, 4; distractors seed 2)"
+BOTH = "37 runs queued (beyond the budget's: distractors seed 2; main seeds 3, 4)"
 
 
 @pytest.mark.parametrize(
     "args, queued",
     [
         (["--seeds", "main=0-4"], "31 runs queued (beyond the budget's: main seeds 3, 4)"),
-        (["--seeds", "main=3,4", "--seeds", "distractors=0-2"], BOTH),
+        (["--seeds", "distractors=0-2", "--seeds", "main=3,4"], BOTH),
+        (
+            ["--seeds", "main=3,4", "--seeds", "distractors=0-2"],
+            "37 runs queued (beyond the budget's: main seeds 3, 4; distractors seed 2)",
+        ),
         (["--seeds", "none"], "25 runs queued"),
         ([], BOTH),
         # the line names the seeds beyond the budget's that the queue holds, not the whole plan

@@ -27,9 +27,10 @@ budget's runs and the seeds beyond them, both from 9972821).
 With `--seeds EXPERIMENT=SEEDS` an experiment gets seeds beyond the budget's: runs identical to
 the budget's in every setting but the seed (`dataclasses.replace` of the budget's experiment, so
 that the campaign's commit, which has no other way to add seeds, builds them), queued after all of
-the budget's runs, pattern by pattern of `--only` again and seed by seed. The default for the
-`laptop` budget (`DEFAULT_SEEDS`) is the evidence campaign's: the main comparison to five seeds, as
-the paper's, and the distractors to three. Their seeds are written in the folder's
+the budget's runs, pattern by pattern of `--only` again, experiment by experiment in the order
+`--seeds` names them, and seed by seed. The default for the
+`laptop` budget (`DEFAULT_SEEDS`) is the evidence campaign's: the distractors to three seeds,
+then the main comparison to five, as the paper's. Their seeds are written in the folder's
 `reproduce.json` (`extra_seeds`), so that `curious progress` lists those not started as it lists
 the budget's; a later start with fewer (`--seeds none`, the budget's runs alone) keeps them
 there. `curious ship` ships them, and `curious reproduce --from-data` reads a seed beyond the
@@ -100,13 +101,16 @@ distractors' `distractors_7` variant, then, as far as the compute allows, `distr
 
 
 DEFAULT_SEEDS: dict[str, dict[str, tuple[int, ...]]] = {
-    "laptop": {"main": (0, 1, 2, 3, 4), "distractors": (0, 1, 2)},
+    "laptop": {"distractors": (0, 1, 2), "main": (0, 1, 2, 3, 4)},
 }
-"""Budget -> experiment -> its seeds in the campaign, the budget's and beyond (`--seeds`): for
-`laptop`, the evidence campaign's: main's seeds 3 and 4 (five seeds, as the paper's, so that C1's
-per-bin Welch tests do not hang on one seed) and the distractors' seed 2 of every variant (three
-seeds a side for C4), trained from the commit of seeds 0-2 (9972821) so that all are one
-protocol."""
+"""Budget -> experiment -> its seeds in the campaign, the budget's and beyond (`--seeds`), the
+experiments' seeds beyond the budget's queued in this order: for `laptop`, the evidence
+campaign's: the distractors' seed 2 of every variant (three seeds a side for C4, which two seeds
+leave untested), then main's seeds 3 and 4 (five seeds, as the paper's, so that C1's per-bin
+Welch tests do not hang on one seed), all trained from the commit of seeds 0-2 (9972821) so that
+all are one protocol. The distractors come first because C1 already has a reading at three seeds
+and C4 none at two, and because their runs are half as long (50,000 episodes): a machine lost
+mid-run loses less."""
 
 
 def parse_seeds(text: str) -> tuple[int, ...]:
@@ -133,8 +137,9 @@ def parse_seed_options(values: list[str]) -> dict[str, tuple[int, ...]]:
 
 
 def beyond(budget: str, seeds: dict[str, tuple[int, ...]]) -> dict[str, tuple[int, ...]]:
-    """Experiment -> the seeds among `seeds` (experiment -> seeds) that its budget lacks, in
-    the order given; a `ValueError` for an experiment the budget does not train."""
+    """Experiment -> the seeds among `seeds` (experiment -> seeds) that its budget lacks, the
+    experiments and their seeds in the order given; a `ValueError` for an experiment the budget
+    does not train."""
     experiments = get_budget(budget).experiments
     if strangers := sorted(set(seeds) - set(experiments)):
         raise ValueError(
@@ -142,9 +147,8 @@ def beyond(budget: str, seeds: dict[str, tuple[int, ...]]) -> dict[str, tuple[in
             f"(its experiments: {', '.join(experiments)})"
         )
     added = {
-        name: tuple(s for s in seeds[name] if s not in experiments[name].seeds)
-        for name in experiments
-        if name in seeds
+        name: tuple(s for s in chosen if s not in experiments[name].seeds)
+        for name, chosen in seeds.items()
     }
     return {name: extra for name, extra in added.items() if extra}
 
@@ -167,18 +171,19 @@ def queue(
 ) -> list[RunSpec]:
     """The runs to train without the shipped ones: pattern by pattern of `only`, and in the
     budget's order (experiment by experiment, seed by seed) within a pattern; then the runs of
-    the seeds `seeds` (experiment -> seeds) adds beyond the budget's, in the same way. A run that
+    the seeds `seeds` (experiment -> seeds) adds beyond the budget's, experiment by experiment
+    in the order `seeds` names them, each in the same way. A run that
     several patterns match is queued at the first. A `ValueError` for a pattern that matches no
     run of the budget or of the seeds added (a typo would otherwise queue nothing, silently)."""
     experiments = get_budget(budget).experiments
     added = beyond(budget, seeds or {})
+    # the budget's runs, then one group per experiment given seeds beyond them
     phases = [
         [spec for experiment in experiments.values() for spec in experiment.runs()],
-        [
-            spec
+        *(
+            dataclasses.replace(experiments[name], seeds=extra).runs()
             for name, extra in added.items()
-            for spec in dataclasses.replace(experiments[name], seeds=extra).runs()
-        ],
+        ),
     ]
     every = [str(spec.relative_path) for specs in phases for spec in specs]
     if unmatched := [p for p in only if not fnmatch.filter(every, p)]:

@@ -18,7 +18,7 @@
 #     failure on a mastered module (`--only 'sensor_failure_mastered/*'`), which 9972821 does not
 #     know, into the same output folder;
 #   phase 3, from CAMPAIGN_COMMIT again: the seeds beyond the budget's (tools/campaign.py's
-#     DEFAULT_SEEDS: main's seeds 3 and 4, the distractors' seed 2).
+#     DEFAULT_SEEDS: the distractors' seed 2, then main's seeds 3 and 4).
 # Phase 2 comes before phase 3 because C5 has no reading on a mastered module until its runs are
 # trained, while C1 and C4 already have theirs at the budget's seeds; the extra seeds sharpen them.
 #
