@@ -305,6 +305,33 @@ def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smok
     assert hashes(smoke.out / "figures") == figures_before  # figures rebuild byte-identical
 
 
+@pytest.mark.parametrize("experiment", ["distractors", "sensor_failure_mastered"])
+def test_a_figure_drawn_without_its_test_panel_is_captioned_without_it(smoke, tmp_path, experiment):
+    """Runs trained with `test_rollouts_per_worker=0` have no test rollouts: the distractors
+    and the mastered sensory failure's figures draw no test success panel, and the report's
+    caption does not name one."""
+    import shutil
+
+    from pipelines.report import write_report
+    from pipelines.report.blocks import FIGURE_TEXT, UNTESTED_FIGURE_TEXT
+    from pipelines.resources import OutputLayout, Reproduction
+
+    name = {"distractors": "distractors", "sensor_failure_mastered": "forgetting_mastered"}
+    out = tmp_path / "out"
+    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns("*.lock", ".dagster"))
+    repro = Reproduction(SMOKE, OutputLayout.at(out), make_pool=LocalPool)
+    report, _ = write_report(repro)
+    assert FIGURE_TEXT[name[experiment]] in report.read_text()  # with test rollouts
+
+    for path in (out / "runs" / experiment).rglob("tests.parquet"):
+        path.unlink()
+    repro.layout.tests(experiment).unlink()
+    report, _ = write_report(repro)
+    text = report.read_text()
+    assert FIGURE_TEXT[name[experiment]] not in text
+    assert UNTESTED_FIGURE_TEXT[name[experiment]] in text
+
+
 def test_runs_without_test_rollouts_get_no_fig2a_and_the_report_says_why(smoke, tmp_path):
     import shutil
 

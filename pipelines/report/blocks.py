@@ -31,6 +31,16 @@ FIGURE_TEXT: dict[str, str] = {
     "sensory failure, one line per run.",
 }
 
+UNTESTED_FIGURE_TEXT: dict[str, str] = {
+    "distractors": "Self-evaluated competence over the achievable modules at the end of the runs "
+    "against the number of distracting modules (the runs have no test rollouts: no test success "
+    "panel).",
+    "forgetting_mastered": "Competence and LP of the perturbed module around the sensory failure, "
+    "one line per run (the runs have no test rollouts: no test success panel).",
+}
+"""The captions of the figures that draw a test success panel only where the runs have test
+rollouts (`test_rollouts_per_worker=0` trains none), for the figures drawn without it."""
+
 
 @dataclass
 class ExperimentTables:
@@ -69,15 +79,17 @@ def markdown_table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> l
     return [*lines, ""]
 
 
-def figure(repro: Reproduction, name: str) -> list[str]:
+def figure(repro: Reproduction, name: str, tested: bool = True) -> list[str]:
     """A figure's image linked relatively (the output folder moves whole) with its caption and
-    SVG, or a line saying it has not been drawn."""
+    SVG, or a line saying it has not been drawn; `tested=False`: the runs have no test
+    rollouts, so a figure with a test success panel was drawn without it."""
     png = repro.layout.figures / f"{name}.png"
     if not png.is_file():
         return [f"*Figure `{name}` has not been drawn yet.*", ""]
     rel = png.relative_to(repro.layout.out).as_posix()
     svg = Path(rel).with_suffix(".svg").as_posix()
-    return [f"![{name}]({rel})", "", f"{FIGURE_TEXT[name]} ([SVG]({svg}))", ""]
+    text = FIGURE_TEXT[name] if tested else UNTESTED_FIGURE_TEXT.get(name, FIGURE_TEXT[name])
+    return [f"![{name}]({rel})", "", f"{text} ([SVG]({svg}))", ""]
 
 
 def fmt_episodes(value: object) -> str:

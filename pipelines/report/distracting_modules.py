@@ -26,7 +26,7 @@ from pipelines.resources import Reproduction
 def distractors(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
     """The distractors' section: the figure, competence and test success per number of
     distracting modules with their tests, then spontaneous forgetting."""
-    lines = [*figure(repro, "distractors")]
+    lines = [*figure(repro, "distractors", tested=tables.tests is not None)]
     extra = repro.left_out_runs(e)  # settings shipped with too few runs: shown, not tested
     final = analysis.final_competence(tables.metrics)
     shown = final

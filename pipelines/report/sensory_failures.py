@@ -55,11 +55,13 @@ def _recovery_rows(summary: pd.DataFrame) -> list[tuple[str, ...]]:
     ]
 
 
-def _failure_runs(repro: Reproduction, e: Experiment) -> tuple[list[str], pd.DataFrame | None]:
+def _failure_runs(
+    repro: Reproduction, e: Experiment, tables: ExperimentTables
+) -> tuple[list[str], pd.DataFrame | None]:
     """A sensory-failure experiment's figure and the opening of its section, with the per-run
     recovery of competence its figure asset wrote beside it (None before it is drawn)."""
     name = FIGURES[e.name][0]
-    lines = [*figure(repro, name)]
+    lines = [*figure(repro, name, tested=tables.tests is not None)]
     csv = repro.layout.figures / f"{name}.csv"
     if not csv.is_file():
         return lines, None
@@ -80,7 +82,7 @@ def _failure_runs(repro: Reproduction, e: Experiment) -> tuple[list[str], pd.Dat
 def sensor_failure(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
     """The sensory failure on a module just learned: per run, the competence before, the drop,
     LP and p_LP around the onset and the episodes to regain 90 % of it; then per condition."""
-    lines, per_run = _failure_runs(repro, e)
+    lines, per_run = _failure_runs(repro, e, tables)
     if per_run is None:
         return lines
     rows = [
@@ -235,7 +237,7 @@ def sensor_failure_mastered(
 ) -> list[str]:
     """The study on a mastered module: per run, its recovery by test success (primary) and by
     competence (secondary), with the refocus, and the Welch test on the episodes to recover."""
-    lines, per_run = _failure_runs(repro, e)
+    lines, per_run = _failure_runs(repro, e, tables)
     if per_run is None:
         return lines
     if tables.tests is None:
