@@ -324,10 +324,19 @@ class Config:
         return self.buffer_episodes or self.total_episodes
 
     def __post_init__(self) -> None:
+        # an int given for a float is taken as that float, nothing else is converted
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if str(f.type) == "float" and isinstance(value, int) and not isinstance(value, bool):
+                object.__setattr__(self, f.name, float(value))
         self.validate()  # every Config that exists can run: built, replaced or loaded
 
     def validate(self) -> Config:
-        """Raise `ConfigError` naming the first field with a value that cannot run."""
+        """Raise `ConfigError` naming the first field with a value that cannot run: of the
+        wrong type (`n_workers=2.0`, `seed="0"`, `overlap_rollouts="false"`), or out of its
+        range."""
+        for f in fields(self):
+            _check_type(f.name, str(f.type), getattr(self, f.name))
         if not 0 <= self.seed <= MAX_SEED:
             raise ConfigError(f"seed (--seed) must be from 0 to {MAX_SEED:,}, got {self.seed}")
         _check_condition(self.condition)
@@ -443,22 +452,21 @@ class Config:
         unknown = sorted(set(data) - set(setting_names()))
         if unknown:
             raise ConfigError(f"unknown config keys: {', '.join(unknown)}")
-        values = {}
-        for f in fields(cls):
-            if f.name not in data:
-                continue
-            kind, value = str(f.type), data[f.name]
-            fits = {
-                "int": isinstance(value, int) and not isinstance(value, bool),
-                "float": isinstance(value, int | float) and not isinstance(value, bool),
-                "bool": isinstance(value, bool),
-                "str": isinstance(value, str),
-            }[kind]
-            if not fits:
-                article = "an" if kind == "int" else "a"
-                raise ConfigError(f"{f.name} must be {article} {kind}, got {value!r}")
-            values[f.name] = float(value) if kind == "float" else value
-        return cls(**values)
+        return cls(**data)
+
+
+def _check_type(name: str, kind: str, value: Any) -> None:
+    """A `ConfigError` unless `value` is of the field's type (`kind`: int, float, bool or str;
+    an int counts as a float, a bool as neither number)."""
+    fits = {
+        "int": isinstance(value, int) and not isinstance(value, bool),
+        "float": isinstance(value, int | float) and not isinstance(value, bool),
+        "bool": isinstance(value, bool),
+        "str": isinstance(value, str),
+    }[kind]
+    if not fits:
+        article = "an" if kind == "int" else "a"
+        raise ConfigError(f"{name} must be {article} {kind}, got {value!r}")
 
 
 def setting_names() -> tuple[str, ...]:

@@ -21,6 +21,7 @@ from typing import Any, ClassVar
 import gymnasium
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
 from suite.variants import load
 
@@ -61,6 +62,7 @@ class ModuleGoalEnv(gymnasium.Env):
         self._goal_slice = slice(3 * self._index, 3 * self._index + 3)
         self._pad = _goal_padding(self.module.outcome_dim, self.module.goal_dim)
         self._renderer = None
+        self._needs_reset = True  # before the first reset and after truncation
 
         state_dim = task.state_layout.size
         goal_dim = self.module.outcome_dim
@@ -90,16 +92,24 @@ class ModuleGoalEnv(gymnasium.Env):
         goal = None if options is None else options.get("goal")
         self._env.task.set_next_episode(module=self._index, goal=goal)
         timestep = self._env.reset()
+        self._needs_reset = False
         return self._observation(timestep.observation), {}
 
     def step(
         self, action: np.ndarray
     ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
-        """One control step; truncated after the suite's 50 steps."""
+        """One control step; truncated after the suite's 50 steps. `gymnasium.error.ResetNeeded`
+        before the first `reset` and after truncation (the suite would start an episode of no
+        chosen module and goal)."""
+        if self._needs_reset:
+            raise ResetNeeded(
+                "call reset() before step(): the episode has not started or was truncated"
+            )
         timestep = self._env.step(action)
         obs = self._observation(timestep.observation)
         info = {"is_success": bool(timestep.observation["success"][self._index])}
-        return obs, float(timestep.reward), False, bool(timestep.last()), info
+        self._needs_reset = bool(timestep.last())
+        return obs, float(timestep.reward), False, self._needs_reset, info
 
     def compute_reward(
         self, achieved_goal: np.ndarray, desired_goal: np.ndarray, info: Any = None

@@ -1,5 +1,7 @@
 """Presets, overrides and the errors users get for bad settings."""
 
+import dataclasses
+
 import pytest
 
 from curious.config import PRESETS, Config, ConfigError, condition_names, parse_overrides, resolve
@@ -113,6 +115,34 @@ def test_overrides_are_typed():
 def test_bad_settings_name_the_problem(call, message):
     with pytest.raises(ConfigError, match=message):
         call()
+
+
+@pytest.mark.parametrize(
+    ("build", "message"),
+    [
+        (lambda: Config(n_workers=2.0), "n_workers must be an int, got 2.0"),
+        (lambda: Config(seed="0"), "seed must be an int, got '0'"),
+        (lambda: Config(overlap_rollouts="false"), "overlap_rollouts must be a bool, got 'false'"),
+        (lambda: Config(hidden=True), "hidden must be an int, got True"),
+        (lambda: Config(her_p="0.8"), "her_p must be a float, got '0.8'"),
+        (lambda: Config(algorithm=3), "algorithm must be a str, got 3"),
+        (lambda: resolve("smoke", overrides={"total_episodes": "30"}), "total_episodes must be"),
+        (lambda: dataclasses.replace(resolve("smoke"), n_cycles=1.5), "n_cycles must be an int"),
+        (lambda: Config.from_dict({"gamma": "0.98"}), "gamma must be a float"),
+    ],
+)
+def test_a_setting_of_the_wrong_type_is_refused_however_the_config_is_made(build, message):
+    """`Config(...)`, `resolve`'s overrides, `dataclasses.replace` and `from_dict` check the
+    types alike: a float count or a string flag would otherwise fail deep in numpy or torch,
+    or (``"false"`` is truthy) quietly switch a setting on."""
+    with pytest.raises(ConfigError, match=message):
+        build()
+
+
+def test_an_int_given_for_a_float_setting_is_that_float():
+    assert Config(actor_lr=1).actor_lr == 1.0 and isinstance(Config(actor_lr=1).actor_lr, float)
+    assert isinstance(Config.from_dict({"noise_eps": 0}).noise_eps, float)
+    assert isinstance(resolve("smoke", overrides={"her_p": 1}).her_p, float)
 
 
 @pytest.mark.parametrize(

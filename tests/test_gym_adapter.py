@@ -79,6 +79,29 @@ def test_unknown_module_is_a_clear_error():
         ModuleGoalEnv("default", "pick")
 
 
+def test_stepping_before_reset_or_after_truncation_asks_for_a_reset():
+    """dm_env would start an episode of no chosen module and goal; Gymnasium's answer is
+    `ResetNeeded`."""
+    from gymnasium.error import ResetNeeded
+
+    env = ModuleGoalEnv("default", "reach", seed=0)
+    action = np.zeros(env.action_space.shape, np.float32)
+    with pytest.raises(ResetNeeded, match="call reset"):
+        env.step(action)
+    env.reset(seed=0)
+    truncated = False
+    steps = 0
+    while not truncated:
+        *_, truncated, _ = env.step(action)
+        steps += 1
+    assert steps == 50
+    with pytest.raises(ResetNeeded, match="truncated"):
+        env.step(action)
+    env.reset()
+    env.step(action)  # a new episode steps again
+    env.close()
+
+
 def test_stable_baselines3_her_trains_on_a_module():
     sb3 = pytest.importorskip("stable_baselines3")
     from stable_baselines3.her.her_replay_buffer import HerReplayBuffer

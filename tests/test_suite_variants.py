@@ -327,3 +327,16 @@ def test_reachable_cubes_and_failing_cube_are_checked():
     assert task.sensor_failure_modules == ("cube1_above_cube2", "stack")
     with pytest.raises(ValueError, match="several modules"):
         _ = task.sensor_failure_module
+
+
+@pytest.mark.parametrize("seed", ["0", -1, 1.5, True, 2**32])
+def test_a_seed_that_numpy_cannot_take_is_named_before_the_task_is_built(seed):
+    """Before: numpy's "Cannot cast scalar" or "Seed must be between 0 and 2**32 - 1"."""
+    with pytest.raises(ValueError, match=f"seed must be None or an integer .* got {seed!r}"):
+        suite.load("default", seed=seed)
+
+
+@pytest.mark.parametrize("n_distractors", ["3", 2.5])
+def test_a_number_of_distractors_that_is_no_integer_is_named(n_distractors):
+    with pytest.raises(ValueError, match="n_distractors must be an integer"):
+        suite.build(n_distractors)

@@ -29,6 +29,14 @@ def compare_degradation(final: pd.DataFrame, better: str, worse: str) -> dict[st
     modules. Returns ``fewest``, ``most`` (the two settings), ``loss_<condition>`` for both,
     ``difference`` (D), ``se``, ``df``, ``t`` and ``p`` (NaN where a group has fewer than two
     seeds, or no variance at all), and the four groups' sizes ``n_<condition>_<setting>``."""
+    missing = [c for c in ("condition", "n_distractors", "value") if c not in final]
+    if missing:
+        raise AnalysisError(
+            f"this table lacks {', '.join(missing)}: pass final_competence (or "
+            "final_test_success) of runs with distracting modules"
+        )
+    if better == worse:
+        raise AnalysisError(f"compare_degradation compares two conditions, got '{better}' twice")
     settings = sorted(int(n) for n in final["n_distractors"].dropna().unique())
     if len(settings) < 2:
         raise AnalysisError(

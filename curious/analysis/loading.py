@@ -37,7 +37,7 @@ check that the runs they compare agree where it matters.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from os import PathLike
 from pathlib import Path, PurePosixPath
 
@@ -62,9 +62,12 @@ __all__ = [
     "load_run",
     "load_runs",
     "load_tests",
+    "name_list",
     "read_run_info",
+    "require_identity",
     "require_runs",
     "require_tests",
+    "require_values",
     "run_modules",
     "run_path_below",
     "runs_table",
@@ -126,8 +129,12 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
     """
     if isinstance(paths_or_root, (str, PathLike)):
         given = [Path(paths_or_root)]
+    elif isinstance(paths_or_root, Iterable) and not isinstance(paths_or_root, bytes):
+        given = [_given_path(p) for p in paths_or_root]
     else:
-        given = [Path(p) for p in paths_or_root]
+        raise AnalysisError(
+            f"pass a run folder, several, or a root folder (paths), got {paths_or_root!r}"
+        )
     if not given:
         raise AnalysisError("no run folders given: pass a run folder, several, or a root folder")
     found: list[Path] = []
@@ -157,6 +164,13 @@ def find_run_folders(paths_or_root: PathsOrRoot) -> list[Path]:
     if twice:
         raise AnalysisError(f"run folder(s) named more than once: {', '.join(twice)}")
     return sorted(resolved)
+
+
+def _given_path(path: object) -> Path:
+    """One of the paths given to `find_run_folders`, or an `AnalysisError` for what is none."""
+    if not isinstance(path, (str, PathLike)):
+        raise AnalysisError(f"pass run folders as paths, got {path!r}")
+    return Path(path)
 
 
 def _checked_run_folder(path: Path) -> Path:
@@ -426,7 +440,7 @@ def load_tests(paths_or_root: PathsOrRoot) -> pd.DataFrame:
 
 def runs_table(df: pd.DataFrame) -> pd.DataFrame:
     """One row per run of a loaded table: identity columns plus first/last episode and count."""
-    require_runs(df)
+    require_identity(df)
     grouped = df.groupby("run", observed=True, sort=True)
     first = grouped[list(IDENTITY_COLUMNS[1:])].first()
     first["first_episode"] = grouped["episode"].min()
@@ -437,7 +451,7 @@ def runs_table(df: pd.DataFrame) -> pd.DataFrame:
 
 def run_modules(df: pd.DataFrame, run: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """(all modules in slot order, achievable modules) of one run of a loaded table."""
-    require_runs(df)
+    require_identity(df)
     rows = df.loc[df["run"] == run, ["modules", "achievable_modules"]]
     if rows.empty:
         raise AnalysisError(f"no run {run!r} in this table")
@@ -445,18 +459,50 @@ def run_modules(df: pd.DataFrame, run: str) -> tuple[tuple[str, ...], tuple[str,
     return tuple(str(modules).split(",")), tuple(a for a in str(achievable).split(",") if a)
 
 
-def require_runs(df: pd.DataFrame) -> None:
-    """An `AnalysisError` unless ``df`` is a table of runs (`load_runs`): identity columns and
-    ``episode``."""
+def name_list(value: Sequence[str] | None, argument: str) -> list[str] | None:
+    """``value`` (a sequence of names, or None) as a list; an `AnalysisError` for a single
+    string, which would otherwise be read letter by letter."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        raise AnalysisError(f"{argument} takes a sequence of names, e.g. [{value!r}], not a str")
+    return [str(v) for v in value]
+
+
+def _require_rows(df: pd.DataFrame) -> None:
+    """An `AnalysisError` for a table without rows (one filtered to nothing)."""
+    if df.empty:
+        raise AnalysisError(
+            "this table has no rows (filtered to nothing? check the condition, variant or "
+            "module it was selected by)"
+        )
+
+
+def require_identity(df: pd.DataFrame) -> None:
+    """An `AnalysisError` unless ``df`` has rows with the identity columns and ``episode``: a
+    `load_runs` or a `load_tests` table."""
     missing = [c for c in (*IDENTITY_COLUMNS, "episode") if c not in df.columns]
     if missing:
         raise AnalysisError(
             f"this table lacks {', '.join(missing)}: pass a table from curious.analysis.load_runs"
         )
+    _require_rows(df)
+
+
+def require_runs(df: pd.DataFrame) -> None:
+    """An `AnalysisError` unless ``df`` is a table of runs (`load_runs`, metrics.parquet's
+    rows): identity columns, ``episode`` and the per-module competence, with rows."""
+    require_identity(df)
+    if not any(str(c).startswith("competence/") for c in df.columns):
+        kind = "a table of test rollouts (load_tests)" if "success" in df else "not a runs table"
+        raise AnalysisError(
+            f"this table has no competence/<module> columns, {kind}: pass a table from "
+            "curious.analysis.load_runs (metrics.parquet)"
+        )
 
 
 def require_tests(df: pd.DataFrame) -> None:
-    """An `AnalysisError` unless ``df`` is a table of test rollouts (`load_tests`)."""
+    """An `AnalysisError` unless ``df`` is a table of test rollouts (`load_tests`), with rows."""
     missing = [
         c for c in (*IDENTITY_COLUMNS, "epoch", "episode", "module", "success") if c not in df
     ]
@@ -465,4 +511,22 @@ def require_tests(df: pd.DataFrame) -> None:
             f"this table lacks {', '.join(missing)}: Fig. 2a and its statistics read the test "
             "rollouts; pass a table from curious.analysis.load_tests (tests.parquet), not "
             "load_runs (metrics.parquet)"
+        )
+    _require_rows(df)
+
+
+def require_values(df: pd.DataFrame, what: str) -> None:
+    """An `AnalysisError` unless ``df`` holds one value per run and point (`what` takes it):
+    ``run``, ``condition``, ``seed``, ``episodes`` and ``value``, as `epoch_success`,
+    `binned_success`, `bin_runs`, `final_competence` and `final_test_success` return."""
+    missing = [c for c in ("run", "condition", "seed", "episodes", "value") if c not in df]
+    if missing:
+        kind = ""
+        if any(str(c).startswith("competence/") for c in df.columns):
+            kind = " (this is a table of runs: pass it through bin_runs or final_competence)"
+        elif "success" in df:
+            kind = " (this is a table of test rollouts: pass it through epoch_success first)"
+        raise AnalysisError(
+            f"{what} takes one value per run and point (epoch_success, binned_success, "
+            f"bin_runs or final_competence); this table lacks {', '.join(missing)}{kind}"
         )

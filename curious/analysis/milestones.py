@@ -221,8 +221,26 @@ def learning_order(
     """One row per run of a `competence_crossings` table: ``order`` (the modules that crossed,
     first to last, ties joined by ``=``), ``not_reached`` (the others) and ``follows_paper``
     (see the module doc; NA where it cannot say)."""
+    if missing := [c for c in (*RUN_COLUMNS, "module", "episode", "rank") if c not in crossings]:
+        raise AnalysisError(
+            f"this table lacks {', '.join(missing)}: learning_order takes a "
+            "competence_crossings table (learning_order(competence_crossings(runs)))"
+        )
     if crossings.empty:
         raise AnalysisError("no module crossings to order: no run with achievable modules")
+    if isinstance(order, str) or any(isinstance(group, str) for group in order):
+        raise AnalysisError(
+            "order takes groups of module names, e.g. [['reach'], ['push_cube1']], not names"
+        )
+    # a module of a given order that no run has is a typo; the paper's order on runs without
+    # one of its modules (a variant without stack) is NA, as documented
+    known = set(crossings["module"].astype(str))
+    unknown = sorted({m for group in order for m in group} - known)
+    if unknown and order is not PAPER_ORDER:
+        raise AnalysisError(
+            f"order names modules no run has: {', '.join(unknown)} (have: "
+            f"{', '.join(sorted(known))})"
+        )
     rows = []
     for _run, group in crossings.groupby("run", observed=True, sort=True):
         done = group.dropna(subset=["episode"]).sort_values(["episode", "module"])

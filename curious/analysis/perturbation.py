@@ -28,14 +28,19 @@ import numpy as np
 import pandas as pd
 
 from curious.analysis import DEFAULT_TEST_EPOCHS
-from curious.analysis.loading import AnalysisError, require_runs, require_tests
+from curious.analysis.loading import (
+    AnalysisError,
+    require_identity,
+    require_runs,
+    require_tests,
+)
 from curious.analysis.milestones import module_test_success
 from curious.analysis.statistics import (
     ALPHA,
     FLOAT32_SLACK,
     RUN_COLUMNS,
     run_arrays,
-    welch_per_bin,
+    welch_greater,
 )
 from curious.config import LEARNED_COMPETENCE
 
@@ -55,7 +60,7 @@ __all__ = [
 def perturbed_module(df: pd.DataFrame) -> str:
     """The module the runs' sensory failure perturbs, as their run folders record it (the
     ``perturbed_modules`` column): one module, the same in every run."""
-    require_runs(df)
+    require_identity(df)
     per_run = df.groupby("run", observed=True)[["variant", "perturbed_modules"]].first()
     none = per_run[per_run["perturbed_modules"].astype(str) == ""]
     if not none.empty:
@@ -455,8 +460,16 @@ def _epoch_grid(tests: pd.DataFrame, onsets: pd.Series) -> pd.DataFrame:
 def _onsets_by_run(onsets: pd.Series | Mapping[str, object]) -> pd.Series:
     """``onsets`` (run -> first episode with the failure, NA where it never started) as a
     nullable-int Series indexed by the run's path as text."""
+    if not isinstance(onsets, Mapping | pd.Series):
+        raise AnalysisError(
+            "onsets takes each run's onset by run (failure_onsets(runs)['onset'], or a mapping "
+            f"run -> episode), got a {type(onsets).__name__}"
+        )
     series = pd.Series(onsets, dtype="object") if isinstance(onsets, Mapping) else onsets
-    out = pd.to_numeric(series, errors="raise").astype("Int64")
+    try:
+        out = pd.to_numeric(series, errors="raise").astype("Int64")
+    except (TypeError, ValueError):
+        raise AnalysisError("onsets must be episodes (integers, or NA where none)") from None
     out.index = out.index.astype(str)
     return out
 
@@ -506,7 +519,15 @@ def recovery_by_tests(
     pooled = pooled[pooled["module"].astype(str) == module]
     if pooled.empty and not (tests["module"].astype(str) == module).any():
         raise KeyError(f"no module {module!r} in these runs' test rollouts")
-    grid = _epoch_grid(tests, _onsets_by_run(onsets))
+    by_run = _onsets_by_run(onsets)
+    runs = tests["run"].astype(str).unique()
+    if not by_run.index.isin(runs).any():
+        raise AnalysisError(
+            f"onsets name none of these test rollouts' runs (they are keyed by the run's resolved "
+            f"path, as load_tests writes it, e.g. {runs[0]}): take them from failure_onsets of "
+            "the same runs"
+        )
+    grid = _epoch_grid(tests, by_run)
     per_run = grid.groupby("run", sort=True)
     last_before = grid["position"].where(grid["before"]).groupby(grid["run"]).max()
     first_after = grid["position"].where(grid["after"]).groupby(grid["run"]).min()
@@ -589,29 +610,39 @@ def compare_recoveries(
 ) -> dict[str, object]:
     """One-tailed Welch's t-test that ``faster`` recovers in fewer episodes than ``slower``.
 
-    ``per_run`` is a `recovery_by_tests` table (or any with ``condition``, ``status``,
+    ``per_run`` is a `recovery_by_tests` or `recovery` table (or any with ``condition``,
     ``recovered`` and ``recovery_episodes``). Only recovered runs have a number; the others are
-    listed, not given one (``unrecovered``: their rows). The test is `welch_per_bin` on the
+    listed, not given one (``unrecovered``: their rows). The test is `welch_greater` on the
     recovered runs' ``recovery_episodes``, with ``slower``'s mean the greater under the
     alternative. Returns a dict: ``faster``, ``slower``, ``alpha``, ``n_faster``, ``n_slower``
     (recovered runs), ``mean_faster``, ``mean_slower``, ``std_faster``, ``std_slower``, ``t``,
     ``p`` (NaN with fewer than two recovered runs a side, or no variance), ``significant`` and
     ``unrecovered``.
     """
+    if faster == slower:
+        raise AnalysisError(f"compare_recoveries compares two conditions, got '{faster}' twice")
+    missing = [c for c in ("condition", "recovered", "recovery_episodes") if c not in per_run]
+    if missing:
+        raise AnalysisError(
+            f"this table lacks {', '.join(missing)}: pass a recovery_by_tests or recovery table"
+        )
+    present = set(per_run["condition"].astype(str))
+    for name in (faster, slower):
+        if name not in present:
+            raise AnalysisError(
+                f"no runs of condition '{name}' (have: {', '.join(sorted(present)) or 'none'})"
+            )
     recovered = per_run[per_run["recovered"].astype(bool)]
     out: dict[str, object] = {"faster": faster, "slower": slower, "alpha": alpha}
+    episodes = {}
     for side, condition in (("faster", faster), ("slower", slower)):
         values = recovered.loc[recovered["condition"] == condition, "recovery_episodes"]
-        values = values.astype(np.float64)
+        episodes[side] = values.to_numpy(np.float64)
         out[f"n_{side}"] = len(values)
-        out[f"mean_{side}"] = float(values.mean()) if len(values) else np.nan
-        out[f"std_{side}"] = float(values.std(ddof=1)) if len(values) > 1 else np.nan
-    out.update(t=np.nan, p=np.nan, significant=False)
-    if out["n_faster"] and out["n_slower"]:
-        rows = recovered[recovered["condition"].isin([faster, slower])]
-        frame = rows.assign(episodes=0, value=rows["recovery_episodes"].astype(np.float64))
-        test = welch_per_bin(frame, slower, faster, alpha).iloc[0]
-        out.update(t=float(test["t"]), p=float(test["p"]), significant=bool(test["significant"]))
+        out[f"mean_{side}"] = float(episodes[side].mean()) if len(values) else np.nan
+        out[f"std_{side}"] = float(episodes[side].std(ddof=1)) if len(values) > 1 else np.nan
+    t, p = welch_greater(episodes["slower"], episodes["faster"])  # faster: the fewer episodes
+    out.update(t=t, p=p, significant=bool(p < alpha) if np.isfinite(p) else False)
     out["unrecovered"] = per_run[
         per_run["condition"].isin([faster, slower]) & ~per_run["recovered"].astype(bool)
     ]

@@ -48,7 +48,13 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from curious.analysis.loading import AnalysisError, require_runs, require_tests
+from curious.analysis.loading import (
+    AnalysisError,
+    name_list,
+    require_runs,
+    require_tests,
+    require_values,
+)
 
 __all__ = [
     "ALPHA",
@@ -70,6 +76,7 @@ __all__ = [
     "nice_bin_size",
     "on_achievable",
     "run_arrays",
+    "welch_greater",
     "welch_per_bin",
 ]
 
@@ -112,7 +119,8 @@ def achievable_competence(df: pd.DataFrame) -> pd.Series:
 
 def nice_bin_size(n_episodes: int, target_bins: int = 50) -> int:
     """The largest of 1, 2, 5, 10, 20, 50, ... that gives at least ``target_bins`` bins."""
-    if n_episodes < 1 or target_bins < 1:
+    finite = np.isfinite(n_episodes) and np.isfinite(target_bins)
+    if not finite or n_episodes < 1 or target_bins < 1:
         raise ValueError(
             f"need n_episodes >= 1 and target_bins >= 1, got {n_episodes}, {target_bins}"
         )
@@ -222,8 +230,28 @@ def check_comparable(runs: pd.DataFrame, conditions: Sequence[str] | None = None
 def across_seeds(binned: pd.DataFrame, by: Sequence[str] = ("condition",)) -> pd.DataFrame:
     """Mean, sample std (ddof=1) and count over runs, per ``by`` + ``episodes``.
 
-    NaN values (see the module doc) are left out and not counted in ``n``.
+    NaN values (see the module doc) are left out and not counted in ``n``. Each group's runs
+    must be one per seed: runs of several variants (or experiments) under one condition and
+    seed are an `AnalysisError` naming them, not averaged as if they were seeds (select a
+    variant first, or add ``"variant"`` or ``"n_distractors"`` to ``by``).
     """
+    require_values(binned, "across_seeds")
+    by = name_list(by, "by") or []
+    if missing := [c for c in by if c not in binned]:
+        raise AnalysisError(f"by names no column {', '.join(map(repr, missing))} of this table")
+    keys = [*by, "seed"]
+    shown = list(dict.fromkeys([*keys, *(["variant"] if "variant" in binned else [])]))
+    per_run = binned.groupby("run", observed=True)[shown].first()
+    twice = per_run[per_run.duplicated(keys, keep=False)]
+    if not twice.empty:
+        first = twice.iloc[0]
+        clash = twice[(twice[keys] == first[keys]).all(axis=1)]
+        variants = sorted(clash["variant"].astype(str)) if "variant" in clash else []
+        raise AnalysisError(
+            f"{', '.join(f'{k} {first[k]}' for k in keys)} has {len(clash)} runs"
+            + (f" (variants {', '.join(variants)})" if variants else "")
+            + ": select one variant, or pass by=(..., 'variant'), so that each seed counts once"
+        )
     keys = [*by, "episodes"]
     valid = binned.dropna(subset=["value"])
     grouped = valid.groupby(keys, observed=True, sort=True)["value"]
@@ -243,6 +271,9 @@ def welch_per_bin(
     """
     if not 0 < alpha < 1:
         raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    require_values(binned, "welch_per_bin")
+    if better == worse:
+        raise AnalysisError(f"welch_per_bin compares two conditions, got '{better}' twice")
     present = set(binned["condition"].astype(str))
     for name in (better, worse):
         if name not in present:
@@ -260,11 +291,7 @@ def welch_per_bin(
     rows = []
     for episodes in sorted(set(a_groups) & set(b_groups)):
         a, b = a_groups[episodes], b_groups[episodes]
-        if len(a) >= 2 and len(b) >= 2:
-            result = stats.ttest_ind(a, b, equal_var=False, alternative="greater")
-            t, p = float(result.statistic), float(result.pvalue)
-        else:
-            t, p = np.nan, np.nan
+        t, p = welch_greater(a, b)
         rows.append(
             {
                 "episodes": int(episodes),
@@ -290,6 +317,15 @@ def welch_per_bin(
     return pd.DataFrame(rows, columns=columns)
 
 
+def welch_greater(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """One-tailed Welch's t-test that ``a``'s mean is the greater: (t, p), both NaN with fewer
+    than two values a side."""
+    if len(a) < 2 or len(b) < 2:
+        return np.nan, np.nan
+    result = stats.ttest_ind(a, b, equal_var=False, alternative="greater")
+    return float(result.statistic), float(result.pvalue)
+
+
 def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.DataFrame:
     """Each run's average success over achievable modules after episode ``at_episode``.
 
@@ -301,6 +337,8 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
     last_per_run = df.groupby("run", observed=True)["episode"].max()
     if at_episode is None:
         at_episode = int(last_per_run.min())
+    if at_episode < 0:
+        raise AnalysisError(f"at_episode must be an episode (>= 0), got {at_episode}")
     short = last_per_run[last_per_run < at_episode]
     if not short.empty:
         raise AnalysisError(
@@ -370,6 +408,7 @@ def final_success(points: pd.DataFrame) -> pd.DataFrame:
     they are not favoured. Returns one row per run: run columns, ``episodes``, ``n_tests`` and
     ``value``.
     """
+    require_values(points, "final_success")
     if points.empty:
         raise AnalysisError("no test success points: the runs have no test rollouts yet")
     common = points.groupby("run", observed=True)["episodes"].max().min()

@@ -55,9 +55,10 @@ def checkpoint_episodes(path: str | os.PathLike) -> int | None:
     return int(match.group(1)) if match else None
 
 
-def list_checkpoints(directory: Path) -> list[Path]:
+def list_checkpoints(directory: str | os.PathLike) -> list[Path]:
     """Complete checkpoints, oldest first (temporaries, `.tmp-ep-...`, are not listed); a
     `RunFolderError` where `directory` is a file."""
+    directory = Path(directory)
     if not directory.exists():
         return []
     if not directory.is_dir():

@@ -33,6 +33,7 @@ from curious.analysis.figures.parts import (
 )
 from curious.analysis.loading import (
     AnalysisError,
+    require_runs,
     require_tests,
 )
 from curious.analysis.statistics import (
@@ -77,6 +78,10 @@ def fig2a(
     require_tests(tests)
     conditions = ordered_conditions(tests, conditions)
     if compare is not None:
+        if isinstance(compare, str) or len(compare) != 2:
+            raise AnalysisError(
+                f"compare takes two conditions, e.g. ('curious', 'mg-te'), got {compare!r}"
+            )
         for c in compare:
             if c not in conditions:
                 raise AnalysisError(
@@ -89,6 +94,11 @@ def fig2a(
     pair = compare if compare is not None else (None, None)
     numbers = main_comparison(rows, *pair, alpha=alpha, bin_size=bin_size)
     points: pd.DataFrame = numbers["points"]  # type: ignore[assignment]
+    if not points["n_tests"].any():
+        raise AnalysisError(
+            "none of these test rollouts is on an achievable module: Fig. 2a has nothing to "
+            "draw (were they filtered by module?)"
+        )
     summary: pd.DataFrame = numbers["summary"]  # type: ignore[assignment]
     width_episodes = int(numbers["bin_size"])  # type: ignore[arg-type]
     n_achievable = len(str(rows["achievable_modules"].iat[0]).split(","))
@@ -275,6 +285,7 @@ def table1(
     name: str = "table1",
 ) -> Figure:
     """Competence (left) and absolute LP (right) of every seed of ``condition`` (paper Table 1)."""
+    require_runs(df)
     rows = restrict(df, ordered_conditions(df, [condition]), variant)
     check_comparable(rows)
     runs = runs_of(rows).sort_values("seed")

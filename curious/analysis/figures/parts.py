@@ -13,6 +13,8 @@ from matplotlib.figure import Figure
 from curious.analysis import palette
 from curious.analysis.loading import (
     AnalysisError,
+    name_list,
+    require_identity,
     require_runs,
     run_modules,
 )
@@ -35,7 +37,10 @@ CAPTION_SIZE = 7.5
 
 
 def ordered_conditions(df: pd.DataFrame, conditions: Sequence[str] | None) -> list[str]:
+    """``conditions`` (all the table's, in the paper's order, where None) checked against the
+    table's runs."""
     present = [str(c) for c in df["condition"].unique()]
+    conditions = name_list(conditions, "conditions")
     if conditions is None:
         known = [c for c in CONDITION_ORDER if c in present]
         return known + sorted(c for c in present if c not in CONDITION_ORDER)
@@ -48,7 +53,7 @@ def ordered_conditions(df: pd.DataFrame, conditions: Sequence[str] | None) -> li
 
 
 def restrict(df: pd.DataFrame, conditions: Sequence[str], variant: str | None) -> pd.DataFrame:
-    require_runs(df)
+    require_identity(df)
     if variant is not None:
         variants = set(df["variant"].astype(str))
         if variant not in variants:
@@ -62,7 +67,11 @@ def restrict(df: pd.DataFrame, conditions: Sequence[str], variant: str | None) -
 def one_run(
     df: pd.DataFrame, condition: str, seed: int | None, variant: str | None
 ) -> pd.DataFrame:
-    """The rows of one run, chosen by condition, seed (lowest if None) and variant."""
+    """The rows of one run of a `load_runs` table, chosen by condition, seed (lowest if None)
+    and variant."""
+    require_runs(df)
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
+        raise AnalysisError(f"seed must be an int, got {seed!r}")
     rows = restrict(df, ordered_conditions(df, [condition]), variant)
     seeds = sorted(int(s) for s in rows["seed"].unique())
     if seed is None:

@@ -1,0 +1,170 @@
+"""A wrong call of the analysis API (the wrong kind of table, a table filtered to nothing, a
+name where a list is meant, one condition compared with itself) is an `AnalysisError` that names
+the mistake, not a pandas KeyError from deep inside, and never a silently wrong number."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from curious import analysis
+from curious.analysis import AnalysisError
+from tests.test_analysis_synthetic import (
+    write_distractor_study,
+    write_perturbation_study,
+    write_study,
+)
+
+
+@pytest.fixture(scope="module")
+def main(tmp_path_factory) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A made-up main comparison: its runs table and its test rollouts."""
+    root = tmp_path_factory.mktemp("main")
+    write_study(root, seeds=(0, 1), n_episodes=200, tests_per_epoch=20)
+    return analysis.load_runs(root), analysis.load_tests(root)
+
+
+@pytest.fixture(scope="module")
+def distractors(tmp_path_factory) -> pd.DataFrame:
+    """Made-up distractor runs' test rollouts, 0 and 4 distracting modules, 2 seeds a side."""
+    root = tmp_path_factory.mktemp("distractors")
+    write_distractor_study(root, counts=(0, 4), seeds=(0, 1), n_episodes=200, tests_per_epoch=20)
+    return analysis.load_tests(root)
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda runs, tests: analysis.final_competence(tests), "test rollouts \\(load_tests\\)"),
+        (lambda runs, tests: analysis.bin_runs(tests), "pass a table from .*load_runs"),
+        (lambda runs, tests: analysis.competence_crossings(tests), "no competence/<module>"),
+        (lambda runs, tests: analysis.mastery_drops(tests), "no competence/<module>"),
+        (lambda runs, tests: analysis.fig2b(tests), "no competence/<module>"),
+        (lambda runs, tests: analysis.across_seeds(tests), "through epoch_success first"),
+        (lambda runs, tests: analysis.welch_per_bin(runs, "curious", "mg-te"), "through bin_runs"),
+        (lambda runs, tests: analysis.final_success(tests), "lacks episodes, value"),
+        (lambda runs, tests: analysis.learning_order(runs), "takes a competence_crossings table"),
+        (
+            lambda runs, tests: analysis.compare_degradation(runs, "curious", "m-uvfa"),
+            "pass final_competence",
+        ),
+    ],
+)
+def test_the_wrong_kind_of_table_is_named(main, call, message):
+    """A tests table where a runs table is meant (and the reverse): before, a pandas KeyError
+    (`'competence/reach'`, `['value']`), or for `learning_order`, 14 s a run of nonsense."""
+    with pytest.raises(AnalysisError, match=message):
+        call(*main)
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda runs, tests: analysis.binned_success(tests[tests["condition"] == "m-uvfa"]),
+        lambda runs, tests: analysis.final_competence(runs[runs["variant"] == "nope"]),
+        lambda runs, tests: analysis.bin_runs(runs.iloc[:0]),
+        lambda runs, tests: analysis.perturbed_module(runs.iloc[:0]),
+    ],
+)
+def test_a_table_filtered_to_nothing_says_so(main, call):
+    """Before: `cannot convert float NaN to integer` or an IndexError."""
+    with pytest.raises(AnalysisError, match="has no rows \\(filtered to nothing"):
+        call(*main)
+
+
+def test_across_seeds_does_not_average_variants_as_seeds(distractors):
+    """Runs of 0 and 4 distracting modules under one condition and seed were averaged as if
+    they were four seeds; grouped by variant they are two a side."""
+    points = analysis.final_test_success(distractors)
+    with pytest.raises(AnalysisError, match=r"condition curious, seed 0 has 2 runs \(variants"):
+        analysis.across_seeds(points)
+    means = analysis.across_seeds(points, by=("condition", "variant"))
+    assert set(means["n"]) == {2}
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda points: analysis.across_seeds(points, by="condition"), "not a str"),
+        (lambda points: analysis.across_seeds(points, by=["colour"]), "no column 'colour'"),
+        (lambda points: analysis.welch_per_bin(points, "curious", "curious"), "'curious' twice"),
+    ],
+)
+def test_arguments_of_the_statistics_are_checked(main, call, message):
+    points = analysis.binned_success(main[1])
+    with pytest.raises(AnalysisError, match=message):
+        call(points)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"conditions": "curious"}, r"conditions takes a sequence of names, e.g. \['curious'\]"),
+        ({"compare": "curious"}, "compare takes two conditions"),
+        ({"compare": ("curious", "curious")}, "'curious' twice"),
+    ],
+)
+def test_fig2a_reads_its_conditions_as_names_not_letters(main, tmp_path, kwargs, message):
+    """Before: "no runs of condition(s) c, u, r, i, o, u, s" and "compares 'c' with 'u'"."""
+    with pytest.raises(AnalysisError, match=message):
+        analysis.fig2a(main[1], out_dir=tmp_path, **kwargs)
+
+
+def test_fig2a_of_rollouts_on_no_achievable_module_says_so(main, tmp_path):
+    """Before: KeyError 'episodes' from the drawing."""
+    tests = main[1]
+    with pytest.raises(AnalysisError, match="none of these test rollouts is on an achievable"):
+        analysis.fig2a(tests[tests["module"] == "push_cube3"], out_dir=tmp_path)
+
+
+def test_a_seed_given_as_text_is_named(main, tmp_path):
+    """Before: "condition 'curious' has no seed 0 (seeds: 0, 1)"."""
+    with pytest.raises(AnalysisError, match="seed must be an int, got '0'"):
+        analysis.fig2b(main[0], seed="0", out_dir=tmp_path)
+
+
+def test_learning_order_names_a_module_no_run_has(main):
+    """A typo in a given order made every run's `follows_paper` NA without a word."""
+    crossings = analysis.competence_crossings(main[0])
+    with pytest.raises(AnalysisError, match="order names modules no run has: push_cub1"):
+        analysis.learning_order(crossings, order=[["reach"], ["push_cub1"]])
+    with pytest.raises(AnalysisError, match="groups of module names"):
+        analysis.learning_order(crossings, order=["reach", "push_cube1"])
+    assert len(analysis.learning_order(crossings)) == 6  # the paper's order, as before
+
+
+def test_recovery_by_tests_refuses_onsets_of_other_runs(tmp_path):
+    """Onsets keyed by other paths made every run `no_onset`, silently."""
+    runs = write_perturbation_study(tmp_path, seeds=(0, 1), tests_per_epoch=20)
+    tests = analysis.load_tests(runs)
+    onsets = analysis.failure_onsets(analysis.load_runs(runs))["onset"]
+    assert (analysis.recovery_by_tests(tests, onsets)["status"] != "no_onset").all()
+    relative = {f"elsewhere/{k}": v for k, v in onsets.items()}
+    with pytest.raises(AnalysisError, match="onsets name none of these test rollouts' runs"):
+        analysis.recovery_by_tests(tests, relative)
+    with pytest.raises(AnalysisError, match="got a list"):
+        analysis.recovery_by_tests(tests, list(onsets))
+
+
+def test_compare_recoveries_takes_a_recovery_table_and_checks_its_conditions(tmp_path):
+    runs = write_perturbation_study(tmp_path, seeds=(0, 1, 2))
+    per_run = analysis.recovery(analysis.load_runs(runs))
+    result = analysis.compare_recoveries(per_run, "curious", "m-uvfa")  # a KeyError before
+    assert result["n_faster"] == 3 and result["mean_faster"] < result["mean_slower"]
+    with pytest.raises(AnalysisError, match="no runs of condition 'curios'"):
+        analysis.compare_recoveries(per_run, "curios", "m-uvfa")  # n_faster 0, p NaN before
+    with pytest.raises(AnalysisError, match="'curious' twice"):
+        analysis.compare_recoveries(per_run, "curious", "curious")  # p = 0.5 before
+
+
+@pytest.mark.parametrize("given", [None, 5, b"data/laptop", [None]])
+def test_what_is_no_path_is_named_where_run_folders_are_meant(given):
+    """Before: "'NoneType' object is not iterable", or a TypeError from pathlib."""
+    with pytest.raises(AnalysisError, match=r"pass (a run folder|run folders)"):
+        analysis.load_runs(given)
+
+
+def test_nice_bin_size_of_an_endless_run_is_refused():
+    """`nice_bin_size(inf)` looped for ever."""
+    with pytest.raises(ValueError, match="need n_episodes >= 1"):
+        analysis.nice_bin_size(float("inf"))
