@@ -131,7 +131,9 @@ class Config:
     seed: int = 0
     """Seeds networks, the agent's random choices and every environment copy."""
     preset: str = "paper"
-    """Name of the preset the run was resolved from (recorded, not used after resolving)."""
+    """Name of the preset the run was resolved from (recorded, not used after resolving): a
+    label, so `Config(preset="smoke")` keeps the `paper` numbers; `resolve("smoke")` applies
+    the preset."""
     variant: str = "default"
     """Suite variant (`suite.ALL_VARIANTS`) trained on."""
     total_episodes: int = 300_000

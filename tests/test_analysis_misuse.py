@@ -164,6 +164,30 @@ def test_what_is_no_path_is_named_where_run_folders_are_meant(given):
         analysis.load_runs(given)
 
 
+def test_the_sensory_failure_figure_refuses_test_rollouts_of_other_runs(tmp_path):
+    """Before: "no module 'push_cube3' in these runs' test rollouts", which they had."""
+    runs = write_perturbation_study(tmp_path / "a", seeds=(0, 1))
+    others = write_perturbation_study(tmp_path / "b", seeds=(0, 1), tests_per_epoch=20)
+    with pytest.raises(AnalysisError, match="must be those of the same runs"):
+        analysis.forgetting(
+            analysis.load_runs(runs), tests=analysis.load_tests(others), out_dir=tmp_path
+        )
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda tests: analysis.epoch_success(tests, bin_size=2500.5), "bin_size must be an int"),
+        (lambda tests: analysis.module_test_success(tests, window=2.5), "window must be an int"),
+        (lambda tests: analysis.binned_success(tests, bin_size=True), "bin_size must be an int"),
+    ],
+)
+def test_a_window_or_a_bin_width_is_a_whole_count(main, call, message):
+    """Before: float bin labels, or pandas' "min_periods must be an integer"."""
+    with pytest.raises(ValueError, match=message):
+        call(main[1])
+
+
 def test_nice_bin_size_of_an_endless_run_is_refused():
     """`nice_bin_size(inf)` looped for ever."""
     with pytest.raises(ValueError, match="need n_episodes >= 1"):

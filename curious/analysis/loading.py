@@ -64,6 +64,7 @@ __all__ = [
     "load_tests",
     "name_list",
     "read_run_info",
+    "require_count",
     "require_identity",
     "require_runs",
     "require_tests",
@@ -467,6 +468,15 @@ def name_list(value: Sequence[str] | None, argument: str) -> list[str] | None:
     if isinstance(value, str):
         raise AnalysisError(f"{argument} takes a sequence of names, e.g. [{value!r}], not a str")
     return [str(v) for v in value]
+
+
+def require_count(value: object, name: str, unit: str = "") -> None:
+    """A `ValueError` unless ``value`` is an integer >= 1 (``name``, in ``unit``s): a window or
+    a bin width, which a float or a bool would turn into float labels or a pandas error."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ValueError(
+            f"{name} must be an integer >= 1{f' {unit}' if unit else ''}, got {value!r}"
+        )
 
 
 def _require_rows(df: pd.DataFrame) -> None:

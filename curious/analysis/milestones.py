@@ -28,7 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-from curious.analysis.loading import AnalysisError, require_runs, require_tests
+from curious.analysis.loading import AnalysisError, require_count, require_runs, require_tests
 from curious.analysis.progress import DEFAULT_TEST_EPOCHS
 from curious.analysis.statistics import FLOAT32_SLACK, RUN_COLUMNS, on_achievable
 
@@ -88,8 +88,7 @@ def module_test_success(tests: pd.DataFrame, window: int = DEFAULT_TEST_EPOCHS) 
     ``n_tests`` is 0).
     """
     require_tests(tests)
-    if window < 1:
-        raise ValueError(f"window must be >= 1 epoch, got {window}")
+    require_count(window, "window", "epoch")
     epochs = tests.groupby(["run", "epoch"], observed=True, sort=True)["episode"].max()
     epochs = epochs.rename("episodes").reset_index()
     identity = _identity(tests)

@@ -30,6 +30,7 @@ import pandas as pd
 from curious.analysis import DEFAULT_TEST_EPOCHS
 from curious.analysis.loading import (
     AnalysisError,
+    require_count,
     require_identity,
     require_runs,
     require_tests,
@@ -115,8 +116,8 @@ def _check_recovery_arguments(
 ) -> None:
     if not 0 < fraction <= 1:
         raise ValueError(f"fraction must be in (0, 1], got {fraction}")
-    if pre_window is not None and pre_window < 1:
-        raise ValueError(f"pre_window must be >= 1 episode, got {pre_window}")
+    if pre_window is not None:
+        require_count(pre_window, "pre_window", "episode")
     if learned is not None and not 0 < learned <= 1:
         raise ValueError(f"learned must be a competence in (0, 1], got {learned}")
 
@@ -512,8 +513,7 @@ def recovery_by_tests(
     require_tests(tests)
     if not 0 < fraction <= 1:
         raise ValueError(f"fraction must be in (0, 1], got {fraction}")
-    if window < 1:
-        raise ValueError(f"window must be >= 1 epoch, got {window}")
+    require_count(window, "window", "epoch")
     module = module if module is not None else perturbed_module(tests)
     pooled = module_test_success(tests, window)
     pooled = pooled[pooled["module"].astype(str) == module]

@@ -51,6 +51,7 @@ from scipy import stats
 from curious.analysis.loading import (
     AnalysisError,
     name_list,
+    require_count,
     require_runs,
     require_tests,
     require_values,
@@ -173,8 +174,7 @@ def bin_runs(
     data = _values(df, values)
     if bin_size is None:
         bin_size = nice_bin_size(int(df["episode"].max()) + 1)
-    if bin_size < 1:
-        raise ValueError(f"bin_size must be >= 1, got {bin_size}")
+    require_count(bin_size, "bin_size", "episode")
     parts = []
     for _run, first, episodes, run_values in run_arrays(df, data):
         n_bins = (int(episodes[-1]) + 1) // bin_size
@@ -375,8 +375,8 @@ def epoch_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     ``n_tests`` is 0).
     """
     require_tests(tests)
-    if bin_size is not None and bin_size < 1:
-        raise ValueError(f"bin_size must be >= 1, got {bin_size}")
+    if bin_size is not None:
+        require_count(bin_size, "bin_size", "episode")
     hit = on_achievable(tests)
     episodes = tests["episode"].to_numpy(np.int64)
     points = episodes if bin_size is None else -(-episodes // bin_size) * bin_size

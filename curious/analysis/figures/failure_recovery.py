@@ -31,6 +31,7 @@ from curious.analysis.figures.parts import (
     runs_of,
     setting_text,
 )
+from curious.analysis.loading import AnalysisError
 from curious.analysis.milestones import module_test_success
 from curious.analysis.perturbation import perturbed_module, recovery, recovery_by_tests
 from curious.analysis.statistics import (
@@ -98,6 +99,11 @@ def forgetting(
     tested = None
     if tests is not None:
         tests = tests[tests["run"].isin(per_run["run"])]
+        if tests.empty:
+            raise AnalysisError(
+                "the test rollouts must be those of the same runs as the competence: load both "
+                "from the same run folders"
+            )
         starts = per_run.set_index("run")["perturbation_episode"]
         tested = _Tested(tests, recovery_by_tests(tests, starts, module, fraction), module)
     grow = _LEGEND_HEIGHT[0] + _LEGEND_HEIGHT[1] * len(onsets) if len(onsets) else 0.0
