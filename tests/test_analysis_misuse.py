@@ -123,6 +123,18 @@ def test_a_seed_given_as_text_is_named(main, tmp_path):
         analysis.fig2b(main[0], seed="0", out_dir=tmp_path)
 
 
+@pytest.mark.parametrize("figure", ["fig2b", "fig2c", "table1"])
+def test_a_condition_that_never_self_evaluates_has_no_competence_figure(main, tmp_path, figure):
+    """HER scores its holistic goal only: its competence columns are all NaN (as in
+    data/laptop/main/her), and its Fig. 2b was an empty plot."""
+    runs = main[0].copy()
+    competence = [c for c in runs.columns if c.startswith("competence/")]
+    runs.loc[runs["condition"] == "her", competence] = float("nan")
+    with pytest.raises(AnalysisError, match="condition 'her' has no self-evaluated competence"):
+        getattr(analysis, figure)(runs, condition="her", out_dir=tmp_path)
+    getattr(analysis, figure)(runs, condition="curious", out_dir=tmp_path)
+
+
 def test_learning_order_names_a_module_no_run_has(main):
     """A typo in a given order made every run's `follows_paper` NA without a word."""
     crossings = analysis.competence_crossings(main[0])

@@ -26,6 +26,7 @@ from curious.analysis.figures.parts import (
     lp_axis,
     one_run,
     ordered_conditions,
+    require_self_evaluated,
     restrict,
     runs_of,
     setting_text,
@@ -288,6 +289,7 @@ def table1(
     require_runs(df)
     rows = restrict(df, ordered_conditions(df, [condition]), variant)
     check_comparable(rows)
+    require_self_evaluated(rows, condition)
     runs = runs_of(rows).sort_values("seed")
     n = len(runs)
     n_episodes = int(runs["n_episodes"].max())

@@ -88,7 +88,19 @@ def one_run(
             f"condition '{condition}' seed {seed} has {len(runs)} runs (variants {variants}): "
             "pass variant= to choose one"
         )
+    require_self_evaluated(rows, condition)
     return rows.sort_values("episode")
+
+
+def require_self_evaluated(rows: pd.DataFrame, condition: str) -> None:
+    """An `AnalysisError` where the runs of ``rows`` have no competence at all: a condition
+    that never self-evaluates (HER), whose per-module figures would be empty."""
+    columns = [c for c in rows.columns if str(c).startswith("competence/")]
+    if not rows[columns].notna().to_numpy().any():
+        raise AnalysisError(
+            f"condition '{condition}' has no self-evaluated competence in these runs (HER "
+            "scores its holistic goal only): draw a condition that self-evaluates"
+        )
 
 
 def runs_of(df: pd.DataFrame) -> pd.DataFrame:
