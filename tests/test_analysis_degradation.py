@@ -94,3 +94,22 @@ def test_a_group_of_one_seed_gives_the_losses_but_no_test():
 def test_what_cannot_be_compared_is_named(groups: dict, message: str):
     with pytest.raises(AnalysisError, match=message):
         analysis.compare_degradation(finals(groups), "curious", "m-uvfa")
+
+
+def test_distractor_share_counts_the_episodes_practising_a_module_no_run_can_learn(tmp_path):
+    """Per run and complete bin: the share of its episodes whose module is not achievable
+    (counted here row by row from metrics.parquet), none without distractors."""
+    from tests.test_analysis_synthetic import write_distractor_study
+
+    write_distractor_study(tmp_path, counts=(0, 4), seeds=(0,), n_episodes=250)
+    runs = analysis.load_runs(tmp_path)
+    share = analysis.distractor_share(runs, bin_size=100)
+    assert share.attrs["bin_size"] == 100
+    for run, rows in runs.groupby("run", observed=True):
+        achievable = str(rows["achievable_modules"].iat[0]).split(",")
+        mine = share[share["run"] == run]
+        assert list(mine["episodes"]) == [100, 200]  # the third bin is not complete
+        for end, value in zip(mine["episodes"], mine["value"], strict=True):
+            practised = rows.loc[rows["episode"] < end].tail(100)["module"].astype(str)
+            assert value == pytest.approx((~practised.isin(achievable)).mean())
+        assert (mine["value"] > 0).all() == (rows["n_distractors"].iat[0] > 0)

@@ -170,6 +170,24 @@ def test_c4_test_success_per_number_of_distractors(n_distractors):
     assert row in RESULTS.read_text(), row
 
 
+def test_c4_per_run_table_of_results_md():
+    """docs/results.md's C4 table per run is the report's (`per_run_table`): competence and
+    test success at the end, test success and the share of episodes on a distracting module
+    per 10,000 episodes, for every run the report reads."""
+    from pipelines.report.blocks import ExperimentTables
+    from pipelines.report.distracting_modules import per_run_table
+
+    paths = _whole_seeds("distractors")
+    _, budget = _read_by_report()
+    tables = ExperimentTables(analysis.load_runs(paths), analysis.load_tests(paths))
+    text = RESULTS.read_text()
+    table = per_run_table(budget.experiments["distractors"], tables)
+    rows = [line for line in table if line.startswith("|")]
+    assert len(rows) == 2 + len(paths)
+    for row in rows:
+        assert row in text, row
+
+
 def test_c4_degradation_between_the_settings_shipped():
     """The degradation test over the settings whose runs are all shipped (4 and 7 until
     `distractors_0` is)."""

@@ -69,6 +69,7 @@ __all__ = [
     "binned_success",
     "check_comparable",
     "comparison_bin_size",
+    "distractor_share",
     "epoch_success",
     "final_competence",
     "final_success",
@@ -474,6 +475,44 @@ def final_test_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.D
     final = final_success(points)
     final.attrs["bin_size"] = points.attrs["bin_size"]
     return final
+
+
+def distractor_share(df: pd.DataFrame, bin_size: int | None = None) -> pd.DataFrame:
+    """Each run's share of training episodes that practised a distracting module (one its run
+    cannot achieve), per ``bin_size``-episode bin it completed: how much of its practice a
+    condition spends where nothing can be learned (C4's mechanism; M-UVFA's uniform choice puts
+    it at distractors / modules).
+
+    ``df`` is a `load_runs` table (its ``module`` column: the module each episode practised).
+    ``bin_size`` defaults to `nice_bin_size` of the longest run. Returns one row per (run, bin):
+    the run columns, ``episodes`` (the bin's end) and ``value`` (the share, 0 to 1).
+    """
+    require_runs(df)
+    if "module" not in df:
+        raise AnalysisError("this table has no module column: it says which module was practised")
+    episode = df["episode"].to_numpy(np.int64)
+    if bin_size is None:
+        bin_size = nice_bin_size(int(episode.max()) + 1)
+    require_count(bin_size, "bin_size", "episode")
+    module = df["module"].astype(str).to_numpy()
+    elsewhere = np.zeros(len(df), bool)
+    for achievable, rows in df.groupby("achievable_modules", observed=True).indices.items():
+        elsewhere[rows] = ~np.isin(module[rows], [m for m in str(achievable).split(",") if m])
+    frame = pd.DataFrame(
+        {
+            "run": df["run"].to_numpy(),
+            "episodes": (episode // bin_size + 1) * bin_size,
+            "value": elsewhere.astype(np.float64),
+        }
+    )
+    out = frame.groupby(["run", "episodes"], observed=True, sort=True)["value"].mean()
+    out = out.reset_index()
+    done = pd.Series(episode + 1, index=frame["run"]).groupby(level=0, observed=True).max()
+    out = out[out["episodes"] <= out["run"].map(done).astype(np.int64)]
+    identity = df.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
+    out = out.join(identity, on="run")
+    out.attrs["bin_size"] = bin_size
+    return out[[*RUN_COLUMNS, "episodes", "value"]].reset_index(drop=True)
 
 
 def main_comparison(

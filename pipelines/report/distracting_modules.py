@@ -55,7 +55,56 @@ def distractors(repro: Reproduction, e: Experiment, tables: ExperimentTables) ->
             "",
             *_per_setting(e, tested, shown, "setting (test success at the end)"),
         ]
-    return lines + spontaneous_forgetting(e, tables.metrics)
+    return lines + per_run_table(e, tables) + spontaneous_forgetting(e, tables.metrics)
+
+
+PER_RUN_BINS = 5
+"""The per-run table's bins over a run's budget (`analysis.nice_bin_size`): 10,000 episodes of
+50,000."""
+
+
+def per_run_table(e: Experiment, tables: ExperimentTables) -> list[str]:
+    """Per run of the experiment, in order of distractors, condition and seed: the competence
+    and test success at the end, the test success in each of `PER_RUN_BINS` bins, and the share
+    of its training episodes that practised a distracting module in each (`none` without
+    distractors)."""
+    final = analysis.final_competence(tables.metrics)
+    episodes = int(final["episodes"].iat[0])
+    width = analysis.nice_bin_size(episodes, PER_RUN_BINS)
+    shares = analysis.distractor_share(tables.metrics, width).groupby("run", observed=True)
+    tested_at = f"test success, episodes {episodes - width + 1:,}-{episodes:,}"
+    tested = per_bin = None
+    if tables.tests is not None:
+        last = analysis.final_test_success(tables.tests)
+        start = int(last["episodes"].iat[0]) - int(last.attrs["bin_size"]) + 1
+        tested_at = f"test success, episodes {start:,}-{int(last['episodes'].iat[0]):,}"
+        tested = last.set_index("run")["value"]
+        points = analysis.epoch_success(tables.tests, width)
+        per_bin = points.groupby("run", observed=True)["value"]
+    final["order"] = final["condition"].map({c: i for i, c in enumerate(e.conditions)})
+    rows = []
+    for r in final.sort_values(["n_distractors", "order", "seed"]).itertuples():
+        rows.append(
+            (
+                int(r.n_distractors),
+                f"{condition_label(r.condition)} {int(r.seed)}",
+                fmt(r.value),
+                "–" if tested is None else fmt(tested[r.run]),
+                "–" if per_bin is None else " / ".join(map(fmt, per_bin.get_group(r.run))),
+                ", ".join(f"{100 * v:.0f} %" for v in shares.get_group(r.run)["value"])
+                if r.n_distractors
+                else "none",
+            )
+        )
+    header = (
+        "distracting modules",
+        "run",
+        f"competence at {episodes:,}",
+        tested_at,
+        f"test success per {width:,} episodes",
+        f"episodes on a distracting module, per {width:,}",
+    )
+    return ["Per run:", "", *markdown_table(header, rows)]
 
 
 def _per_setting(e: Experiment, final: pd.DataFrame, shown: pd.DataFrame, what: str) -> list[str]:
