@@ -126,6 +126,30 @@ def test_c2_order_of_learning_in_every_curious_seed():
     assert f"the same order in all {seeds} CURIOUS seeds" in _text(README)
 
 
+def _report_rows(lines: list[str]) -> list[str]:
+    """The rows of the markdown table in a report block's lines, its header first."""
+    return [line for line in lines if line.startswith("|")]
+
+
+def test_c1_episodes_to_test_success_and_c2_order_tables_of_results_md():
+    """docs/results.md's table of episodes to test success 0.5 / 0.9 (C1) and its table of the
+    order of learning (C2) are the report's, row by row, for every seed the report reads."""
+    from pipelines.report.main_comparison import episodes_to_success_table, learning_order_table
+
+    paths = _whole_seeds("main")
+    _, budget = _read_by_report()
+    main = budget.experiments["main"]
+    text = RESULTS.read_text()
+    for table in (
+        episodes_to_success_table(main, analysis.load_tests(paths)),
+        learning_order_table(main, analysis.load_runs(paths)),
+    ):
+        rows = _report_rows(table)
+        assert len(rows) == 2 + len(paths)
+        for row in rows:
+            assert row in text, row
+
+
 def _seeds_cell(row) -> str:
     """A condition's cell of the C4 tables: mean ± std (N seeds), or the value (1 seed)."""
     if int(row["n"]) == 1:
@@ -181,8 +205,7 @@ def test_c4_per_run_table_of_results_md():
     _, budget = _read_by_report()
     tables = ExperimentTables(analysis.load_runs(paths), analysis.load_tests(paths))
     text = RESULTS.read_text()
-    table = per_run_table(budget.experiments["distractors"], tables)
-    rows = [line for line in table if line.startswith("|")]
+    rows = _report_rows(per_run_table(budget.experiments["distractors"], tables))
     assert len(rows) == 2 + len(paths)
     for row in rows:
         assert row in text, row

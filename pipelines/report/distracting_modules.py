@@ -15,6 +15,7 @@ from pipelines.report.blocks import (
     figure,
     fmt,
     fmt_p,
+    in_order,
     markdown_table,
     mean_std,
     welch_summary,
@@ -81,9 +82,8 @@ def per_run_table(e: Experiment, tables: ExperimentTables) -> list[str]:
         tested = last.set_index("run")["value"]
         points = analysis.epoch_success(tables.tests, width)
         per_bin = points.groupby("run", observed=True)["value"]
-    final["order"] = final["condition"].map({c: i for i, c in enumerate(e.conditions)})
     rows = []
-    for r in final.sort_values(["n_distractors", "order", "seed"]).itertuples():
+    for r in in_order(final, e).sort_values("n_distractors", kind="stable").itertuples():
         rows.append(
             (
                 int(r.n_distractors),

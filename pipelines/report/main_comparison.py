@@ -107,7 +107,7 @@ def _area_under_success(e: Experiment, tests: pd.DataFrame) -> list[str]:
     return lines
 
 
-def _episodes_to_success(e: Experiment, tests: pd.DataFrame) -> list[str]:
+def episodes_to_success_table(e: Experiment, tests: pd.DataFrame) -> list[str]:
     """Per condition and seed: the episodes each achievable module needed to reach each level of
     test success (`analysis.episodes_to_test_success`)."""
     table = analysis.episodes_to_test_success(tests)
@@ -133,7 +133,7 @@ def _episodes_to_success(e: Experiment, tests: pd.DataFrame) -> list[str]:
     ]
 
 
-def _learning_order(e: Experiment, table: pd.DataFrame) -> list[str]:
+def learning_order_table(e: Experiment, table: pd.DataFrame) -> list[str]:
     """Per run: the order in which its modules' competence crossed `ORDER_LEVEL`, against the
     paper's (`analysis.learning_order`)."""
     crossings = analysis.competence_crossings(table, level=ORDER_LEVEL)
@@ -173,9 +173,9 @@ def main(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[s
         if e.compare is not None:
             lines += _welch_points(numbers, *e.compare)
         lines += _area_under_success(e, tables.tests)
-        lines += _episodes_to_success(e, tables.tests)
+        lines += episodes_to_success_table(e, tables.tests)
     for name in ("fig2b", "fig2c", "table1"):
         lines += figure(repro, name)
-    lines += _learning_order(e, tables.metrics)
+    lines += learning_order_table(e, tables.metrics)
     lines += spontaneous_forgetting(e, tables.metrics)
     return lines
