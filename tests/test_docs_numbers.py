@@ -150,6 +150,27 @@ def test_c1_episodes_to_test_success_and_c2_order_tables_of_results_md():
             assert row in text, row
 
 
+def test_c1_reading_every_curious_seed_before_any_mg_te_seed():
+    """The C1 reading: on push cube 1, stack and cube 1 above cube 2, every CURIOUS seed reached
+    each level of test success before any MG-TE seed did (a seed that never reached it counts
+    as after), and the means over seeds the page quotes."""
+    table = analysis.episodes_to_test_success(analysis.load_tests(_whole_seeds("main")))
+    table = table.assign(episodes=table["episodes"].astype("Float64").fillna(np.inf))
+    at = table.groupby(["module", "level", "condition"], observed=True)["episodes"]
+    for module in ("push_cube1", "stack", "cube1_above_cube2"):
+        for level in (0.5, 0.9):
+            assert at.max()[(module, level, "curious")] < at.min()[(module, level, "mg-te")]
+    text = _text(RESULTS)
+    quoted = [("push_cube1", 0.9, "push cube 1"), ("stack", 0.9, "stack")]
+    quoted += [("cube1_above_cube2", 0.5, "cube 1 above cube 2")]
+    for module, level, name in quoted:
+        c, m = (round(at.mean()[(module, level, x)], -2) for x in ("curious", "mg-te"))
+        reading = f"{level} on {name} at {c:,.0f} episodes against {m:,.0f}"
+        if module != "push_cube1":
+            reading = f"{level} on {name} at {c:,.0f} against {m:,.0f}"
+        assert reading in text, reading
+
+
 def _seeds_cell(row) -> str:
     """A condition's cell of the C4 tables: mean ± std (N seeds), or the value (1 seed)."""
     if int(row["n"]) == 1:
@@ -241,6 +262,19 @@ def test_c3_no_drop_of_a_mastered_module():
         f"Over about {episodes:.2f} million module-episodes of mastered modules in {runs} runs"
     )
     assert results in _text(RESULTS), results
+
+
+def test_c3_table_per_condition_of_results_md():
+    """docs/results.md's C3 table is the report's per condition and variant (`mastery_summary`),
+    the main comparison's rows then the distractors', for every seed the report reads."""
+    from pipelines.report.spontaneous_forgetting import mastery_summary
+
+    _, budget = _read_by_report()
+    text = RESULTS.read_text()
+    for name in ("main", "distractors"):
+        read = analysis.mastery(analysis.load_runs(_whole_seeds(name)))
+        for row in _report_rows(mastery_summary(budget.experiments[name], read)):
+            assert row in text, row
 
 
 def test_c5_refocus_and_recoveries():

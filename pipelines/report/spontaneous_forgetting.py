@@ -75,6 +75,7 @@ def spontaneous_forgetting(e: Experiment, table: pd.DataFrame) -> list[str]:
         "drops",
     )
     lines += markdown_table(header, rows)
+    lines += mastery_summary(e, read)
     if drops.empty:
         return [*lines, "No drop of a mastered module in these runs.", ""]
     rows = [
@@ -110,3 +111,43 @@ def spontaneous_forgetting(e: Experiment, table: pd.DataFrame) -> list[str]:
         "",
         *markdown_table(header, rows),
     ]
+
+
+def mastery_summary(e: Experiment, read: pd.DataFrame) -> list[str]:
+    """Per condition and variant of `analysis.mastery`'s table (`read`), the runs that
+    self-evaluate: how many of their achievable modules were mastered, the module-episodes read
+    as mastered, the deepest fall below a peak while mastered (which module, which seed) and the
+    drops."""
+    rows = []
+    evaluated = read[read["evaluated"].astype(bool)]
+    for (condition, variant), group in in_order(evaluated, e).groupby(
+        ["condition", "variant"], observed=True, sort=False
+    ):
+        mastered = group.dropna(subset=["mastered_episode"])
+        deepest = "–"
+        if not mastered.empty:
+            worst = mastered.loc[mastered["deepest_fall"].idxmax()]
+            deepest = fmt(worst["deepest_fall"])
+            if fmt(worst["deepest_fall"]) != fmt(0.0):
+                deepest += f" ({module_label(str(worst['module']))}, seed {int(worst['seed'])})"
+        rows.append(
+            (
+                condition_label(condition),
+                variant,
+                group["run"].nunique(),
+                f"{len(mastered)} of {len(group)}",
+                f"{int(group['mastered_episodes'].sum()):,}",
+                deepest,
+                int(group["n_drops"].sum()),
+            )
+        )
+    header = (
+        "condition",
+        "variant",
+        "runs",
+        "achievable modules mastered",
+        "module-episodes read as mastered",
+        "deepest fall below the peak while mastered",
+        "drops",
+    )
+    return ["Per condition:", "", *markdown_table(header, rows)]
