@@ -128,7 +128,7 @@ def mastery_summary(e: Experiment, read: pd.DataFrame) -> list[str]:
         if not mastered.empty:
             worst = mastered.loc[mastered["deepest_fall"].idxmax()]
             deepest = fmt(worst["deepest_fall"])
-            if fmt(worst["deepest_fall"]) != fmt(0.0):
+            if deepest != fmt(0.0):  # which module fell, where any did
                 deepest += f" ({module_label(str(worst['module']))}, seed {int(worst['seed'])})"
         rows.append(
             (
