@@ -59,6 +59,7 @@ __all__ = [
     "AnalysisError",
     "RunInfo",
     "find_run_folders",
+    "is_integer",
     "load_run",
     "load_runs",
     "load_tests",
@@ -470,10 +471,23 @@ def name_list(value: Sequence[str] | None, argument: str) -> list[str] | None:
     return [str(v) for v in value]
 
 
+def is_integer(value: object) -> bool:
+    """Whether ``value`` is an integer (Python's or numpy's), not a bool, float or string."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _kind(df: pd.DataFrame) -> str | None:
+    """``"runs"`` for a `load_runs` table (per-module competence), ``"tests"`` for a
+    `load_tests` one (``success`` without competence), else None: for the hint of an error."""
+    if any(str(c).startswith("competence/") for c in df.columns):
+        return "runs"
+    return "tests" if "success" in df else None
+
+
 def require_count(value: object, name: str, unit: str = "") -> None:
     """A `ValueError` unless ``value`` is an integer >= 1 (``name``, in ``unit``s): a window or
     a bin width, which a float or a bool would turn into float labels or a pandas error."""
-    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+    if not is_integer(value) or value < 1:
         raise ValueError(
             f"{name} must be an integer >= 1{f' {unit}' if unit else ''}, got {value!r}"
         )
@@ -503,8 +517,8 @@ def require_runs(df: pd.DataFrame) -> None:
     """An `AnalysisError` unless ``df`` is a table of runs (`load_runs`, metrics.parquet's
     rows): identity columns, ``episode`` and the per-module competence, with rows."""
     require_identity(df)
-    if not any(str(c).startswith("competence/") for c in df.columns):
-        kind = "a table of test rollouts (load_tests)" if "success" in df else "not a runs table"
+    if _kind(df) != "runs":
+        kind = "a table of test rollouts (load_tests)" if _kind(df) else "not a runs table"
         raise AnalysisError(
             f"this table has no competence/<module> columns, {kind}: pass a table from "
             "curious.analysis.load_runs (metrics.parquet)"
@@ -531,11 +545,11 @@ def require_values(df: pd.DataFrame, what: str) -> None:
     `binned_success`, `bin_runs`, `final_competence` and `final_test_success` return."""
     missing = [c for c in ("run", "condition", "seed", "episodes", "value") if c not in df]
     if missing:
-        kind = ""
-        if any(str(c).startswith("competence/") for c in df.columns):
-            kind = " (this is a table of runs: pass it through bin_runs or final_competence)"
-        elif "success" in df:
-            kind = " (this is a table of test rollouts: pass it through epoch_success first)"
+        kind = {
+            "runs": " (this is a table of runs: pass it through bin_runs or final_competence)",
+            "tests": " (this is a table of test rollouts: pass it through epoch_success first)",
+            None: "",
+        }[_kind(df)]
         raise AnalysisError(
             f"{what} takes one value per run and point (epoch_success, binned_success, "
             f"bin_runs or final_competence); this table lacks {', '.join(missing)}{kind}"

@@ -356,7 +356,8 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
 
 
 def on_achievable(tests: pd.DataFrame) -> np.ndarray:
-    """(n,) bool: whether each test rollout's module is achievable in its run."""
+    """(n,) bool: whether each row's module (a test rollout's, or the module a training episode
+    practised) is achievable in its run."""
     out = np.zeros(len(tests), bool)
     module = tests["module"].astype(str).to_numpy()
     for achievable, rows in tests.groupby("achievable_modules", observed=True).indices.items():
@@ -494,15 +495,11 @@ def distractor_share(df: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     if bin_size is None:
         bin_size = nice_bin_size(int(episode.max()) + 1)
     require_count(bin_size, "bin_size", "episode")
-    module = df["module"].astype(str).to_numpy()
-    elsewhere = np.zeros(len(df), bool)
-    for achievable, rows in df.groupby("achievable_modules", observed=True).indices.items():
-        elsewhere[rows] = ~np.isin(module[rows], [m for m in str(achievable).split(",") if m])
     frame = pd.DataFrame(
         {
             "run": df["run"].to_numpy(),
             "episodes": (episode // bin_size + 1) * bin_size,
-            "value": elsewhere.astype(np.float64),
+            "value": (~on_achievable(df)).astype(np.float64),
         }
     )
     out = frame.groupby(["run", "episodes"], observed=True, sort=True)["value"].mean()

@@ -45,7 +45,7 @@ rollouts (`test_rollouts_per_worker=0` trains none), for the figures drawn witho
 @dataclass
 class ExperimentTables:
     """One experiment's combined tables: the metrics, and the test rollouts where the runs have
-    them, with the test success points drawn from those once."""
+    them, with what several parts of the report read drawn from those once."""
 
     metrics: pd.DataFrame
     tests: pd.DataFrame | None
@@ -54,6 +54,16 @@ class ExperimentTables:
     def points(self) -> pd.DataFrame | None:
         """`analysis.epoch_success` of the test rollouts (None without them)."""
         return None if self.tests is None else analysis.epoch_success(self.tests)
+
+    @functools.cached_property
+    def final(self) -> pd.DataFrame:
+        """`analysis.final_competence` of the runs."""
+        return analysis.final_competence(self.metrics)
+
+    @functools.cached_property
+    def final_tested(self) -> pd.DataFrame | None:
+        """`analysis.final_test_success` of the test rollouts (None without them)."""
+        return None if self.tests is None else analysis.final_test_success(self.tests)
 
 
 def fmt(value: float, digits: int = 2) -> str:

@@ -29,7 +29,7 @@ def distractors(repro: Reproduction, e: Experiment, tables: ExperimentTables) ->
     distracting modules with their tests, then spontaneous forgetting."""
     lines = [*figure(repro, "distractors", tested=tables.tests is not None)]
     extra = repro.left_out_runs(e)  # settings shipped with too few runs: shown, not tested
-    final = analysis.final_competence(tables.metrics)
+    final = tables.final
     shown = final
     if extra:
         shown = pd.concat(
@@ -44,7 +44,7 @@ def distractors(repro: Reproduction, e: Experiment, tables: ExperimentTables) ->
     if e.compare is not None:
         lines += _degradation(shown, *e.compare)
     if tables.tests is not None:
-        tested = analysis.final_test_success(tables.tests)
+        tested = tables.final_tested
         shown = tested
         if extra:
             more = analysis.final_test_success(analysis.load_tests(extra))
@@ -69,14 +69,14 @@ def per_run_table(e: Experiment, tables: ExperimentTables) -> list[str]:
     and test success at the end, the test success in each of `PER_RUN_BINS` bins, and the share
     of its training episodes that practised a distracting module in each (`none` without
     distractors)."""
-    final = analysis.final_competence(tables.metrics)
+    final = tables.final
     episodes = int(final["episodes"].iat[0])
     width = analysis.nice_bin_size(episodes, PER_RUN_BINS)
     shares = analysis.distractor_share(tables.metrics, width).groupby("run", observed=True)
     tested_at = "test success"  # "–" in every row: the runs have no test rollouts
     tested = per_bin = None
     if tables.tests is not None:
-        last = analysis.final_test_success(tables.tests)
+        last = tables.final_tested
         start = int(last["episodes"].iat[0]) - int(last.attrs["bin_size"]) + 1
         tested_at = f"test success, episodes {start:,}-{int(last['episodes'].iat[0]):,}"
         tested = last.set_index("run")["value"]

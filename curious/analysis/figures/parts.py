@@ -13,6 +13,7 @@ from matplotlib.figure import Figure
 from curious.analysis import palette
 from curious.analysis.loading import (
     AnalysisError,
+    is_integer,
     name_list,
     require_identity,
     require_runs,
@@ -70,7 +71,7 @@ def one_run(
     """The rows of one run of a `load_runs` table, chosen by condition, seed (lowest if None)
     and variant."""
     require_runs(df)
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
+    if seed is not None and not is_integer(seed):
         raise AnalysisError(f"seed must be an int, got {seed!r}")
     rows = restrict(df, ordered_conditions(df, [condition]), variant)
     seeds = sorted(int(s) for s in rows["seed"].unique())
