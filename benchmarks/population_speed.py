@@ -1,9 +1,12 @@
 """`curious bench population`: runs trained as one population in one process (ours) against the
 same runs as processes side by side (peer), for the same episodes.
 
-Both contenders are what a user types: peer starts `--runs` `curious train --seed i` processes at
+Every contender is what a user types: peer starts `--runs` `curious train --seed i` processes at
 once; ours starts one `curious train --seeds 0-(runs-1)`, and `ours_stacked` the same with
-`--stack-updates` (the runs' updates at the same time as one stacked step). Every run trains
+`--stack-updates` (the runs' updates at the same time as one stacked step); `groups` cuts the runs
+into populations of `--group-size` runs and starts one `curious train --seeds a-b` process for
+each at once (what `curious reproduce --population K --workers runs/K` trains), and
+`groups_stacked` the same with `--stack-updates`. Every run trains
 `--cycles` cycles of the preset from scratch (no recording, no test rollouts, one torch thread
 per run), into a temporary folder. The rate is read from the runs' own tables: each run's
 episodes after its first cycle over the seconds they took (metrics.parquet's `wall_time`),
@@ -66,21 +69,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--contenders",
         type=_contenders,
-        default=OURS,
-        help=f"which of ours run beside the peer, comma-separated (default {','.join(OURS)})",
+        default=DEFAULT_CONTENDERS,
+        help=f"which of {', '.join(OURS)} run beside the peer, comma-separated, or none "
+        f"(default {','.join(DEFAULT_CONTENDERS)})",
+    )
+    parser.add_argument(
+        "--group-size",
+        type=AtLeast(1),
+        default=3,
+        help="runs in each population of the groups contenders (default 3)",
     )
 
 
-OURS = ("ours", "ours_stacked")
-"""The population's contenders: its learners stepping alone, and stacked (`--stack-updates`)."""
+OURS = ("ours", "ours_stacked", "groups", "groups_stacked")
+"""The population's contenders: all the runs in one process, their learners stepping alone or
+stacked (`--stack-updates`), and the same in populations of `--group-size` runs, a process each."""
+
+DEFAULT_CONTENDERS = ("ours", "ours_stacked")
 
 
 def _contenders(text: str) -> tuple[str, ...]:
+    """The contenders named, in `OURS`'s order; `none`: the peer alone (settings a population
+    cannot take, `learner_backend=compiled` on cuda, say)."""
     names = tuple(n.strip() for n in text.split(",") if n.strip())
+    if names == ("none",):
+        return ()
     unknown = sorted(set(names) - set(OURS))
     if unknown or not names:
         raise argparse.ArgumentTypeError(
-            f"{', '.join(unknown) or 'none named'}: the contenders are {', '.join(OURS)}"
+            f"{', '.join(unknown) or 'none named'}: the contenders are {', '.join(OURS)}, "
+            "or none (the peer alone)"
         )
     return tuple(n for n in OURS if n in names)
 
@@ -122,6 +140,28 @@ def _steady_rate(folders: list[Path]) -> float:
     return total
 
 
+def _groups(runs: int, size: int) -> list[str]:
+    """The `--seeds` of each population when `runs` runs are cut into groups of `size`."""
+    return [
+        f"{first}-{min(first + size, runs) - 1}" if min(first + size, runs) - first > 1
+        else str(first)
+        for first in range(0, runs, size)
+    ]  # fmt: skip
+
+
+def _contender_commands(
+    args: argparse.Namespace, name: str, out: Path, runs: int
+) -> list[list[str]]:
+    """The commands of one of ours, started at once; the runs' folders are out/seed-i."""
+    extra = ["--stack-updates"] if name.endswith("_stacked") else []
+    if name.startswith("groups"):
+        return [
+            _train_command(args, out, seeds, "--seeds") + (extra if "-" in seeds else [])
+            for seeds in _groups(runs, args.group_size)
+        ]
+    return [_train_command(args, out, f"0-{runs - 1}", "--seeds") + extra]
+
+
 def _run(commands: list[list[str]]) -> float:
     """Start every command at once; the seconds until the last ends (an error if one fails)."""
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "disable")}
@@ -152,8 +192,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     cores = os.cpu_count() or 1
     check_device(args.device)
     runs = args.runs or cores
-    rates: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}
-    seconds: dict[str, list[float]] = {"ours": [], "ours_stacked": [], "peer": []}
+    rates: dict[str, list[float]] = {name: [] for name in ("peer", *OURS)}
+    seconds: dict[str, list[float]] = {name: [] for name in ("peer", *OURS)}
     with tempfile.TemporaryDirectory(prefix="bench-population-") as tmp:
         for repeat in range(args.repeats):
             peer = Path(tmp) / f"peer-{repeat}"
@@ -164,10 +204,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
             rates["peer"].append(_steady_rate([peer / f"seed-{i}" for i in range(runs)]))
             _report("peer", rates, seconds)
             for name in args.contenders:
-                extra = ["--stack-updates"] if name == "ours_stacked" else []
                 ours = Path(tmp) / f"{name}-{repeat}"
-                command = _train_command(args, ours, f"0-{runs - 1}", "--seeds") + extra
-                seconds[name].append(_run([command]))
+                seconds[name].append(_run(_contender_commands(args, name, ours, runs)))
                 rates[name].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
                 _report(name, rates, seconds)
 
@@ -180,22 +218,26 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "peer": statistics.median(rates["peer"]),
         "unit": "episodes/s",
     }
-    out["ours_stacked"] = median(rates["ours_stacked"])
-    out["ours_over_peer"] = out["ours"] / out["peer"] if rates["ours"] else None
-    out["ours_stacked_over_peer"] = (
-        out["ours_stacked"] / out["peer"] if rates["ours_stacked"] else None
-    )
+    for name in OURS[1:]:
+        out[name] = median(rates[name])
+    for name in OURS:
+        out[f"{name}_over_peer"] = out[name] / out["peer"] if rates[name] else None
     both = rates["ours"] and rates["ours_stacked"]
     out["ours_stacked_over_ours"] = out["ours_stacked"] / out["ours"] if both else None
-    out["ours_command_s"] = median(seconds["ours"])
-    out["ours_stacked_command_s"] = median(seconds["ours_stacked"])
-    out["peer_command_s"] = statistics.median(seconds["peer"])
+    for name in ("peer", *OURS):
+        out[f"{name}_command_s"] = median(seconds[name])
+    out["group_size"] = args.group_size
     out["cores"] = cores
     out["shape"] = (
         f"{runs} {args.condition} runs of preset {args.preset}, {args.cycles} cycles of "
         f"{config.episodes_per_cycle} episodes and {config.n_updates} updates of "
         f"{config.batch_size} each, networks on {args.device}"
         + "".join(f", {setting}" for setting in args.settings)
+        + (
+            f"; groups of {args.group_size}"
+            if any(n.startswith("groups") for n in args.contenders)
+            else ""
+        )
         + f"; {args.repeats} alternation(s), medians"
     )
     return out

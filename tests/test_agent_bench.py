@@ -208,9 +208,37 @@ def test_the_population_benchmark_gives_every_run_its_settings_and_refuses_bad_o
 
 
 def test_the_population_benchmark_names_its_contenders_when_one_is_unknown(capsys):
+    from benchmarks import population_speed
     from curious.cli import main
 
     with pytest.raises(SystemExit) as exit_:
         main(["bench", "population", "--contenders", "ours,fast"])
     assert exit_.value.code == 2
-    assert "fast: the contenders are ours, ours_stacked" in capsys.readouterr().err
+    assert "fast: the contenders are ours, ours_stacked, groups, groups_stacked, or none" in (
+        capsys.readouterr().err
+    )
+    parser = argparse.ArgumentParser()
+    population_speed.add_arguments(parser)
+    assert parser.parse_args(["--contenders", "none"]).contenders == ()  # the peer alone
+
+
+def test_the_population_benchmarks_groups_are_populations_of_the_group_size_a_process_each():
+    """`groups` trains what `curious reproduce --population K` trains: the runs cut into
+    populations of K, one `curious train --seeds` each, every run in its own folder seed-i;
+    `groups_stacked` stacks the updates of every group of more than one run."""
+    from benchmarks import population_speed
+
+    parser = argparse.ArgumentParser()
+    population_speed.add_arguments(parser)
+    args = parser.parse_args(["--preset", "smoke", "--group-size", "2"])
+    assert population_speed._groups(5, 2) == ["0-1", "2-3", "4"]
+    assert population_speed._groups(15, 3) == ["0-2", "3-5", "6-8", "9-11", "12-14"]
+    commands = population_speed._contender_commands(args, "groups_stacked", Path("g"), 5)
+    seeds = [c[c.index("--seeds") + 1] for c in commands]
+    assert seeds == ["0-1", "2-3", "4"]
+    assert ["--stack-updates" in c for c in commands] == [True, True, False]
+    assert all(c[c.index("--out") + 1] == "g" for c in commands)
+    plain = population_speed._contender_commands(args, "groups", Path("g"), 5)
+    assert not any("--stack-updates" in c for c in plain)
+    (whole,) = population_speed._contender_commands(args, "ours_stacked", Path("o"), 5)
+    assert whole[whole.index("--seeds") + 1] == "0-4" and "--stack-updates" in whole

@@ -204,6 +204,22 @@ def test_a_population_that_cannot_train_together_is_refused(tmp_path, outs, mess
         train_population(configs, [tmp_path / o for o in outs])
 
 
+def test_a_population_of_compiled_cuda_learners_is_refused_before_anything_is_written(tmp_path):
+    """torch's CUDA graphs assert when several threads replay them (pytorch/pytorch#123177): a
+    population of three `compiled` runs on cuda failed in two of them on an H200 node. Refused
+    with the reason before a folder is made; one such run, or compiled runs on a CPU, train."""
+    from curious.runs.population import check_members
+
+    on_gpu = {**SMALL, "learner_backend": "compiled", "device": "cuda"}
+    configs = [resolve("smoke", "curious", s, on_gpu) for s in (0, 1)]
+    with pytest.raises(ConfigError, match=r"pytorch/pytorch#123177.*one run per process"):
+        train_population(configs, [tmp_path / "a", tmp_path / "b"])
+    assert list(tmp_path.iterdir()) == []
+    assert check_members(configs[:1], [tmp_path / "a"])  # alone, a run is not in threads
+    on_cpu = [resolve("smoke", "curious", s, {**on_gpu, "device": "cpu"}) for s in (0, 1)]
+    assert check_members(on_cpu, [tmp_path / "a", tmp_path / "b"])
+
+
 def test_a_lane_refuses_steps_outside_a_round_and_bad_actions():
     lane = Lockstep().lane(make_suite_envs("default", 0, 2))
     with pytest.raises(RuntimeError, match="reset it first"):

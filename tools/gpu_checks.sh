@@ -33,8 +33,9 @@
 # `paper`), CONTENDERS (workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu),
 # SIDE_BY_SIDE (2; "2 4 8" adds four and eight runs, N runs each within 80 + 25 N s), STEPS
 # ("population tests"), POPULATION_RUNS (15), POPULATION_CYCLES (3), POPULATION_CONTENDERS (ours,ours_stacked:
-# the population's contenders beside the processes), POPULATION_SET (settings for every run, e.g.
-# "learner_backend=compiled"), RESUME_SECONDS (170: each
+# the population's contenders beside the processes; groups and groups_stacked train populations of
+# POPULATION_GROUP_SIZE (3) runs, a process each; none: the processes alone), POPULATION_SET (settings for every run, e.g.
+# "learner_backend=compiled"), POPULATION_SECONDS (400: step 0's time limit), RESUME_SECONDS (170: each
 # leg of step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
@@ -67,7 +68,8 @@ if wanted population; then
     # each contender's rate reaches population.err as it ends, should the limit end the rest
     population_set=()
     for setting in ${POPULATION_SET:-}; do population_set+=(--set "$setting"); done
-    timeout 400 python3 -m curious.cli bench population --preset "$preset" --device "$device" \
+    timeout "${POPULATION_SECONDS:-400}" python3 -m curious.cli bench population \
+        --preset "$preset" --device "$device" --group-size "${POPULATION_GROUP_SIZE:-3}" \
         --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" \
         --contenders "${POPULATION_CONTENDERS:-ours,ours_stacked}" "${population_set[@]}" --json \
         >"$out/population.json" 2>"$out/population.err"

@@ -62,10 +62,26 @@ class PopulationError(RuntimeError):
         super().__init__(f"{len(failures)} run(s) of the population failed:\n" + "\n".join(lines))
 
 
+GRAPHS_IN_THREADS = (
+    "learner_backend=compiled on cuda captures each update in a CUDA graph, and torch's CUDA "
+    "graphs fail (an AssertionError) when several threads of one process replay them "
+    "(pytorch/pytorch#123177), as a population's runs would"
+)
+"""Why a population of several runs cannot take the compiled backend on a GPU (seen on an H200
+node under torch 2.11, 2026-11-30: a population of three such runs failed in two of them)."""
+
+
+def graphs_in_threads(configs: Sequence[Config]) -> bool:
+    """Whether `configs`, trained as one population, would replay CUDA graphs in several threads
+    (`GRAPHS_IN_THREADS`): more than one run, and one with the compiled backend on cuda."""
+    compiled = (c.learner_backend == "compiled" and c.device == "cuda" for c in configs)
+    return len(configs) > 1 and any(compiled)
+
+
 def check_members(configs: Sequence[Config], outs: Sequence[str | Path]) -> list[Path]:
     """The run folders, resolved: a `ConfigError` for a population that cannot train together
     (no runs, folders and configs that do not pair up, a folder named twice, copies in worker
-    processes)."""
+    processes, CUDA graphs in threads)."""
     if not configs:
         raise ConfigError("a population needs at least one run")
     if len(configs) != len(outs):
@@ -76,6 +92,11 @@ def check_members(configs: Sequence[Config], outs: Sequence[str | Path]) -> list
     if any(c.processes > 1 for c in configs):
         raise ConfigError(
             "a population steps its runs' copies in this process: set env_processes=1"
+        )
+    if graphs_in_threads(configs):
+        raise ConfigError(
+            f"{GRAPHS_IN_THREADS}: train them one run per process, or set "
+            "learner_backend=autograd (the default) or workspace"
         )
     return paths
 
