@@ -242,3 +242,35 @@ def test_the_population_benchmarks_groups_are_populations_of_the_group_size_a_pr
     assert not any("--stack-updates" in c for c in plain)
     (whole,) = population_speed._contender_commands(args, "ours_stacked", Path("o"), 5)
     assert whole[whole.index("--seeds") + 1] == "0-4" and "--stack-updates" in whole
+
+
+def test_the_gpu_checks_population_step_passes_its_settings_to_the_benchmark(tmp_path):
+    """`tools/gpu_checks.sh`, as a GPU node runs it but on a CPU (PRESET=smoke DEVICE=cpu, as
+    its header says): the population step hands POPULATION_* to `curious bench population` and
+    writes its JSON where docs/scaling.md says."""
+    import json
+    import os
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    env = {
+        **os.environ,
+        "STEPS": "population",
+        "PRESET": "smoke",
+        "DEVICE": "cpu",
+        "POPULATION_RUNS": "2",
+        "POPULATION_CYCLES": "2",
+        "POPULATION_CONTENDERS": "groups",
+        "POPULATION_GROUP_SIZE": "2",
+        "POPULATION_SET": "n_workers=1",
+        "PYTHONPATH": str(root),
+    }
+    done = subprocess.run(
+        ["bash", str(root / "tools" / "gpu_checks.sh"), str(tmp_path)],
+        cwd=root, env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert "exit 0" in done.stdout, done.stdout + done.stderr
+    result = json.loads((tmp_path / "population.json").read_text())
+    assert result["group_size"] == 2 and result["groups"] > 0 and result["ours"] is None
+    assert result["shape"].startswith("2 curious runs of preset smoke, 2 cycles of 2 episodes")
+    assert "n_workers=1" in result["shape"] and (tmp_path / "env.txt").exists()
