@@ -35,7 +35,8 @@
 # ("population tests"), POPULATION_RUNS (15), POPULATION_CYCLES (3), POPULATION_CONTENDERS (ours,ours_stacked:
 # the population's contenders beside the processes; groups and groups_stacked train populations of
 # POPULATION_GROUP_SIZE (3) runs, a process each; none: the processes alone), POPULATION_SET (settings for every run, e.g.
-# "learner_backend=compiled"), POPULATION_SECONDS (400: step 0's time limit), RESUME_SECONDS (170: each
+# "learner_backend=compiled"), POPULATION_SECONDS (400: step 0's time limit), MPS (1: every step
+# under NVIDIA's Multi-Process Service, docs/scaling.md), RESUME_SECONDS (170: each
 # leg of step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
@@ -62,6 +63,14 @@ step environment
 torch.__version__, 'cuda', torch.cuda.is_available(), 'mujoco', mujoco.__version__)"
     git rev-parse --short HEAD 2>/dev/null
 } 2>&1 | tee "$out/env.txt"
+
+if [[ ${MPS:-0} == 1 ]]; then
+    # CUDA's Multi-Process Service for every step's processes, stopped when the script ends
+    export CUDA_MPS_PIPE_DIRECTORY=/tmp/curious-mps CUDA_MPS_LOG_DIRECTORY=/tmp/curious-mps-log
+    mkdir -p "$CUDA_MPS_PIPE_DIRECTORY" "$CUDA_MPS_LOG_DIRECTORY"
+    nvidia-cuda-mps-control -d && echo "MPS server started" | tee -a "$out/env.txt"
+    trap 'echo quit | nvidia-cuda-mps-control' EXIT
+fi
 
 if wanted population; then
     step population of "${POPULATION_RUNS:-15}" runs against as many processes
