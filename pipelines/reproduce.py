@@ -372,6 +372,7 @@ def _reproduce(
 
     from pipelines.assets import figure_key, metrics_key, partitions_of, runs_key
     from pipelines.definitions import build_definitions
+    from pipelines.executors import gpu_sharing_hint
     from pipelines.executors import make_pool as default_pool
 
     check_output_folder(layout, chosen, None if data is None else data.path)
@@ -407,6 +408,9 @@ def _reproduce(
             f"{counts.get('partial', 0)} to resume, {counts.get('new', 0)} new) on "
             f"{pool.description}"
         )
+        hint = gpu_sharing_hint(pool, repro.overrides.get("device"))
+        if hint is not None:
+            repro.say(hint)
     _write_manifest(layout, chosen, None if data is None else data.path)
     defs = build_definitions(repro)
     try:

@@ -1057,3 +1057,20 @@ def test_reproduce_json_rewritten_keeps_a_campaigns_planned_seeds(tmp_path):
     assert json.loads(layout.manifest.read_text())["extra_seeds"] == {"main": [2]}
     _write_manifest(layout, get_budget("quick"))
     assert "extra_seeds" not in json.loads(layout.manifest.read_text())
+
+
+def test_a_gpu_reproduction_on_local_workers_is_told_of_the_mps_server(tmp_path, monkeypatch):
+    """Local worker processes sharing one GPU without NVIDIA's MPS server get one line saying
+    so (the server lifted fifteen `paper` processes 1.21 x, docs/benchmarks.md); with the
+    server's control pipe there, on a CPU, or with one worker, nothing is said."""
+    from pipelines.executors import gpu_sharing_hint
+
+    monkeypatch.setenv("CUDA_MPS_PIPE_DIRECTORY", str(tmp_path))
+    hint = gpu_sharing_hint(LocalPool(4), "cuda")
+    assert hint is not None and "4 worker processes" in hint
+    assert "nvidia-cuda-mps-control -d" in hint
+    assert gpu_sharing_hint(LocalPool(4), "cpu") is None
+    assert gpu_sharing_hint(LocalPool(4), None) is None
+    assert gpu_sharing_hint(LocalPool(1), "cuda") is None
+    (tmp_path / "control").touch()  # what `nvidia-cuda-mps-control -d` makes
+    assert gpu_sharing_hint(LocalPool(4), "cuda") is None
