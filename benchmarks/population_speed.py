@@ -142,11 +142,8 @@ def _steady_rate(folders: list[Path]) -> float:
 
 def _groups(runs: int, size: int) -> list[str]:
     """The `--seeds` of each population when `runs` runs are cut into groups of `size`."""
-    return [
-        f"{first}-{min(first + size, runs) - 1}" if min(first + size, runs) - first > 1
-        else str(first)
-        for first in range(0, runs, size)
-    ]  # fmt: skip
+    ends = [(first, min(first + size, runs) - 1) for first in range(0, runs, size)]
+    return [f"{first}-{last}" if last > first else str(first) for first, last in ends]
 
 
 def _contender_commands(
