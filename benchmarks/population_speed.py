@@ -210,14 +210,12 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         return statistics.median(values) if values else None
 
     out: dict[str, Any] = {
-        "ours": median(rates["ours"]),
         "bound": physics_episodes_per_second(config.variant) * cores,
         "peer": statistics.median(rates["peer"]),
         "unit": "episodes/s",
     }
-    for name in OURS[1:]:
-        out[name] = median(rates[name])
     for name in OURS:
+        out[name] = median(rates[name])
         out[f"{name}_over_peer"] = out[name] / out["peer"] if rates[name] else None
     both = rates["ours"] and rates["ours_stacked"]
     out["ours_stacked_over_ours"] = out["ours_stacked"] / out["ours"] if both else None

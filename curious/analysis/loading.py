@@ -517,8 +517,9 @@ def require_runs(df: pd.DataFrame) -> None:
     """An `AnalysisError` unless ``df`` is a table of runs (`load_runs`, metrics.parquet's
     rows): identity columns, ``episode`` and the per-module competence, with rows."""
     require_identity(df)
-    if _kind(df) != "runs":
-        kind = "a table of test rollouts (load_tests)" if _kind(df) else "not a runs table"
+    found = _kind(df)
+    if found != "runs":
+        kind = "a table of test rollouts (load_tests)" if found else "not a runs table"
         raise AnalysisError(
             f"this table has no competence/<module> columns, {kind}: pass a table from "
             "curious.analysis.load_runs (metrics.parquet)"

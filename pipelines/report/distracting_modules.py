@@ -29,8 +29,7 @@ def distractors(repro: Reproduction, e: Experiment, tables: ExperimentTables) ->
     distracting modules with their tests, then spontaneous forgetting."""
     lines = [*figure(repro, "distractors", tested=tables.tests is not None)]
     extra = repro.left_out_runs(e)  # settings shipped with too few runs: shown, not tested
-    final = tables.final
-    shown = final
+    final = shown = tables.final
     if extra:
         shown = pd.concat(
             [final, analysis.final_competence(analysis.load_runs(extra))], ignore_index=True
@@ -44,8 +43,7 @@ def distractors(repro: Reproduction, e: Experiment, tables: ExperimentTables) ->
     if e.compare is not None:
         lines += _degradation(shown, *e.compare)
     if tables.tests is not None:
-        tested = tables.final_tested
-        shown = tested
+        tested = shown = tables.final_tested
         if extra:
             more = analysis.final_test_success(analysis.load_tests(extra))
             shown = pd.concat([tested, more], ignore_index=True)
