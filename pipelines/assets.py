@@ -274,7 +274,7 @@ def _figure_asset(experiment: Experiment, name: str) -> dg.AssetsDefinition:
         table = load_metrics(repro, experiment.name)
         out_dir = repro.layout.figures
         out_dir.mkdir(parents=True, exist_ok=True)
-        extra = draw(repro, table, str(out_dir), repro.budget.caption_note)
+        extra = draw(repro, table, str(out_dir), repro.budget.caption_note_for(experiment))
         repro.say(f"  figure: {out_dir / name}.png")
         return dg.MaterializeResult(
             metadata={

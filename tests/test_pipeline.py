@@ -205,10 +205,11 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
             assert done == {s.partition_key for s in experiment.runs()}
             assert instance.get_latest_materialization_event(dg.AssetKey([name, "metrics"]))
         assert instance.get_latest_materialization_event(dg.AssetKey("report"))
-        # every figure's caption ends by saying the budget is a smoke test's
-        note = SMOKE.caption_note
-        assert note
-        for name in SMOKE.experiments:
+        # every figure's caption ends by saying the budget is a smoke test's (and its seeds)
+        assert SMOKE.caption_note
+        for name, experiment in SMOKE.experiments.items():
+            note = SMOKE.caption_note_for(experiment)
+            assert note.startswith(SMOKE.caption_note)
             for figure in FIGURES_OF[name]:
                 event = instance.get_latest_materialization_event(dg.AssetKey([name, figure]))
                 metadata = event.asset_materialization.metadata

@@ -168,6 +168,25 @@ def test_seeds_beyond_the_budgets_are_its_runs_but_for_the_seed_and_named():
         replace(main, extra_seeds=(7,))
 
 
+def test_every_figure_caption_says_how_many_seeds_it_reads_where_the_paper_budget_has_more():
+    """The budget's caption note, and where the figure's experiment reads fewer seeds than the
+    `paper` budget trains, how many: seeds beyond the budget's can bring it level, so the count is
+    the experiment's, not the budget's."""
+    laptop, paper = get_budget("laptop"), get_budget("paper")
+    main = laptop.experiments["main"]
+    assert laptop.caption_note_for(main) == (
+        f"{laptop.caption_note} 3 seeds where the `paper` budget trains 5."
+    )
+    assert laptop.caption_note_for(main.with_seeds([3, 4])) == laptop.caption_note
+    assert laptop.caption_note_for(main.with_seeds_only([0])).endswith(
+        " 1 seed where the `paper` budget trains 5."
+    )
+    # no `paper` experiment to compare with, or the paper budget itself: the note alone
+    mastered = laptop.experiments["sensor_failure_mastered"]
+    assert laptop.caption_note_for(mastered) == laptop.caption_note
+    assert all(paper.caption_note_for(e) == "" for e in paper.experiments.values())
+
+
 def test_an_experiment_cut_to_some_seeds_names_the_same_run_folders_and_the_seeds_left_out():
     """What a shipped data folder holding seed 0 of every run stands for: those runs, at the
     same paths, the budget's other seeds named in `left_out_seeds`, the extra ones dropped."""

@@ -324,11 +324,24 @@ class ReproduceBudget:
     notes: str = ""
     """Where the budgets come from (measured timings) and what the figures can show."""
     caption_note: str = ""
-    """A sentence ending every figure's caption (how the budget compares with the paper's)."""
+    """A sentence ending every figure's caption (how the budget compares with the paper's); each
+    figure's own ending is `caption_note_for` its experiment."""
     default_out: str = field(default="")
     omitted: Mapping[str, str] = field(default_factory=dict)
     """Experiment name -> why this budget leaves it out (a clause, no final period), told by the
     report, the notebooks and `select`. Every experiment is either trained or has a reason here."""
+
+    def caption_note_for(self, experiment: Experiment) -> str:
+        """`caption_note`, and how many seeds `experiment` reads where the `paper` budget trains
+        more: computed, since seeds beyond the budget's (data/laptop's main) can bring it level."""
+        paper = BUDGETS["paper"].experiments.get(experiment.name)
+        if not self.caption_note or paper is None or len(experiment.seeds) >= len(paper.seeds):
+            return self.caption_note
+        n = len(experiment.seeds)
+        return (
+            f"{self.caption_note} {n} seed{'s' if n != 1 else ''} where the `paper` budget "
+            f"trains {len(paper.seeds)}."
+        )
 
     def __post_init__(self) -> None:
         if tuple(self.experiments) != tuple(e for e in EXPERIMENTS if e in self.experiments):
@@ -543,7 +556,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             "at the faster pace and 110 h at the slower, a quarter of that on 8. The runs are "
             "independent: `--workers` runs them side by side, `--ray-address` across a cluster; "
             "an interrupted reproduction resumes.",
-            "Budget laptop (reduced): a third of the paper's episodes per run and fewer seeds.",
+            "Budget laptop (reduced): a third of the paper's episodes per run.",
             _main("laptop", (0, 1, 2), 100_000),
             _distractors("laptop", (0, 1), 50_000),
             _sensor_failure("laptop", (0, 1), 60_000, competence=LEARNED_COMPETENCE),
