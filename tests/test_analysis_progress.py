@@ -122,8 +122,12 @@ def test_bad_roots_are_one_line_errors(tmp_path, capsys):
     [
         (lambda run: (run / "config.json").write_text("{not json"), "not valid JSON"),
         (lambda run: (run / "metrics.parquet").write_bytes(b"PAR1 cut short"), "cannot be read"),
+        (
+            lambda run: (shutil.rmtree(run / "checkpoints"), (run / "checkpoints").touch()),
+            "is a file, not a folder of checkpoints",
+        ),
     ],
-    ids=["config", "metrics"],
+    ids=["config", "metrics", "checkpoints"],
 )
 def test_an_unreadable_run_is_left_out_with_its_problem(
     campaign, tmp_path, capsys, damage, problem

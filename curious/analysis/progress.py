@@ -39,6 +39,7 @@ from curious.analysis.loading import (
     search_run_folders,
 )
 from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_layout import CONFIG_FILE
 from curious.runs.run_info import RunInfo
 
@@ -249,6 +250,8 @@ def _readable_progress(
         error = exc
     except (OSError, ValueError) as exc:  # pyarrow's unreadable files
         error = AnalysisError(f"{path}: a table cannot be read: {exc}")
+    except RunFolderError as exc:  # a folder laid out wrong (its checkpoints a file)
+        error = AnalysisError(str(exc))
     if on_unreadable is None:
         raise error
     on_unreadable(path, str(error))
