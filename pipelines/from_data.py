@@ -184,17 +184,30 @@ class ShippedData:
                 out += specs
         return out
 
-    def seeds_beyond(self, experiment: Experiment) -> list[int]:
-        """The seeds, in order, of the runs DATA holds finished in `experiment`'s folder that are
-        neither among its seeds nor the budget's left out (the path's last part, `seed-<s>`)."""
-        seeds = set()
+    def _finished_seeds(self, experiment: Experiment) -> list[tuple[str, int]]:
+        """(run, seed) of each run DATA holds finished in `experiment`'s folder, in DATA's
+        order (the seed from the path's last part, `seed-<s>`)."""
+        out = []
         for run in self.manifest.runs:
             parts = PurePosixPath(run.run).parts
             if run.finished and len(parts) == 3 and parts[0] == experiment.name:
                 seed = parts[2].removeprefix("seed-")
                 if parts[2].startswith("seed-") and seed.isdigit():
-                    seeds.add(int(seed))
+                    out.append((run.run, int(seed)))
+        return out
+
+    def seeds_beyond(self, experiment: Experiment) -> list[int]:
+        """The seeds, in order, of the runs DATA holds finished in `experiment`'s folder that are
+        neither among its seeds nor the budget's left out."""
+        seeds = {seed for _, seed in self._finished_seeds(experiment)}
         return sorted(seeds - set(experiment.seeds) - set(experiment.left_out_seeds))
+
+    def waiting_runs(self, experiment: Experiment) -> list[str]:
+        """The runs DATA holds finished of the seeds beyond `experiment`'s that it does not read
+        (`seeds_beyond`: a seed not yet shipped for every run of the experiment), in DATA's
+        order: a campaign part-way through a seed, which the report names."""
+        waiting = set(self.seeds_beyond(experiment))
+        return [run for run, seed in self._finished_seeds(experiment) if seed in waiting]
 
     def select(self, budget: ReproduceBudget, names: Sequence[str] | None) -> list[Experiment]:
         """The experiments to build from DATA: those named (each complete in DATA, else a

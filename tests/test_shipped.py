@@ -303,6 +303,12 @@ def test_a_seed_beyond_the_budgets_is_read_with_its_seeds_once_all_its_runs_are_
     main = ShippedData.open(data).stands_for(get_budget("smoke")).experiments["main"]
     assert main.seeds == (0, 1) and not main.extra_seeds and not main.left_out_seeds
     assert {s.seed for s in main.runs()} == {0, 1}
+    # the report names the runs it holds back
+    waiting = ["main/curious/seed-2", "main/mg-te/seed-2"]
+    assert ShippedData.open(data).waiting_runs(main) == waiting
+    report = check_shipped_folder(data, tmp_path / "out-waiting")
+    assert f"Shipped, not read yet: {', '.join(waiting)}, of a seed beyond" in report
+    assert "beyond the budget's)" not in report  # nor does any table count seed 2
 
 
 def test_an_experiment_shipped_whole_for_some_seeds_is_read_from_those(extra_seed, tmp_path):

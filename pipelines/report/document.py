@@ -99,6 +99,12 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
                 f"seed; read with the others, {len(e.seeds)} seeds of every condition.",
                 "",
             ]
+        if waiting := repro.waiting_runs(e):
+            lines += [
+                f"Shipped, not read yet: {', '.join(waiting)}, of a seed beyond the budget's "
+                "that is read once all its runs of this experiment are shipped finished.",
+                "",
+            ]
         lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
         lines += ["### Runs", "", *runs_table(by_experiment[e.name])]
     missing = [name for name in budget.experiments if name not in tables]
