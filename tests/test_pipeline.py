@@ -10,6 +10,7 @@ import base64
 import hashlib
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -278,7 +279,9 @@ def test_the_readme_job_builds_the_repositorys_shipped_laptop_campaign():
     assert command.shipped_data_folder("laptop") == data
 
 
-def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smoke):
+def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smoke, tmp_path):
+    """Run again on a copy of the smoke output: it rewrites the figures (byte-identical), which
+    other workers' tests read from the shared output meanwhile."""
     import logging
 
     class Handler(logging.Handler):
@@ -293,17 +296,19 @@ def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smok
 
     handler = Handler()  # a caller's handler (a notebook's, absl's) must survive the Dagster runs
     logging.getLogger("caller").addHandler(handler)
-    runs_before = hashes(smoke.out / "runs")
-    figures_before = hashes(smoke.out / "figures")
+    out = tmp_path / "out"
+    shutil.copytree(smoke.out, out)
+    runs_before = hashes(out / "runs")
+    figures_before = hashes(out / "figures")
     try:
-        result = reproduce("smoke", out=smoke.out, progress=False, say=lambda _: None)
+        result = reproduce("smoke", out=out, progress=False, say=lambda _: None)
     finally:
         logging.getLogger("caller").removeHandler(handler)
     assert not Handler.closed
     assert any(ref() is handler for ref in logging._handlerList)  # closed at exit as usual
     assert result.trained == [] and len(result.skipped) == 16
-    assert hashes(smoke.out / "runs") == runs_before  # not one byte of a run changed
-    assert hashes(smoke.out / "figures") == figures_before  # figures rebuild byte-identical
+    assert hashes(out / "runs") == runs_before  # not one byte of a run changed
+    assert hashes(out / "figures") == figures_before  # figures rebuild byte-identical
 
 
 @pytest.mark.parametrize("experiment", ["distractors", "sensor_failure_mastered"])
