@@ -12,18 +12,9 @@ import re
 from pathlib import Path
 
 import pytest
+from doc_pages import PAGES, page_id
 
 from curious.cli import build_parser
-
-ROOT = Path(__file__).resolve().parents[1]
-PAGES = sorted(
-    [
-        ROOT / "README.md",
-        ROOT / "data" / "README.md",
-        *(ROOT / "docs").glob("*.md"),
-        *(ROOT / "notebooks").glob("*.md"),
-    ]
-)
 
 
 def _sub_commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
@@ -61,7 +52,7 @@ def test_the_pages_name_curious_commands():
     assert sum(len(_mentions(page)) for page in PAGES) > 100
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+@pytest.mark.parametrize("page", PAGES, ids=page_id)
 def test_every_option_a_page_gives_a_command_is_one_it_takes(page: Path):
     unknown = []
     for line, command, words in _mentions(page):

@@ -7,16 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-PAGES = sorted(
-    [
-        ROOT / "README.md",
-        ROOT / "data" / "README.md",
-        *(ROOT / "docs").glob("*.md"),
-        *(ROOT / "notebooks").glob("*.md"),
-    ]
-)
+from doc_pages import PAGES, page_id
 
 
 def _quoted_lines(text: str) -> list[int]:
@@ -35,6 +26,6 @@ def test_the_scan_finds_a_wrapped_comparison_and_skips_code():
     assert _quoted_lines(text) == [2]
 
 
-@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+@pytest.mark.parametrize("page", PAGES, ids=page_id)
 def test_no_line_of_a_page_turns_into_a_quote(page: Path):
     assert _quoted_lines(page.read_text()) == [], f"{page.name}: rewrap these lines"
