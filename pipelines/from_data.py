@@ -160,8 +160,7 @@ class ShippedData:
     def _seed_complete(self, experiment: Experiment, seed: int) -> bool:
         """Whether DATA holds every run of `experiment` (its variants, each condition) with
         `seed` finished."""
-        alone = replace(experiment, seeds=(seed,), extra_seeds=(), left_out_seeds=())
-        return not self.missing(alone)
+        return not self.missing(_seed_alone(experiment, seed))
 
     def left_out_runs(self, experiment: Experiment) -> list[RunSpec]:
         """The finished runs DATA holds of the variants `experiment` leaves out
@@ -209,6 +208,15 @@ class ShippedData:
         waiting = set(self.seeds_beyond(experiment))
         return [run for run, seed in self._finished_seeds(experiment) if seed in waiting]
 
+    def awaited_runs(self, experiment: Experiment) -> list[str]:
+        """What DATA lacks of the seeds whose runs `waiting_runs` names, in words (`missing`):
+        the runs to ship before the report reads that seed."""
+        return [
+            gap
+            for seed in self.seeds_beyond(experiment)
+            for gap in self.missing(_seed_alone(experiment, seed))
+        ]
+
     def select(self, budget: ReproduceBudget, names: Sequence[str] | None) -> list[Experiment]:
         """The experiments to build from DATA: those named (each complete in DATA, else a
         `ShippedDataError` naming what it lacks), or, with no names, every experiment of the
@@ -234,3 +242,8 @@ class ShippedData:
     def _lacks(self, experiments: Sequence[Experiment]) -> str:
         gaps = [m for e in experiments for m in self.missing(e)]
         return ", ".join(gaps[:4]) + (f" and {len(gaps) - 4} more" if len(gaps) > 4 else "")
+
+
+def _seed_alone(experiment: Experiment, seed: int) -> Experiment:
+    """`experiment` with `seed` as its one seed (its variants and conditions kept)."""
+    return replace(experiment, seeds=(seed,), extra_seeds=(), left_out_seeds=())

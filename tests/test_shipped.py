@@ -307,7 +307,9 @@ def test_a_seed_beyond_the_budgets_is_read_with_its_seeds_once_all_its_runs_are_
     waiting = ["main/curious/seed-2", "main/mg-te/seed-2"]
     assert ShippedData.open(data).waiting_runs(main) == waiting
     report = check_shipped_folder(data, tmp_path / "out-waiting")
+    assert ShippedData.open(data).awaited_runs(main) == ["main/her/seed-2 (not shipped)"]
     assert f"Shipped, not read yet: {', '.join(waiting)}, of a seed beyond" in report
+    assert "shipped finished; still to ship: main/her/seed-2 (not shipped)." in report
     assert "beyond the budget's)" not in report  # nor does any table count seed 2
 
 

@@ -102,7 +102,8 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         if waiting := repro.waiting_runs(e):
             lines += [
                 f"Shipped, not read yet: {', '.join(waiting)}, of a seed beyond the budget's "
-                "that is read once all its runs of this experiment are shipped finished.",
+                "that is read once all its runs of this experiment are shipped finished; "
+                f"still to ship: {', '.join(repro.awaited_runs(e))}.",
                 "",
             ]
         lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
