@@ -107,7 +107,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run folder (must be empty unless --resume or --restart); with --seeds, the "
         "folder of the seed-N run folders",
     )
-    add_set_option(parser, "override one setting (repeatable), e.g. --set n_workers=8")
+    add_set_option(
+        parser,
+        "override one setting (repeatable), e.g. --set n_workers=8; the run's length is "
+        "--set total_episodes=N",
+    )
     parser.add_argument(
         "--resume",
         action="store_true",
