@@ -214,16 +214,6 @@ class Reproduction:
             return []
         return [run_folder(s, self.layout.runs_root) for s in self.data.left_out_runs(experiment)]
 
-    def waiting_runs(self, experiment: Experiment) -> list[str]:
-        """The runs shipped data holds finished of a seed beyond the experiment's that is not
-        read until all its runs are (`ShippedData.waiting_runs`; none when training)."""
-        return [] if self.data is None else self.data.waiting_runs(experiment)
-
-    def awaited_runs(self, experiment: Experiment) -> list[str]:
-        """The runs, in words, that shipped data lacks of the seeds `waiting_runs` names
-        (`ShippedData.awaited_runs`; none when training)."""
-        return [] if self.data is None else self.data.awaited_runs(experiment)
-
     def run_state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished`: of the run folder (`pipelines.training.folder_state`),
         or of the shipped run where the runs are read from shipped data

@@ -99,11 +99,11 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
                 f"seed; read with the others, {len(e.seeds)} seeds of every condition.",
                 "",
             ]
-        if waiting := repro.waiting_runs(e):
+        if repro.data is not None and (waiting := repro.data.waiting_runs(e)):
             lines += [
                 f"Shipped, not read yet: {', '.join(waiting)}, of a seed beyond the budget's "
                 "that is read once all its runs of this experiment are shipped finished; "
-                f"still to ship: {', '.join(repro.awaited_runs(e))}.",
+                f"still to ship: {', '.join(repro.data.awaited_runs(e))}.",
                 "",
             ]
         lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
