@@ -561,12 +561,10 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     seeds: list[int] = []
     for part in text.split(","):
         first, dash, last = part.strip().partition("-")
-        if (
-            not first.isdigit()
-            or (dash and not last.isdigit())
-            or (dash and int(last) < int(first))
-        ):
+        if not first.isdigit() or (dash and not last.isdigit()):
             raise ConfigError(f"seeds {text!r}: write them as 0-4 or 0,2,5")
+        if dash and int(last) < int(first):
+            raise ConfigError(f"seeds {text!r}: a range runs upwards ({last}-{first})")
         if int(last if dash else first) > MAX_SEED:
             raise ConfigError(f"seeds {text!r}: each must be from 0 to {MAX_SEED:,}")
         seeds += range(int(first), int(last) + 1) if dash else [int(first)]

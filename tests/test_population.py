@@ -242,6 +242,8 @@ def test_train_seeds_trains_a_population_into_seed_folders(tmp_path, capsys):
     assert f"8 episodes in {out / 'seed-1'}" in printed
     assert main([*argv, "--seeds", "2-x"]) == 2
     assert "write them as 0-4 or 0,2,5" in capsys.readouterr().err
+    assert main([*argv, "--seeds", "0,3-1"]) == 2
+    assert "seeds '0,3-1': a range runs upwards (1-3)" in capsys.readouterr().err
     assert main([*argv, "--seeds", "4294967295-4294967296"]) == 2  # named as --seeds
     assert "seeds '4294967295-4294967296': each must be from 0 to 4,294,967,295" in (
         capsys.readouterr().err
