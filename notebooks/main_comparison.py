@@ -113,6 +113,23 @@ milestones.pivot(
 ).reindex(modules, level="module")
 
 # %% [markdown]
+# ## Each module at the end, and HER's per-module view
+#
+# Each module's test success over the last 5 epochs of each run (`analysis.module_success_rates`),
+# then the share of all of a run's test rollouts on the module that met the module's own part of
+# the goal (`score="module_success"`): the condition's score where it scores one module per
+# episode; for HER, scored on its whole goal, a per-module view that is never the paper's score.
+
+# %%
+for kw in ({}, {"epochs": None, "score": "module_success"}):
+    rates = analysis.module_success_rates(tests, **kw).astype({"condition": str, "module": str})
+    display(
+        rates.pivot(index=["condition", "seed"], columns="module", values="value")
+        .reindex(columns=modules)
+        .round(3)
+    )
+
+# %% [markdown]
 # ## The competence, for comparison
 #
 # The agent's own success measure (its self-evaluations), which drives learning progress and

@@ -15,6 +15,7 @@ from curious.analysis import (
     learning_order,
     load_runs,
     load_tests,
+    module_success_rates,
     module_test_success,
     recovery,
 )
@@ -101,9 +102,9 @@ def test_the_paper_order_is_checked_group_by_group(tmp_path):
     assert PAPER_ORDER[0] == ("reach",) and PAPER_ORDER[1] == ("push_cube1",)
 
 
-def _tests(root, seed, rows, condition="curious"):
+def _tests(root, seed, rows, condition="curious", own=None):
     """A run with hand-made test rollouts: rows of (epoch, module, success); epoch k ran after
-    10 (k + 1) training episodes."""
+    10 (k + 1) training episodes. `own`: each row's `module_success` (default: its success)."""
     folder = _run(root, seed, {}, n=200, condition=condition)
     frame = pd.DataFrame(rows, columns=["epoch", "module", "success"])
     frame = frame.astype({"epoch": np.int64, "success": bool})
@@ -111,7 +112,7 @@ def _tests(root, seed, rows, condition="curious"):
     frame.insert(2, "worker", np.arange(len(frame), dtype=np.int32))
     for g in ("g0", "g1", "g2"):
         frame[g] = np.float32(0.0)
-    frame["module_success"] = frame["success"]
+    frame["module_success"] = frame["success"] if own is None else np.asarray(own, bool)
     frame["wall_time"] = frame["episode"] * 0.1
     frame.to_parquet(folder / "tests.parquet", index=False)
     return folder
@@ -139,6 +140,43 @@ def test_test_success_per_module_pools_the_last_epochs(tmp_path):
     assert (above["n_tests"] == 0).all() and above["value"].isna().all()
     with pytest.raises(ValueError, match="window"):
         module_test_success(load_tests(tmp_path), window=0)
+
+
+def test_module_success_rates_at_the_end_and_over_the_whole_run(tmp_path):
+    """Where each module stands at a run's end pools its last tested epochs (the `curious
+    progress` reading); over the whole run, every epoch; `module_success` is read apart from
+    the score, as HER's per-module view of a holistic goal never met."""
+    rows = [
+        (0, "reach", False),
+        (1, "reach", True),
+        (2, "push_cube3", True),  # a distractor: not a module of this table
+        (3, "reach", True),
+        (3, "stack", False),
+        (4, "reach", False),
+        (4, "push_cube1", True),
+    ]
+    _tests(tmp_path, 0, rows, condition="her", own=[True, True, True, True, False, True, True])
+    tests = load_tests(tmp_path)
+    end = module_success_rates(tests, epochs=2).set_index("module")
+    assert end.index.tolist() == list(ACHIEVABLE)  # slot order, untested modules included
+    assert (end["episodes"] == 50).all()
+    assert end["n_tests"].to_dict() == {
+        "reach": 2,
+        "push_cube1": 1,
+        "cube1_above_cube2": 0,
+        "stack": 1,
+    }
+    assert end.loc["reach", "value"] == 0.5 and np.isnan(end.loc["cube1_above_cube2", "value"])
+    whole = module_success_rates(tests, epochs=None).set_index("module")
+    assert whole.loc["reach", "n_tests"] == 4 and whole.loc["reach", "value"] == 0.5
+    own = module_success_rates(tests, epochs=None, score="module_success").set_index("module")
+    assert own.loc["reach", "value"] == 1.0 and own.loc["stack", "value"] == 0.0
+    # more epochs asked than the run has: all of them
+    assert module_success_rates(tests, epochs=50)["n_tests"].sum() == 6
+    with pytest.raises(ValueError, match="epochs"):
+        module_success_rates(tests, epochs=0)
+    with pytest.raises(ValueError, match="score must be one of success, module_success"):
+        module_success_rates(tests, score="holistic")
 
 
 def test_episodes_to_a_level_of_test_success_per_module_and_seed(tmp_path):

@@ -191,6 +191,7 @@ def test_the_sensory_failure_figure_refuses_test_rollouts_of_other_runs(tmp_path
     [
         (lambda tests: analysis.epoch_success(tests, bin_size=2500.5), "bin_size must be an int"),
         (lambda tests: analysis.module_test_success(tests, window=2.5), "window must be an int"),
+        (lambda tests: analysis.module_success_rates(tests, epochs=2.5), "epochs must be an int"),
         (lambda tests: analysis.binned_success(tests, bin_size=True), "bin_size must be an int"),
     ],
 )

@@ -107,6 +107,26 @@ def test_c1_final_test_success_and_significant_bins(main_bins):
     assert ahead and "CURIOUS ahead in every 5,000-episode bin" in _text(README)
 
 
+def test_c1_the_bins_not_significant_are_named_with_their_means(main_bins):
+    """docs/results.md's C1 statistics name each bin where the Welch test is not significant,
+    with both conditions' means and its p."""
+    _, welch = main_bins
+    text = _text(RESULTS)
+    for r in welch[~welch["significant"]].itertuples():
+        named = f"ending at {int(r.episodes):,}"
+        means = f"({r.mean_better:.2f} against {r.mean_worse:.2f}, p = {r.p:.2g})"
+        assert named in text and means in text, (named, means)
+
+
+def test_c1_mg_tes_spread_in_the_last_bin():
+    """The caveat on the last bins' small p: MG-TE's seeds' spread in the last bin."""
+    paths = [p for p in _whole_seeds("main") if p.parent.name == "mg-te"]
+    points = analysis.epoch_success(analysis.load_tests(paths), bin_size=5_000)
+    last = points.loc[points["episodes"] == points["episodes"].max(), "value"]
+    spread = f"within {last.max() - last.min():.3f} of each other ({last.min():.3f} to "
+    assert f"{spread}{last.max():.3f})" in _text(RESULTS), spread
+
+
 def test_c1_bins_table_of_results_md(main_bins):
     """Every row of docs/results.md's C1 table: the bin ending at each 10,000 episodes."""
     means, welch = main_bins
@@ -124,6 +144,17 @@ def test_c2_order_of_learning_in_every_curious_seed():
     seeds = len(order)
     assert seeds == len(paths) and order["follows_paper"].all(), order
     assert f"the same order in all {seeds} CURIOUS seeds" in _text(README)
+    # which of the last two came first, per seed (a tie would read as neither)
+    steps = {int(r.seed): r.order.split(" → ") for r in order.sort_values("seed").itertuples()}
+    stack = [s for s, o in steps.items() if o.index("stack") < o.index("cube1_above_cube2")]
+    above = [s for s, o in steps.items() if o.index("cube1_above_cube2") < o.index("stack")]
+    words = {0: "none", 1: "one", 2: "two", 3: "three", 4: "four", 5: "five"}
+    assert f"(stack first in {words[len(stack)]})" in _text(README), stack
+    reading = (
+        f"stack first in seeds {_listed([str(s) for s in stack])}, cube 1 above cube 2 first in "
+        f"seeds {_listed([str(s) for s in above])}"
+    )
+    assert reading in _text(RESULTS), reading
 
 
 def _report_rows(lines: list[str]) -> list[str]:
@@ -169,6 +200,49 @@ def test_c1_reading_every_curious_seed_before_any_mg_te_seed():
         if module != "push_cube1":
             reading = f"{level} on {name} at {c:,.0f} against {m:,.0f}"
         assert reading in text, reading
+
+
+def _listed(values: list[str]) -> str:
+    """Values as the pages list them: ``"a, b, c and d"``."""
+    return values[0] if len(values) == 1 else f"{', '.join(values[:-1])} and {values[-1]}"
+
+
+def test_c1_each_module_at_the_end_and_hers_per_module_view():
+    """docs/results.md's table of each module at the runs' end is the report's, row by row; the
+    reading quotes MG-TE's seeds on the two modules it had not mastered, and the HER paragraph
+    its seeds' own-goal rates on reach and push cube 1 (`module_success_rates`)."""
+    from pipelines.report.main_comparison import OWN_GOAL_TEXT, module_success_tables
+
+    paths = _whole_seeds("main")
+    tests = analysis.load_tests(paths)
+    _, budget = _read_by_report()
+    lines = module_success_tables(budget.experiments["main"], tests)
+    rows = _report_rows(lines[: lines.index(OWN_GOAL_TEXT)])
+    assert len(rows) == 2 + len(paths)
+    for row in rows:
+        assert row in RESULTS.read_text(), row
+    end = analysis.module_success_rates(tests).sort_values("seed", kind="stable")
+    own = analysis.module_success_rates(tests, epochs=None, score="module_success")
+    own = own.sort_values("seed", kind="stable")
+
+    def seeds(table, condition: str, module: str, cell) -> str:
+        picked = table[(table["condition"] == condition) & (table["module"] == module)]
+        return _listed([cell(v) for v in picked["value"]])
+
+    def rate(v: float) -> str:
+        return f"{v:.2f}"
+
+    def share(v: float) -> str:
+        return f"{100 * v:.1f} %"
+
+    text = _text(RESULTS)
+    for quoted in (
+        f"{seeds(end, 'mg-te', 'cube1_above_cube2', rate)} on cube 1 above cube 2 and "
+        f"{seeds(end, 'mg-te', 'stack', rate)} on stack",
+        f"reach's part of its goal was met in {seeds(own, 'her', 'reach', share)}",
+        f"push cube 1's in {seeds(own, 'her', 'push_cube1', share)}",
+    ):
+        assert quoted in text, quoted
 
 
 def _seeds_cell(row) -> str:
@@ -264,6 +338,22 @@ def test_c3_no_drop_of_a_mastered_module():
     assert results in _text(RESULTS), results
 
 
+def test_c3_when_each_module_was_first_mastered_in_the_main_comparison():
+    """C3's ranges of the episode at which each module was first mastered, per condition of the
+    main comparison, over its modules mastered in some run (`mastery`)."""
+    names = {"push_cube1": "push cube 1", "cube1_above_cube2": "cube 1 above cube 2"}
+    paths = [p for p in _whole_seeds("main") if p.parent.name != "her"]
+    table = analysis.mastery(analysis.load_runs(paths)).dropna(subset=["mastered_episode"])
+    text = _text(RESULTS)
+    for condition, label in (("curious", "CURIOUS"), ("mg-te", "MG-TE")):
+        at = table[table["condition"] == condition].groupby("module", observed=True, sort=False)
+        ranges = ", ".join(
+            f"{names.get(str(m), m)} {int(e.min()):,}-{int(e.max()):,}"
+            for m, e in at["mastered_episode"]
+        )
+        assert f"{label} main, {ranges}" in text, ranges
+
+
 def test_c3_table_per_condition_of_results_md():
     """docs/results.md's C3 table is the report's per condition and variant (`mastery_summary`),
     the main comparison's rows then the distractors', for every seed the report reads."""
@@ -337,10 +427,16 @@ def test_c1_area_under_success_per_seed_and_its_welch_test():
     """C1's reading without bins: each seed's success over every epoch, and the Welch test."""
     area = analysis.area_under_success(analysis.load_tests(_whole_seeds("main")))
     text = _text(RESULTS)
+    labels = {"curious": "CURIOUS", "mg-te": "MG-TE"}
     for condition, means in analysis.across_seeds(area).set_index("condition").iterrows():
         assert _mean_std(means) in text, condition
+        if condition in labels:
+            values = area[area["condition"] == condition].sort_values("seed")["value"]
+            seeds = f"{labels[condition]} {_listed([f'{v:.2f}' for v in values])}"
+            assert f"{seeds} ({_mean_std(means)})" in text, seeds
     test = analysis.welch_per_bin(area, "curious", "mg-te").iloc[0]
     assert f"t = {test['t']:.2f}, p = {test['p']:.2g}" in text
+    assert f"without bins (p = {test['p']:.1g})" in _text(README)
 
 
 def test_the_laptop_budgets_time_is_the_pace_its_shipped_runs_trained_at():

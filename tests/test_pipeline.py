@@ -128,6 +128,9 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     # learning against the paper's, one row per run of the main comparison
     assert "Episodes to reach test success 0.5 / 0.9 on each achievable module" in report
     assert "| CURIOUS | 0 | " in report and "| HER | 1 | " in report
+    # C1: each module at the runs' end, and HER's per-module view of its rollouts
+    assert "Test success on each achievable module over the last 5 epochs of each run" in report
+    assert "Each achievable module's own part of the goal met, over every test rollout" in report
     assert "Order of learning: the first episode at which each module's competence" in report
     # C3/C5: the drop, the LP and p_LP before and after the failure, per run
     assert "| LP before → after | p_LP before → after | recovery (episodes) |" in report

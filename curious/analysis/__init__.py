@@ -18,6 +18,7 @@ analysis.recovery(runs)                             # after the sensory failure,
 analysis.recovery_by_tests(tests, analysis.failure_onsets(runs)["onset"])  # ... by test success
 analysis.mastery_drops(runs)                        # spontaneous drops of mastered modules
 analysis.episodes_to_test_success(tests)            # per module: episodes to 0.5 and 0.9
+analysis.module_success_rates(tests)               # per module: test success at the end
 analysis.area_under_success(tests)                  # per run: success over every epoch, no bins
 analysis.learning_order(analysis.competence_crossings(runs))  # which module was learned when
 analysis.compare_degradation(analysis.final_competence(runs), "curious", "m-uvfa")  # C4's loss

@@ -7,9 +7,12 @@ for one epoch's rate to say whether a module is learned. A module's test success
 therefore its success rate over the test rollouts of the last ``window`` epochs pooled (5 by
 default, as `curious progress` reads "test success, last 5 epochs"), defined once the run has
 ``window`` epochs of tests. `episodes_to_test_success` gives the training episodes done at the
-first epoch where that rate reaches each level (C1's reading: 0.5 and 0.9 per seed). ``success``
-is what Fig. 2a reads: in ``her``, the holistic goal met, so HER reaches a level only if it meets
-its whole goal on that module's tests.
+first epoch where that rate reaches each level (C1's reading: 0.5 and 0.9 per seed), and
+`module_success_rates` the rate over a run's last epochs (where each module stands at its end) or
+over all of them. ``success`` is what Fig. 2a reads: in ``her``, the holistic goal met, so HER
+reaches a level only if it meets its whole goal on that module's tests; ``module_success``
+(`SCORES`) is whether the module's own part of the goal was met, the same as ``success`` in every
+condition but ``her``, where it is a per-module view that is never the paper's score.
 
 Order of learning (`competence_crossings`, `learning_order`). The first episode at which each
 achievable module's competence (the moving success rate of the agent's self-evaluations, the
@@ -38,6 +41,7 @@ __all__ = [
     "competence_crossings",
     "episodes_to_test_success",
     "learning_order",
+    "module_success_rates",
     "module_test_success",
 ]
 
@@ -51,6 +55,10 @@ PAPER_ORDER: tuple[tuple[str, ...], ...] = (
 )
 """The order of learning the paper reports (Supp. Materials, "Table 1"): groups in order, the
 modules of one group in either order."""
+
+SCORES: tuple[str, ...] = ("success", "module_success")
+"""The columns of tests.parquet a module's test success can read: the condition's score (Fig.
+2a's), or whether the module's own part of the goal was met."""
 
 
 def _check_levels(levels: Sequence[float]) -> tuple[float, ...]:
@@ -76,6 +84,56 @@ def _achievable(identity: pd.DataFrame) -> pd.DataFrame:
         ],
         columns=["run", "slot", "module"],
     )
+
+
+def _check_score(score: str) -> str:
+    if score not in SCORES:
+        raise AnalysisError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
+    return score
+
+
+def module_success_rates(
+    tests: pd.DataFrame, epochs: int | None = DEFAULT_TEST_EPOCHS, score: str = "success"
+) -> pd.DataFrame:
+    """Each run's test success on each achievable module over its last ``epochs`` epochs, or
+    over every epoch (``epochs=None``): where each module stands at the run's end (`curious
+    progress` reads the same 5 epochs), or the whole run's rate.
+
+    ``tests`` is a `load_tests` table; ``score`` one of `SCORES`. The epochs are the run's last
+    ``epochs`` tested ones (all it has, if fewer). Returns one row per (run, achievable module
+    in slot order): the run columns, ``module``, ``episodes`` (training episodes done at the
+    run's last test), ``n_tests`` (the module's test rollouts pooled) and ``value`` (the share
+    of them whose ``score`` was met; NaN where ``n_tests`` is 0).
+    """
+    require_tests(tests)
+    _check_score(score)
+    if epochs is not None:
+        require_count(epochs, "epochs", "epoch")
+    epoch = tests["epoch"].to_numpy(np.int64)
+    keep = on_achievable(tests)
+    if epochs is not None:
+        distinct = tests.groupby("run", observed=True)["epoch"].unique()
+        first = tests["run"].map(distinct.map(lambda e: np.sort(e)[-epochs:][0]))
+        keep &= epoch >= first.to_numpy(np.int64)
+    kept = pd.DataFrame(
+        {
+            "run": tests["run"].to_numpy()[keep],
+            "module": tests["module"].astype(str).to_numpy()[keep],
+            "won": tests[score].to_numpy(bool)[keep].astype(np.int64),
+        }
+    )
+    counts = kept.groupby(["run", "module"], observed=True)["won"].agg(won="sum", n="size")
+    identity = _identity(tests)
+    out = _achievable(identity).join(counts, on=["run", "module"]).fillna({"won": 0, "n": 0})
+    out["episodes"] = out["run"].map(tests.groupby("run", observed=True)["episode"].max())
+    out["n_tests"] = out["n"].astype(np.int64)
+    out["value"] = out["won"] / out["n"].where(out["n"] > 0)
+    out = out.join(identity, on="run").sort_values(["run", "slot"], kind="stable")
+    out["run"] = out["run"].astype(tests["run"].dtype)
+    out["episodes"] = out["episodes"].astype(np.int64)
+    out.attrs.update(epochs=epochs, score=score)
+    columns = [*RUN_COLUMNS, "module", "episodes", "n_tests", "value"]
+    return out[columns].reset_index(drop=True)
 
 
 def module_test_success(tests: pd.DataFrame, window: int = DEFAULT_TEST_EPOCHS) -> pd.DataFrame:

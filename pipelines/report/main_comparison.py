@@ -1,12 +1,14 @@
 """The main comparison's section (C1, C2): Fig. 2a's numbers from the test rollouts, the Welch
-test per bin, the area under each seed's curve, the episodes to each level of test success, the
-order of learning and the spontaneous forgetting."""
+test per bin, the area under each seed's curve, the episodes to each level of test success, each
+module's test success at the end and over the whole run, the order of learning and the
+spontaneous forgetting."""
 
 from __future__ import annotations
 
 import pandas as pd
 
 from curious import analysis
+from curious.analysis import DEFAULT_TEST_EPOCHS
 from curious.analysis.palette import condition_label, module_label
 from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import (
@@ -133,6 +135,55 @@ def episodes_to_success_table(e: Experiment, tests: pd.DataFrame) -> list[str]:
     ]
 
 
+OWN_GOAL_TEXT = (
+    "Each achievable module's own part of the goal met, over every test rollout of the run that "
+    "named the module (`module_success` of tests.parquet, `analysis.module_success_rates(tests, "
+    'epochs=None, score="module_success")`; rollouts in brackets). It is the condition\'s score '
+    "where the condition scores one module per episode; for HER, scored on its whole goal at "
+    "once, it is a per-module view of its rollouts, never the paper's score."
+)
+
+
+def _per_module_table(e: Experiment, rates: pd.DataFrame, cell, last: bool) -> list[str]:
+    """A table of an `analysis.module_success_rates` table: one row per condition and seed,
+    `cell(row)` per achievable module in slot order, and with `last` the run's last test."""
+    modules = list(dict.fromkeys(rates["module"].astype(str)))
+    rows = []
+    for (condition, seed), group in in_order(rates, e).groupby(
+        ["condition", "seed"], observed=True, sort=False
+    ):
+        got = {str(r.module): r for r in group.itertuples()}
+        cells = [cell(got[m]) if m in got else "–" for m in modules]
+        tail = [f"{int(group['episodes'].max()):,}"] if last else []
+        rows.append((condition_label(condition), seed, *cells, *tail))
+    header = ("condition", "seed", *map(module_label, modules))
+    return markdown_table((*header, "last tested at") if last else header, rows)
+
+
+def module_success_tables(e: Experiment, tests: pd.DataFrame) -> list[str]:
+    """Per condition and seed: each achievable module's test success over the run's last
+    epochs (where it stands at the end, Fig. 2a's scoring), and the share of all the run's test
+    rollouts on the module that met the module's own goal (`module_success`: HER's per-module
+    view, never the paper's score)."""
+    end = analysis.module_success_rates(tests, DEFAULT_TEST_EPOCHS)
+    own = analysis.module_success_rates(tests, epochs=None, score="module_success")
+    return [
+        f"Test success on each achievable module over the last {DEFAULT_TEST_EPOCHS} epochs of "
+        "each run, where it stands at the end (`analysis.module_success_rates`; test rollouts in "
+        "brackets; Fig. 2a's scoring, HER: its whole goal met):",
+        "",
+        *_per_module_table(e, end, lambda r: f"{fmt(r.value)} ({r.n_tests})", last=True),
+        OWN_GOAL_TEXT,
+        "",
+        *_per_module_table(
+            e,
+            own,
+            lambda r: "–" if r.n_tests == 0 else f"{100 * r.value:.1f} % ({r.n_tests:,})",
+            last=False,
+        ),
+    ]
+
+
 def learning_order_table(e: Experiment, table: pd.DataFrame) -> list[str]:
     """Per run: the order in which its modules' competence crossed `ORDER_LEVEL`, against the
     paper's (`analysis.learning_order`)."""
@@ -174,6 +225,7 @@ def main(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[s
             lines += _welch_points(numbers, *e.compare)
         lines += _area_under_success(e, tables.tests)
         lines += episodes_to_success_table(e, tables.tests)
+        lines += module_success_tables(e, tables.tests)
     for name in ("fig2b", "fig2c", "table1"):
         lines += figure(repro, name)
     lines += learning_order_table(e, tables.metrics)
