@@ -107,6 +107,33 @@ def test_c1_final_test_success_and_significant_bins(main_bins):
     assert ahead and "CURIOUS ahead in every 5,000-episode bin" in _text(README)
 
 
+def test_the_main_comparisons_seeds_are_counted_as_the_report_reads_them():
+    """Every place README.md and docs/results.md count the main comparison's seeds says how many
+    the report reads (a seed beyond the budget's counts once all its runs are shipped)."""
+    seeds = sorted({int(p.name.removeprefix("seed-")) for p in _whole_seeds("main")})
+    n, last = len(seeds), seeds[-1]
+    w = {3: "three", 4: "four", 5: "five", 6: "six"}[n]
+    readme, results = _text(README), _text(RESULTS)
+    for quoted in (f"HER, {n} seeds each](docs/images", f"main comparison; {n} seeds there"):
+        assert quoted in readme, quoted
+    for quoted in (
+        f"and {n} seeds in the main comparison",
+        f"reproduced with {n} seeds:",
+        f"reproduced in all {w} CURIOUS seeds",
+        f"CURIOUS, MG-TE and HER, seeds 0 to {last} (",
+        f"CURIOUS, MG-TE and HER, {n} seeds x 100,000 episodes",
+        f"HER, {n} seeds each](images",
+        f"the mean over {n} seeds",
+        f"with {w} seeds a side",
+        f"in all {w} seeds; MG-TE",
+        f"{n} x 20,000 test rollouts",
+        f"MG-TE's {w} seeds ended within",
+        f"CURIOUS seeds 0-{last}](images",
+        f"In all {w} CURIOUS seeds reach came first",
+    ):
+        assert quoted in results, quoted
+
+
 def test_c1_the_bins_not_significant_are_named_with_their_means(main_bins):
     """docs/results.md's C1 statistics name each bin where the Welch test is not significant,
     with both conditions' means and its p."""
@@ -437,6 +464,47 @@ def test_c1_area_under_success_per_seed_and_its_welch_test():
     test = analysis.welch_per_bin(area, "curious", "mg-te").iloc[0]
     assert f"t = {test['t']:.2f}, p = {test['p']:.2g}" in text
     assert f"without bins (p = {test['p']:.1g})" in _text(README)
+
+
+def test_the_protocols_compute_is_the_runs_own_clocks():
+    """The protocol's compute row: each experiment's run-hours over the budget's seeds, their
+    total, and each seed beyond the budget's that the report reads, by the runs' own clocks."""
+    names = {
+        "main": "main comparison",
+        "sensor_failure": "sensory failure",
+        "distractors": "distractors",
+        "sensor_failure_mastered": "sensory failure on a mastered module",
+    }
+    text, budget = _text(RESULTS), get_budget("laptop")
+    total, count = 0.0, 0
+    for name in budget.experiments:
+        rows = progress_table(_runs(name))
+        hours = sum(r.run_hours for r in rows)
+        total, count = total + hours, count + len(rows)
+        if name == "distractors":
+            per = [
+                f"`{v}` {sum(r.run_hours for r in rows if r.variant == v):.2f}"
+                for v in ("distractors_7", "distractors_4", "distractors_0")
+            ]
+            quoted = f"distractors {hours:.2f} ({len(rows)} runs: {', '.join(per)})"
+        elif name == "main":
+            quoted = f"main comparison {hours:.2f} run-hours ({len(rows)} runs)"
+        else:
+            quoted = f"{names[name]} {hours:.2f} ({len(rows)} runs)"
+        assert quoted in text, quoted
+    assert f"{count} runs, {total:.2f} run-hours" in text
+    _, read = _read_by_report()
+    for name, e in read.experiments.items():
+        ours = {r.relative_path for r in budget.experiments[name].runs()}
+        beyond: dict[int, list[Path]] = {}
+        for r in e.runs():
+            if r.relative_path not in ours:
+                beyond.setdefault(r.seed, []).append(DATA / r.relative_path)
+        for seed, paths in beyond.items():
+            hours = sum(r.run_hours for r in progress_table(paths))
+            whose = "the main comparison's" if name == "main" else f"the {names[name]}'"
+            quoted = f"{whose} seed {seed}, {hours:.2f} more ({len(paths)} runs)"
+            assert quoted in text, quoted
 
 
 def test_the_laptop_budgets_time_is_the_pace_its_shipped_runs_trained_at():
