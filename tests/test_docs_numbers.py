@@ -134,6 +134,33 @@ def test_the_main_comparisons_seeds_are_counted_as_the_report_reads_them():
         assert quoted in results, quoted
 
 
+def test_what_the_pages_say_of_the_main_comparisons_seeds_beyond_the_budgets():
+    """The seeds beyond the budget's that the report reads are named as read, a seed with only
+    some of its runs shipped as waiting, and data/README.md counts the runs shipped."""
+    budget = {int(r.seed) for r in get_budget("laptop").experiments["main"].runs()}
+    read = sorted({int(p.name.removeprefix("seed-")) for p in _whole_seeds("main")} - budget)
+    shipped = sorted(p for p in (DATA / "main").glob("*/seed-*") if p.is_dir())
+    waiting = sorted({int(p.name.removeprefix("seed-")) for p in shipped} - budget - set(read))
+    named = _listed([str(s) for s in read])
+    named = f"seed {named}" if len(read) == 1 else f"seeds {named}"
+    results = _text(RESULTS)
+    for quoted in (f"and {named} the campaign adds", f"for the main comparison ({named} too)"):
+        assert quoted in results, quoted
+    for seed in waiting:
+        for quoted in (
+            f"of the main comparison's seed {seed},",
+            f"Seed {seed} (the campaign's) will be read the same way",
+        ):
+            assert quoted in results, quoted
+    if not waiting:
+        for stale in ("(the campaign's) will be read the same way", "is shipped and waits for"):
+            assert stale not in results, stale
+    data = _text(ROOT / "data" / "README.md")
+    last = max(read or budget)
+    assert f"`main/`: CURIOUS, MG-TE and HER, seeds 0-{last}" in data
+    assert f"each ({len(shipped)} runs)" in data, len(shipped)
+
+
 def test_c1_the_bins_not_significant_are_named_with_their_means(main_bins):
     """docs/results.md's C1 statistics name each bin where the Welch test is not significant,
     with both conditions' means and its p."""
@@ -152,6 +179,12 @@ def test_c1_mg_tes_spread_in_the_last_bin():
     last = points.loc[points["episodes"] == points["episodes"].max(), "value"]
     spread = f"within {last.max() - last.min():.3f} of each other ({last.min():.3f} to "
     assert f"{spread}{last.max():.3f})" in _text(RESULTS), spread
+    epoch = analysis.final_success(analysis.epoch_success(analysis.load_tests(paths)))
+    alone = (
+        f"(MG-TE {_mean_std(epoch['value'].agg(['mean', 'std']))} over its seeds, about "
+        f"{epoch['n_tests'].mean():.0f} test rollouts per run)"
+    )
+    assert alone in _text(RESULTS), alone
 
 
 def test_c1_bins_table_of_results_md(main_bins):
@@ -171,6 +204,14 @@ def test_c2_order_of_learning_in_every_curious_seed():
     seeds = len(order)
     assert seeds == len(paths) and order["follows_paper"].all(), order
     assert f"the same order in all {seeds} CURIOUS seeds" in _text(README)
+    # reach's crossing in MG-TE is its first full window, the same in every run or not
+    mg_te = [p for p in _whole_seeds("main") if p.parent.name == "mg-te"]
+    crossings = analysis.competence_crossings(analysis.load_runs(mg_te))
+    reach = set(crossings.loc[crossings["module"] == "reach", "episode"])
+    if len(reach) == 1:
+        assert f"({int(reach.pop()):,} in every MG-TE run)" in _text(RESULTS)
+    else:
+        assert "in every MG-TE run)" not in _text(RESULTS), sorted(reach)
     # which of the last two came first, per seed (a tie would read as neither)
     steps = {int(r.seed): r.order.split(" → ") for r in order.sort_values("seed").itertuples()}
     stack = [s for s, o in steps.items() if o.index("stack") < o.index("cube1_above_cube2")]
@@ -358,6 +399,9 @@ def test_c3_no_drop_of_a_mastered_module():
     assert int(table["n_drops"].sum()) == 0
     readme = f"no mastered module fell by 0.2 in {runs} runs (deepest fall {deepest:.2f})"
     assert readme in _text(README), readme
+    falls = np.sort(table["deepest_fall"].dropna().to_numpy())[::-1]
+    others = f"the deepest fall below a peak was {falls[0]:.2f}, and every other was "
+    assert f"{others}{falls[1]:.2f} or less" in _text(RESULTS), others
     episodes = int(table["mastered_episodes"].sum()) / 1e6
     results = (
         f"Over about {episodes:.2f} million module-episodes of mastered modules in {runs} runs"
@@ -456,7 +500,7 @@ def test_c1_area_under_success_per_seed_and_its_welch_test():
     text = _text(RESULTS)
     labels = {"curious": "CURIOUS", "mg-te": "MG-TE"}
     for condition, means in analysis.across_seeds(area).set_index("condition").iterrows():
-        assert _mean_std(means) in text, condition
+        assert _mean_std(means) in text, (condition, _mean_std(means))
         if condition in labels:
             values = area[area["condition"] == condition].sort_values("seed")["value"]
             seeds = f"{labels[condition]} {_listed([f'{v:.2f}' for v in values])}"
@@ -464,6 +508,11 @@ def test_c1_area_under_success_per_seed_and_its_welch_test():
     test = analysis.welch_per_bin(area, "curious", "mg-te").iloc[0]
     assert f"t = {test['t']:.2f}, p = {test['p']:.2g}" in text
     assert f"without bins (p = {test['p']:.1g})" in _text(README)
+    assert f"without bins (p = {test['p']:.2g})" in text
+    ours = {int(r.seed) for r in get_budget("laptop").experiments["main"].runs()}
+    if set(area["seed"]) != ours:
+        three = analysis.welch_per_bin(area[area["seed"].isin(ours)], "curious", "mg-te").iloc[0]
+        assert f"(with the budget's three: t = {three['t']:.2f}, p = {three['p']:.2g})" in text
 
 
 def test_the_protocols_compute_is_the_runs_own_clocks():
