@@ -86,12 +86,6 @@ def _achievable(identity: pd.DataFrame) -> pd.DataFrame:
     )
 
 
-def _check_score(score: str) -> str:
-    if score not in SCORES:
-        raise AnalysisError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
-    return score
-
-
 def module_success_rates(
     tests: pd.DataFrame, epochs: int | None = DEFAULT_TEST_EPOCHS, score: str = "success"
 ) -> pd.DataFrame:
@@ -106,7 +100,8 @@ def module_success_rates(
     of them whose ``score`` was met; NaN where ``n_tests`` is 0).
     """
     require_tests(tests)
-    _check_score(score)
+    if score not in SCORES:
+        raise AnalysisError(f"score must be one of {', '.join(SCORES)}, got {score!r}")
     if epochs is not None:
         require_count(epochs, "epochs", "epoch")
     epoch = tests["epoch"].to_numpy(np.int64)

@@ -5,6 +5,9 @@ spontaneous forgetting."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import pandas as pd
 
 from curious import analysis
@@ -144,7 +147,9 @@ OWN_GOAL_TEXT = (
 )
 
 
-def _per_module_table(e: Experiment, rates: pd.DataFrame, cell, last: bool) -> list[str]:
+def _per_module_table(
+    e: Experiment, rates: pd.DataFrame, cell: Callable[[Any], str], last: bool
+) -> list[str]:
     """A table of an `analysis.module_success_rates` table: one row per condition and seed,
     `cell(row)` per achievable module in slot order, and with `last` the run's last test."""
     modules = list(dict.fromkeys(rates["module"].astype(str)))
