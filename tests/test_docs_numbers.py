@@ -268,6 +268,13 @@ def test_c1_reading_every_curious_seed_before_any_mg_te_seed():
         if module != "push_cube1":
             reading = f"{level} on {name} at {c:,.0f} against {m:,.0f}"
         assert reading in text, reading
+    # C4's hint across experiments: CURIOUS at 3 distracting modules, the main comparison
+    push = table[(table["module"] == "push_cube1") & (table["level"] == 0.5)]
+    push = push.loc[push["condition"] == "curious", "episodes"]
+    hint = (
+        f"CURIOUS passed 0.5 of test success on push cube 1 at {push.min():,.0f}-{push.max():,.0f}"
+    )
+    assert hint in text, hint
 
 
 def _listed(values: list[str]) -> str:
