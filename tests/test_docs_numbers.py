@@ -80,6 +80,15 @@ def _whole_seeds(experiment: str, variant: str | None = None) -> list[Path]:
     return [DATA / r.relative_path for r in runs]
 
 
+WORDS = {0: "none", 1: "one", 2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven"}
+"""Small counts as the pages write them in words."""
+
+
+def _seed(path: Path) -> int:
+    """The seed of a run folder named ``seed-K``."""
+    return int(path.name.removeprefix("seed-"))
+
+
 def _mean_std(row) -> str:
     return f"{row['mean']:.2f} ± {row['std']:.2f}"
 
@@ -110,9 +119,9 @@ def test_c1_final_test_success_and_significant_bins(main_bins):
 def test_the_main_comparisons_seeds_are_counted_as_the_report_reads_them():
     """Every place README.md and docs/results.md count the main comparison's seeds says how many
     the report reads (a seed beyond the budget's counts once all its runs are shipped)."""
-    seeds = sorted({int(p.name.removeprefix("seed-")) for p in _whole_seeds("main")})
+    seeds = sorted({_seed(p) for p in _whole_seeds("main")})
     n, last = len(seeds), seeds[-1]
-    w = {3: "three", 4: "four", 5: "five", 6: "six"}[n]
+    w = WORDS[n]
     readme, results = _text(README), _text(RESULTS)
     for quoted in (f"HER, {n} seeds each](docs/images", f"main comparison; {n} seeds there"):
         assert quoted in readme, quoted
@@ -138,9 +147,9 @@ def test_what_the_pages_say_of_the_main_comparisons_seeds_beyond_the_budgets():
     """The seeds beyond the budget's that the report reads are named as read, a seed with only
     some of its runs shipped as waiting, and data/README.md counts the runs shipped."""
     budget = {int(r.seed) for r in get_budget("laptop").experiments["main"].runs()}
-    read = sorted({int(p.name.removeprefix("seed-")) for p in _whole_seeds("main")} - budget)
+    read = sorted({_seed(p) for p in _whole_seeds("main")} - budget)
     shipped = sorted(p for p in (DATA / "main").glob("*/seed-*") if p.is_dir())
-    waiting = sorted({int(p.name.removeprefix("seed-")) for p in shipped} - budget - set(read))
+    waiting = sorted({_seed(p) for p in shipped} - budget - set(read))
     named = _listed([str(s) for s in read])
     named = f"seed {named}" if len(read) == 1 else f"seeds {named}"
     results = _text(RESULTS)
@@ -216,8 +225,7 @@ def test_c2_order_of_learning_in_every_curious_seed():
     steps = {int(r.seed): r.order.split(" → ") for r in order.sort_values("seed").itertuples()}
     stack = [s for s, o in steps.items() if o.index("stack") < o.index("cube1_above_cube2")]
     above = [s for s, o in steps.items() if o.index("cube1_above_cube2") < o.index("stack")]
-    words = {0: "none", 1: "one", 2: "two", 3: "three", 4: "four", 5: "five"}
-    assert f"(stack first in {words[len(stack)]})" in _text(README), stack
+    assert f"(stack first in {WORDS[len(stack)]})" in _text(README), stack
     reading = (
         f"stack first in seeds {_listed([str(s) for s in stack])}, cube 1 above cube 2 first in "
         f"seeds {_listed([str(s) for s in above])}"
@@ -582,6 +590,5 @@ def test_the_laptop_budgets_time_is_the_pace_its_shipped_runs_trained_at():
     assert f"{episodes / 1e6:.2f} M episodes" in notes
     assert f"about {hours[0]} h on 2 cores at the faster pace and {hours[1]} h" in notes
     assert f"about {hours[0]} to {hours[1]} h on 2 cores" in _text(ROOT / "docs" / "scaling.md")
-    words = {2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven"}
-    days = f"{words[round(hours[0] / 24)]} to {words[round(hours[1] / 24)]} days on 2 cores"
+    days = f"{WORDS[round(hours[0] / 24)]} to {WORDS[round(hours[1] / 24)]} days on 2 cores"
     assert days in _text(README) and days in get_budget("laptop").description
