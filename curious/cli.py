@@ -16,7 +16,7 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from curious.commands import refuse
+from curious.commands import CommandParser, refuse
 
 COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.train",
@@ -40,7 +40,7 @@ def version() -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every sub-command that is installed."""
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="curious",
         description=(
             "CURIOUS: intrinsically motivated multi-task, multi-goal RL on the Multi-Task "

@@ -582,6 +582,43 @@ def test_a_benchmark_timed_for_no_time_is_refused_by_the_parser(args, message, c
     assert message in capsys.readouterr().err.strip().splitlines()[-1]
 
 
+@pytest.mark.parametrize(
+    ("args", "prog", "unknown", "option_listed"),
+    [
+        (
+            ["train", "--out", "{tmp}/r", "--episodes", "5"],
+            "train",
+            "--episodes 5",
+            "--rollout-every",
+        ),
+        (["progress", "--pace", "{tmp}"], "progress", "--pace", "--at-once"),
+        (["reproduce", "--budget", "smoke", "extra"], "reproduce", "extra", "--from-data"),
+        (["bench", "env", "--steps", "5"], "bench env", "--steps 5", "--episodes"),
+        (
+            ["bench", "learner", "--json", "--updates", "0"],
+            "bench learner",
+            "--updates 0",
+            "--seconds",
+        ),
+    ],
+    ids=["train", "progress", "reproduce-word", "bench-env", "bench-learner"],
+)
+def test_an_unknown_option_is_refused_by_the_command_it_was_given_to(
+    args, prog, unknown, option_listed, tmp_path, capsys
+):
+    """A mistyped option is named with the usage of the (sub-)command it was typed for, which
+    lists the options meant, not with the top-level usage; nothing is written."""
+    with pytest.raises(SystemExit) as exit_:
+        main([a.format(tmp=tmp_path) for a in args])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert (
+        err.strip().splitlines()[-1] == f"curious {prog}: error: unrecognized arguments: {unknown}"
+    )
+    assert err.startswith(f"usage: curious {prog} ") and option_listed in err
+    assert sorted(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("which", ["learner", "stacked", "population"])
 def test_a_benchmark_on_cuda_without_a_gpu_is_one_line(which, capsys):
     import torch

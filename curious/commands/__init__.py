@@ -8,6 +8,7 @@ import argparse
 import os
 import sys
 from collections.abc import Callable
+from typing import Any
 
 
 def refuse(command: str, exc: BaseException, status: int = 2, message: str | None = None) -> int:
@@ -19,6 +20,21 @@ def refuse(command: str, exc: BaseException, status: int = 2, message: str | Non
         raise exc
     print(f"curious {command}: error: {message or exc}", file=sys.stderr)
     return status
+
+
+class CommandParser(argparse.ArgumentParser):
+    """The parser of `curious` and of each of its sub-commands: a word a sub-command does not
+    know (a mistyped option) is refused by that sub-command, with its own usage and name
+    (`curious bench learner: error: unrecognized arguments: --updates 0`), not by the top-level
+    parser, whose usage does not list the option meant. argparse hands every word after a
+    sub-command's name to that sub-command, so none of them is the parent's to take.
+    Sub-parsers are of this class too: `add_subparsers` makes them of their parent's class."""
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        namespace, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return namespace, extras
 
 
 def folder_name(text: str) -> str:

@@ -13,6 +13,8 @@ import importlib
 import json
 from typing import Any
 
+from curious.commands import CommandParser
+
 BENCHMARKS: dict[str, tuple[str, str]] = {
     "env": (
         "benchmarks.env_speed",
@@ -58,7 +60,7 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
 }
 
 
-class _BenchmarkParser(argparse.ArgumentParser):
+class _BenchmarkParser(CommandParser):
     """A benchmark's parser, which imports the benchmark's module for its options only when the
     command line names that benchmark: `curious --help` and `curious bench --help` import no
     benchmark (they import torch and MuJoCo)."""
