@@ -439,15 +439,32 @@ POPULATION = ["train", "--preset", "smoke", "--seeds", "0-1", "--no-record", "--
         (["reproduce", "--from-data", "{file}", "--out", "{tmp}/r"], "--from-data {file} is a"),
         ([*POPULATION, "--out", "{file}"], "--out {file}: {file} is a file, not a folder"),
         (["bench", "checkpoint", "--dir", "{file}"], "--dir {file}: {file} is a file, not a"),
+        (["ship", "{file}"], "{file} is a file, not a folder of run folders"),
+        (["ship", "{tmp}/nowhere"], "{tmp}/nowhere does not exist"),
+        (["evaluate", "{file}"], "{file} is a file, not a run folder"),
+        (["evaluate", "{tmp}/nowhere"], "{tmp}/nowhere does not exist: name a run folder"),
+        (["render", "--run", "{file}", "--out", "{tmp}/x.gif"], "{file} is a file, not a run"),
     ],
-    ids=["progress", "progress-second", "reproduce", "train-seeds", "bench-checkpoint"],
+    ids=[
+        "progress",
+        "progress-second",
+        "reproduce",
+        "train-seeds",
+        "bench-checkpoint",
+        "ship",
+        "ship-missing",
+        "evaluate",
+        "evaluate-missing",
+        "render",
+    ],
 )
-def test_a_file_where_a_folder_is_read_is_one_line(args, message, tmp_path, capsys):
+def test_a_file_where_a_folder_is_read_is_one_line(args, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("MUJOCO_GL", "egl")  # render's own checks, past the backend's
     file = tmp_path / "notes.txt"
     file.write_text("mine")
     args = [a.format(tmp=tmp_path, file=file) for a in args]
     assert main(args) == 2
-    assert message.format(file=file) in one_line(capsys.readouterr().err)
+    assert message.format(file=file, tmp=tmp_path) in one_line(capsys.readouterr().err)
     assert [p.name for p in tmp_path.iterdir()] == ["notes.txt"]
 
 

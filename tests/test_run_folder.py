@@ -265,6 +265,11 @@ def test_a_folder_of_runs_given_as_a_run_names_the_runs_it_holds(tmp_path):
     with pytest.raises(RunFolderError) as bare:
         RunFolder(tmp_path / "empty").read_info()
     assert str(bare.value).endswith("it has no config.json")
+    with pytest.raises(RunFolderError, match="nowhere does not exist: name a run folder"):
+        RunFolder(tmp_path / "nowhere").read_info()
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(RunFolderError, match=r"notes\.txt is a file, not a run folder$"):
+        RunFolder(tmp_path / "notes.txt").read_info()
 
 
 def test_a_table_of_another_run_is_refused_naming_its_columns(tmp_path):

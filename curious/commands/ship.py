@@ -61,11 +61,12 @@ def _megabytes(n: int) -> str:
 def run(args: argparse.Namespace) -> int:
     from curious.reproduction.experiments import ExperimentError, get_budget
     from curious.reproduction.shipped_folder import MANIFEST_FILE
-    from curious.reproduction.shipping import ship
+    from curious.reproduction.shipping import check_root, ship
     from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
     from pipelines.resources import OutputLayout
 
     root = Path(args.root)
+    check_root(root)  # before --out is asked for: a mistyped ROOT is named first
     layout = OutputLayout.at(root)
     runs_root, budget = None, None
     if layout.manifest.is_file():

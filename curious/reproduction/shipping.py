@@ -108,11 +108,12 @@ def _inside(path: Path, other: Path) -> bool:
     return path == other or other in path.parents
 
 
-def _check_root(root: Path) -> None:
+def check_root(root: Path) -> None:
+    """A `ShippedError` unless `root` is a folder of runs to ship (not a shipped folder)."""
     if not root.exists():
         raise ShippedError(f"{root} does not exist")
     if not root.is_dir():
-        raise ShippedError(f"{root} is not a folder of run folders")
+        raise ShippedError(f"{root} is a file, not a folder of run folders")
     for folder in (root, *root.parents):
         if ShippedFolder(folder).is_shipped:
             raise ShippedError(
@@ -275,7 +276,7 @@ def ship(
     tic = time.perf_counter()
     root, out = Path(root).resolve(), Path(out).resolve()
     runs = Path(runs_root).resolve() if runs_root is not None else root
-    _check_root(root)
+    check_root(root)
     _check_out(out, root)
     _check_out(out, runs)
     try:  # the lock and the new folder are made beside `out`

@@ -147,6 +147,10 @@ class RunFolder:
         """config.json's content, checked to be a run's description: a JSON object whose
         `config` is an object. Anything else is a `RunFolderError` naming the file."""
         path = self.config_path
+        if not self.path.exists():
+            raise RunFolderError(f"{self.path} does not exist: name a run folder")
+        if not self.path.is_dir():
+            raise RunFolderError(f"{self.path} is a file, not a run folder")
         try:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
