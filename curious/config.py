@@ -571,6 +571,16 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(dict.fromkeys(seeds))
 
 
+OWN_OPTIONS: dict[str, str] = {
+    "preset": "--preset",
+    "condition": "--condition",
+    "seed": "--seed (or --seeds)",
+}
+"""The settings that name a run rather than tune it, each with its own option: as an override
+one would silently win over that option (`--condition curious --set condition=her` trains HER),
+and `--set seed=3` would give every run of `--seeds 0-4` the same seed."""
+
+
 def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
     """Turn `["key=value", ...]` into typed values; unknown keys and bad values are errors."""
     types_by_name = {f.name: str(f.type) for f in fields(Config)}
@@ -584,8 +594,8 @@ def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
             raise ConfigError(
                 f"unknown config key {key!r}; known keys: {', '.join(sorted(types_by_name))}"
             )
-        if key == "preset":
-            raise ConfigError("choose the preset with --preset, not an override")
+        if key in OWN_OPTIONS:
+            raise ConfigError(f"choose the {key} with {OWN_OPTIONS[key]}, not an override")
         out[key] = _coerce(key, types_by_name[key], text)
     return out
 

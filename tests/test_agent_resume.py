@@ -232,5 +232,7 @@ def test_the_command_resumes_with_the_runs_own_settings(tmp_path, capsys):
     capsys.readouterr()
     assert main([*resume, "--seed", "4"]) == 2  # an option given must match the run's
     assert "(seed: 3 -> 4)" in capsys.readouterr().err
-    assert main([*resume, "--condition", "her", "--set", "condition=her"]) == 2  # both ways
+    assert main([*resume, "--condition", "her"]) == 2
     assert "(condition: 'mg-te' -> 'her')" in capsys.readouterr().err
+    assert main([*resume, "--set", "condition=her"]) == 2  # the condition's own option only
+    assert "choose the condition with --condition, not an override" in capsys.readouterr().err

@@ -302,6 +302,23 @@ def test_settings_outside_their_documented_range_are_refused(setting, message, t
         resolve("smoke", overrides={key: float(value)})
 
 
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--seeds", "0-1", "--set", "seed=3"], "choose the seed with --seed (or --seeds), not"),
+        (["--condition", "curious", "--set", "condition=her"], "choose the condition with"),
+    ],
+    ids=["seed", "condition"],
+)
+def test_a_setting_that_names_the_run_is_refused_as_an_override(options, message, tmp_path, capsys):
+    """`--set seed=3` would give every run of `--seeds 0-1` seed 3, in folders named seed-0
+    and seed-1; `--set condition=her` would win over `--condition curious`."""
+    out = tmp_path / "runs"
+    assert main(["train", "--preset", "smoke", "--out", str(out), *options]) == 2
+    assert message in one_line(capsys.readouterr().err)
+    assert not out.exists()
+
+
 def test_the_divergence_error_names_the_settings_set_apart_from_the_authors():
     """A learning rate too high is the usual cause, but not the only one."""
     from curious.runs.trainer import diverged

@@ -110,7 +110,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_set_option(
         parser,
         "override one setting (repeatable), e.g. --set n_workers=8; the run's length is "
-        "--set total_episodes=N",
+        "--set total_episodes=N (the preset, condition and seed have their own options)",
     )
     parser.add_argument(
         "--resume",
