@@ -581,6 +581,32 @@ def test_resume_refuses_a_run_whose_metrics_are_gone(tmp_path):
         run(tmp_path / "r", resume=True, total_episodes=60)
 
 
+@pytest.mark.parametrize(
+    ("table", "damage", "reason"),
+    [
+        ("metrics.parquet", b"not a table", "Parquet magic bytes not found in footer"),
+        ("tests.parquet", b"", "Parquet file size is 0 bytes"),
+    ],
+    ids=["garbage", "empty"],
+)
+def test_resume_refuses_a_damaged_table_naming_it_and_writes_nothing(
+    table, damage, reason, tmp_path
+):
+    """A table a run cannot be read back from (a crash of another tool, a copy cut short) is
+    named with the way out, as a missing one is, and not in pyarrow's words alone."""
+    run(tmp_path / "r")
+    (tmp_path / "r" / table).write_bytes(damage)
+    before = {p: p.read_bytes() for p in (tmp_path / "r").rglob("*") if p.is_file()}
+    with pytest.raises(RunFolderError) as caught:
+        run(tmp_path / "r", resume=True, total_episodes=60)
+    message = str(caught.value)
+    assert message.startswith(f"{tmp_path / 'r' / table} is damaged, not a table the run can")
+    assert f"({reason}" in message and message.endswith("or start the run over with --restart")
+    assert message.count(str(tmp_path)) == 1
+    after = {p: p.read_bytes() for p in (tmp_path / "r").rglob("*") if p.is_file()}
+    assert after == before
+
+
 def test_a_damaged_newest_checkpoint_falls_back_to_the_one_before(tmp_path):
     run_stop(tmp_path / "r", stop=4, total_episodes=60, checkpoint_every_cycles=2)
     found = list_checkpoints(tmp_path / "r" / "checkpoints")

@@ -17,6 +17,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from curious.runs.folder_errors import RunFolderError
+
 _EPISODE_COLUMNS: list[tuple[str, pa.DataType]] = [
     ("episode", pa.int64()),
     ("worker", pa.int32()),
@@ -68,7 +70,14 @@ class TableLog:
         self.schema = schema
         self._tables: list[pa.Table] = []
         if self.path.exists():
-            table = pq.read_table(self.path)
+            try:
+                table = pq.read_table(self.path)
+            except (OSError, pa.ArrowInvalid) as exc:
+                reason = str(exc).split(f"'{self.path}': ", 1)[-1]  # pyarrow's names the file
+                raise RunFolderError(
+                    f"{self.path} is damaged, not a table the run can go on from ({reason}); "
+                    "restore it, or start the run over with --restart"
+                ) from None
             if table.schema.names != self.schema.names:
                 raise ValueError(f"{self.path} is not this run's table: {self._differences(table)}")
             self._tables.append(table.cast(self.schema))
