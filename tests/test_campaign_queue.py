@@ -166,6 +166,7 @@ def test_a_bad_seeds_option_is_refused(campaign, value, why, tmp_path, capsys):
         (["--workers", "0"], "--workers must be at least 1, got 0"),
         (["--shipped", "{tmp}/nowhere"], "no shipped data folder there (no shipped.json)"),
         (["--set", "nope=1"], "unknown config key 'nope'"),
+        (["--set", "hidden=64"], "hidden would change the budget's runs"),
         (["--budget", "huge"], "unknown budget 'huge'"),
     ],
 )

@@ -75,7 +75,7 @@ except ModuleNotFoundError:
         file=sys.stderr,
     )
     sys.exit(2)
-from curious.config import parse_overrides
+from curious.commands.reproduce import placement_overrides
 
 try:
     from curious.reproduction.experiments import RunSpec, get_budget
@@ -295,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
         budget = get_budget(args.budget)
         layout = OutputLayout.at(args.out)
         check_output_folder(layout, budget)
-        overrides = parse_overrides(args.set)
+        overrides = placement_overrides(args.set)  # the budget defines the runs
         seeds = parse_seed_options(args.seeds) if args.seeds else DEFAULT_SEEDS.get(budget.name, {})
         added = beyond(budget.name, seeds)
         shipped = shipped_finished(args.shipped)
