@@ -11,6 +11,8 @@ each at once (what `curious reproduce --population K --workers runs/K` trains), 
 per run), into a temporary folder. The rate is read from the runs' own tables: each run's
 episodes after its first cycle over the seconds they took (metrics.parquet's `wall_time`),
 summed over the runs, so that imports and the first cycle's allocations count for neither;
+`*_late` is the same rate over the second half of the cycles alone, which tells a warm-up that
+outlasts the first cycle (a compiled learner's, say) from a steady rate;
 `*_command_s` is the wall time of the whole command, start-up included.
 
 `bound` is the physics alone: one core stepping the suite's model for an episode's control
@@ -122,8 +124,9 @@ def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -
     ]  # fmt: skip
 
 
-def _steady_rate(folders: list[Path]) -> float:
-    """Episodes/s of the runs together after each one's first cycle, from their tables."""
+def _steady_rate(folders: list[Path], after_cycles: int = 1) -> float:
+    """Episodes/s of the runs together after each one's first `after_cycles` cycles, from their
+    tables."""
     import json
 
     import pyarrow.parquet as pq
@@ -134,10 +137,15 @@ def _steady_rate(folders: list[Path]) -> float:
     for folder in folders:
         wall = pq.read_table(folder / METRICS_FILE, columns=["wall_time"])["wall_time"]
         config = json.loads((folder / CONFIG_FILE).read_text())["config"]
-        per_cycle = int(config["n_workers"]) * int(config["episodes_per_worker"])
-        # the first cycle's last episode, to the run's last
-        total += (len(wall) - per_cycle) / (wall[-1].as_py() - wall[per_cycle - 1].as_py())
+        skipped = after_cycles * int(config["n_workers"]) * int(config["episodes_per_worker"])
+        # the last episode of the cycles skipped, to the run's last
+        total += (len(wall) - skipped) / (wall[-1].as_py() - wall[skipped - 1].as_py())
     return total
+
+
+def _late_cycles(cycles: int) -> int:
+    """The cycles `*_late` skips: the first half (at least the first cycle)."""
+    return max(1, cycles // 2)
 
 
 def _groups(runs: int, size: int) -> list[str]:
@@ -172,13 +180,28 @@ def _run(commands: list[list[str]]) -> float:
     return time.perf_counter() - tic
 
 
-def _report(name: str, rates: dict[str, list[float]], seconds: dict[str, list[float]]) -> None:
+def _report(
+    name: str,
+    rates: dict[str, list[float]],
+    late: dict[str, list[float]],
+    seconds: dict[str, list[float]],
+) -> None:
     """Each contender's result on stderr as it comes (a time limit may end the benchmark)."""
     print(
-        f"{name}: {rates[name][-1]:.2f} episodes/s, the command {seconds[name][-1]:.1f} s",
+        f"{name}: {rates[name][-1]:.2f} episodes/s ({late[name][-1]:.2f} over the second half "
+        f"of the cycles), the command {seconds[name][-1]:.1f} s",
         file=sys.stderr,
         flush=True,
     )
+
+
+def _measure_contender(
+    commands: list[list[str]], folders: list[Path], after_cycles: int
+) -> tuple[float, float, float]:
+    """One contender's run: (episodes/s after the first cycle, episodes/s after
+    `after_cycles`, the seconds of its commands)."""
+    seconds = _run(commands)
+    return _steady_rate(folders), _steady_rate(folders, after_cycles), seconds
 
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
@@ -189,22 +212,27 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     cores = os.cpu_count() or 1
     check_device(args.device)
     runs = args.runs or cores
-    rates: dict[str, list[float]] = {name: [] for name in ("peer", *OURS)}
-    seconds: dict[str, list[float]] = {name: [] for name in ("peer", *OURS)}
+    names = ("peer", *OURS)
+    rates: dict[str, list[float]] = {name: [] for name in names}
+    late: dict[str, list[float]] = {name: [] for name in names}
+    seconds: dict[str, list[float]] = {name: [] for name in names}
     with tempfile.TemporaryDirectory(prefix="bench-population-") as tmp:
         for repeat in range(args.repeats):
-            peer = Path(tmp) / f"peer-{repeat}"
-            commands = [
-                _train_command(args, peer / f"seed-{i}", str(i), "--seed") for i in range(runs)
-            ]
-            seconds["peer"].append(_run(commands))
-            rates["peer"].append(_steady_rate([peer / f"seed-{i}" for i in range(runs)]))
-            _report("peer", rates, seconds)
-            for name in args.contenders:
-                ours = Path(tmp) / f"{name}-{repeat}"
-                seconds[name].append(_run(_contender_commands(args, name, ours, runs)))
-                rates[name].append(_steady_rate([ours / f"seed-{i}" for i in range(runs)]))
-                _report(name, rates, seconds)
+            for name in ("peer", *args.contenders):
+                out = Path(tmp) / f"{name}-{repeat}"
+                commands = (
+                    [_train_command(args, out / f"seed-{i}", str(i), "--seed") for i in range(runs)]
+                    if name == "peer"
+                    else _contender_commands(args, name, out, runs)
+                )
+                folders = [out / f"seed-{i}" for i in range(runs)]
+                rate, late_rate, took = _measure_contender(
+                    commands, folders, _late_cycles(args.cycles)
+                )
+                rates[name].append(rate)
+                late[name].append(late_rate)
+                seconds[name].append(took)
+                _report(name, rates, late, seconds)
 
     def median(values: list[float]) -> float | None:
         return statistics.median(values) if values else None
@@ -219,8 +247,10 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         out[f"{name}_over_peer"] = out[name] / out["peer"] if rates[name] else None
     both = rates["ours"] and rates["ours_stacked"]
     out["ours_stacked_over_ours"] = out["ours_stacked"] / out["ours"] if both else None
-    for name in ("peer", *OURS):
+    for name in names:
+        out[f"{name}_late"] = median(late[name])
         out[f"{name}_command_s"] = median(seconds[name])
+    out["late_after_cycles"] = _late_cycles(args.cycles)
     out["group_size"] = args.group_size
     out["cores"] = cores
     out["shape"] = (

@@ -272,5 +272,37 @@ def test_the_gpu_checks_population_step_passes_its_settings_to_the_benchmark(tmp
     assert "exit 0" in done.stdout, done.stdout + done.stderr
     result = json.loads((tmp_path / "population.json").read_text())
     assert result["group_size"] == 2 and result["groups"] > 0 and result["ours"] is None
+    # two cycles: the second half of the cycles is the rate after the first
+    assert result["late_after_cycles"] == 1 and result["groups_late"] == result["groups"]
     assert result["shape"].startswith("2 curious runs of preset smoke, 2 cycles of 2 episodes")
     assert "n_workers=1" in result["shape"] and (tmp_path / "env.txt").exists()
+
+
+def test_the_population_benchmark_reads_a_warm_up_apart_from_the_steady_rate(tmp_path):
+    """The rate after the first cycle and over the second half of the cycles, summed over the
+    runs, from each run's own `wall_time`: a run whose first cycles are slow (a compiled
+    learner warming up) reads faster late than after its first cycle."""
+    import json
+
+    import pandas as pd
+
+    from benchmarks import population_speed
+
+    per_cycle = 2  # 1 worker x 2 episodes
+    # 4 cycles: the first two take 10 s a cycle, the last two 1 s
+    ends = [0.0, 10.0, 20.0, 21.0, 22.0]
+    folders = []
+    for seed in range(2):
+        folder = tmp_path / f"seed-{seed}"
+        folder.mkdir()
+        (folder / "config.json").write_text(
+            json.dumps({"config": {"n_workers": 1, "episodes_per_worker": per_cycle}})
+        )
+        wall = [ends[c] + (e + 1) * (ends[c + 1] - ends[c]) / per_cycle
+                for c in range(4) for e in range(per_cycle)]  # fmt: skip
+        pd.DataFrame({"wall_time": wall}).to_parquet(folder / "metrics.parquet")
+        folders.append(folder)
+    # after cycle 1: 6 episodes in 12 s a run; after cycle 2: 4 episodes in 2 s a run
+    assert population_speed._steady_rate(folders) == pytest.approx(2 * 6 / 12)
+    assert population_speed._steady_rate(folders, 2) == pytest.approx(2 * 4 / 2)
+    assert [population_speed._late_cycles(c) for c in (2, 3, 4, 10)] == [1, 1, 2, 5]
