@@ -12,7 +12,8 @@ per run), into a temporary folder. The rate is read from the runs' own tables: e
 episodes after its first cycle over the seconds they took (metrics.parquet's `wall_time`),
 summed over the runs, so that imports and the first cycle's allocations count for neither;
 `*_late` is the same rate over the second half of the cycles alone, which tells a warm-up that
-outlasts the first cycle (a compiled learner's, say) from a steady rate;
+outlasts the first cycle (a compiled learner's, say) from a steady rate, and `*_cycle_s` each
+cycle's seconds from the second on (the median over the runs), which shows where it ends;
 `*_command_s` is the wall time of the whole command, start-up included.
 
 `bound` is the physics alone: one core stepping the suite's model for an episode's control
@@ -143,6 +144,27 @@ def _steady_rate(folders: list[Path], after_cycles: int = 1) -> float:
     return total
 
 
+def _cycle_seconds(folders: list[Path]) -> list[float]:
+    """Each cycle's seconds from the second on, the median over the runs, from their tables
+    (the first cycle's start is not in them)."""
+    import json
+
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE
+
+    per_run = []
+    for folder in folders:
+        wall = pq.read_table(folder / METRICS_FILE, columns=["wall_time"])["wall_time"]
+        config = json.loads((folder / CONFIG_FILE).read_text())["config"]
+        per_cycle = int(config["n_workers"]) * int(config["episodes_per_worker"])
+        ends = np.asarray(wall.to_numpy(), dtype=float)[per_cycle - 1 :: per_cycle]
+        per_run.append(np.diff(ends))
+    cycles = min(len(d) for d in per_run)
+    return np.median(np.stack([d[:cycles] for d in per_run]), axis=0).round(3).tolist()
+
+
 def _late_cycles(cycles: int) -> int:
     """The cycles `*_late` skips: the first half (at least the first cycle)."""
     return max(1, cycles // 2)
@@ -197,11 +219,12 @@ def _report(
 
 def _measure_contender(
     commands: list[list[str]], folders: list[Path], after_cycles: int
-) -> tuple[float, float, float]:
+) -> tuple[float, float, float, list[float]]:
     """One contender's run: (episodes/s after the first cycle, episodes/s after
-    `after_cycles`, the seconds of its commands)."""
+    `after_cycles`, the seconds of its commands, each cycle's seconds from the second on)."""
     seconds = _run(commands)
-    return _steady_rate(folders), _steady_rate(folders, after_cycles), seconds
+    rates = _steady_rate(folders), _steady_rate(folders, after_cycles)
+    return *rates, seconds, _cycle_seconds(folders)
 
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
@@ -216,6 +239,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     rates: dict[str, list[float]] = {name: [] for name in names}
     late: dict[str, list[float]] = {name: [] for name in names}
     seconds: dict[str, list[float]] = {name: [] for name in names}
+    cycle_s: dict[str, list[float] | None] = {name: None for name in names}
     with tempfile.TemporaryDirectory(prefix="bench-population-") as tmp:
         for repeat in range(args.repeats):
             for name in ("peer", *args.contenders):
@@ -226,7 +250,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                     else _contender_commands(args, name, out, runs)
                 )
                 folders = [out / f"seed-{i}" for i in range(runs)]
-                rate, late_rate, took = _measure_contender(
+                rate, late_rate, took, cycle_s[name] = _measure_contender(
                     commands, folders, _late_cycles(args.cycles)
                 )
                 rates[name].append(rate)
@@ -250,6 +274,7 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     for name in names:
         out[f"{name}_late"] = median(late[name])
         out[f"{name}_command_s"] = median(seconds[name])
+        out[f"{name}_cycle_s"] = cycle_s[name]  # the last alternation's
     out["late_after_cycles"] = _late_cycles(args.cycles)
     out["group_size"] = args.group_size
     out["cores"] = cores

@@ -274,6 +274,7 @@ def test_the_gpu_checks_population_step_passes_its_settings_to_the_benchmark(tmp
     assert result["group_size"] == 2 and result["groups"] > 0 and result["ours"] is None
     # two cycles: the second half of the cycles is the rate after the first
     assert result["late_after_cycles"] == 1 and result["groups_late"] == result["groups"]
+    assert len(result["groups_cycle_s"]) == 1 and result["ours_cycle_s"] is None
     assert result["shape"].startswith("2 curious runs of preset smoke, 2 cycles of 2 episodes")
     assert "n_workers=1" in result["shape"] and (tmp_path / "env.txt").exists()
 
@@ -306,3 +307,5 @@ def test_the_population_benchmark_reads_a_warm_up_apart_from_the_steady_rate(tmp
     assert population_speed._steady_rate(folders) == pytest.approx(2 * 6 / 12)
     assert population_speed._steady_rate(folders, 2) == pytest.approx(2 * 4 / 2)
     assert [population_speed._late_cycles(c) for c in (2, 3, 4, 10)] == [1, 1, 2, 5]
+    # cycles 2 to 4, where the warm-up ends
+    assert population_speed._cycle_seconds(folders) == [10.0, 1.0, 1.0]
