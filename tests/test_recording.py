@@ -6,6 +6,7 @@ Recordings are read back with Rerun's own reader (`rerun.chunk.RrdReader`, throu
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import multiprocessing as mp
 import os
@@ -16,6 +17,7 @@ import sys
 import threading
 import time
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 
 import mujoco
@@ -476,9 +478,11 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
+@contextlib.contextmanager
+def _rerun_server(live: Path) -> Iterator[str]:
+    """A real Rerun server saving what it is sent into `live`; yields its gRPC url, and on
+    leaving waits for something to arrive, then stops it (it saves as it exits)."""
     port = _free_port()
-    live = tmp_path / "live.rrd"
     server = subprocess.Popen(
         [*viewer_command(), "--port", str(port), "--save", str(live)],
         stdout=subprocess.DEVNULL,
@@ -493,11 +497,7 @@ def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
                     break
             assert time.monotonic() < deadline, "rerun server did not start"
             time.sleep(0.1)
-        url = f"rerun+http://127.0.0.1:{port}/proxy"
-        with RunRecorder(tmp_path / "run", MODULES, connect=url) as recorder:
-            assert recorder.live
-            comp = np.linspace(0, 1, 10)[:, None] * np.ones((1, 5))
-            recorder.log_episodes(np.arange(10), 0, 1, 1, comp, comp, comp)
+        yield f"rerun+http://127.0.0.1:{port}/proxy"
         deadline = time.monotonic() + 10
         while not live.exists() or live.stat().st_size == 0:
             assert time.monotonic() < deadline, "nothing reached the live server"
@@ -511,11 +511,39 @@ def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
         except subprocess.TimeoutExpired:
             os.killpg(server.pid, signal.SIGKILL)
             server.wait()
+
+
+def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
+    live = tmp_path / "live.rrd"
+    with _rerun_server(live) as url:
+        with RunRecorder(tmp_path / "run", MODULES, connect=url) as recorder:
+            assert recorder.live
+            comp = np.linspace(0, 1, 10)[:, None] * np.ones((1, 5))
+            recorder.log_episodes(np.arange(10), 0, 1, 1, comp, comp, comp)
     expected = read_scalars(tmp_path / "run" / RECORDING_FILE, "competence/T1-reach")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a streamed file has no footer
         got = read_scalars(live, "competence/T1-reach")
     np.testing.assert_array_equal(got[0], expected[0])
+    np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_train_connect_streams_the_run_to_a_listening_viewer(tmp_path: Path) -> None:
+    """`curious train --connect URL`: the run's recording reaches a viewer already listening
+    (a headless node's `rerun --serve-web`, a laptop's viewer through an ssh tunnel), and the
+    run folder's recording.rrd is written all the same."""
+    from curious.cli import main
+
+    live = tmp_path / "live.rrd"
+    with _rerun_server(live) as url:
+        out = tmp_path / "run"
+        assert main(["train", "--preset", "smoke", "--out", str(out), "--no-progress",
+                     "--connect", url]) == 0  # fmt: skip
+    expected = read_scalars(out / RECORDING_FILE, "competence/T1-reach")
+    assert len(expected[0]) > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a streamed file has no footer
+        got = read_scalars(live, "competence/T1-reach")
     np.testing.assert_array_equal(got[1], expected[1])
 
 
@@ -582,6 +610,7 @@ def test_capture_reads_dm_control_physics(tmp_path: Path) -> None:
 FULL_DISK_SCRIPT = """
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np

@@ -154,9 +154,15 @@ def test_rollouts_need_suite_environments() -> None:
 
 def test_spawn_viewer_and_rollouts_need_the_recording(tmp_path: Path, capsys) -> None:
     out = str(tmp_path / "run")
-    for extra in (["--spawn-viewer"], ["--rollout-every", "3"]):
+    for extra in (["--spawn-viewer"], ["--connect", "rerun+http://127.0.0.1:9876/proxy"],
+                  ["--rollout-every", "3"]):  # fmt: skip
         assert main(["train", "--preset", "smoke", "--out", out, "--no-record", *extra]) == 2
         assert "need the recording" in capsys.readouterr().err
+    # a url Rerun cannot take is refused before the run starts, with a viewer's url to copy
+    assert main(["train", "--preset", "smoke", "--out", out, "--connect", "127.0.0.1:9876"]) == 2
+    err = capsys.readouterr().err
+    assert "--connect '127.0.0.1:9876' is not a Rerun gRPC url" in err
+    assert "rerun+http://HOST:9876/proxy" in err
     assert main(["train", "--preset", "smoke", "--out", out, "--rollout-every", "-1"]) == 2
     assert "--rollout-every must be from 0 to 10,000,000,000, got -1" in capsys.readouterr().err
     assert not Path(out).exists()

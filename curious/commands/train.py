@@ -146,6 +146,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="also stream the recording live to a Rerun viewer (recording.rrd is still written)",
     )
     parser.add_argument(
+        "--connect",
+        metavar="URL",
+        help="also stream the recording live to a Rerun viewer or server listening at this gRPC "
+        "url, e.g. rerun+http://127.0.0.1:9876/proxy: `rerun` on this machine, `rerun "
+        "--serve-web` on a headless one (its browser viewer on port 9090), or a viewer on your "
+        "own machine through `ssh -R 9876:127.0.0.1:9876 HOST` (recording.rrd is still written)",
+    )
+    parser.add_argument(
         "--rollout-every",
         type=int,
         default=None,
@@ -178,10 +186,12 @@ def run(args: argparse.Namespace) -> int:
                 f"{args.out} holds a run (config.json): --seeds trains each seed in "
                 "--out/seed-K, which would nest the population in it; choose another --out"
             )
-        if args.no_record and (args.spawn_viewer or args.rollout_every is not None):
+        if args.no_record and (args.spawn_viewer or args.connect or args.rollout_every is not None):
             raise ConfigError(
-                "--spawn-viewer and --rollout-every need the recording: drop --no-record"
+                "--spawn-viewer, --connect and --rollout-every need the recording: drop --no-record"
             )
+        if args.connect is not None:
+            _check_viewer_url(args.connect)
         if args.rollout_every is not None and not 0 <= args.rollout_every <= MAX_EPISODES:
             raise ConfigError(
                 f"--rollout-every must be from 0 to {MAX_EPISODES:,}, got {args.rollout_every:,} "
@@ -202,7 +212,9 @@ def run(args: argparse.Namespace) -> int:
         settings = RecorderSettings()
         if args.rollout_every is not None:
             settings = RecorderSettings(rollout_every=args.rollout_every)
-        make_recorder = recorder_factory(args.resume, settings, args.spawn_viewer)
+        make_recorder = recorder_factory(
+            args.resume, settings, args.spawn_viewer, connect=args.connect
+        )
     population = args.seeds is not None
     outs = [Path(args.out) / f"seed-{c.seed}" for c in configs] if population else [args.out]
     try:
@@ -243,6 +255,20 @@ def run(args: argparse.Namespace) -> int:
     for trainer, out in zip(trainers, outs, strict=True):
         print(_summary(trainer, out))
     return 0
+
+
+def _check_viewer_url(url: str) -> None:
+    """A `ConfigError` unless Rerun takes `url` as a gRPC endpoint (checked before any run
+    starts: Rerun would otherwise refuse it when the recording opens)."""
+    import rerun as rr
+
+    try:
+        rr.GrpcSink(url)
+    except (RuntimeError, ValueError) as exc:
+        raise ConfigError(
+            f"--connect {url!r} is not a Rerun gRPC url ({exc}); a viewer's is "
+            "rerun+http://HOST:9876/proxy"
+        ) from None
 
 
 def _config(args: argparse.Namespace, seed: int | None, overrides: dict[str, Any]) -> Config:

@@ -195,9 +195,11 @@ def recorder_factory(
     settings: Any = None,
     spawn: bool = False,
     run_name: str | None = None,
+    connect: str | None = None,
 ) -> Callable[[Any, Any], Any]:
     """The `make_recorder` hook of `curious.runs.driver.train`: a run's `RunRecorder`, with the
-    observer that records evaluation episodes in 3D installed when `settings.rollout_every > 0`.
+    observer that records evaluation episodes in 3D installed when `settings.rollout_every > 0`;
+    `spawn` and `connect` also stream it live (`RunRecorder`'s).
 
     `curious train` and the reproduction pipeline both record their runs through it.
     """
@@ -214,6 +216,7 @@ def recorder_factory(
             settings=settings,
             run_name=run_name,
             spawn=spawn,
+            connect=connect,
             resume=resumed,
             resume_from_episode=trainer.episodes if resumed else None,
         )

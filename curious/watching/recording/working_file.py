@@ -76,7 +76,7 @@ class WorkingFile:
                     "no display (DISPLAY/WAYLAND_DISPLAY unset): not spawning a viewer; the "
                     f"recording is still written to {self.path}. Open it on a machine with a "
                     f"display with `rerun {self.path}`, or start `rerun --serve-web` here and "
-                    "pass its gRPC url as `connect`.",
+                    "pass its gRPC url with `curious train --connect` (`connect=` in Python).",
                     RuntimeWarning,
                     stacklevel=3,
                 )
