@@ -35,6 +35,8 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from benchmarks import AtLeast, check_device
 
 if TYPE_CHECKING:
@@ -125,42 +127,39 @@ def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -
     ]  # fmt: skip
 
 
-def _steady_rate(folders: list[Path], after_cycles: int = 1) -> float:
-    """Episodes/s of the runs together after each one's first `after_cycles` cycles, from their
-    tables."""
+def _run_clock(folder: Path) -> tuple[np.ndarray, int]:
+    """A run's `wall_time` per episode (metrics.parquet) and its episodes a cycle (config.json)."""
     import json
 
     import pyarrow.parquet as pq
 
     from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE
 
+    wall = pq.read_table(folder / METRICS_FILE, columns=["wall_time"])["wall_time"]
+    config = json.loads((folder / CONFIG_FILE).read_text())["config"]
+    per_cycle = int(config["n_workers"]) * int(config["episodes_per_worker"])
+    return np.asarray(wall.to_numpy(), dtype=float), per_cycle
+
+
+def _steady_rate(folders: list[Path], after_cycles: int = 1) -> float:
+    """Episodes/s of the runs together after each one's first `after_cycles` cycles, from their
+    tables."""
     total = 0.0
     for folder in folders:
-        wall = pq.read_table(folder / METRICS_FILE, columns=["wall_time"])["wall_time"]
-        config = json.loads((folder / CONFIG_FILE).read_text())["config"]
-        skipped = after_cycles * int(config["n_workers"]) * int(config["episodes_per_worker"])
+        wall, per_cycle = _run_clock(folder)
+        skipped = after_cycles * per_cycle
         # the last episode of the cycles skipped, to the run's last
-        total += (len(wall) - skipped) / (wall[-1].as_py() - wall[skipped - 1].as_py())
-    return total
+        total += (len(wall) - skipped) / (wall[-1] - wall[skipped - 1])
+    return float(total)
 
 
 def _cycle_seconds(folders: list[Path]) -> list[float]:
     """Each cycle's seconds from the second on, the median over the runs, from their tables
     (the first cycle's start is not in them)."""
-    import json
-
-    import numpy as np
-    import pyarrow.parquet as pq
-
-    from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE
-
     per_run = []
     for folder in folders:
-        wall = pq.read_table(folder / METRICS_FILE, columns=["wall_time"])["wall_time"]
-        config = json.loads((folder / CONFIG_FILE).read_text())["config"]
-        per_cycle = int(config["n_workers"]) * int(config["episodes_per_worker"])
-        ends = np.asarray(wall.to_numpy(), dtype=float)[per_cycle - 1 :: per_cycle]
-        per_run.append(np.diff(ends))
+        wall, per_cycle = _run_clock(folder)
+        per_run.append(np.diff(wall[per_cycle - 1 :: per_cycle]))
     cycles = min(len(d) for d in per_run)
     return np.median(np.stack([d[:cycles] for d in per_run]), axis=0).round(3).tolist()
 
