@@ -309,3 +309,32 @@ def test_the_population_benchmark_reads_a_warm_up_apart_from_the_steady_rate(tmp
     assert [population_speed._late_cycles(c) for c in (2, 3, 4, 10)] == [1, 1, 2, 5]
     # cycles 2 to 4, where the warm-up ends
     assert population_speed._cycle_seconds(folders) == [10.0, 1.0, 1.0]
+
+
+def test_the_gpu_checks_long_step_times_each_backend_over_its_cycles(tmp_path):
+    """`tools/gpu_checks.sh`'s step `long` on a CPU: the processes alone over LONG_CYCLES cycles,
+    once per backend of LONG_BACKENDS, each cycle's seconds in OUT/long-BACKEND.json."""
+    import json
+    import os
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    env = {
+        **os.environ,
+        "STEPS": "long",
+        "PRESET": "smoke",
+        "DEVICE": "cpu",
+        "POPULATION_RUNS": "2",
+        "LONG_CYCLES": "4",
+        "LONG_BACKENDS": "autograd",  # the compiled backend's compile is a GPU node's minutes
+        "PYTHONPATH": str(root),
+    }
+    done = subprocess.run(
+        ["bash", str(root / "tools" / "gpu_checks.sh"), str(tmp_path)],
+        cwd=root, env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert "exit 0" in done.stdout, done.stdout + done.stderr
+    result = json.loads((tmp_path / "long-autograd.json").read_text())
+    assert len(result["peer_cycle_s"]) == 3 and result["late_after_cycles"] == 2
+    assert "4 cycles" in result["shape"] and "learner_backend=autograd" in result["shape"]
+    assert not (tmp_path / "long-compiled.json").exists()

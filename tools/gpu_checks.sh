@@ -15,6 +15,11 @@
 #
 # 0. (STEPS with "population") `curious bench population`: POPULATION_RUNS (15) `paper` runs as
 #    one population against as many processes side by side, into OUT/population.json;
+# 0b. (STEPS with "long") the POPULATION_RUNS processes alone over LONG_CYCLES (40) cycles a
+#    run, once for each learner backend of LONG_BACKENDS ("autograd compiled"), into
+#    OUT/long-BACKEND.json: each cycle's seconds and the rate over the second half of the cycles
+#    tell the compiled learner's warm-up from its steady rate (docs/scaling.md); with MPS=1 the
+#    whole step runs under the MPS server, as `curious reproduce --device cuda` is advised to;
 # 1. (STEPS with "tests") the CUDA tests (-k cuda of the learner's, the runs', the stacked
 #    update's and the population's tests), into OUT/cuda-tests.txt;
 # 2. (STEPS with "bench") `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
@@ -32,7 +37,8 @@
 # episodes/s. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two epochs of
 # `paper`), CONTENDERS (workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu),
 # SIDE_BY_SIDE (2; "2 4 8" adds four and eight runs, N runs each within 80 + 25 N s), STEPS
-# ("population tests"), POPULATION_RUNS (15), POPULATION_CYCLES (3), POPULATION_CONTENDERS (ours,ours_stacked:
+# ("population tests"), LONG_CYCLES (40), LONG_BACKENDS ("autograd compiled"), LONG_SECONDS (260:
+# each backend's time limit in step 0b), POPULATION_RUNS (15), POPULATION_CYCLES (3), POPULATION_CONTENDERS (ours,ours_stacked:
 # the population's contenders beside the processes; groups and groups_stacked train populations of
 # POPULATION_GROUP_SIZE (3) runs, a process each; none: the processes alone), POPULATION_SET (settings for every run, e.g.
 # "learner_backend=compiled"), POPULATION_SECONDS (400: step 0's time limit), MPS (1: every step
@@ -84,6 +90,21 @@ if wanted population; then
         >"$out/population.json" 2>"$out/population.err"
     echo "exit $?"
     cat "$out/population.json"
+fi
+
+if wanted long; then
+    for backend in ${LONG_BACKENDS:-autograd compiled}; do
+        step "${POPULATION_RUNS:-15}" processes alone, "${LONG_CYCLES:-40}" cycles, "$backend"
+        timeout "${LONG_SECONDS:-260}" python3 -m curious.cli bench population \
+            --preset "$preset" --device "$device" --runs "${POPULATION_RUNS:-15}" \
+            --cycles "${LONG_CYCLES:-40}" --contenders none --set "learner_backend=$backend" \
+            --json >"$out/long-$backend.json" 2>"$out/long-$backend.err"
+        status=$?
+        echo "exit $status"
+        # the time limit stops the benchmark, not its runs' processes: stop them before the next
+        [[ $status == 124 ]] && pkill -f "[c]urious.cli train --preset $preset"
+        cat "$out/long-$backend.err"
+    done
 fi
 
 if wanted tests; then
