@@ -38,6 +38,7 @@ from curious.watching.recording import (
 )
 from curious.watching.recording.cost import fetch_model, measure_logging_cost, synthetic_episodes
 from curious.watching.recording.reader import read_component, read_scalars, summarize
+from curious.watching.recording.rrd_files import RecordingWriteError
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 
@@ -478,10 +479,9 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-@contextlib.contextmanager
-def _rerun_server(live: Path) -> Iterator[str]:
-    """A real Rerun server saving what it is sent into `live`; yields its gRPC url, and on
-    leaving waits for something to arrive, then stops it (it saves as it exits)."""
+def _start_rerun_server(live: Path) -> tuple[subprocess.Popen, str]:
+    """A real Rerun server saving what it is sent into `live`, once it listens; and its gRPC
+    url."""
     port = _free_port()
     server = subprocess.Popen(
         [*viewer_command(), "--port", str(port), "--save", str(live)],
@@ -489,28 +489,67 @@ def _rerun_server(live: Path) -> Iterator[str]:
         stderr=subprocess.DEVNULL,
         start_new_session=True,  # `rerun` is a Python launcher for the binary: stop both
     )
+    deadline = time.monotonic() + 30
+    while True:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                break
+        if time.monotonic() > deadline:
+            _stop_rerun_server(server)
+            raise AssertionError("rerun server did not start")
+        time.sleep(0.1)
+    return server, f"rerun+http://127.0.0.1:{port}/proxy"
+
+
+def _stop_rerun_server(server: subprocess.Popen, sig: int = signal.SIGTERM) -> None:
+    # the viewer saves and exits on SIGTERM; on a loaded machine that can take many seconds
+    os.killpg(server.pid, sig)
     try:
-        deadline = time.monotonic() + 30
-        while True:
-            with socket.socket() as s:
-                if s.connect_ex(("127.0.0.1", port)) == 0:
-                    break
-            assert time.monotonic() < deadline, "rerun server did not start"
-            time.sleep(0.1)
-        yield f"rerun+http://127.0.0.1:{port}/proxy"
+        server.wait(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(server.pid, signal.SIGKILL)
+        server.wait()
+
+
+@contextlib.contextmanager
+def _rerun_server(live: Path) -> Iterator[str]:
+    """`_start_rerun_server`'s url; on leaving, waits for something to arrive, then stops the
+    server (it saves as it exits)."""
+    server, url = _start_rerun_server(live)
+    try:
+        yield url
         deadline = time.monotonic() + 10
         while not live.exists() or live.stat().st_size == 0:
             assert time.monotonic() < deadline, "nothing reached the live server"
             time.sleep(0.1)
         time.sleep(0.5)
     finally:
-        # the viewer saves and exits on SIGTERM; on a loaded machine that can take many seconds
-        os.killpg(server.pid, signal.SIGTERM)
-        try:
-            server.wait(timeout=60)
-        except subprocess.TimeoutExpired:
-            os.killpg(server.pid, signal.SIGKILL)
-            server.wait()
+        _stop_rerun_server(server)
+
+
+def test_a_live_viewer_that_goes_away_is_named_and_the_checkpointed_recording_kept(
+    tmp_path: Path,
+) -> None:
+    """A viewer closed mid-run (or an ssh tunnel dropped) ends the run at its next checkpoint
+    with a message naming the viewer and the way on (`--resume`), not the file; the recording
+    stays whole as at the checkpoint before."""
+    server, url = _start_rerun_server(tmp_path / "live.rrd")
+    comp = np.linspace(0, 1, 10)[:, None] * np.ones((1, 5))
+    try:
+        recorder = RunRecorder(tmp_path / "run", MODULES, connect=url)
+        recorder.log_episodes(np.arange(10), 0, 1, 1, comp, comp, comp)
+        recorder.checkpoint()
+    finally:
+        _stop_rerun_server(server, signal.SIGKILL)
+    recorder.log_episodes(np.arange(10, 20), 0, 1, 1, comp, comp, comp)
+    stopped = r"the live viewer this recording streams to stopped answering .*--resume"
+    with pytest.raises(RecordingWriteError, match=stopped):
+        for _ in range(50):  # the severed connection shows at the first flush after it
+            recorder.checkpoint()
+            time.sleep(0.1)
+    recorder.close_after_error()  # what `curious train` does then
+    steps, _ = read_scalars(tmp_path / "run" / RECORDING_FILE, "competence/T1-reach")
+    assert steps.max() == 9
 
 
 def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:

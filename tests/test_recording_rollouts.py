@@ -7,6 +7,7 @@ Rerun's reader (`curious.watching.recording.reader`), so these tests check the f
 from __future__ import annotations
 
 import os
+import socket
 from pathlib import Path
 
 import numpy as np
@@ -163,6 +164,13 @@ def test_spawn_viewer_and_rollouts_need_the_recording(tmp_path: Path, capsys) ->
     err = capsys.readouterr().err
     assert "--connect '127.0.0.1:9876' is not a Rerun gRPC url" in err
     assert "rerun+http://HOST:9876/proxy" in err
+    # a url where nothing listens is refused too: Rerun's first flush would wait minutes for it
+    with socket.socket() as free:
+        free.bind(("127.0.0.1", 0))
+        url = f"rerun+http://127.0.0.1:{free.getsockname()[1]}/proxy"
+    assert main(["train", "--preset", "smoke", "--out", out, "--connect", url]) == 2
+    err = capsys.readouterr().err
+    assert f"--connect {url}: nothing answers at 127.0.0.1:" in err and "start the viewer" in err
     assert main(["train", "--preset", "smoke", "--out", out, "--rollout-every", "-1"]) == 2
     assert "--rollout-every must be from 0 to 10,000,000,000, got -1" in capsys.readouterr().err
     assert not Path(out).exists()

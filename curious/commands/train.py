@@ -258,9 +258,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check_viewer_url(url: str) -> None:
-    """A `ConfigError` unless Rerun takes `url` as a gRPC endpoint (checked before any run
-    starts: Rerun would otherwise refuse it when the recording opens)."""
+    """A `ConfigError` unless Rerun takes `url` as a gRPC endpoint and something listens there,
+    checked before any run starts: Rerun would refuse a bad url only when the recording opens,
+    and with nothing listening its first flush waits minutes for a viewer."""
+    import socket
+    from urllib.parse import urlsplit
+
     import rerun as rr
+
+    from curious.watching.recording.working_file import DEFAULT_VIEWER_PORT
 
     try:
         rr.GrpcSink(url)
@@ -269,6 +275,22 @@ def _check_viewer_url(url: str) -> None:
             f"--connect {url!r} is not a Rerun gRPC url ({exc}); a viewer's is "
             "rerun+http://HOST:9876/proxy"
         ) from None
+    parts = urlsplit(url)
+    address = (parts.hostname or "127.0.0.1", parts.port or DEFAULT_VIEWER_PORT)
+    try:
+        socket.create_connection(address, timeout=VIEWER_CONNECT_SECONDS).close()
+    except OSError as exc:
+        host, port = address
+        raise ConfigError(
+            f"--connect {url}: nothing answers at {host}:{port} ({exc.strerror or exc}); "
+            "start the viewer first (`rerun`, or `rerun --serve-web` on a machine without a "
+            "display; through ssh, `ssh -R 9876:127.0.0.1:9876 HOST` from the viewer's machine), "
+            "or drop --connect"
+        ) from None
+
+
+VIEWER_CONNECT_SECONDS = 5.0
+"""How long `--connect` waits for the viewer to answer before the run starts."""
 
 
 def _config(args: argparse.Namespace, seed: int | None, overrides: dict[str, Any]) -> Config:

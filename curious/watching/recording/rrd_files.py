@@ -168,6 +168,13 @@ def _has_room(path: Path) -> bool:
 
 
 def _write_error(path: Path, cause: BaseException) -> RecordingWriteError:
+    if "gRPC" in str(cause):  # Rerun's flush waits on every sink: a live viewer that went away
+        return RecordingWriteError(
+            f"the live viewer this recording streams to stopped answering ({cause}); "
+            f"{path.parent} keeps the recording as at the run's last checkpoint: `curious train "
+            "--resume` goes on from there, with the viewer running again or without "
+            "--connect/--spawn-viewer"
+        )
     if not _has_room(path):
         return RecordingWriteError(
             errno.ENOSPC,
