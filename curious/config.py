@@ -369,6 +369,12 @@ class Config:
             raise ConfigError(
                 f"buffer_episodes must be >= 0 (0 keeps the whole run), got {self.buffer_episodes}"
             )
+        stored_at_once = min(self.n_workers, self.total_episodes)
+        if 0 < self.buffer_episodes < stored_at_once:
+            raise ConfigError(
+                f"buffer_episodes must be 0 (the whole run) or at least {stored_at_once:,}, the "
+                f"episodes a round stores at once (n_workers), got {self.buffer_episodes:,}"
+            )
         if self.env_processes < 0:
             raise ConfigError(
                 f"env_processes must be >= 0 (0: one per core), got {self.env_processes}"

@@ -85,7 +85,7 @@ def test_every_preset_keeps_the_whole_run_in_replay(preset):
     assert config.replay_capacity >= config.total_episodes
     longer = resolve(preset, overrides={"total_episodes": 3 * config.total_episodes})
     assert longer.replay_capacity == longer.total_episodes
-    assert resolve(preset, overrides={"buffer_episodes": 10}).replay_capacity == 10
+    assert resolve(preset, overrides={"buffer_episodes": 100}).replay_capacity == 100
     with pytest.raises(ConfigError, match="buffer_episodes"):
         resolve(preset, overrides={"buffer_episodes": -1})
 

@@ -678,3 +678,30 @@ def test_a_warning_of_curious_is_one_line_like_its_errors(tmp_path):
     assert len(warned) == 1 and warned[0].startswith("curious train: warning: "), done.stderr
     assert f"resuming from the one before, {newest.name}" not in warned[0]
     assert "resuming from the one before, ep-" in warned[0]
+
+
+def test_a_replay_smaller_than_a_round_is_refused_before_anything_is_written(tmp_path, capsys):
+    """`buffer_episodes` below the episodes a round stores at once (n_workers) failed after
+    config.json was written, in the replay's words, and then every retry met a folder in use."""
+    out = tmp_path / "run"
+    settings = ["--set", "n_workers=4", "--set", "buffer_episodes=3"]
+    assert main(["train", "--preset", "smoke", "--no-record", "--out", str(out), *settings]) == 2
+    assert "buffer_episodes must be 0 (the whole run) or at least 4, the episodes a round" in (
+        one_line(capsys.readouterr().err)
+    )
+    assert not out.exists()
+
+
+def test_a_resume_that_would_shorten_the_run_says_so(tmp_path, capsys):
+    """`--resume --set total_episodes=N` below the episodes trained read "checkpoint replay holds
+    24 episodes, capacity is 12": a run can be lengthened, not shortened."""
+    run = tmp_path / "run"
+    train = ["train", "--preset", "smoke", "--no-record", "--no-progress", "--out", str(run)]
+    assert main([*train, "--set", "total_episodes=8"]) == 0
+    capsys.readouterr()
+    before = sorted(p.name for p in run.iterdir())
+    assert main([*train, "--resume", "--set", "total_episodes=4"]) == 2
+    err = one_line(capsys.readouterr().err)
+    assert "with total_episodes=4: the run has trained 8 episodes" in err
+    assert "lengthened, not shortened" in err
+    assert sorted(p.name for p in run.iterdir()) == before

@@ -226,6 +226,13 @@ class RunFolder:
                 f"only {', '.join(sorted(RESUMABLE_FIELDS))} may change",
                 differences,
             )
+        trained = self.newest_checkpoint() or 0
+        if config.total_episodes < trained:  # its replay would not take what the run stored
+            raise RunFolderError(
+                f"cannot resume {self.path} with total_episodes={config.total_episodes:,}: the "
+                f"run has trained {trained:,} episodes (its newest checkpoint); a run can be "
+                "lengthened, not shortened"
+            )
 
     def foreign_entries(self) -> list[str]:
         """Names in the folder that no run writes (what `--restart` would not remove)."""
