@@ -111,9 +111,21 @@ def _contenders(text: str) -> tuple[str, ...]:
 def _config(args: argparse.Namespace) -> Config:
     """The runs' config (seed 0): the preset, the condition and `--set`, checked before any run
     starts."""
-    from curious.config import parse_overrides, resolve
+    from curious.config import ConfigError, parse_overrides, resolve
 
-    return resolve(args.preset, args.condition, 0, parse_overrides(args.settings))
+    overrides = parse_overrides(args.settings)
+    taken = sorted(set(overrides) & set(BENCH_SETTINGS))
+    if taken:
+        raise ConfigError(f"--set {taken[0]}: {BENCH_SETTINGS[taken[0]]}")
+    return resolve(args.preset, args.condition, 0, overrides)
+
+
+BENCH_SETTINGS = {
+    "total_episodes": "the benchmark sets it from --cycles",
+    "torch_threads": "the benchmark gives every run one torch thread",
+    "test_rollouts_per_worker": "the benchmark's runs take no test rollouts",
+}
+"""The settings every contender's runs get from the benchmark itself (`_train_command`)."""
 
 
 def _train_command(args: argparse.Namespace, out: Path, seeds: str, flag: str) -> list[str]:

@@ -118,6 +118,8 @@ def _main(argv: list[str] | None, words: list[str]) -> int:
         # Bad input and unusable paths (missing, a file for a folder, no permission, a full
         # disk) are reported in one line; CURIOUS_DEBUG=1 shows the traceback.
         return refuse(args.command, exc)
+    except MemoryError as exc:  # numpy's "Unable to allocate 931. GiB ..." of a count too large
+        return refuse(args.command, exc, message=f"not enough memory: {exc}; lower the counts")
     return int(result or 0)
 
 

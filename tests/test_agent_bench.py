@@ -338,3 +338,24 @@ def test_the_gpu_checks_long_step_times_each_backend_over_its_cycles(tmp_path):
     assert len(result["peer_cycle_s"]) == 3 and result["late_after_cycles"] == 2
     assert "4 cycles" in result["shape"] and "learner_backend=autograd" in result["shape"]
     assert not (tmp_path / "long-compiled.json").exists()
+
+
+def test_the_population_benchmark_refuses_the_settings_it_sets_itself(capsys):
+    """`--set total_episodes=4` made the runs shorter than the cycles the rate is read over, and
+    the benchmark printed `nan episodes/s` with numpy's warning."""
+    from curious.cli import main
+
+    assert main(["bench", "population", "--preset", "smoke", "--runs", "1", "--cycles", "2",
+                 "--contenders", "none", "--set", "total_episodes=4"]) == 2  # fmt: skip
+    assert "--set total_episodes: the benchmark sets it from --cycles" in capsys.readouterr().err
+
+
+def test_a_benchmark_too_large_for_the_memory_is_one_line(capsys):
+    """numpy's MemoryError (a replay of 10^8 episodes: 931 GiB) was a traceback."""
+    from curious.cli import main
+
+    args = ["bench", "relabel", "--episodes", "100000000", "--seconds", "0.1", "--rounds", "1"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("curious bench: error: not enough memory: Unable to allocate")
+    assert err.count("\n") == 1
