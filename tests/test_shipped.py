@@ -437,6 +437,23 @@ def test_a_run_whose_metrics_are_damaged_is_named_so_not_as_not_started(smoke, t
     assert code == 0 and "main/curious/seed-0 (its metrics.parquet is damaged)" in stdout
 
 
+def test_a_run_with_a_damaged_file_is_left_out_and_named_the_others_shipped(smoke, tmp_path):
+    """One run of many with a damaged tests.parquet or config.json stopped the whole ship (in
+    pyarrow's words for the first); a damaged metrics.parquet was already left out so."""
+    root = tmp_path / "out"
+    partial_copy(smoke, root)
+    runs = root / "runs" / "main"
+    RunFolder(runs / "mg-te" / "seed-0").tests_path.write_bytes(b"PAR1 cut short")
+    RunFolder(runs / "her" / "seed-0").config_path.write_text("")
+    code, stdout, err = cli(["ship", str(root), "--out", str(tmp_path / "data")])
+    assert code == 0, err
+    assert "main/mg-te/seed-0 (its tests.parquet is damaged)" in stdout
+    assert "main/her/seed-0 (" in stdout and "config.json is damaged: it is empty" in stdout
+    shipped = {r.run for r in ShippedFolder(tmp_path / "data").read_manifest().runs}
+    assert "main/mg-te/seed-0" not in shipped and "main/her/seed-0" not in shipped
+    assert "main/curious/seed-1" in shipped
+
+
 def test_keep_adds_to_an_earlier_ship_whose_run_folders_are_gone(smoke, shipped, tmp_path):
     """Run folders gone (a new machine): the data folder holds every smoke run shipped; the new runs
     root holds only main's, one of them still training. `--keep` ships main's finished runs again

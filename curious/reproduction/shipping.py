@@ -81,25 +81,31 @@ class _Found:
     episodes: int
     total: int
     finished: bool
+    problem: str | None = None
+    """Why the run cannot be shipped as it is (a damaged file), or None."""
 
     @property
     def progress(self) -> str:
-        """How far an unfinished run has got, in words."""
+        """How far an unfinished run has got, or what is wrong with it, in words."""
+        if self.problem is not None:
+            return f"{self.run} ({self.problem})"
         if self.episodes == 0:
-            return f"{self.run} ({_metrics_problem(self.folder) or 'not started'})"
+            return f"{self.run} (not started)"
         if self.episodes >= self.total:
             return f"{self.run} (all {self.total:,} episodes, but no checkpoint at the end)"
         return f"{self.run} ({self.episodes:,} of {self.total:,} episodes)"
 
 
-def _metrics_problem(folder: RunFolder) -> str | None:
-    """Why a run's metrics.parquet that is there cannot be read (None: absent, or readable)."""
-    if not folder.metrics_path.is_file():
-        return None
-    try:
-        pq.read_metadata(folder.metrics_path)
-    except (OSError, ValueError):
-        return f"its {folder.metrics_path.name} is damaged"
+def _damage(folder: RunFolder) -> str | None:
+    """Why a run's metrics.parquet or tests.parquet that is there cannot be read (None: each
+    absent, or readable)."""
+    for path in (folder.metrics_path, folder.tests_path):
+        if not path.is_file():
+            continue
+        try:
+            pq.read_metadata(path)
+        except (OSError, ValueError):
+            return f"its {path.name} is damaged"
     return None
 
 
@@ -166,14 +172,24 @@ def find_runs(root: Path) -> list[_Found]:
     found = []
     for path in folders:
         folder = RunFolder(path)
+        run = run_path_below(path, root)
         try:
             info = folder.read_info()
         except RunFolderError as exc:
-            raise ShippedError(str(exc)) from None
-        run = run_path_below(path, root)
+            if path == root:  # the one run asked for
+                raise ShippedError(str(exc)) from None
+            found.append(_Found(folder, run, 0, 0, False, problem=str(exc)))
+            continue
         total = info.total_episodes
         found.append(
-            _Found(folder, run, folder.episodes_logged(), total, folder.finished_at(total))
+            _Found(
+                folder,
+                run,
+                folder.episodes_logged(),
+                total,
+                folder.finished_at(total),
+                problem=_damage(folder),
+            )
         )
     return found
 
@@ -287,10 +303,12 @@ def ship(
     found = find_runs(runs) if runs.is_dir() else []
     if not found:
         raise ShippedError(f"{root} holds no run folder (no {CONFIG_FILE} below it)")
-    not_started = [f for f in found if f.episodes == 0]
-    running = [f for f in found if not f.finished and f.episodes > 0]
-    chosen = [f for f in found if f.finished or (unfinished and f.episodes > 0)]
-    left_out = [f.progress for f in not_started]
+    damaged = [f for f in found if f.problem is not None]
+    whole = [f for f in found if f.problem is None]
+    not_started = [f for f in whole if f.episodes == 0]
+    running = [f for f in whole if not f.finished and f.episodes > 0]
+    chosen = [f for f in whole if f.finished or (unfinished and f.episodes > 0)]
+    left_out = [f.progress for f in damaged + not_started]
     if not unfinished:
         left_out += [f.progress for f in running]
     if not chosen:
