@@ -705,3 +705,21 @@ def test_a_resume_that_would_shorten_the_run_says_so(tmp_path, capsys):
     assert "with total_episodes=4: the run has trained 8 episodes" in err
     assert "lengthened, not shortened" in err
     assert sorted(p.name for p in run.iterdir()) == before
+
+
+@pytest.mark.parametrize(
+    ("option", "override"),
+    [
+        (["--variant", "distractors_0"], "variant=distractors_4"),
+        (["--device", "cpu"], "device=cuda"),
+    ],
+    ids=["variant", "device"],
+)
+def test_an_option_and_an_override_that_disagree_are_refused(option, override, tmp_path, capsys):
+    """`--variant distractors_0 --set variant=distractors_4` trained distractors_0 without a
+    word (the option silently won), as `--device cpu --set device=cuda` trained on the CPU."""
+    out = tmp_path / "run"
+    args = ["train", "--preset", "smoke", "--no-record", "--out", str(out), *option]
+    assert main([*args, "--set", override]) == 2
+    assert "disagree: give one" in one_line(capsys.readouterr().err)
+    assert not out.exists()

@@ -171,10 +171,15 @@ def run(args: argparse.Namespace) -> int:
         if not args.out.strip():
             raise ConfigError("--out is empty: name the run folder")
         overrides = parse_overrides(args.overrides)
-        if args.device is not None:
-            overrides["device"] = args.device
-        if args.variant is not None:
-            overrides["variant"] = args.variant
+        for key in ("device", "variant"):  # an option and an override of one setting
+            given = getattr(args, key)
+            if given is None:
+                continue
+            if key in overrides and overrides[key] != given:
+                raise ConfigError(
+                    f"--{key} {given} and --set {key}={overrides[key]} disagree: give one"
+                )
+            overrides[key] = given
         if args.no_progress:
             overrides["progress"] = False
         seeds = parse_seeds(args.seeds) if args.seeds is not None else (args.seed,)
