@@ -369,8 +369,19 @@ def read_only(tmp_path):
         ["ship", "{tmp}/runs", "--out", "{ro}/s"],
         ["reproduce", "--budget", "smoke", "--out", "{ro}/r"],
         ["reproduce", "--budget", "smoke", "--runs-dir", "{ro}/runs", "--out", "{tmp}/r"],
+        ["train", "--preset", "smoke", "--no-record", "--out", "{ro}/run"],
+        ["train", "--preset", "smoke", "--no-record", "--seeds", "0-1", "--out", "{ro}/pop"],
     ],
-    ids=["evaluate-record", "render-gif", "render-png", "ship", "reproduce", "reproduce-runs-dir"],
+    ids=[
+        "evaluate-record",
+        "render-gif",
+        "render-png",
+        "ship",
+        "reproduce",
+        "reproduce-runs-dir",
+        "train",
+        "train-seeds",
+    ],
 )
 def test_a_read_only_output_is_refused_naming_the_option(
     args, read_only, tmp_path, capsys, monkeypatch

@@ -223,9 +223,10 @@ def run(args: argparse.Namespace) -> int:
     population = args.seeds is not None
     outs = [Path(args.out) / f"seed-{c.seed}" for c in configs] if population else [args.out]
     try:
+        from curious.runs.folder_lock import check_writable
+
         if population:
             from curious.agent.update_lockstep import UpdateLockstep
-            from curious.runs.folder_lock import check_writable
             from curious.runs.population import train_population
 
             check_writable(args.out, "--out", folder=True)  # the seeds' common folder, first
@@ -235,6 +236,9 @@ def run(args: argparse.Namespace) -> int:
                 make_recorder=make_recorder, updates=updates,
             )  # fmt: skip
         else:
+            check_writable(args.out, "--out")  # where its lock lands, beside it
+            if Path(args.out).is_dir():  # and the folder itself, where it is one already
+                check_writable(args.out, "--out", folder=True)
             run = train(
                 configs[0], args.out, resume=args.resume, restart=args.restart,
                 make_recorder=make_recorder,
