@@ -300,6 +300,7 @@ def reproduce(
         if runs_dir is None:  # a reproduction started with --runs-dir goes on there
             runs_dir = OutputLayout.at(out).recorded_runs_dir()
         layout = OutputLayout.at(out, runs_dir)
+        _check_places(layout)
     _check_writable(layout)
     with _reproduction_lock(layout):
         return _reproduce(
@@ -323,6 +324,29 @@ def _shipped_data(
         return data, budget, data.select(budget, experiments)
     except ShippedDataError as exc:
         raise ReproduceError(str(exc)) from None
+
+
+def _check_places(layout: OutputLayout) -> None:
+    """A `ReproduceError`, before anything is written, where OUT or the runs folder lies in a
+    run folder (the search for runs stops at one, so nothing trained there would be found), or
+    where the runs folder is another reproduction's output (its runs lie in its own runs folder:
+    naming the output instead would train every run anew beside them)."""
+    from curious.runs.folder import RunFolder
+
+    for option, path in (("--out", layout.out), ("--runs-dir", layout.runs_root)):
+        for folder in (path, *path.parents):
+            if RunFolder(folder).holds_a_run:
+                raise ReproduceError(
+                    f"{option} {path} lies in the run folder {folder}, where no search for runs "
+                    f"would find what this trains: choose another {option}"
+                )
+    other = OutputLayout.at(layout.runs_root)
+    if layout.runs_root != layout.out and other.manifest.is_file():
+        raise ReproduceError(
+            f"--runs-dir {layout.runs_root} is a reproduction's output ({other.manifest.name}), "
+            f"not the folder of its runs: name that ({other.runs_root}, unless it was started "
+            "with a --runs-dir of its own)"
+        )
 
 
 def _check_writable(layout: OutputLayout) -> None:

@@ -734,3 +734,29 @@ def test_an_option_and_an_override_that_disagree_are_refused(option, override, t
     assert main([*args, "--set", override]) == 2
     assert "disagree: give one" in one_line(capsys.readouterr().err)
     assert not out.exists()
+
+
+def test_reproduce_refuses_a_runs_folder_no_search_would_find_before_writing(tmp_path, capsys):
+    """`--runs-dir` (or `--out`) in a run folder failed inside every worker and left a
+    reproduce.json that made each later try fail the same way; `--runs-dir` naming another
+    reproduction's output (its `runs/` left off) trained every run anew beside its runs."""
+    run = tmp_path / "run"
+    assert main(["train", "--preset", "smoke", "--no-record", "--no-progress",
+                 "--set", "total_episodes=4", "--out", str(run)]) == 0  # fmt: skip
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "reproduce.json").write_text('{"budget": "smoke"}')
+    capsys.readouterr()
+    cases = [
+        (["--out", str(tmp_path / "r1"), "--runs-dir", str(run)], "--runs-dir", "lies in the run"),
+        (["--out", str(run / "r2")], "--out", "lies in the run folder"),
+        (["--out", str(tmp_path / "r3"), "--runs-dir", str(other)], "--runs-dir", "output"),
+    ]
+    for args, option, words in cases:
+        assert main(["reproduce", "--budget", "smoke", "--no-progress", *args]) == 2
+        line = one_line(capsys.readouterr().err)
+        assert line.startswith(f"curious reproduce: error: {option} ") and words in line, line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other", "run"]
+    assert sorted(p.name for p in run.iterdir()) == sorted(
+        ["checkpoints", "config.json", "metrics.parquet", "tests.parquet"]
+    )
