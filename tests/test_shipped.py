@@ -645,3 +645,16 @@ def test_the_shipped_tables_comparison_sees_every_difference(change, same):
     else:
         with pytest.raises(AssertionError):
             assert_same_table(_table(), change(_table()))
+
+
+def test_shipping_an_output_built_from_shipped_data_is_refused_naming_the_data(
+    shipped, from_data, tmp_path
+):
+    """`curious ship` of a `reproduce --from-data` output read "none of the runs ... is finished
+    (... no checkpoint at the end)", and with --unfinished failed on the shipped tables'
+    missing columns: its runs are the data folder's, shipped already."""
+    out, *_ = from_data
+    code, _, err = cli(["ship", str(out), "--out", str(tmp_path / "again"), "--unfinished"])
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"was built from the shipped data folder {shipped.data.resolve()}" in err
+    assert not (tmp_path / "again").exists()

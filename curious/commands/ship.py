@@ -60,7 +60,7 @@ def _megabytes(n: int) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from curious.reproduction.experiments import ExperimentError, get_budget
-    from curious.reproduction.shipped_folder import MANIFEST_FILE
+    from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
     from curious.reproduction.shipping import check_root, ship
     from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
     from pipelines.resources import OutputLayout
@@ -80,6 +80,11 @@ def run(args: argparse.Namespace) -> int:
         except ExperimentError as exc:
             raise ValueError(f"{layout.manifest} is damaged: {exc}") from None
         runs_root = layout.runs_root
+        if ShippedFolder(runs_root).is_shipped:
+            raise ValueError(
+                f"{root} was built from the shipped data folder {runs_root} (`curious reproduce "
+                "--from-data`): its runs are shipped there already"
+            )
     if args.out is not None and not args.out.strip():
         raise ValueError("--out is empty: name a folder")
     if args.out is None and budget is None:
