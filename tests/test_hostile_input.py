@@ -760,3 +760,20 @@ def test_reproduce_refuses_a_runs_folder_no_search_would_find_before_writing(tmp
     assert sorted(p.name for p in run.iterdir()) == sorted(
         ["checkpoints", "config.json", "metrics.parquet", "tests.parquet"]
     )
+
+
+def test_evaluate_refuses_a_config_json_edited_away_from_its_checkpoint(tmp_path, capsys):
+    """`condition` edited to her in config.json: evaluate scored the curious agent as HER without
+    a word (and `hidden` edited gave torch's six-line size mismatch); `--resume` refuses both."""
+    import json
+
+    run = tmp_path / "run"
+    train = ["train", "--preset", "smoke", "--no-record", "--no-progress", "--out", str(run)]
+    assert main([*train, "--set", "total_episodes=8"]) == 0
+    stored = json.loads((run / "config.json").read_text())
+    stored["config"]["condition"] = "her"
+    (run / "config.json").write_text(json.dumps(stored))
+    capsys.readouterr()
+    assert main(["evaluate", str(run), "--episodes", "1", "--no-progress"]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert "is from another config than" in line and "(differs in condition)" in line

@@ -283,7 +283,7 @@ def open_run(
     from curious.envs.batch import LocalEnvs, ProcessEnvs
     from curious.envs.goal_env import suite_env_fns
     from curious.runs import checkpoint
-    from curious.runs.folder import RunFolder
+    from curious.runs.folder import RunFolder, config_differences
 
     check_episodes(episodes)
     check_seed(seed)
@@ -302,6 +302,12 @@ def open_run(
             + shipped_run_note(folder.path)
         )
     path, state, _ = latest
+    differs = config_differences(state["config"], folder.read_config().to_dict())
+    if differs:  # a hand-edited config.json: the agent and its scoring are the checkpoint's
+        raise ValueError(
+            f"checkpoint {path} is from another config than {folder.config_path} (differs in "
+            f"{', '.join(differs)}): restore config.json, as `--resume` would need it"
+        )
     variant = config.variant if variant is None else variant  # '' is no variant
     n = max(1, min(episodes, copies or config.n_workers))
     fns = suite_env_fns(variant, seed, n, stream=EVAL_STREAM)
