@@ -217,3 +217,24 @@ def test_caption_is_drawn_on_a_dark_band_and_leaves_the_rest():
     band = out[:8]
     assert band.min() < 100 and band.max() > 200 - 1  # darkened, with bright text
     np.testing.assert_array_equal(burn_caption(frame, []), frame)
+
+
+def test_png_frames_replace_an_earlier_renders_frames_and_nothing_else(tmp_path):
+    """A second render into the same folder left the first one's later frames among its own
+    ("wrote 3 frames", 21 files there); the folder's other files stay."""
+    import numpy as np
+
+    from curious.watching.video import PngFrames
+
+    out = tmp_path / "frames"
+    out.mkdir()
+    for i in range(5):
+        (out / f"default_stack_{i:03d}.png").write_bytes(b"old")
+    (out / "notes.txt").write_text("mine")
+    (out / "cover.png").write_bytes(b"mine")
+    frames = PngFrames(out)
+    frames.start("default_reach")
+    frames.add(np.zeros((4, 4, 3), np.uint8))
+    assert sorted(p.name for p in out.iterdir()) == [
+        "cover.png", "default_reach_000.png", "notes.txt"
+    ]  # fmt: skip

@@ -236,11 +236,15 @@ class VideoWriter:
 
 
 class PngFrames:
-    """Frames to numbered PNG files in a folder, one name prefix per episode."""
+    """Frames to numbered PNG files in a folder, one name prefix per episode. The frames an
+    earlier render wrote there (`*_NNN.png`) are removed first, as a video file is replaced:
+    else a shorter render would leave the longer one's last frames among its own."""
 
     def __init__(self, out: str | os.PathLike[str]) -> None:
         self.path = Path(out)
         self.path.mkdir(parents=True, exist_ok=True)
+        for stale in self.path.glob("*_[0-9][0-9][0-9].png"):
+            stale.unlink()
         self.prefix = "frame"
         self.frames = 0
         self._index = 0
