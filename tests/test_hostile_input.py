@@ -777,3 +777,23 @@ def test_evaluate_refuses_a_config_json_edited_away_from_its_checkpoint(tmp_path
     assert main(["evaluate", str(run), "--episodes", "1", "--no-progress"]) == 2
     line = one_line(capsys.readouterr().err)
     assert "is from another config than" in line and "(differs in condition)" in line
+
+
+@pytest.mark.parametrize(
+    ("settings", "why"),
+    [
+        ([], "neither sensor_failure_episode nor sensor_failure_competence is set"),
+        (["--set", "sensor_failure_episode=8"], "sensor_failure_episode 8 is at or past"),
+    ],
+    ids=["unset", "past-the-end"],
+)
+def test_a_sensor_failure_run_whose_sensor_never_fails_says_so(settings, why, tmp_path, capsys):
+    """The variant without its onset, or with one past the run's end, trained without a word,
+    its tables then read as a failure that had no effect."""
+    out = str(tmp_path / "run")
+    args = ["train", "--preset", "smoke", "--variant", "sensor_failure", "--no-record",
+            "--no-progress", "--set", "total_episodes=4", "--out", out]  # fmt: skip
+    assert main([*args, *settings]) == 0
+    err = capsys.readouterr().err
+    assert f"curious train: warning: variant sensor_failure, but {why}" in err
+    assert "the sensor never fails in this run" in err

@@ -184,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
             overrides["progress"] = False
         seeds = parse_seeds(args.seeds) if args.seeds is not None else (args.seed,)
         configs = [_config(args, seed, overrides) for seed in seeds]
+        _warn_if_the_sensor_never_fails(configs[0])
         if args.stack_updates and args.seeds is None:
             raise ConfigError("--stack-updates stacks a population's updates: name --seeds")
         if args.seeds is not None and (Path(args.out) / CONFIG_FILE).exists():
@@ -264,6 +265,28 @@ def run(args: argparse.Namespace) -> int:
     for trainer, out in zip(trainers, outs, strict=True):
         print(_summary(trainer, out))
     return 0
+
+
+def _warn_if_the_sensor_never_fails(config: Config) -> None:
+    """A line on stderr where the sensor_failure variant trains without its failure ever
+    starting: no onset set, or one at or past the run's end (a control run is a choice, but
+    a forgotten setting reads the same in the tables)."""
+    if config.variant != "sensor_failure":
+        return
+    why = None
+    if not config.sensor_failure:
+        why = "neither sensor_failure_episode nor sensor_failure_competence is set"
+    elif config.sensor_failure_episode >= config.total_episodes:
+        why = (
+            f"sensor_failure_episode {config.sensor_failure_episode:,} is at or past "
+            f"total_episodes {config.total_episodes:,}"
+        )
+    if why is not None:
+        print(
+            f"curious train: warning: variant sensor_failure, but {why}: the sensor never "
+            "fails in this run",
+            file=sys.stderr,
+        )
 
 
 def _check_viewer_url(url: str) -> None:
