@@ -298,7 +298,7 @@ def open_run(
         from curious.reproduction.shipped_folder import shipped_run_note
 
         raise ValueError(
-            f"{folder.path} holds no checkpoint to evaluate (in {folder.checkpoints})."
+            f"{folder.path} holds no checkpoint of a trained agent (in {folder.checkpoints})."
             + shipped_run_note(folder.path)
         )
     path, state, _ = latest
