@@ -797,3 +797,13 @@ def test_a_sensor_failure_run_whose_sensor_never_fails_says_so(settings, why, tm
     err = capsys.readouterr().err
     assert f"curious train: warning: variant sensor_failure, but {why}" in err
     assert "the sensor never fails in this run" in err
+
+
+def test_an_out_that_is_a_dangling_link_is_named_so(tmp_path, capsys):
+    """A scratch link whose target is not mounted read "File exists: R"."""
+    link = tmp_path / "scratch"
+    link.symlink_to(tmp_path / "not-mounted")
+    assert main(["train", "--preset", "smoke", "--no-record", "--out", str(link)]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert f"is a link to {tmp_path / 'not-mounted'}, which does not exist" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scratch"]

@@ -23,6 +23,11 @@ def check_writable(path: str | os.PathLike, option: str, folder: bool = False) -
     permission). Checked by making an empty file there and removing it, the one test that sees
     all of them (`os.access` answers for the permissions alone), before any work is done."""
     target = Path(path).absolute()
+    for link in (target, *target.parents):
+        if link.is_symlink() and not link.exists():  # mkdir would say only "File exists"
+            raise RunFolderError(
+                f"{option} {path}: {link} is a link to {os.readlink(link)}, which does not exist"
+            )
     existing = _nearest_existing(target if folder else target.parent)
     if not existing.is_dir():
         raise RunFolderError(f"{option} {path}: {existing} is a file, not a folder")
