@@ -807,3 +807,21 @@ def test_an_out_that_is_a_dangling_link_is_named_so(tmp_path, capsys):
     line = one_line(capsys.readouterr().err)
     assert f"is a link to {tmp_path / 'not-mounted'}, which does not exist" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scratch"]
+
+
+def test_a_run_whose_checkpoints_are_all_unreadable_says_so_once(tmp_path, capsys):
+    """Every checkpoint cut short read as each one's torch error in turn, one long line with
+    torch's advice twice and no way out."""
+    run = tmp_path / "run"
+    train = ["train", "--preset", "smoke", "--no-record", "--no-progress", "--out", str(run)]
+    assert main([*train, "--set", "total_episodes=8", "--set", "checkpoint_every_cycles=1"]) == 0
+    states = sorted(run.glob("checkpoints/ep-*/state.pt"))
+    assert len(states) >= 2
+    for state in states:
+        state.write_bytes(state.read_bytes()[:100])
+    capsys.readouterr()
+    assert main([*train, "--resume", "--set", "total_episodes=12"]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert f"no checkpoint in {run / 'checkpoints'} can be read ({len(states)} tried" in line
+    assert "restore them, or start the run over" in line
+    assert line.count("cannot read checkpoint") == 1

@@ -365,5 +365,8 @@ def load_latest(
             warnings.warn(f"{errors[0]}; resuming from the one before, {path.name}", stacklevel=2)
         return path, state, arrays
     if errors:
-        raise CheckpointError("; ".join(errors))
+        raise CheckpointError(
+            f"no checkpoint in {directory} can be read ({len(errors)} tried; the newest: "
+            f"{errors[0]}): restore them, or start the run over"
+        )
     return None

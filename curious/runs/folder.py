@@ -226,8 +226,10 @@ class RunFolder:
                 f"only {', '.join(sorted(RESUMABLE_FIELDS))} may change",
                 differences,
             )
-        trained = self.newest_checkpoint() or 0
-        if config.total_episodes < trained:  # its replay would not take what the run stored
+        # its replay would not take what the run stored; a checkpoint's name alone can lie
+        # (renamed), the metrics table can run past it (killed before the next checkpoint)
+        trained = min(self.newest_checkpoint() or 0, self.episodes_logged())
+        if config.total_episodes < trained:
             raise RunFolderError(
                 f"cannot resume {self.path} with total_episodes={config.total_episodes:,}: the "
                 f"run has trained {trained:,} episodes (its newest checkpoint); a run can be "
