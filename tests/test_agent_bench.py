@@ -244,32 +244,36 @@ def test_the_population_benchmarks_groups_are_populations_of_the_group_size_a_pr
     assert whole[whole.index("--seeds") + 1] == "0-4" and "--stack-updates" in whole
 
 
+def _gpu_checks_on_cpu(out: Path, **settings: str) -> None:
+    """`tools/gpu_checks.sh OUT` as a GPU node runs it, on the CPU (PRESET=smoke DEVICE=cpu, as
+    its header says), with `settings` in its environment; every step it ran exited 0."""
+    import os
+    import subprocess
+
+    root = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PRESET": "smoke", "DEVICE": "cpu", "PYTHONPATH": str(root), **settings}
+    done = subprocess.run(
+        ["bash", str(root / "tools" / "gpu_checks.sh"), str(out)],
+        cwd=root, env=env, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert "exit 0" in done.stdout and "exit 1" not in done.stdout, done.stdout + done.stderr
+
+
 def test_the_gpu_checks_population_step_passes_its_settings_to_the_benchmark(tmp_path):
     """`tools/gpu_checks.sh`, as a GPU node runs it but on a CPU (PRESET=smoke DEVICE=cpu, as
     its header says): the population step hands POPULATION_* to `curious bench population` and
     writes its JSON where docs/scaling.md says."""
     import json
-    import os
-    import subprocess
 
-    root = Path(__file__).resolve().parents[1]
-    env = {
-        **os.environ,
-        "STEPS": "population",
-        "PRESET": "smoke",
-        "DEVICE": "cpu",
-        "POPULATION_RUNS": "2",
-        "POPULATION_CYCLES": "2",
-        "POPULATION_CONTENDERS": "groups",
-        "POPULATION_GROUP_SIZE": "2",
-        "POPULATION_SET": "n_workers=1",
-        "PYTHONPATH": str(root),
-    }
-    done = subprocess.run(
-        ["bash", str(root / "tools" / "gpu_checks.sh"), str(tmp_path)],
-        cwd=root, env=env, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert "exit 0" in done.stdout, done.stdout + done.stderr
+    _gpu_checks_on_cpu(
+        tmp_path,
+        STEPS="population",
+        POPULATION_RUNS="2",
+        POPULATION_CYCLES="2",
+        POPULATION_CONTENDERS="groups",
+        POPULATION_GROUP_SIZE="2",
+        POPULATION_SET="n_workers=1",
+    )
     result = json.loads((tmp_path / "population.json").read_text())
     assert result["group_size"] == 2 and result["groups"] > 0 and result["ours"] is None
     # two cycles: the second half of the cycles is the rate after the first
@@ -315,25 +319,11 @@ def test_the_gpu_checks_long_step_times_each_backend_over_its_cycles(tmp_path):
     """`tools/gpu_checks.sh`'s step `long` on a CPU: the processes alone over LONG_CYCLES cycles,
     once per backend of LONG_BACKENDS, each cycle's seconds in OUT/long-BACKEND.json."""
     import json
-    import os
-    import subprocess
 
-    root = Path(__file__).resolve().parents[1]
-    env = {
-        **os.environ,
-        "STEPS": "long",
-        "PRESET": "smoke",
-        "DEVICE": "cpu",
-        "POPULATION_RUNS": "2",
-        "LONG_CYCLES": "4",
-        "LONG_BACKENDS": "autograd",  # the compiled backend's compile is a GPU node's minutes
-        "PYTHONPATH": str(root),
-    }
-    done = subprocess.run(
-        ["bash", str(root / "tools" / "gpu_checks.sh"), str(tmp_path)],
-        cwd=root, env=env, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert "exit 0" in done.stdout, done.stdout + done.stderr
+    # the compiled backend's compile is a GPU node's minutes: the eager one alone here
+    _gpu_checks_on_cpu(
+        tmp_path, STEPS="long", POPULATION_RUNS="2", LONG_CYCLES="4", LONG_BACKENDS="autograd"
+    )
     result = json.loads((tmp_path / "long-autograd.json").read_text())
     assert len(result["peer_cycle_s"]) == 3 and result["late_after_cycles"] == 2
     assert "4 cycles" in result["shape"] and "learner_backend=autograd" in result["shape"]
