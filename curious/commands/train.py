@@ -308,7 +308,8 @@ def _check_viewer_url(url: str) -> None:
             "rerun+http://HOST:9876/proxy"
         ) from None
     parts = urlsplit(url)
-    address = (parts.hostname or "127.0.0.1", parts.port or DEFAULT_VIEWER_PORT)
+    default_port = 443 if parts.scheme.endswith("https") else DEFAULT_VIEWER_PORT
+    address = (parts.hostname or "127.0.0.1", parts.port or default_port)
     try:
         socket.create_connection(address, timeout=VIEWER_CONNECT_SECONDS).close()
     except OSError as exc:
