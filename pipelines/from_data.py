@@ -61,9 +61,44 @@ class ShippedData:
         if not folder.path.is_dir():
             raise ShippedDataError(f"--from-data {path} does not exist")
         try:
-            return cls(folder.path, folder.read_manifest())
+            data = cls(folder.path, folder.read_manifest())
         except ShippedError as exc:
             raise ShippedDataError(f"--from-data: {exc}") from None
+        data.check_whole()
+        return data
+
+    def check_whole(self) -> None:
+        """A `ShippedDataError`, before anything is written, where a run shipped.json lists is
+        gone or has a file that cannot be read (a truncated copy, a bad merge): named with the
+        way out, where later steps would fail on it in their own words."""
+        import pyarrow.parquet as pq
+
+        from curious.runs.folder import RunFolder
+        from curious.runs.folder_errors import RunFolderError
+
+        for entry in self.manifest.runs:
+            folder = RunFolder(ShippedFolder(self.path).run_path(entry.run))
+            tables = [folder.metrics_path] + [folder.tests_path] * (entry.test_rollouts > 0)
+            problem = None
+            if not folder.path.is_dir():
+                problem = "its folder is gone"
+            else:
+                try:
+                    folder.read_info()
+                except RunFolderError as exc:  # its own way out is a training run's
+                    problem = str(exc).split("; ")[0]
+                for table in tables if problem is None else ():
+                    try:
+                        pq.read_metadata(table)
+                    except (OSError, ValueError) as exc:
+                        problem = f"its {table.name} cannot be read ({exc})"
+                        break
+            if problem is not None:
+                raise ShippedDataError(
+                    f"--from-data {self.path} is damaged: {entry.run}, which shipped.json lists: "
+                    f"{problem}; restore the folder (`git checkout -- {self.path}` for the "
+                    "repository's data) or ship it again"
+                )
 
     def state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished` (see the module docstring)."""

@@ -658,3 +658,33 @@ def test_shipping_an_output_built_from_shipped_data_is_refused_naming_the_data(
     assert code == 2 and err.count("\n") == 1, err
     assert f"was built from the shipped data folder {shipped.data.resolve()}" in err
     assert not (tmp_path / "again").exists()
+
+
+@pytest.mark.parametrize(
+    ("damage", "problem"),
+    [
+        ("metrics", "its metrics.parquet cannot be read ("),
+        ("config", "config.json is damaged: it is empty"),
+        ("folder", "its folder is gone"),
+    ],
+)
+def test_damaged_shipped_data_is_named_before_anything_is_written(
+    shipped, tmp_path, damage, problem
+):
+    """A shipped run cut short, emptied or gone failed later in pyarrow's words, or as "does not
+    exist: name a run folder", and left reproduce.json behind."""
+    data = tmp_path / "data"
+    shutil.copytree(shipped.data, data)
+    run = ShippedFolder(data).run_path("main/curious/seed-0")
+    if damage == "metrics":
+        (run / METRICS_FILE).write_bytes(b"PAR1 cut short")
+    elif damage == "config":
+        (run / CONFIG_FILE).write_text("")
+    else:
+        shutil.rmtree(run)
+    out = tmp_path / "out"
+    code, _, err = cli(["reproduce", "--from-data", str(data), "--out", str(out), "--no-progress"])
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"--from-data {data} is damaged: main/curious/seed-0, which shipped.json lists: " in err
+    assert problem in err and "or ship it again" in err
+    assert not out.exists()
