@@ -71,8 +71,6 @@ class ShippedData:
         """A `ShippedDataError`, before anything is written, where a run shipped.json lists is
         gone or has a file that cannot be read (a truncated copy, a bad merge): named with the
         way out, where later steps would fail on it in their own words."""
-        import pyarrow.parquet as pq
-
         from curious.runs.folder import RunFolder
         from curious.runs.folder_errors import RunFolderError
 
@@ -87,12 +85,10 @@ class ShippedData:
                     folder.read_info()
                 except RunFolderError as exc:  # its own way out is a training run's
                     problem = str(exc).split("; ")[0]
-                for table in tables if problem is None else ():
-                    try:
-                        pq.read_metadata(table)
-                    except (OSError, ValueError) as exc:
-                        problem = f"its {table.name} cannot be read ({exc})"
-                        break
+                unreadable = None if problem else RunFolder.unreadable_table(tables)
+                if unreadable is not None:
+                    table, exc = unreadable
+                    problem = f"its {table.name} cannot be read ({exc})"
             if problem is not None:
                 raise ShippedDataError(
                     f"--from-data {self.path} is damaged: {entry.run}, which shipped.json lists: "

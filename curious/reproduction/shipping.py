@@ -99,14 +99,9 @@ class _Found:
 def _damage(folder: RunFolder) -> str | None:
     """Why a run's metrics.parquet or tests.parquet that is there cannot be read (None: each
     absent, or readable)."""
-    for path in (folder.metrics_path, folder.tests_path):
-        if not path.is_file():
-            continue
-        try:
-            pq.read_metadata(path)
-        except (OSError, ValueError):
-            return f"its {path.name} is damaged"
-    return None
+    present = [p for p in (folder.metrics_path, folder.tests_path) if p.is_file()]
+    unreadable = RunFolder.unreadable_table(present)
+    return None if unreadable is None else f"its {unreadable[0].name} is damaged"
 
 
 def _inside(path: Path, other: Path) -> bool:

@@ -132,6 +132,19 @@ class RunFolder:
         except (OSError, ValueError):
             return 0
 
+    @staticmethod
+    def unreadable_table(tables: list[Path]) -> tuple[Path, Exception] | None:
+        """The first of `tables` whose parquet footer cannot be read, with why (None: all
+        read). Reads footers only: a truncated copy fails there."""
+        import pyarrow.parquet as pq
+
+        for table in tables:
+            try:
+                pq.read_metadata(table)
+            except (OSError, ValueError) as exc:
+                return table, exc
+        return None
+
     def newest_checkpoint(self) -> int | None:
         """Episodes of the newest complete checkpoint, by its name (None: none)."""
         found = list_checkpoints(self.checkpoints)
