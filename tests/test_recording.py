@@ -552,6 +552,32 @@ def test_a_live_viewer_that_goes_away_is_named_and_the_checkpointed_recording_ke
     assert steps.max() == 9
 
 
+def test_a_sink_that_failed_once_is_not_trusted_by_the_end_after_the_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a failed flush (a viewer gone, a full disk), the recording ends as at the last
+    checkpoint even where the sink happens to take the final write: a failed sink may or may
+    not drop what it held, so the checkpoint, where `--resume` starts, is what is kept."""
+    from curious.watching.recording import working_file
+
+    comp = np.linspace(0, 1, 10)[:, None] * np.ones((1, 5))
+    recorder = RunRecorder(tmp_path / "run", MODULES)
+    recorder.log_episodes(np.arange(10), 0, 1, 1, comp, comp, comp)
+    recorder.checkpoint()
+    recorder.log_episodes(np.arange(10, 20), 0, 1, 1, comp, comp, comp)
+
+    def fails_once(*_: object, **__: object) -> None:
+        raise RecordingWriteError("the live viewer this recording streams to stopped answering")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(working_file, "flush_to_file", fails_once)
+        with pytest.raises(RecordingWriteError):
+            recorder.checkpoint()
+    recorder.close_after_error()  # the sink would take this write: it is not trusted
+    steps, _ = read_scalars(tmp_path / "run" / RECORDING_FILE, "competence/T1-reach")
+    assert steps.max() == 9
+
+
 def test_live_stream_gets_the_same_data_as_the_file(tmp_path: Path) -> None:
     live = tmp_path / "live.rrd"
     with _rerun_server(live) as url:

@@ -286,7 +286,8 @@ class RunRecorder:
         """Ends the recording when an error stopped training, never raising over that error.
 
         What was logged is flushed and becomes `recording.rrd`, uncompacted (a rename needs no
-        room on a full disk; the next resume compacts it). If even that cannot be written, the
+        room on a full disk; the next resume compacts it). If even that cannot be written, or
+        the error was a write of the recording itself (a full disk, a live viewer gone), the
         recording stays as at the last checkpoint, where a resume starts anyway: a file that was
         not written in full never replaces it.
         """

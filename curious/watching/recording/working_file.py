@@ -25,6 +25,7 @@ from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.display import has_display
 from curious.watching.recording.blueprint import default_blueprint
 from curious.watching.recording.rrd_files import (
+    RecordingWriteError,
     compact_recording,
     disconnect,
     end_file,
@@ -87,6 +88,7 @@ class WorkingFile:
         self.stream.set_sinks(*sinks, default_blueprint=self.blueprint)
         self.stream.send_recording_name(run_name)
         self.closed = False
+        self.write_failed = False
 
     def check_open(self) -> None:
         """Raises where the recording is closed already."""
@@ -95,7 +97,11 @@ class WorkingFile:
 
     def flush(self) -> None:
         """Blocks until everything sent so far is in the working file."""
-        flush_to_file(self.stream, self.working)
+        try:
+            flush_to_file(self.stream, self.working)
+        except RecordingWriteError:
+            self.write_failed = True
+            raise
 
     def checkpoint(self) -> None:
         """Copies the flushed working file over the recording, atomically."""
@@ -130,8 +136,13 @@ class WorkingFile:
 
     def close_after_error(self, pending: Callable[[], None]) -> None:
         """Sends what is `pending` and makes the working file the recording, uncompacted, never
-        raising: where that cannot be written, the recording stays as at the checkpoint."""
+        raising: where that cannot be written, or a write failed before (a full disk, a live
+        viewer gone), the recording stays as at the checkpoint. A sink that failed once may or
+        may not take a later flush, so the file is not trusted after it."""
         self.closed = True
+        if self.write_failed:
+            self._abandon()
+            return
         try:
             pending()
             end_file(self.stream, self.working, timeout=60.0)
