@@ -577,6 +577,17 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     return tuple(dict.fromkeys(seeds))
 
 
+def format_seeds(seeds: list[int] | tuple[int, ...]) -> str:
+    """(0, 1, 2, 5) -> `0-2,5`: seeds as `--seeds` takes them (`parse_seeds`' inverse)."""
+    parts: list[str] = []
+    for seed in sorted(set(seeds)):
+        if parts and parts[-1].rpartition("-")[2] == str(seed - 1):
+            parts[-1] = f"{parts[-1].partition('-')[0]}-{seed}"
+        else:
+            parts.append(str(seed))
+    return ",".join(parts)
+
+
 OWN_OPTIONS: dict[str, str] = {
     "preset": "--preset",
     "condition": "--condition",

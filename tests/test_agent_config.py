@@ -4,7 +4,16 @@ import dataclasses
 
 import pytest
 
-from curious.config import PRESETS, Config, ConfigError, condition_names, parse_overrides, resolve
+from curious.config import (
+    PRESETS,
+    Config,
+    ConfigError,
+    condition_names,
+    format_seeds,
+    parse_overrides,
+    parse_seeds,
+    resolve,
+)
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))
@@ -166,3 +175,13 @@ def test_settings_out_of_range_are_refused_naming_the_setting(setting):
     key = setting.split("=")[0]
     with pytest.raises(ConfigError, match=key):
         resolve("smoke", overrides=parse_overrides([setting]))
+
+
+@pytest.mark.parametrize(
+    ("seeds", "written"),
+    [((0,), "0"), ((0, 1, 2, 3, 4), "0-4"), ((0, 2, 5), "0,2,5"), ((3, 0, 1, 7, 8), "0-1,3,7-8")],
+)
+def test_seeds_are_written_as_seeds_takes_them(seeds, written):
+    """The hint that resumes a `--seeds` folder names its seeds the way `--seeds` reads them."""
+    assert format_seeds(seeds) == written
+    assert sorted(parse_seeds(written)) == sorted(seeds)

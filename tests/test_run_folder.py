@@ -260,7 +260,15 @@ def test_a_folder_of_runs_given_as_a_run_names_the_runs_it_holds(tmp_path):
     config = resolve("smoke", "curious", 0)
     with pytest.raises(RunFolderError, match="nothing to resume") as resumed:
         folder.check_resumable(config)
-    assert str(resumed.value).endswith(f"does not exist; {named}")
+    assert str(resumed.value).endswith(
+        f"does not exist; {named}, or resume them all with `--seeds 0-3`"
+    )
+    (tmp_path / "runs" / "seed-2" / "config.json").unlink()  # a gap: the seeds as written
+    with pytest.raises(RunFolderError, match=r"them all with `--seeds 0-1,3`$"):
+        folder.check_resumable(config)
+    _written(tmp_path / "runs" / "main" / "her" / "seed-0", "default")  # not a --seeds folder
+    with pytest.raises(RunFolderError, match=r"and 1 more; name one$"):
+        folder.check_resumable(config)
     (tmp_path / "empty").mkdir()
     with pytest.raises(RunFolderError) as bare:
         RunFolder(tmp_path / "empty").read_info()

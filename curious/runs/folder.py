@@ -27,7 +27,13 @@ import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from curious.config import RESUMABLE_FIELDS, Config, ConfigError, setting_names
+from curious.config import (
+    RESUMABLE_FIELDS,
+    Config,
+    ConfigError,
+    format_seeds,
+    setting_names,
+)
 from curious.runs.folder_errors import ConfigMismatch, RunFolderError
 from curious.runs.folder_layout import (
     CHECKPOINTS_DIR,
@@ -194,6 +200,16 @@ class RunFolder:
         runs = folders_below(self.path, CONFIG_FILE) if self.path.is_dir() else []
         return f"; it holds runs: {name_some(runs)}; name one" if runs else ""
 
+    def _seeds_below(self) -> str:
+        """Where this folder is a `--seeds` folder (its runs all `seed-K` right below it), a
+        clause saying how to resume them all at once (empty otherwise)."""
+        runs = folders_below(self.path, CONFIG_FILE) if self.path.is_dir() else []
+        names = [run.relative_to(self.path).as_posix() for run in runs]
+        seeds = [n.removeprefix("seed-") for n in names if n.startswith("seed-")]
+        if not seeds or len(seeds) < len(names) or not all(s.isdigit() for s in seeds):
+            return ""
+        return f", or resume them all with `--seeds {format_seeds([int(s) for s in seeds])}`"
+
     def read_config(self) -> Config:
         """The config stored in config.json; a `RunFolderError` naming the file when it is not
         one this curious can run (a damaged file, a setting of the wrong type or value)."""
@@ -220,6 +236,7 @@ class RunFolder:
         if not self.config_path.exists():
             raise RunFolderError(
                 f"nothing to resume: {self.config_path} does not exist{self._runs_below()}"
+                f"{self._seeds_below()}"
             )
         raw = self.read_stored()["config"]
         lacking = sorted(set(setting_names()) - set(raw))
