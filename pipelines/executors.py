@@ -151,6 +151,19 @@ def gpu_sharing_hint(pool: Any, device: str | None) -> str | None:
     )
 
 
+def _local_processes(count: int) -> str:
+    return f"{count} local worker process{'es' if count > 1 else ''}"
+
+
+def busy_description(pool: Pool, jobs: int) -> str:
+    """`pool.description` for `jobs` jobs trained at a time: a local pool of more workers than
+    that starts only as many processes (`concurrent.futures` starts them as jobs come), so
+    `--workers 1000` for 6 runs says 6."""
+    if isinstance(pool, LocalPool) and 0 < jobs < pool.workers:
+        return _local_processes(jobs)
+    return pool.description
+
+
 class LocalPool:
     """`workers` worker processes on this machine (started on first use, then reused)."""
 
@@ -159,7 +172,7 @@ class LocalPool:
     def __init__(self, workers: int | None = None) -> None:
         self.workers = max(1, int(workers or os.cpu_count() or 1))
         self._pool: cf.ProcessPoolExecutor | None = None
-        self.description = f"{self.workers} local worker process{'es' if self.workers > 1 else ''}"
+        self.description = _local_processes(self.workers)
 
     def _executor(self) -> cf.ProcessPoolExecutor:
         if self._pool is None:

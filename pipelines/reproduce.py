@@ -396,7 +396,7 @@ def _reproduce(
 
     from pipelines.assets import figure_key, metrics_key, partitions_of, runs_key
     from pipelines.definitions import build_definitions
-    from pipelines.executors import gpu_sharing_hint
+    from pipelines.executors import busy_description, gpu_sharing_hint
     from pipelines.executors import make_pool as default_pool
 
     check_output_folder(layout, chosen, None if data is None else data.path)
@@ -426,11 +426,12 @@ def _reproduce(
         except ConfigError:
             repro.close()
             raise
+        to_train = counts.get("partial", 0) + counts.get("new", 0)
         repro.say(
             f"curious reproduce --budget {chosen.name}: {names}; "
             f"{sum(counts.values())} runs ({counts.get('finished', 0)} finished, "
             f"{counts.get('partial', 0)} to resume, {counts.get('new', 0)} new) on "
-            f"{pool.description}"
+            f"{busy_description(pool, -(-to_train // (population or 1)))}"
         )
         hint = gpu_sharing_hint(pool, repro.overrides.get("device"))
         if hint is not None:

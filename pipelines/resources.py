@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any
 from curious.config import ConfigError
 from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
 from curious.reproduction.shipped_folder import ShippedFolder
-from pipelines.executors import Job, Pool, run_all
+from pipelines.executors import Job, Pool, busy_description, run_all
 from pipelines.training import (
     FINISHED,
     PARTIAL,
@@ -367,12 +367,14 @@ class Reproduction:
                 f"  {job.spec.label}: {how}{result.episodes:,} episodes in {result.seconds:.0f} s"
             )
 
+        at_once = self.at_once(jobs)
         try:
-            results = run_all(self.pool, jobs, on_progress, on_done, at_once=self.at_once(jobs))
+            results = run_all(self.pool, jobs, on_progress, on_done, at_once=at_once)
         finally:
             bar.close()
+        busy = busy_description(self.pool, min(len(jobs), at_once or len(jobs)))
         self.say(
             f"  {experiment.name}: {len(results)} run(s){grouped} trained in "
-            f"{time.perf_counter() - tic:.0f} s on {self.pool.description}"
+            f"{time.perf_counter() - tic:.0f} s on {busy}"
         )
         return {r.partition_key: r for r in results}

@@ -1083,3 +1083,22 @@ def test_a_gpu_reproduction_on_local_workers_is_told_of_the_mps_server(tmp_path,
     assert gpu_sharing_hint(LocalPool(1), "cuda") is None
     (tmp_path / "control").touch()  # what `nvidia-cuda-mps-control -d` makes
     assert gpu_sharing_hint(LocalPool(4), "cuda") is None
+
+
+@pytest.mark.parametrize(
+    ("workers", "jobs", "said"),
+    [
+        (1000, 6, "6 local worker processes"),
+        (1000, 1, "1 local worker process"),
+        (2, 6, "2 local worker processes"),
+        (4, 0, "4 local worker processes"),
+    ],
+)
+def test_a_reproduction_names_the_worker_processes_its_runs_keep_busy(workers, jobs, said):
+    """`--workers 1000` for 6 runs starts 6 processes, and says so, not 1000; a pool on Ray (or
+    any other) is named as it names itself."""
+    from pipelines.executors import busy_description
+
+    assert busy_description(LocalPool(workers), jobs) == said
+    ray_like = type("RayLike", (), {"description": "Ray tasks at head:6379"})()
+    assert busy_description(ray_like, 6) == "Ray tasks at head:6379"
