@@ -435,6 +435,9 @@ def test_a_run_whose_metrics_are_damaged_is_named_so_not_as_not_started(smoke, t
     folder.metrics_path.write_bytes(b"PAR1 cut short")
     code, stdout, _ = cli(["ship", str(root), "--out", str(tmp_path / "data"), "--unfinished"])
     assert code == 0 and "main/curious/seed-0 (its metrics.parquet is damaged)" in stdout
+    # no run is unfinished, so --unfinished is not offered: it would ship no more
+    code, stdout, _ = cli(["ship", str(root), "--out", str(tmp_path / "more")])
+    assert code == 0 and "left out: main/curious/seed-0 (its metrics.parquet is damaged)" in stdout
 
 
 def test_a_run_with_a_damaged_file_is_left_out_and_named_the_others_shipped(smoke, tmp_path):

@@ -112,6 +112,6 @@ def run(args: argparse.Namespace) -> int:
         f"{sum(r.episodes for r in runs):,} episodes, in {result.seconds:.1f} s"
     )
     if result.left_out:
-        hint = "" if args.unfinished else " (--unfinished ships those that have started)"
+        hint = " (--unfinished ships those that have started)" if result.unfinished_left_out else ""
         print(f"  left out{hint}: {', '.join(result.left_out)}")
     return 0

@@ -68,6 +68,8 @@ class ShipResult:
     seconds: float
     kept: tuple[str, ...] = ()
     """Runs an earlier ship put in `out` that stayed there as they were (`keep`)."""
+    unfinished_left_out: int = 0
+    """How many of `left_out` had started but not finished (`unfinished` would ship them)."""
 
     @property
     def bytes(self) -> int:
@@ -308,7 +310,8 @@ def ship(
         left_out += [f.progress for f in running]
     if not chosen:
         detail = ", ".join(sorted(left_out)[:5]) + (", ..." if len(left_out) > 5 else "")
-        hint = "" if unfinished else "; pass --unfinished to ship them as a progress snapshot"
+        hint = "; pass --unfinished to ship those started as a progress snapshot"
+        hint = hint if running and not unfinished else ""
         raise ShippedError(
             f"none of the {len(found)} run(s) below {runs} is finished ({detail}){hint}"
         )
@@ -341,6 +344,7 @@ def ship(
         sizes,
         time.perf_counter() - tic,
         tuple(r.run for r in kept),
+        0 if unfinished else len(running),
     )
 
 
