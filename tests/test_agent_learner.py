@@ -3,6 +3,8 @@
 import copy
 import dataclasses
 import logging
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -289,6 +291,29 @@ def test_every_backend_gives_the_reference_update(backend, algorithm):
         allowed = ("torch._dynamo.graph_break()", "torch.compiler.disable()")
         allowed += ("Tensor.backward()",) if algorithm == "td3" else ()
         assert all(any(a in reason for a in allowed) for reason in breaks), breaks
+
+
+def test_the_compiled_learner_prints_none_of_torchs_own_notices():
+    """A compiled run's log is its own: torch's inductor raises 14 DeprecationWarnings importing
+    its own modules (shown where a library left DeprecationWarnings on, as one `curious train`
+    imports did) and dynamo notes that Adam's profiler range stays out of the graph; neither
+    says anything a user can act on."""
+    code = (
+        "import dataclasses, warnings, torch\n"
+        "warnings.simplefilter('always', DeprecationWarning)\n"
+        "from curious.agent.learner import Learner\n"
+        "from curious.config import resolve\n"
+        "config = dataclasses.replace(resolve('smoke'), hidden=32, layers=2,"
+        " learner_backend='compiled')\n"
+        "learner = Learner(10, 4, config, seed=5)\n"
+        "x, a = torch.randn(64, 10), torch.rand(64, 4) * 2 - 1\n"
+        "for _ in range(2):\n"
+        "    learner.update(x, a, -torch.ones(64), torch.randn(64, 10))\n"
+        "print('updated')\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0 and "updated" in done.stdout, done.stderr
+    assert "script_method" not in done.stderr and "Profiler record" not in done.stderr, done.stderr
 
 
 @pytest.mark.parametrize("algorithm", ["ddpg", "td3"])

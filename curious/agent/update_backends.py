@@ -19,6 +19,8 @@ reference, step for step.
 from __future__ import annotations
 
 import functools
+import logging
+import warnings
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -67,6 +69,36 @@ def adam(params: list[nn.Parameter], lr: float, capturable: bool = False) -> tor
         return torch.optim.Adam(params, lr=lr, foreach=True)
 
 
+TORCH_COMPILE_NOTICES: tuple[tuple[str, str], ...] = (
+    ("warning", r"`torch\.jit\.script_method` is deprecated"),
+    ("torch._dynamo.variables.ctx_manager", "Profiler record function "),
+)
+"""What a first `torch.compile` of a step prints that says nothing to a user of curious, as
+(where, the message's start): the deprecation warnings torch's inductor raises importing its
+own modules (torch 2.13: 14 of them, shown since some library leaves DeprecationWarnings
+enabled), and dynamo's notice that Adam's profiler range is left out of the graph."""
+
+
+class _DropsNotice(logging.Filter):
+    def __init__(self, start: str) -> None:
+        super().__init__()
+        self.start = start
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not str(record.msg).startswith(self.start)
+
+
+@functools.cache
+def quiet_torch_compile_notices() -> None:
+    """Hides `TORCH_COMPILE_NOTICES`, once per process; a torch whose logger or wording
+    differs prints them, and nothing else changes."""
+    for where, message in TORCH_COMPILE_NOTICES:
+        if where == "warning":
+            warnings.filterwarnings("ignore", message=message, category=DeprecationWarning)
+        else:
+            logging.getLogger(where).addFilter(_DropsNotice(message))
+
+
 def compile_step(
     step: Callable[..., Any], mode: str | None, trace_backward: bool
 ) -> Callable[..., Any]:
@@ -78,6 +110,7 @@ def compile_step(
     against 1.30 ms an update on an H100). TD3's steps keep the break: traced, torch 2.11 on CUDA
     skipped the critic step's CUDA graph (its gradients are mutated inputs) and failed in the
     actor step. A torch without the setting compiles the step with the break."""
+    quiet_torch_compile_notices()
     compiled = torch.compile(step, mode=mode)
     if not trace_backward or not hasattr(torch._dynamo.config, "trace_autograd_ops"):
         return compiled
