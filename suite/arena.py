@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dm_control import composer, mjcf
+from dm_control import mjcf
 
 from suite import layout
+from suite.dm_composer import composer
 
 
 class TableArena(composer.Arena):

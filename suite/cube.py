@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dm_control import composer, mjcf
+from dm_control import mjcf
 
 from suite import layout
+from suite.dm_composer import composer
 
 # Reachable cubes: cube 1 (manipulated) red, cube 2 (base) blue, cube 3 green; distractors grey.
 CUBE_COLOURS = ((0.85, 0.2, 0.2, 1.0), (0.2, 0.35, 0.85, 1.0), (0.2, 0.65, 0.3, 1.0))

@@ -33,10 +33,9 @@ import warnings
 import dm_env
 import mujoco
 import numpy as np
-from dm_control import composer
-from dm_control.composer import environment as composer_environment
-from dm_control.composer.observation import updater as updater_module
 from dm_control.rl import control
+
+from suite.dm_composer import composer, composer_environment, observation_updater
 
 _SUBSTEP_HOOKS = ("before_substep", "after_substep")
 
@@ -206,7 +205,7 @@ class SuiteEnvironment(composer.Environment):
         self._fast_observation = OncePerStepUpdater.supports(observables)
         if self._fast_observation:
             return OncePerStepUpdater(observables, self._strip_singleton_obs_buffer_dim)
-        return updater_module.Updater(
+        return observation_updater.Updater(
             observables,
             self._task.physics_steps_per_control_step,
             self._strip_singleton_obs_buffer_dim,

@@ -18,9 +18,10 @@ import importlib.util
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from dm_control import composer, mjcf
+from dm_control import mjcf
 
 from suite import layout
+from suite.dm_composer import composer
 
 _BASE_BODY = "robot0:base_link"
 _BASE_SLIDES = ("robot0:slide0", "robot0:slide1", "robot0:slide2")

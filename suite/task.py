@@ -26,14 +26,13 @@ from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from dm_control import composer
-from dm_control.composer.observation import observable
 from dm_env import specs
 
 from suite import layout
 from suite.arena import TableArena
 from suite.cube import Cube, cube_colour
 from suite.distractors import DistractorWalk, start_positions
+from suite.dm_composer import composer, observable
 from suite.features import StateLayout, StateReader
 from suite.fetch import FetchArm
 from suite.layout import N_REACHABLE

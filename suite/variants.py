@@ -17,10 +17,10 @@ function's name or the name given to `register`.
 from __future__ import annotations
 
 import numpy as np
-from dm_control import composer
 
 from suite import layout
 from suite.catalog import VariantSpec, all_variants, distractor_spec, find, register
+from suite.dm_composer import composer
 from suite.environment import make_environment
 from suite.task import MultiTaskFetch
 

@@ -4,6 +4,10 @@ input. (The sensory failure is tested with its variant, in test_suite_variants.p
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -306,3 +310,22 @@ def test_a_blocked_distractor_draws_99_moves_then_stays_put():
     np.testing.assert_array_equal(new, here)
     reference.normal(0.0, layout.DISTRACTOR_WALK_STD, (98, 2))  # the 98 redraws
     assert rng.uniform() == reference.uniform()
+
+
+def test_loading_the_suite_leaves_library_deprecation_warnings_hidden():
+    """dm_control's composer turns every DeprecationWarning on, process-wide, when imported; a
+    program that loads the suite keeps Python's default, which hides those raised in libraries
+    (in a fresh process: this one has imported dm_control already)."""
+    code = (
+        "import warnings\n"
+        "import suite\n"
+        "suite.load('default', seed=0).reset()\n"
+        "with warnings.catch_warnings(record=True) as shown:\n"
+        "    warnings.warn_explicit('old', DeprecationWarning, 'lib.py', 1, module='lib')\n"
+        "assert not shown, [str(w.message) for w in shown]\n"
+    )
+    env = {**os.environ, "MUJOCO_GL": "disable"}
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import functools
 import logging
-import warnings
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -69,14 +68,10 @@ def adam(params: list[nn.Parameter], lr: float, capturable: bool = False) -> tor
         return torch.optim.Adam(params, lr=lr, foreach=True)
 
 
-TORCH_COMPILE_NOTICES: tuple[tuple[str, str], ...] = (
-    ("warning", r"`torch\.jit\.script_method` is deprecated"),
-    ("torch._dynamo.variables.ctx_manager", "Profiler record function "),
-)
-"""What a first `torch.compile` of a step prints that says nothing to a user of curious, as
-(where, the message's start): the deprecation warnings torch's inductor raises importing its
-own modules (torch 2.13: 14 of them, shown since some library leaves DeprecationWarnings
-enabled), and dynamo's notice that Adam's profiler range is left out of the graph."""
+DYNAMO_PROFILER_NOTICE = ("torch._dynamo.variables.ctx_manager", "Profiler record function ")
+"""(logger, the message's start) of what dynamo logs when a compiled step meets Adam's profiler
+range, which stays out of the graph: a notice at the first step that says nothing a user of
+curious can act on."""
 
 
 class _DropsNotice(logging.Filter):
@@ -89,14 +84,11 @@ class _DropsNotice(logging.Filter):
 
 
 @functools.cache
-def quiet_torch_compile_notices() -> None:
-    """Hides `TORCH_COMPILE_NOTICES`, once per process; a torch whose logger or wording
-    differs prints them, and nothing else changes."""
-    for where, message in TORCH_COMPILE_NOTICES:
-        if where == "warning":
-            warnings.filterwarnings("ignore", message=message, category=DeprecationWarning)
-        else:
-            logging.getLogger(where).addFilter(_DropsNotice(message))
+def quiet_dynamo_profiler_notice() -> None:
+    """Drops `DYNAMO_PROFILER_NOTICE`, once per process; a torch whose logger or wording differs
+    prints it, and nothing else changes."""
+    logger, start = DYNAMO_PROFILER_NOTICE
+    logging.getLogger(logger).addFilter(_DropsNotice(start))
 
 
 def compile_step(
@@ -110,7 +102,7 @@ def compile_step(
     against 1.30 ms an update on an H100). TD3's steps keep the break: traced, torch 2.11 on CUDA
     skipped the critic step's CUDA graph (its gradients are mutated inputs) and failed in the
     actor step. A torch without the setting compiles the step with the break."""
-    quiet_torch_compile_notices()
+    quiet_dynamo_profiler_notice()
     compiled = torch.compile(step, mode=mode)
     if not trace_backward or not hasattr(torch._dynamo.config, "trace_autograd_ops"):
         return compiled
