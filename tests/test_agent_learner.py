@@ -3,13 +3,11 @@
 import copy
 import dataclasses
 import logging
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 import torch
+from fresh_process import run_fresh
 from toy_env import ToyGoalEnv
 
 from curious.agent.goals import GoalBox, GoalInput
@@ -313,10 +311,7 @@ def test_the_compiled_learner_beside_the_suite_prints_none_of_torchs_own_notices
         "    learner.update(x, a, -torch.ones(64), torch.randn(64, 10))\n"
         "print('updated')\n"
     )
-    env = {**os.environ, "MUJOCO_GL": "disable"}
-    done = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600
-    )
+    done = run_fresh(code, timeout=600)
     assert done.returncode == 0 and "updated" in done.stdout, done.stderr
     assert "script_method" not in done.stderr and "Profiler record" not in done.stderr, done.stderr
 

@@ -4,12 +4,9 @@ input. (The sensory failure is tested with its variant, in test_suite_variants.p
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import numpy as np
 import pytest
+from fresh_process import run_fresh
 
 import suite
 from suite import layout
@@ -324,8 +321,5 @@ def test_loading_the_suite_leaves_library_deprecation_warnings_hidden():
         "    warnings.warn_explicit('old', DeprecationWarning, 'lib.py', 1, module='lib')\n"
         "assert not shown, [str(w.message) for w in shown]\n"
     )
-    env = {**os.environ, "MUJOCO_GL": "disable"}
-    done = subprocess.run(
-        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300
-    )
+    done = run_fresh(code)
     assert done.returncode == 0, done.stderr
