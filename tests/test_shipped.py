@@ -440,6 +440,20 @@ def test_a_run_whose_metrics_are_damaged_is_named_so_not_as_not_started(smoke, t
     assert code == 0 and "left out: main/curious/seed-0 (its metrics.parquet is damaged)" in stdout
 
 
+def test_a_finished_run_without_its_test_rollouts_is_left_out_and_named(smoke, tmp_path):
+    """A finished run whose settings ran test rollouts but whose tests.parquet is gone (deleted,
+    not copied) was shipped as a run of 0 test rollouts, and read so by every figure of test
+    success; it is left out and named, the others shipped."""
+    root = tmp_path / "out"
+    partial_copy(smoke, root)
+    RunFolder(root / "runs" / "main" / "her" / "seed-1").tests_path.unlink()
+    code, stdout, err = cli(["ship", str(root), "--out", str(tmp_path / "data")])
+    assert code == 0, err
+    assert "main/her/seed-1 (its tests.parquet is missing, though the run tested" in stdout
+    shipped = {r.run for r in ShippedFolder(tmp_path / "data").read_manifest().runs}
+    assert "main/her/seed-1" not in shipped and "main/her/seed-0" in shipped
+
+
 def test_a_run_with_a_damaged_file_is_left_out_and_named_the_others_shipped(smoke, tmp_path):
     """One run of many with a damaged tests.parquet or config.json stopped the whole ship (in
     pyarrow's words for the first); a damaged metrics.parquet was already left out so."""

@@ -98,9 +98,12 @@ class _Found:
         return f"{self.run} ({self.episodes:,} of {self.total:,} episodes)"
 
 
-def _damage(folder: RunFolder) -> str | None:
-    """Why a run's metrics.parquet or tests.parquet that is there cannot be read (None: each
-    absent, or readable)."""
+def _damage(folder: RunFolder, tests_due: bool) -> str | None:
+    """Why a run's metrics.parquet or tests.parquet that is there cannot be read, or why a
+    tests.parquet that is due (`tests_due`: the run finished, and its settings ran test
+    rollouts, after every epoch and at the end) is not there; None otherwise."""
+    if tests_due and not folder.tests_path.is_file():
+        return f"its {folder.tests_path.name} is missing, though the run tested every epoch"
     present = [p for p in (folder.metrics_path, folder.tests_path) if p.is_file()]
     unreadable = RunFolder.unreadable_table(present)
     return None if unreadable is None else f"its {unreadable[0].name} is damaged"
@@ -178,14 +181,16 @@ def find_runs(root: Path) -> list[_Found]:
             found.append(_Found(folder, run, 0, 0, False, problem=str(exc)))
             continue
         total = info.total_episodes
+        finished = folder.finished_at(total)
+        tests_due = finished and bool((info.settings or {}).get("test_rollouts_per_worker"))
         found.append(
             _Found(
                 folder,
                 run,
                 folder.episodes_logged(),
                 total,
-                folder.finished_at(total),
-                problem=_damage(folder),
+                finished,
+                problem=_damage(folder, tests_due),
             )
         )
     return found
