@@ -442,8 +442,8 @@ def test_a_run_whose_metrics_are_damaged_is_named_so_not_as_not_started(smoke, t
 
 def test_a_finished_run_without_its_test_rollouts_is_left_out_and_named(smoke, tmp_path):
     """A finished run whose settings ran test rollouts but whose tests.parquet is gone (deleted,
-    not copied) was shipped as a run of 0 test rollouts, and read so by every figure of test
-    success; it is left out and named, the others shipped."""
+    not copied) was shipped as a run of 0 test rollouts; it is left out and named, the others
+    shipped."""
     root = tmp_path / "out"
     partial_copy(smoke, root)
     RunFolder(root / "runs" / "main" / "her" / "seed-1").tests_path.unlink()
