@@ -13,7 +13,8 @@ from PIL import Image
 
 def _render(tmp_path, gl: str, *extra: str) -> subprocess.CompletedProcess:
     env = {**os.environ, "MUJOCO_GL": gl}
-    cmd = [sys.executable, "-m", "curious.cli", "render", "--out", str(tmp_path), *extra]
+    out = f"{tmp_path}/"  # a folder as a shell completes it, with its slash
+    cmd = [sys.executable, "-m", "curious.cli", "render", "--out", out, *extra]
     return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
 
 
@@ -25,6 +26,7 @@ def test_render_writes_frames_of_the_scene(tmp_path):
     assert result.returncode == 0, result.stderr
     frames = sorted(tmp_path.glob("default_stack_*.png"))
     assert len(frames) == 3  # steps 0, 5 and 10
+    assert f"wrote 3 frames to {tmp_path}/ (default_stack_000.png .." in result.stdout
     pixels = np.asarray(Image.open(frames[0]))
     assert pixels.shape == (64, 96, 3)
     assert pixels.std() > 10  # a scene, not a blank image

@@ -326,7 +326,8 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
         bar.close()
     if kind == "png":
         paths = writer.written
-        print(f"wrote {len(paths)} frames to {args.out}/ ({paths[0].name} .. {paths[-1].name})")
+        folder = f"{str(args.out).rstrip('/')}/"
+        print(f"wrote {len(paths)} frames to {folder} ({paths[0].name} .. {paths[-1].name})")
     else:
         print(f"wrote {writer.frames} frames to {args.out} ({_length(kind, writer.frames, fps)})")
     return 0
