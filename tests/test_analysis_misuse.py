@@ -76,7 +76,8 @@ def test_across_seeds_does_not_average_variants_as_seeds(distractors):
     """Runs of 0 and 4 distracting modules under one condition and seed were averaged as if
     they were four seeds; grouped by variant they are two a side."""
     points = analysis.final_test_success(distractors)
-    with pytest.raises(AnalysisError, match=r"condition curious, seed 0 has 2 runs \(variants"):
+    clash = r"condition curious, seed 0 has 2 runs \(their variant: distractors0, distractors4"
+    with pytest.raises(AnalysisError, match=clash):
         analysis.across_seeds(points)
     means = analysis.across_seeds(points, by=("condition", "variant"))
     assert set(means["n"]) == {2}
@@ -205,3 +206,67 @@ def test_nice_bin_size_of_an_endless_run_is_refused():
     """`nice_bin_size(inf)` looped for ever."""
     with pytest.raises(ValueError, match="need n_episodes >= 1"):
         analysis.nice_bin_size(float("inf"))
+
+
+def test_a_table_of_one_value_per_module_is_not_read_as_seeds(main):
+    """`module_success_rates` (one row per run and module) went into `welch_per_bin` and
+    `across_seeds` as if each module were a seed: 2 seeds x 4 modules counted as 8."""
+    rates = analysis.module_success_rates(main[1])
+    with pytest.raises(AnalysisError, match=r"holds 4 for run .* \(one per module\).*4 seeds"):
+        analysis.welch_per_bin(rates, "curious", "mg-te")
+    with pytest.raises(AnalysisError, match=r"select one, or pass by=\(\.\.\., 'module'\)"):
+        analysis.across_seeds(rates)
+    per_module = analysis.across_seeds(rates, by=("condition", "module"))
+    assert set(per_module["n"]) == {2}
+
+
+def test_runs_of_one_setting_read_twice_count_once_or_are_refused(main, tmp_path):
+    """Two folders of the same runs (a copy, or two experiments' runs at the same settings)
+    were told to "select one variant", which they share."""
+    write_study(tmp_path / "copy", seeds=(0, 1), n_episodes=200, tests_per_epoch=20)
+    both = pd.concat([main[1], analysis.load_tests(tmp_path / "copy")], ignore_index=True)
+    with pytest.raises(AnalysisError, match=r"their runs: .*read one experiment's runs"):
+        analysis.across_seeds(analysis.epoch_success(both))
+
+
+def test_the_area_under_success_refuses_runs_of_several_experiments(main, distractors):
+    """Runs of two variants (or presets) were all read up to the shortest one's budget, and a
+    run with no epoch by then was dropped without a word."""
+    with pytest.raises(AnalysisError, match=r"different variants \(distractors0, distractors4"):
+        analysis.area_under_success(distractors)
+    mixed = pd.concat([main[1], distractors.assign(preset="other")], ignore_index=True)
+    with pytest.raises(AnalysisError, match="different presets"):
+        analysis.area_under_success(mixed)
+    assert len(analysis.area_under_success(main[1])) == 6
+
+
+def test_the_degradation_counts_each_seed_once(tmp_path):
+    """The sensory failure's runs (no distractors either) were pooled with `distractors_0`'s,
+    and a table concatenated twice doubled every group, each with a confident p."""
+    study = write_distractor_study(tmp_path / "d", counts=(0, 4), seeds=(0, 1), n_episodes=200)
+    failure = write_perturbation_study(tmp_path / "f", seeds=(0, 1))
+    final = analysis.final_competence(analysis.load_runs(study))
+    analysis.compare_degradation(final, "curious", "m-uvfa")
+    with pytest.raises(AnalysisError, match="seed 0 has several runs with 0 distracting"):
+        analysis.compare_degradation(pd.concat([final, final]), "curious", "m-uvfa")
+    pooled = analysis.final_competence(analysis.load_runs([*study, *failure]))
+    with pytest.raises(AnalysisError, match=r"0 distracting modules are of several variants"):
+        analysis.compare_degradation(pooled, "curious", "m-uvfa")
+
+
+def test_recoveries_count_each_seed_once_at_an_alpha_that_is_one(tmp_path):
+    """Two experiments' recoveries pooled counted each seed twice; alpha=5 called p = 0.04
+    significant; a runs table gave pandas' KeyError 'status'."""
+    runs = write_perturbation_study(tmp_path, seeds=(0, 1, 2))
+    per_run = analysis.recovery(analysis.load_runs(runs))
+    doubled = pd.concat([per_run, per_run], ignore_index=True)
+    for call in (analysis.recovery_summary, lambda t: analysis.compare_recoveries(t, *CF)):
+        with pytest.raises(AnalysisError, match=r"seed 0 has 2 rows .*each seed must count once"):
+            call(doubled)
+    with pytest.raises(ValueError, match=r"alpha must be in \(0, 1\), got 5"):
+        analysis.compare_recoveries(per_run, *CF, alpha=5)
+    with pytest.raises(AnalysisError, match=r"lacks status.*pass a recovery table"):
+        analysis.recovery_summary(analysis.load_runs(runs))
+
+
+CF = ("curious", "m-uvfa")

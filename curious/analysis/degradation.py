@@ -37,6 +37,7 @@ def compare_degradation(final: pd.DataFrame, better: str, worse: str) -> dict[st
         )
     if better == worse:
         raise AnalysisError(f"compare_degradation compares two conditions, got '{better}' twice")
+    _check_one_run_per_seed(final)
     settings = sorted(int(n) for n in final["n_distractors"].dropna().unique())
     if len(settings) < 2:
         raise AnalysisError(
@@ -68,3 +69,27 @@ def compare_degradation(final: pd.DataFrame, better: str, worse: str) -> dict[st
         t = difference / se
         out.update(df=float(df), t=float(t), p=float(stats.t.cdf(t, df)))
     return out
+
+
+def _check_one_run_per_seed(final: pd.DataFrame) -> None:
+    """An `AnalysisError` where a setting (a number of distracting modules) holds runs of
+    several variants (the sensory failure's runs have no distractors either), or a condition's
+    seed twice there: either would count one seed as several."""
+    if "variant" in final:
+        variants = final.groupby("n_distractors", observed=True)["variant"].unique()
+        for setting, names in variants.items():
+            if len(names) > 1:
+                raise AnalysisError(
+                    f"the runs with {setting} distracting modules are of several variants "
+                    f"({', '.join(sorted(map(str, names)))}): select one experiment's runs"
+                )
+    if "seed" in final:
+        keys = ["condition", "n_distractors", "seed"]
+        twice = final[final.duplicated(keys, keep=False)]
+        if not twice.empty:
+            condition, setting, seed = twice.iloc[0][keys]
+            raise AnalysisError(
+                f"condition '{condition}' seed {seed} has several runs with {setting} "
+                "distracting modules: each seed must count once (a table concatenated twice, "
+                "or runs of two experiments?)"
+            )

@@ -540,10 +540,12 @@ def require_tests(df: pd.DataFrame) -> None:
     _require_rows(df)
 
 
-def require_values(df: pd.DataFrame, what: str) -> None:
+def require_values(df: pd.DataFrame, what: str, per: Sequence[str] = ()) -> None:
     """An `AnalysisError` unless ``df`` holds one value per run and point (`what` takes it):
     ``run``, ``condition``, ``seed``, ``episodes`` and ``value``, as `epoch_success`,
-    `binned_success`, `bin_runs`, `final_competence` and `final_test_success` return."""
+    `binned_success`, `bin_runs`, `final_competence` and `final_test_success` return, and no
+    run twice at a point (or twice per point and ``per``'s columns): a table of one value per
+    module (`module_success_rates`) would otherwise count each module as a seed."""
     missing = [c for c in ("run", "condition", "seed", "episodes", "value") if c not in df]
     if missing:
         kind = {
@@ -555,3 +557,25 @@ def require_values(df: pd.DataFrame, what: str) -> None:
             f"{what} takes one value per run and point (epoch_success, binned_success, "
             f"bin_runs or final_competence); this table lacks {', '.join(missing)}{kind}"
         )
+    keys = list(dict.fromkeys(["run", "episodes", *per]))
+    repeated = df[df.duplicated(keys, keep=False)]
+    if repeated.empty:
+        return
+    first = repeated.iloc[0]
+    rows = repeated[(repeated[keys] == first[keys]).all(axis=1)]
+    varying = [c for c in rows.columns if c not in keys and c != "value" and _varies(rows[c])]
+    one_per = f" (one per {varying[0]})" if varying else ""
+    hint = f", or pass by=(..., {varying[0]!r})" if varying and what == "across_seeds" else ""
+    raise AnalysisError(
+        f"{what} takes one value per run and point; this table holds {len(rows)} for run "
+        f"{first['run']} at episode {first['episodes']}{one_per}, which would count as "
+        f"{len(rows)} seeds: select one{hint}"
+    )
+
+
+def _varies(column: pd.Series) -> bool:
+    """Whether a column holds more than one value (NaN or unhashable cells count as none)."""
+    try:
+        return column.nunique(dropna=True) > 1
+    except TypeError:  # lists, arrays
+        return False

@@ -391,6 +391,14 @@ def recovery_summary(per_run: pd.DataFrame) -> pd.DataFrame:
     """Per condition: runs, runs where the failure started, runs measured (started, module
     learned before it), dropped and recovered among those, and the mean/std (ddof=1) of
     ``recovery_episodes``, competence before and threshold over the measured runs."""
+    needed = ("condition", "status", "dropped", "recovered", "recovery_episodes")
+    needed += ("pre_competence", "threshold")
+    if missing := [c for c in needed if c not in per_run]:
+        raise AnalysisError(
+            f"this table lacks {', '.join(missing)}: pass a recovery table (curious.analysis."
+            "recovery of load_runs' sensory-failure runs)"
+        )
+    _check_one_run_per_seed(per_run)
     measured = per_run["status"] == "measured"
     data = per_run.assign(
         started=per_run["status"] != "never_started",
@@ -619,6 +627,8 @@ def compare_recoveries(
     ``p`` (NaN with fewer than two recovered runs a side, or no variance), ``significant`` and
     ``unrecovered``.
     """
+    if not 0 < alpha < 1:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha}")
     if faster == slower:
         raise AnalysisError(f"compare_recoveries compares two conditions, got '{faster}' twice")
     missing = [c for c in ("condition", "recovered", "recovery_episodes") if c not in per_run]
@@ -632,6 +642,7 @@ def compare_recoveries(
             raise AnalysisError(
                 f"no runs of condition '{name}' (have: {', '.join(sorted(present)) or 'none'})"
             )
+    _check_one_run_per_seed(per_run)
     recovered = per_run[per_run["recovered"].astype(bool)]
     out: dict[str, object] = {"faster": faster, "slower": slower, "alpha": alpha}
     episodes = {}
@@ -647,3 +658,21 @@ def compare_recoveries(
         per_run["condition"].isin([faster, slower]) & ~per_run["recovered"].astype(bool)
     ]
     return out
+
+
+def _check_one_run_per_seed(per_run: pd.DataFrame) -> None:
+    """An `AnalysisError` where a condition's seed has several rows (the runs of two
+    experiments, `sensor_failure` and `sensor_failure_mastered`, or a table concatenated
+    twice): each seed would count as several."""
+    if "seed" not in per_run:
+        return
+    twice = per_run[per_run.duplicated(["condition", "seed"], keep=False)]
+    if twice.empty:
+        return
+    condition, seed = twice.iloc[0][["condition", "seed"]]
+    rows = twice[(twice["condition"] == condition) & (twice["seed"] == seed)]
+    named = f" ({', '.join(map(str, rows['run']))})" if "run" in rows else ""
+    raise AnalysisError(
+        f"condition '{condition}' seed {seed} has {len(rows)} rows{named}: each seed must "
+        "count once; read one experiment's runs at a time"
+    )

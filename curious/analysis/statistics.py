@@ -42,6 +42,7 @@ alternative being that the first condition's mean is greater), significant where
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterator, Sequence
 
 import numpy as np
@@ -236,22 +237,29 @@ def across_seeds(binned: pd.DataFrame, by: Sequence[str] = ("condition",)) -> pd
     seed are an `AnalysisError` naming them, not averaged as if they were seeds (select a
     variant first, or add ``"variant"`` or ``"n_distractors"`` to ``by``).
     """
-    require_values(binned, "across_seeds")
     by = name_list(by, "by") or []
+    require_values(binned, "across_seeds", per=[c for c in by if c in binned])
     if missing := [c for c in by if c not in binned]:
         raise AnalysisError(f"by names no column {', '.join(map(repr, missing))} of this table")
     keys = [*by, "seed"]
-    shown = list(dict.fromkeys([*keys, *(["variant"] if "variant" in binned else [])]))
+    telling = [c for c in ("variant", "preset", "n_distractors") if c in binned]
+    shown = list(dict.fromkeys([*keys, *telling]))
     per_run = binned.groupby("run", observed=True)[shown].first()
     twice = per_run[per_run.duplicated(keys, keep=False)]
     if not twice.empty:
         first = twice.iloc[0]
         clash = twice[(twice[keys] == first[keys]).all(axis=1)]
-        variants = sorted(clash["variant"].astype(str)) if "variant" in clash else []
+        differ = [c for c in telling if c not in keys and clash[c].astype(str).nunique() > 1]
+        if differ:
+            column = differ[0]
+            values = ", ".join(sorted(clash[column].astype(str)))
+            fix = f"select one {column}, or pass by=(..., {column!r})"
+        else:  # the same settings: runs of two folders (two experiments, or a copy)
+            values = ", ".join(map(str, clash.index))
+            column, fix = "runs", "read one experiment's runs (one folder) at a time"
         raise AnalysisError(
-            f"{', '.join(f'{k} {first[k]}' for k in keys)} has {len(clash)} runs"
-            + (f" (variants {', '.join(variants)})" if variants else "")
-            + ": select one variant, or pass by=(..., 'variant'), so that each seed counts once"
+            f"{', '.join(f'{k} {first[k]}' for k in keys)} has {len(clash)} runs (their {column}: "
+            f"{values}): {fix}, so that each seed counts once"
         )
     keys = [*by, "episodes"]
     valid = binned.dropna(subset=["value"])
@@ -323,7 +331,10 @@ def welch_greater(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     than two values a side."""
     if len(a) < 2 or len(b) < 2:
         return np.nan, np.nan
-    result = stats.ttest_ind(a, b, equal_var=False, alternative="greater")
+    with warnings.catch_warnings():  # a side of equal values (HER's zeros) makes scipy warn
+        # of precision loss in its variance, which is 0 then: the test stands on the other's
+        warnings.filterwarnings("ignore", "Precision loss occurred", RuntimeWarning)
+        result = stats.ttest_ind(a, b, equal_var=False, alternative="greater")
     return float(result.statistic), float(result.pvalue)
 
 
@@ -435,8 +446,22 @@ def area_under_success(tests: pd.DataFrame) -> pd.DataFrame:
     points = epoch_success(tests)
     if points.empty:
         raise AnalysisError("no test success points: the runs have no test rollouts yet")
-    common = int(points.groupby("run", observed=True)["episodes"].max().min())
+    for column in ("preset", "variant"):
+        kinds = sorted(points[column].astype(str).unique()) if column in points else []
+        if len(kinds) > 1:
+            raise AnalysisError(
+                f"these runs are of different {column}s ({', '.join(kinds)}): each would be "
+                f"read up to the shortest one's budget, so their areas do not compare; select "
+                f"one {column} (one experiment)"
+            )
+    ends = points.groupby("run", observed=True)["episodes"].max()
+    common = int(ends.min())
     upto = points[points["episodes"] <= common].dropna(subset=["value"])
+    if lost := sorted(set(points["run"].astype(str)) - set(upto["run"].astype(str))):
+        raise AnalysisError(
+            f"{len(lost)} run(s) have no tested epoch within the common budget, {common:,} "
+            f"episodes (where {ends.idxmin()} ends), e.g. {lost[0]}: leave the short run out"
+        )
     grouped = upto.groupby("run", observed=True, sort=True)
     out = grouped[list(RUN_COLUMNS[1:])].first()
     out["episodes"] = common
