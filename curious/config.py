@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -629,14 +630,25 @@ def resolve(
     seed: int = 0,
     overrides: dict[str, Any] | None = None,
 ) -> Config:
-    """The config of a preset with a condition, a seed and overrides applied, validated."""
+    """The config of a preset with a condition, a seed and overrides applied, validated.
+
+    `overrides` maps setting names to values (`parse_overrides` turns `["key=value", ...]`
+    into one); the preset, condition and seed are this function's own arguments, never
+    overrides: one there would label the run with one and train it with another."""
     if preset not in PRESETS:
         raise ConfigError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
     _check_condition(condition)
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ConfigError(
+            f"overrides maps setting names to values, got a {type(overrides).__name__}: "
+            "parse_overrides turns ['key=value', ...] into one"
+        )
     values: dict[str, Any] = dict(PRESETS[preset])
     values.update(condition=condition, seed=seed, preset=preset)
     for key, value in (overrides or {}).items():
         if key not in setting_names():
             raise ConfigError(f"unknown config key {key!r}")
+        if key in OWN_OPTIONS:
+            raise ConfigError(f"{key} is resolve's own argument, not an override")
         values[key] = value
     return dataclasses.replace(Config(), **values)

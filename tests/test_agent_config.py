@@ -185,3 +185,21 @@ def test_seeds_are_written_as_seeds_takes_them(seeds, written):
     """The hint that resumes a `--seeds` folder names its seeds the way `--seeds` reads them."""
     assert format_seeds(seeds) == written
     assert sorted(parse_seeds(written)) == sorted(seeds)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (["n_workers=4"], r"got a list: parse_overrides turns"),
+        ("n_workers=4", r"got a str: parse_overrides turns"),
+        ({"preset": "paper"}, "preset is resolve's own argument"),
+        ({"condition": "her"}, "condition is resolve's own argument"),
+        ({"seed": 5}, "seed is resolve's own argument"),
+    ],
+)
+def test_resolve_takes_settings_as_a_mapping_and_never_its_own_arguments(overrides, message):
+    """The command line's strings passed straight in failed with "'list' object has no
+    attribute 'items'"; `{"preset": "paper"}` labelled a run of smoke numbers `paper`."""
+    with pytest.raises(ConfigError, match=message):
+        resolve("smoke", overrides=overrides)
+    assert resolve("smoke", overrides=parse_overrides(["n_workers=4"])).n_workers == 4
