@@ -270,3 +270,41 @@ def test_recoveries_count_each_seed_once_at_an_alpha_that_is_one(tmp_path):
 
 
 CF = ("curious", "m-uvfa")
+
+
+def test_a_bin_no_run_completed_is_named_not_returned_empty(main):
+    """An empty table went on as "the runs have no test rollouts yet"."""
+    runs, tests = main
+    for call in (
+        lambda: analysis.epoch_success(tests, 10**9),
+        lambda: analysis.final_test_success(tests, 10**9),
+        lambda: analysis.bin_runs(runs, bin_size=10**9),
+    ):
+        with pytest.raises(AnalysisError, match="bin_size 1,000,000,000 is longer than every run"):
+            call()
+
+
+def test_values_given_as_a_series_are_read_by_label_and_as_numbers(main):
+    """A Series of a table in another row order was read by position (values wrong by up to
+    0.94, silently); a column of names failed in pyarrow."""
+    runs = main[0]
+    reach = runs["competence/reach"]
+    shuffled = runs.sample(frac=1, random_state=0)
+    pd.testing.assert_frame_equal(
+        analysis.bin_runs(shuffled, values=reach, bin_size=50),
+        analysis.bin_runs(runs, values=reach, bin_size=50),
+    )
+    with pytest.raises(ValueError, match="index is not the table's rows"):
+        analysis.bin_runs(runs, values=reach.set_axis(reach.index + 10**6), bin_size=50)
+    with pytest.raises(AnalysisError, match="'module' holds no numbers"):
+        analysis.bin_runs(runs, values="module", bin_size=50)
+
+
+@pytest.mark.parametrize("levels", ["0.5", True, None])
+def test_one_level_is_a_number_and_anything_else_is_named(main, levels):
+    """`levels=0.5` was "'float' object is not iterable"; a string was read digit by digit."""
+    tests = main[1]
+    one = analysis.episodes_to_test_success(tests, levels=0.5)
+    assert set(one["level"]) == {0.5}
+    with pytest.raises(ValueError, match="levels takes numbers in"):
+        analysis.episodes_to_test_success(tests, levels=levels)

@@ -26,7 +26,7 @@ crossings agree with it: no module of a later group crossed before one of an ear
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -61,7 +61,12 @@ SCORES: tuple[str, ...] = ("success", "module_success")
 2a's), or whether the module's own part of the goal was met."""
 
 
-def _check_levels(levels: Sequence[float]) -> tuple[float, ...]:
+def _check_levels(levels: Sequence[float] | float) -> tuple[float, ...]:
+    """`levels` as a tuple of floats in (0, 1]; one level may be given alone (`levels=0.5`)."""
+    if isinstance(levels, int | float) and not isinstance(levels, bool):
+        levels = (levels,)
+    elif isinstance(levels, str | bool) or not isinstance(levels, Iterable):
+        raise ValueError(f"levels takes numbers in (0, 1], got {levels!r}")
     levels = tuple(float(v) for v in levels)
     if not levels or any(not 0.0 < v <= 1.0 for v in levels):
         raise ValueError(f"levels must lie in (0, 1], got {levels}")
@@ -177,7 +182,9 @@ def module_test_success(tests: pd.DataFrame, window: int = DEFAULT_TEST_EPOCHS) 
 
 
 def episodes_to_test_success(
-    tests: pd.DataFrame, levels: Sequence[float] = LEVELS, window: int = DEFAULT_TEST_EPOCHS
+    tests: pd.DataFrame,
+    levels: Sequence[float] | float = LEVELS,
+    window: int = DEFAULT_TEST_EPOCHS,
 ) -> pd.DataFrame:
     """The training episodes each run needed to reach each level of test success per module.
 

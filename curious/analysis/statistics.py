@@ -156,10 +156,28 @@ def _values(df: pd.DataFrame, values: pd.Series | str | None) -> np.ndarray:
     if isinstance(values, str):
         if values not in df.columns:
             raise KeyError(f"no column {values!r} in the table")
-        return df[values].to_numpy(dtype=np.float64)
+        values = df[values]
     if len(values) != len(df):
         raise ValueError(f"values has {len(values)} rows, the table {len(df)}")
+    if isinstance(values, pd.Series):
+        if not pd.api.types.is_numeric_dtype(values) and not pd.api.types.is_bool_dtype(values):
+            raise AnalysisError(f"values {values.name!r} holds no numbers ({values.dtype})")
+        if not values.index.equals(df.index):  # aligned by label, as pandas aligns
+            if values.index.has_duplicates or not values.index.isin(df.index).all():
+                raise ValueError(
+                    "values is a Series whose index is not the table's rows: pass a column "
+                    "name, or a Series computed from this table"
+                )
+            values = values.reindex(df.index)
     return np.asarray(values, dtype=np.float64)
+
+
+def _longer_than_every_run(bin_size: int, last: int, verb: str) -> AnalysisError:
+    """The error for a bin no run completed (an empty table, read downstream as no data)."""
+    return AnalysisError(
+        f"bin_size {bin_size:,} is longer than every run (the longest {verb} episode "
+        f"{last:,}): choose a smaller one, or None for the default"
+    )
 
 
 def bin_runs(
@@ -192,6 +210,8 @@ def bin_runs(
         parts.append(pd.DataFrame(columns))
     columns = [*RUN_COLUMNS, "bin", "episodes", "value"]
     if not parts:
+        if len(df):
+            raise _longer_than_every_run(bin_size, int(df["episode"].max()), "ends at")
         return pd.DataFrame(columns=columns)
     out = pd.concat(parts, ignore_index=True)
     out.attrs["bin_size"] = bin_size
@@ -407,6 +427,8 @@ def epoch_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     out = out.reset_index()
     last = pd.Series(episodes, index=frame["run"]).groupby(level=0).max()
     out = out[out["episodes"] <= out["run"].map(last)]
+    if out.empty and bin_size is not None:
+        raise _longer_than_every_run(bin_size, int(episodes.max()), "was tested up to")
     identity = tests.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
     out = out.join(identity, on="run")
     out["run"] = out["run"].astype(tests["run"].dtype)
