@@ -89,6 +89,10 @@ class ModuleGoalEnv(gymnasium.Env):
         super().reset(seed=seed)
         if seed is not None:
             self._env.random_state.seed(seed)
+        if unknown := sorted(set(options or {}) - {"goal"}):
+            raise ValueError(
+                f"unknown reset option(s) {', '.join(map(repr, unknown))}; the one option is 'goal'"
+            )
         goal = None if options is None else options.get("goal")
         self._env.task.set_next_episode(module=self._index, goal=goal)
         timestep = self._env.reset()

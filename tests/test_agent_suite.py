@@ -30,6 +30,26 @@ def test_suite_env_spec(env):
     assert env.goal_slot(0, np.zeros((5, 2, 3))).shape == (5, 2, 3)
 
 
+def test_a_module_is_taken_by_name_or_index_and_any_other_is_named(env):
+    """`reset("reach", g)` was int()'s error, module 7 a bare IndexError, -1 silently the last
+    module and 2.7 module 2; row by row, 9 an IndexError from the suite's evaluator."""
+    goal = np.zeros(3)
+    reach = env.goal_slot(0, goal)
+    np.testing.assert_array_equal(env.goal_slot("reach", goal), reach)
+    env.reset("reach", goal)
+    for module in (7, -1, 2.7, "pick"):
+        with pytest.raises(ValueError, match="module"):
+            env.goal_slot(module, goal)
+        with pytest.raises(ValueError, match="module"):
+            env.reset(module, goal)
+    achieved = np.zeros((2, env.spec.achieved_dim), np.float32)
+    goals = np.zeros((2, env.spec.goal_dim), np.float32)
+    for rows in ([0, 9], [0, -1]):
+        with pytest.raises(ValueError, match="out of range"):
+            env.row_rewards(np.array(rows), achieved, goals)
+    assert env.row_rewards(np.array([0, 6]), achieved, goals).shape == (2,)
+
+
 def test_recomputed_suite_rewards_match_reported_success(env):
     spec = env.spec
     n, T = spec.n_modules, spec.episode_length

@@ -69,6 +69,8 @@ def test_reset_takes_a_goal_and_rejects_one_outside_the_goal_space():
     np.testing.assert_allclose(obs["desired_goal"], expected)
     with pytest.raises(ValueError, match=r"\[-1, 1\]"):
         env.reset(options={"goal": [0.0, 0.0, 2.0]})
+    with pytest.raises(ValueError, match="unknown reset option\\(s\\) 'gaol'"):
+        env.reset(options={"gaol": [0.0, 0.0, -1.0]})  # a typo drew a random goal, silently
     obs, _ = env.reset()  # still usable
     assert env.observation_space.contains(obs)
     env.close()

@@ -231,8 +231,24 @@ class SuiteEnv:
             np.asarray(observation["achieved"], dtype=np.float32),
         )
 
-    def reset(self, module: int, g: np.ndarray) -> Obs:
-        self._task.set_next_episode(module=int(module), goal=np.asarray(g, dtype=np.float64))
+    def _index(self, module: int | str) -> int:
+        """A module's slot from its index or name (`EnvSpec.module_index`): a ValueError
+        listing the modules for any other, where an index of -1 would wrap to the last."""
+        if isinstance(module, int | np.integer) and 0 <= module < len(self._modules):
+            return int(module)
+        return self.spec.module_index(module)
+
+    def _check_rows(self, modules: np.ndarray) -> np.ndarray:
+        """`modules` as an array of slots; a ValueError naming the first out of range."""
+        modules = np.asarray(modules)
+        bad = (modules < 0) | (modules >= len(self._modules))
+        if bad.any():
+            self._index(int(modules[bad][0]))  # raises, listing the modules
+        return modules
+
+    def reset(self, module: int | str, g: np.ndarray) -> Obs:
+        index = self._index(module)
+        self._task.set_next_episode(module=index, goal=np.asarray(g, dtype=np.float64))
         self._t = 0
         return self._obs(self._env.reset().observation)
 
@@ -248,27 +264,34 @@ class SuiteEnv:
         obs = timestep.observation
         return self._obs(obs), np.asarray(obs["success"]) > 0.5
 
-    def goal_slot(self, module: int, g: np.ndarray) -> np.ndarray:
+    def goal_slot(self, module: int | str, g: np.ndarray) -> np.ndarray:
+        module = self._index(module)
         return np.asarray(self._modules[module].goal_slot(np.asarray(g)), dtype=np.float32)
 
-    def goal(self, module: int, slot: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+    def goal(self, module: int | str, slot: np.ndarray, achieved: np.ndarray) -> np.ndarray:
+        module = self._index(module)
         outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
         return self._modules[module].goal(np.asarray(slot), outcome)
 
-    def reward(self, module: int, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    def reward(self, module: int | str, achieved: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        module = self._index(module)
         outcome = np.asarray(achieved)[..., self.spec.outcome_slices[module]]
         return np.asarray(self._modules[module].reward(outcome, np.asarray(goal)), np.float32)
 
     def row_goals(self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
         return self._evaluator.row_goals(
-            modules, np.asarray(slots, np.float32), np.asarray(achieved, np.float32)
+            self._check_rows(modules),
+            np.asarray(slots, np.float32),
+            np.asarray(achieved, np.float32),
         )
 
     def row_rewards(
         self, modules: np.ndarray, achieved: np.ndarray, goals: np.ndarray
     ) -> np.ndarray:
         success = self._evaluator.row_success(
-            modules, np.asarray(achieved, np.float32), np.asarray(goals, np.float32)
+            self._check_rows(modules),
+            np.asarray(achieved, np.float32),
+            np.asarray(goals, np.float32),
         )
         return success.astype(np.float32) - np.float32(1.0)
 
