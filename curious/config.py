@@ -601,13 +601,15 @@ and `--set seed=3` would give every run of `--seeds 0-4` the same seed."""
 
 def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
     """Turn `["key=value", ...]` into typed values; unknown keys and bad values are errors."""
+    if isinstance(items, str):
+        raise ConfigError(f"overrides are a list of 'key=value' strings, got one: [{items!r}]")
     types_by_name = {f.name: str(f.type) for f in fields(Config)}
     out: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
             raise ConfigError(f"override {item!r} is not of the form key=value")
         key, text = item.split("=", 1)
-        key = key.strip().replace("-", "_")
+        key, text = key.strip().replace("-", "_"), text.strip()
         if key not in types_by_name:
             raise ConfigError(
                 f"unknown config key {key!r}; known keys: {', '.join(sorted(types_by_name))}"

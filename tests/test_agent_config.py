@@ -203,3 +203,14 @@ def test_resolve_takes_settings_as_a_mapping_and_never_its_own_arguments(overrid
     with pytest.raises(ConfigError, match=message):
         resolve("smoke", overrides=overrides)
     assert resolve("smoke", overrides=parse_overrides(["n_workers=4"])).n_workers == 4
+
+
+def test_overrides_are_a_list_and_their_values_are_read_without_spaces():
+    """`parse_overrides("n_workers=4")` said "override 'n' is not of the form key=value";
+    `variant= default` kept its space, an unknown variant far later."""
+    with pytest.raises(ConfigError, match=r"a list of 'key=value' strings, got one: \['n_w"):
+        parse_overrides("n_workers=4")
+    assert parse_overrides(["variant= default", " n_workers = 4 "]) == {
+        "variant": "default",
+        "n_workers": 4,
+    }

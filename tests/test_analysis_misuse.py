@@ -308,3 +308,21 @@ def test_one_level_is_a_number_and_anything_else_is_named(main, levels):
     assert set(one["level"]) == {0.5}
     with pytest.raises(ValueError, match="levels takes numbers in"):
         analysis.episodes_to_test_success(tests, levels=levels)
+
+
+@pytest.mark.parametrize("order", [(), [["reach"], ["reach", "stack"]]])
+def test_an_order_names_each_module_once(main, order):
+    """`order=()` marked every run as following it; a module twice was taken."""
+    crossings = analysis.competence_crossings(main[0])
+    with pytest.raises(AnalysisError, match="order takes each module once"):
+        analysis.learning_order(crossings, order=order)
+
+
+def test_a_figure_named_with_its_extension_is_written_once_so(tmp_path):
+    """`save_figure(fig, out, "fig.png")` wrote fig.png.png and fig.png.svg."""
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure()
+    paths = analysis.save_figure(fig, tmp_path, "fig.png")
+    plt.close(fig)
+    assert sorted(p.name for p in paths.values()) == ["fig.png", "fig.svg"]

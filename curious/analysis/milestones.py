@@ -291,6 +291,12 @@ def learning_order(
         raise AnalysisError(
             "order takes groups of module names, e.g. [['reach'], ['push_cube1']], not names"
         )
+    names = [m for group in order for m in group]
+    if not names or len(set(names)) < len(names):
+        raise AnalysisError(
+            f"order takes each module once, in groups, e.g. [['reach'], ['push_cube1']]; got "
+            f"{order!r}"
+        )
     # a module of a given order that no run has is a typo; the paper's order on runs without
     # one of its modules (a variant without stack) is NA, as documented
     known = set(crossings["module"].astype(str))

@@ -131,6 +131,8 @@ def save_figure(fig: Figure, out_dir: str | PathLike[str], name: str) -> dict[st
     Each file is written to a temporary name first and then renamed, so that a reader never sees
     half a figure. The bytes depend only on the figure's content.
     """
+    if Path(name).suffix.lower() in (".png", ".svg"):  # `name="fig.png"` wrote fig.png.png
+        name = Path(name).stem
     folder = Path(out_dir)
     folder.mkdir(parents=True, exist_ok=True)
     paths: dict[str, Path] = {}
