@@ -96,6 +96,13 @@ def register(fn_or_name: VariantFn | str | None = None) -> Callable:
     """Register a variant under its function's name: `@register` or `@register("name")`."""
 
     def add(fn: VariantFn, name: str) -> VariantFn:
+        if not callable(fn):
+            raise TypeError(f"register takes a function that builds the variant, got {fn!r}")
+        if not isinstance(name, str) or not name or any(c in name for c in "<>/@ \t\n"):
+            raise ValueError(
+                f"a variant's name is one word, without /, @ or <>, got {name!r} (a lambda "
+                "is named with register('name')(fn))"
+            )
         if name in BUILT_IN or (name in REGISTERED and REGISTERED[name] is not fn):
             raise ValueError(f"a variant named {name!r} is already registered")
         REGISTERED[name] = fn
@@ -103,6 +110,8 @@ def register(fn_or_name: VariantFn | str | None = None) -> Callable:
 
     if callable(fn_or_name):
         return add(fn_or_name, fn_or_name.__name__)
+    if fn_or_name is not None and not isinstance(fn_or_name, str):
+        raise ValueError(f"register takes a variant's name or its function, got {fn_or_name!r}")
 
     def decorator(fn: VariantFn) -> VariantFn:
         return add(fn, fn_or_name or fn.__name__)

@@ -109,6 +109,15 @@ def test_register_adds_a_variant_and_refuses_a_taken_name(monkeypatch):
 
     with pytest.raises(ValueError, match="already registered"):
         suite.register("default")(two_distractors)
+    # a number or a lambda's name once registered, and broke every later unknown-name error
+    with pytest.raises(ValueError, match="a variant's name or its function, got 3"):
+        suite.register(3)
+    with pytest.raises(ValueError, match="got '<lambda>'"):
+        suite.register(lambda seed=None, **kwargs: suite.build(2, seed=seed, **kwargs))
+    with pytest.raises(TypeError, match="a function that builds the variant"):
+        suite.register("five")(5)
+    with pytest.raises(ValueError, match="unknown"):
+        suite.load("defualt")
 
 
 def test_composer_environment_and_single_call_stepping():
