@@ -326,3 +326,39 @@ def test_a_figure_named_with_its_extension_is_written_once_so(tmp_path):
     paths = analysis.save_figure(fig, tmp_path, "fig.png")
     plt.close(fig)
     assert sorted(p.name for p in paths.values()) == ["fig.png", "fig.svg"]
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda r, t: analysis.final_competence(r, at_episode="50"), "at_episode must be an"),
+        (lambda r, t: analysis.final_competence(r, at_episode=50.5), "at_episode must be an"),
+        (lambda r, t: analysis.final_competence(r, at_episode=True), "at_episode must be an"),
+        (lambda r, t: analysis.final_competence(r, at_episode=-5), "at_episode must be an"),
+        (
+            lambda r, t: analysis.welch_per_bin(analysis.epoch_success(t), *CM, alpha="0.01"),
+            r"alpha must be in \(0, 1\), got '0.01'",
+        ),
+        (
+            lambda r, t: analysis.welch_per_bin(analysis.epoch_success(t), ["curious"], "mg-te"),
+            "two conditions by name",
+        ),
+        (lambda r, t: analysis.nice_bin_size("100"), "need n_episodes >= 1"),
+    ],
+)
+def test_an_argument_of_the_wrong_type_is_named(main, call, message):
+    """Before: a TypeError from a comparison, "unhashable type: 'list'", a numpy ufunc error,
+    or a float or bool episode taken as one."""
+    with pytest.raises((ValueError, AnalysisError), match=message):
+        call(*main)
+
+
+@pytest.mark.parametrize("episode", [-5, "1000", 2.5])
+def test_an_imposed_perturbation_episode_is_an_episode(tmp_path, episode):
+    """`recovery(..., perturbation_episode='1000')` was parsed; -5 and 2.5 were taken."""
+    runs = analysis.load_runs(write_perturbation_study(tmp_path, seeds=(0,)))
+    with pytest.raises(ValueError, match="perturbation_episode must be an episode"):
+        analysis.recovery(runs, perturbation_episode=episode)
+
+
+CM = ("curious", "mg-te")

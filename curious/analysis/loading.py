@@ -493,6 +493,20 @@ def require_count(value: object, name: str, unit: str = "") -> None:
         )
 
 
+def require_episode(value: object, name: str) -> None:
+    """A `ValueError` unless ``value`` is an episode: an integer >= 0 (a string, a float or a
+    bool read as one would compare as something else)."""
+    if not is_integer(value) or value < 0:
+        raise ValueError(f"{name} must be an episode, an integer >= 0, got {value!r}")
+
+
+def require_alpha(alpha: object) -> None:
+    """A `ValueError` unless ``alpha`` is a significance level, a number in (0, 1)."""
+    number = isinstance(alpha, int | float | np.floating) and not isinstance(alpha, bool)
+    if not number or not 0 < alpha < 1:
+        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+
+
 def _require_rows(df: pd.DataFrame) -> None:
     """An `AnalysisError` for a table without rows (one filtered to nothing)."""
     if df.empty:

@@ -30,7 +30,9 @@ import pandas as pd
 from curious.analysis import DEFAULT_TEST_EPOCHS
 from curious.analysis.loading import (
     AnalysisError,
+    require_alpha,
     require_count,
+    require_episode,
     require_identity,
     require_runs,
     require_tests,
@@ -333,6 +335,8 @@ def recovery(
     """
     require_runs(df)
     _check_recovery_arguments(fraction, pre_window, learned)
+    if perturbation_episode is not None:
+        require_episode(perturbation_episode, "perturbation_episode")
     module = module if module is not None else perturbed_module(df)
     column = f"competence/{module}"
     if column not in df.columns:
@@ -627,8 +631,7 @@ def compare_recoveries(
     ``p`` (NaN with fewer than two recovered runs a side, or no variance), ``significant`` and
     ``unrecovered``.
     """
-    if not 0 < alpha < 1:
-        raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    require_alpha(alpha)
     if faster == slower:
         raise AnalysisError(f"compare_recoveries compares two conditions, got '{faster}' twice")
     missing = [c for c in ("condition", "recovered", "recovery_episodes") if c not in per_run]

@@ -52,7 +52,9 @@ from scipy import stats
 from curious.analysis.loading import (
     AnalysisError,
     name_list,
+    require_alpha,
     require_count,
+    require_episode,
     require_runs,
     require_tests,
     require_values,
@@ -122,7 +124,11 @@ def achievable_competence(df: pd.DataFrame) -> pd.Series:
 
 def nice_bin_size(n_episodes: int, target_bins: int = 50) -> int:
     """The largest of 1, 2, 5, 10, 20, 50, ... that gives at least ``target_bins`` bins."""
-    finite = np.isfinite(n_episodes) and np.isfinite(target_bins)
+    numbers = all(
+        isinstance(v, int | float | np.number) and not isinstance(v, bool)
+        for v in (n_episodes, target_bins)
+    )
+    finite = numbers and np.isfinite(n_episodes) and np.isfinite(target_bins)
     if not finite or n_episodes < 1 or target_bins < 1:
         raise ValueError(
             f"need n_episodes >= 1 and target_bins >= 1, got {n_episodes}, {target_bins}"
@@ -298,9 +304,12 @@ def welch_per_bin(
     ``mean_better``, ``mean_worse``, ``t``, ``p`` and ``significant`` (``p < alpha``; False where
     p is NaN, i.e. fewer than two seeds on a side or no variance at all).
     """
-    if not 0 < alpha < 1:
-        raise ValueError(f"alpha must be in (0, 1), got {alpha}")
+    require_alpha(alpha)
     require_values(binned, "welch_per_bin")
+    if not isinstance(better, str) or not isinstance(worse, str):
+        raise AnalysisError(
+            f"welch_per_bin compares two conditions by name, got {better!r} and {worse!r}"
+        )
     if better == worse:
         raise AnalysisError(f"welch_per_bin compares two conditions, got '{better}' twice")
     present = set(binned["condition"].astype(str))
@@ -369,8 +378,7 @@ def final_competence(df: pd.DataFrame, at_episode: int | None = None) -> pd.Data
     last_per_run = df.groupby("run", observed=True)["episode"].max()
     if at_episode is None:
         at_episode = int(last_per_run.min())
-    if at_episode < 0:
-        raise AnalysisError(f"at_episode must be an episode (>= 0), got {at_episode}")
+    require_episode(at_episode, "at_episode")
     short = last_per_run[last_per_run < at_episode]
     if not short.empty:
         raise AnalysisError(
