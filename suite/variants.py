@@ -33,7 +33,13 @@ def load(name: str, seed: int | None = None, **kwargs) -> composer.Environment:
     variant = find(name)
     if isinstance(variant, VariantSpec):
         return make(variant, seed=seed, **kwargs)
-    return variant(seed=seed, **kwargs)
+    env = variant(seed=seed, **kwargs)
+    if not isinstance(env, composer.Environment):
+        raise TypeError(
+            f"variant {name!r} built a {type(env).__name__}, not a composer.Environment: its "
+            "function returns the environment (suite.build or suite.make give one)"
+        )
+    return env
 
 
 def make(spec: VariantSpec, seed: int | None = None, **env_kwargs) -> composer.Environment:

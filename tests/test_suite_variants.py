@@ -119,6 +119,13 @@ def test_register_adds_a_variant_and_refuses_a_taken_name(monkeypatch):
     with pytest.raises(ValueError, match="unknown"):
         suite.load("defualt")
 
+    @suite.register
+    def forty_two(seed=None, **kwargs):  # was handed back by suite.load as the environment
+        return 42
+
+    with pytest.raises(TypeError, match=r"'forty_two' built a int, not a composer\.Environment"):
+        suite.load("forty_two")
+
 
 def test_composer_environment_and_single_call_stepping():
     from dm_control import composer
