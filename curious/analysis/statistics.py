@@ -469,7 +469,8 @@ def area_under_success(tests: pd.DataFrame) -> pd.DataFrame:
     ``tests`` is a `load_tests` table. Each epoch's success is `epoch_success`'s (its test
     rollouts on achievable modules pooled); the epochs are those every run reached (a longer run
     is read at the common budget, so it is not favoured), each weighing the same, as the epochs
-    are evenly spaced; epochs without a test on an achievable module are left out. Returns one
+    are evenly spaced; epochs without a test on an achievable module are left out (a run with
+    none by then, as a `smoke` run can be, has ``n_epochs`` 0 and ``value`` NaN). Returns one
     row per run in the form `welch_per_bin` takes (all at one ``episodes``, the common budget):
     the run columns, ``episodes``, ``n_epochs`` and ``value``.
     """
@@ -484,18 +485,12 @@ def area_under_success(tests: pd.DataFrame) -> pd.DataFrame:
                 f"read up to the shortest one's budget, so their areas do not compare; select "
                 f"one {column} (one experiment)"
             )
-    ends = points.groupby("run", observed=True)["episodes"].max()
-    common = int(ends.min())
-    upto = points[points["episodes"] <= common].dropna(subset=["value"])
-    if lost := sorted(set(points["run"].astype(str)) - set(upto["run"].astype(str))):
-        raise AnalysisError(
-            f"{len(lost)} run(s) have no tested epoch within the common budget, {common:,} "
-            f"episodes (where {ends.idxmin()} ends), e.g. {lost[0]}: leave the short run out"
-        )
+    common = int(points.groupby("run", observed=True)["episodes"].max().min())
+    upto = points[points["episodes"] <= common]
     grouped = upto.groupby("run", observed=True, sort=True)
     out = grouped[list(RUN_COLUMNS[1:])].first()
     out["episodes"] = common
-    out["n_epochs"] = grouped["value"].size().astype(np.int64)
+    out["n_epochs"] = grouped["value"].count().astype(np.int64)  # NaN: no achievable test
     out["value"] = grouped["value"].mean()
     out = out.reset_index()
     return out[[*RUN_COLUMNS, "episodes", "n_epochs", "value"]]
