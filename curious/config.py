@@ -458,6 +458,8 @@ class Config:
     def from_dict(cls, data: dict[str, Any]) -> Config:
         """Inverse of `to_dict`; unknown keys and values of the wrong type are errors (an int
         is taken for a float, nothing else is converted)."""
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"a config is a mapping of settings, got {type(data).__name__}")
         unknown = sorted(set(data) - set(setting_names()))
         if unknown:
             raise ConfigError(f"unknown config keys: {', '.join(unknown)}")

@@ -214,3 +214,10 @@ def test_overrides_are_a_list_and_their_values_are_read_without_spaces():
         "variant": "default",
         "n_workers": 4,
     }
+
+
+@pytest.mark.parametrize("data", [None, [("seed", 0)], "seed=0"])
+def test_a_config_is_read_from_a_mapping_only(data):
+    """`Config.from_dict(None)` was "'NoneType' object is not iterable"."""
+    with pytest.raises(ConfigError, match="a config is a mapping of settings"):
+        Config.from_dict(data)

@@ -50,6 +50,13 @@ def test_a_module_is_taken_by_name_or_index_and_any_other_is_named(env):
     assert env.row_rewards(np.array([0, 6]), achieved, goals).shape == (2,)
 
 
+@pytest.mark.parametrize("n", [0, -1, 2.0, True])
+def test_a_number_of_copies_is_a_count(n):
+    """`make_suite_envs("default", 0, -1)` was numpy's "negative dimensions are not allowed"."""
+    with pytest.raises(ValueError, match="the number of copies, must be an integer >= 1"):
+        make_suite_envs("default", 0, n)
+
+
 def test_recomputed_suite_rewards_match_reported_success(env):
     spec = env.spec
     n, T = spec.n_modules, spec.episode_length

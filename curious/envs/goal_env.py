@@ -336,6 +336,8 @@ def suite_sensor_failure_modules(variant: str) -> tuple[str, ...]:
 def suite_env_fns(variant: str, seed: int, n: int, stream: int = 0) -> list[Callable[[], SuiteEnv]]:
     """Picklable constructors of `n` independent copies of a suite variant, seeded from one run
     seed; `stream` 1 gives the test rollouts' copies, independent of the training ones (0)."""
+    if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+        raise ValueError(f"n, the number of copies, must be an integer >= 1, got {n!r}")
     key = [seed, 0xE27] if stream == 0 else [seed, 0xE27, stream]
     seeds = np.random.SeedSequence(key).generate_state(n)
     return [functools.partial(SuiteEnv, variant, seed=int(s)) for s in seeds]
