@@ -194,21 +194,20 @@ class RunFolder:
             )
         return data
 
-    def _runs_below(self) -> str:
+    def _runs_below(self, resuming: bool = False) -> str:
         """Where this folder holds runs but is none, a clause naming them (empty otherwise):
-        the hint for a folder of runs given where one run was meant."""
+        the hint for a folder of runs given where one run was meant. `resuming`, for a
+        `--seeds` folder (its runs all `seed-K` right below it), also says how to resume them
+        all at once."""
         runs = folders_below(self.path, CONFIG_FILE) if self.path.is_dir() else []
-        return f"; it holds runs: {name_some(runs)}; name one" if runs else ""
-
-    def _seeds_below(self) -> str:
-        """Where this folder is a `--seeds` folder (its runs all `seed-K` right below it), a
-        clause saying how to resume them all at once (empty otherwise)."""
-        runs = folders_below(self.path, CONFIG_FILE) if self.path.is_dir() else []
+        if not runs:
+            return ""
+        clause = f"; it holds runs: {name_some(runs)}; name one"
         names = [run.relative_to(self.path).as_posix() for run in runs]
         seeds = [n.removeprefix("seed-") for n in names if n.startswith("seed-")]
-        if not seeds or len(seeds) < len(names) or not all(s.isdigit() for s in seeds):
-            return ""
-        return f", or resume them all with `--seeds {format_seeds([int(s) for s in seeds])}`"
+        if resuming and len(seeds) == len(names) and all(s.isdigit() for s in seeds):
+            clause += f", or resume them all with `--seeds {format_seeds([int(s) for s in seeds])}`"
+        return clause
 
     def read_config(self) -> Config:
         """The config stored in config.json; a `RunFolderError` naming the file when it is not
@@ -235,8 +234,8 @@ class RunFolder:
         `ConfigMismatch` naming the differences otherwise)."""
         if not self.config_path.exists():
             raise RunFolderError(
-                f"nothing to resume: {self.config_path} does not exist{self._runs_below()}"
-                f"{self._seeds_below()}"
+                f"nothing to resume: {self.config_path} does not exist"
+                f"{self._runs_below(resuming=True)}"
             )
         raw = self.read_stored()["config"]
         lacking = sorted(set(setting_names()) - set(raw))
