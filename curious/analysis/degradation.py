@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from curious.analysis.loading import AnalysisError
+from curious.analysis.loading import AnalysisError, first_clash
 
 __all__ = ["compare_degradation"]
 
@@ -85,7 +85,7 @@ def _check_one_run_per_seed(final: pd.DataFrame) -> None:
                 )
     if "seed" in final:
         keys = ["condition", "n_distractors", "seed"]
-        twice = final[final.duplicated(keys, keep=False)]
+        twice = first_clash(final, keys)
         if not twice.empty:
             condition, setting, seed = twice.iloc[0][keys]
             raise AnalysisError(

@@ -572,11 +572,10 @@ def require_values(df: pd.DataFrame, what: str, per: Sequence[str] = ()) -> None
             f"bin_runs or final_competence); this table lacks {', '.join(missing)}{kind}"
         )
     keys = list(dict.fromkeys(["run", "episodes", *per]))
-    repeated = df[df.duplicated(keys, keep=False)]
-    if repeated.empty:
+    rows = first_clash(df, keys)
+    if rows.empty:
         return
-    first = repeated.iloc[0]
-    rows = repeated[(repeated[keys] == first[keys]).all(axis=1)]
+    first = rows.iloc[0]
     varying = [c for c in rows.columns if c not in keys and c != "value" and _varies(rows[c])]
     one_per = f" (one per {varying[0]})" if varying else ""
     hint = f", or pass by=(..., {varying[0]!r})" if varying and what == "across_seeds" else ""
@@ -585,6 +584,16 @@ def require_values(df: pd.DataFrame, what: str, per: Sequence[str] = ()) -> None
         f"{first['run']} at episode {first['episodes']}{one_per}, which would count as "
         f"{len(rows)} seeds: select one{hint}"
     )
+
+
+def first_clash(df: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
+    """The rows of ``df`` that share the first repeated value of ``keys`` (empty where every
+    row's keys are its own): what a check that each seed counts once names in its error."""
+    repeated = df[df.duplicated(keys, keep=False)]
+    if repeated.empty:
+        return repeated
+    first = repeated.iloc[0]
+    return repeated[(repeated[keys] == first[keys]).all(axis=1)]
 
 
 def _varies(column: pd.Series) -> bool:

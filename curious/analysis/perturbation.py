@@ -30,6 +30,7 @@ import pandas as pd
 from curious.analysis import DEFAULT_TEST_EPOCHS
 from curious.analysis.loading import (
     AnalysisError,
+    first_clash,
     require_alpha,
     require_count,
     require_episode,
@@ -669,11 +670,10 @@ def _check_one_run_per_seed(per_run: pd.DataFrame) -> None:
     twice): each seed would count as several."""
     if "seed" not in per_run:
         return
-    twice = per_run[per_run.duplicated(["condition", "seed"], keep=False)]
-    if twice.empty:
+    rows = first_clash(per_run, ["condition", "seed"])
+    if rows.empty:
         return
-    condition, seed = twice.iloc[0][["condition", "seed"]]
-    rows = twice[(twice["condition"] == condition) & (twice["seed"] == seed)]
+    condition, seed = rows.iloc[0][["condition", "seed"]]
     named = f" ({', '.join(map(str, rows['run']))})" if "run" in rows else ""
     raise AnalysisError(
         f"condition '{condition}' seed {seed} has {len(rows)} rows{named}: each seed must "

@@ -51,6 +51,7 @@ from scipy import stats
 
 from curious.analysis.loading import (
     AnalysisError,
+    first_clash,
     name_list,
     require_alpha,
     require_count,
@@ -271,10 +272,9 @@ def across_seeds(binned: pd.DataFrame, by: Sequence[str] = ("condition",)) -> pd
     telling = [c for c in ("variant", "preset", "n_distractors") if c in binned]
     shown = list(dict.fromkeys([*keys, *telling]))
     per_run = binned.groupby("run", observed=True)[shown].first()
-    twice = per_run[per_run.duplicated(keys, keep=False)]
-    if not twice.empty:
-        first = twice.iloc[0]
-        clash = twice[(twice[keys] == first[keys]).all(axis=1)]
+    clash = first_clash(per_run, keys)
+    if not clash.empty:
+        first = clash.iloc[0]
         differ = [c for c in telling if c not in keys and clash[c].astype(str).nunique() > 1]
         if differ:
             column = differ[0]
