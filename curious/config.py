@@ -16,6 +16,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from typing import Any
 
+import numpy as np
+
 ALGORITHMS: tuple[str, ...] = ("ddpg", "td3")
 
 
@@ -327,11 +329,16 @@ class Config:
         return self.buffer_episodes or self.total_episodes
 
     def __post_init__(self) -> None:
-        # an int given for a float is taken as that float, nothing else is converted
+        # a numpy scalar (a seed drawn with numpy, a value read from a table) is taken as its
+        # Python value, so that config.json can hold it; an int given for a float is taken as
+        # that float; nothing else is converted
         for f in fields(self):
             value = getattr(self, f.name)
+            if isinstance(value, np.generic):
+                value = value.item()
             if str(f.type) == "float" and isinstance(value, int) and not isinstance(value, bool):
-                object.__setattr__(self, f.name, float(value))
+                value = float(value)
+            object.__setattr__(self, f.name, value)
         self.validate()  # every Config that exists can run: built, replaced or loaded
 
     def validate(self) -> Config:

@@ -1,7 +1,9 @@
 """Presets, overrides and the errors users get for bad settings."""
 
 import dataclasses
+import json
 
+import numpy as np
 import pytest
 
 from curious.config import (
@@ -149,6 +151,18 @@ def test_a_setting_of_the_wrong_type_is_refused_however_the_config_is_made(build
     or (``"false"`` is truthy) quietly switch a setting on."""
     with pytest.raises(ConfigError, match=message):
         build()
+
+
+def test_a_numpy_scalar_is_taken_as_its_python_value():
+    """A seed or a count from numpy (a table, an ``np.arange`` of seeds) is a valid setting, and
+    the config stays what config.json can hold."""
+    config = resolve("smoke", seed=np.int64(3), overrides={"n_workers": np.int32(2)})
+    config = dataclasses.replace(config, her_p=np.float32(0.5), progress=np.bool_(False))
+    assert (config.seed, config.n_workers, config.her_p, config.progress) == (3, 2, 0.5, False)
+    assert all(type(v) in (int, float, bool, str) for v in dataclasses.asdict(config).values())
+    json.dumps(config.to_dict())
+    with pytest.raises(ConfigError, match=r"n_workers must be an int, got 2\.0"):
+        Config(n_workers=np.float64(2.0))
 
 
 def test_an_int_given_for_a_float_setting_is_that_float():
