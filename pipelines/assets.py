@@ -237,6 +237,8 @@ def _draw(
             except analysis.AnalysisError:
                 tests = None
             fig = analysis.distractors(table, note=note, out_dir=out_dir, tests=tests)
+        elif name == "long_runs":
+            fig = analysis.long_runs(table, note=note, out_dir=out_dir)
         elif name in FAILURE_FIGURES:
             tests = None
             if FAILURE_FIGURES[name]:

@@ -320,6 +320,8 @@ CLAIMS: dict[str, str] = {
     "sensor_failure_mastered": "C5, the recovery of a mastered module's test success after a "
     "sensory failure, CURIOUS against M-UVFA (the forgetting_mastered figure, with its Welch "
     "test)",
+    "long": "C3, spontaneous forgetting of a mastered module over the paper's 300,000 episodes "
+    "(the long_runs figure, Fig. 2b-c over each whole run)",
 }
 """What each experiment's figures and numbers test, in the paper's claims (in their order)."""
 

@@ -23,6 +23,12 @@ An *experiment* is a set of training runs that one group of figures compares:
   module to be mastered; `smoke` starts it at a fixed episode, as `sensor_failure`'s; `quick` is
   too short for mastery and `paper`'s `sensor_failure` already starts long after it, so both
   leave it out.
+* `long` (paper Fig. 2b-c over the paper's episode count): CURIOUS alone on the default
+  variant, as in `main`, for 300,000 episodes (the paper's), so that a mastered module has the
+  time the paper's Fig. 2b gives it to be forgotten (its drop came near episode 250,000, beyond
+  `main`'s 100,000 at `laptop`); read by the drop and dip rules docs/results.md (C3) fixed
+  before its runs. `laptop` trains it; `paper`'s `main` already trains CURIOUS that long, and
+  `quick` is three hundred times too short, so both leave it out.
 
 A *run* (`RunSpec`) is one condition, one variant and one seed: one run folder, and one Dagster
 partition. Partitions are two-dimensional (Dagster's multi-partitions take exactly two axes):
@@ -58,14 +64,22 @@ from typing import Any
 
 from curious.config import LEARNED_COMPETENCE, PRESETS, Config, condition_names, resolve
 
-EXPERIMENTS: tuple[str, ...] = ("main", "distractors", "sensor_failure", "sensor_failure_mastered")
-"""Experiment names, in the order they are trained and reported."""
+EXPERIMENTS: tuple[str, ...] = (
+    "main",
+    "distractors",
+    "sensor_failure",
+    "sensor_failure_mastered",
+    "long",
+)
+"""Experiment names, in the order they are trained and reported (`long`, the longest runs by
+far, last)."""
 
 FIGURES: dict[str, tuple[str, ...]] = {
     "main": ("fig2a", "fig2b", "fig2c", "table1"),
     "distractors": ("distractors",),
     "sensor_failure": ("forgetting",),
     "sensor_failure_mastered": ("forgetting_mastered",),
+    "long": ("long_runs",),
 }
 """The figures each experiment redraws (`figures/NAME.png`), the first the one its report
 section opens with: the `curious.analysis` function of that name, or the forgetting figure of
@@ -464,6 +478,23 @@ def _sensor_failure(
     )
 
 
+LONG_EPISODES = 300_000
+"""The `long` experiment's run length: the paper's (its Fig. 2 spans about 300,000 episodes,
+316 epochs of 950 in the authors' release)."""
+
+
+def _long(train_preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
+    return Experiment(
+        name="long",
+        title="Long CURIOUS runs: spontaneous forgetting over whole runs (paper Fig. 2b-c)",
+        conditions=("curious",),
+        variants=("default",),
+        seeds=tuple(seeds),
+        total_episodes=episodes,
+        train_preset=train_preset,
+    )
+
+
 def _budget(
     name: str,
     description: str,
@@ -508,6 +539,19 @@ PAPER_WITHOUT_MASTERY = (
 )
 """Why the `paper` budget has no `sensor_failure_mastered` experiment."""
 
+QUICK_WITHOUT_LONG = (
+    f"its runs are {LONG_EPISODES:,} episodes each, the paper's, three hundred times a quick "
+    "run (about half a day a run on 2 cores); `curious reproduce --budget laptop --experiments "
+    "long` trains it"
+)
+"""Why the `quick` budget has no `long` experiment."""
+
+PAPER_WITHOUT_LONG = (
+    f"its `main` experiment already trains CURIOUS for {LONG_EPISODES:,} episodes (5 seeds), "
+    "the length this experiment gives the `laptop` budget"
+)
+"""Why the `paper` budget has no `long` experiment."""
+
 
 BUDGETS: dict[str, ReproduceBudget] = {
     b.name: b
@@ -525,6 +569,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             _distractors("smoke", (0,), 24),
             _sensor_failure("smoke", (0,), 24, at=12),
             _sensor_failure("smoke", (0,), 24, at=12, name="sensor_failure_mastered"),
+            _long("smoke", (0,), 24),
         ),
         _budget(
             "quick",
@@ -543,6 +588,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             omitted={
                 "sensor_failure": QUICK_WITHOUT_FAILURE,
                 "sensor_failure_mastered": QUICK_WITHOUT_MASTERY,
+                "long": QUICK_WITHOUT_LONG,
             },
         ),
         _budget(
@@ -567,6 +613,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
                 competence=MASTERED_COMPETENCE,
                 name="sensor_failure_mastered",
             ),
+            _long("laptop", (0, 1, 2, 3, 4), LONG_EPISODES),
         ),
         _budget(
             "paper",
@@ -581,7 +628,10 @@ BUDGETS: dict[str, ReproduceBudget] = {
             _main("paper", (0, 1, 2, 3, 4), 300_000),
             _distractors("paper", (0, 1, 2, 3, 4), 300_000),
             _sensor_failure("paper", (0, 1, 2, 3, 4), 300_000, at=PAPER_FAILURE_EPISODE),
-            omitted={"sensor_failure_mastered": PAPER_WITHOUT_MASTERY},
+            omitted={
+                "sensor_failure_mastered": PAPER_WITHOUT_MASTERY,
+                "long": PAPER_WITHOUT_LONG,
+            },
         ),
     )
 }

@@ -6,7 +6,7 @@ reports a recovery only where the failure started and the perturbed module was l
 the sensory failure on a mastered module's from the test rollouts first (`analysis.
 recovery_by_tests`, with the Welch test of `analysis.compare_recoveries`), the competence second;
 spontaneous forgetting (drops of a mastered module, `analysis.mastery_drops`) is read in the main
-comparison and the distractors, whose runs nothing perturbs.
+comparison, the distractors and the long runs, whose runs nothing perturbs.
 
 The report is a function of the budget, the combined metrics and test tables and the figures on
 disk (nothing in it depends on when it was written), so rebuilding it from the same runs gives the
@@ -15,8 +15,9 @@ same bytes. An experiment appears once its metrics table exists, and one the bud
 output folder can be moved or shared as a whole.
 
 `document` assembles it: the opening (`overview`), then one section per experiment
-(`main_comparison`, `distracting_modules`, `sensory_failures`; `spontaneous_forgetting` for the
-experiments nothing perturbs), each written with the pieces of `blocks`.
+(`main_comparison`, `distracting_modules`, `sensory_failures`, `long_runs`;
+`spontaneous_forgetting` for the experiments nothing perturbs), each written with the pieces of
+`blocks`.
 """
 
 from __future__ import annotations

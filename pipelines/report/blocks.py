@@ -29,6 +29,8 @@ FIGURE_TEXT: dict[str, str] = {
     "line per run.",
     "forgetting_mastered": "Test success, competence and LP of the perturbed module around the "
     "sensory failure, one line per run.",
+    "long_runs": "Competence and absolute LP of every module over each whole long run, one row "
+    "per seed, the drops of mastered modules shaded (paper Fig. 2b-c).",
 }
 
 UNTESTED_FIGURE_TEXT: dict[str, str] = {

@@ -15,6 +15,8 @@ and, given ``out_dir``, also writes ``<out_dir>/<name>.png`` and ``.svg`` (see `
 `forgetting`  competence and LP of the perturbed module around the sensory failure, and the
               episodes each condition takes to regain a fraction of its earlier competence,
               where that can be measured
+`long_runs`   competence and LP of every module over each whole run of a condition, one row per
+              seed, the drops of mastered modules shaded (paper Fig. 2b-c over the long runs)
 `distractors` self-evaluated competence over achievable modules at the end of the runs against
               the number of distracting modules
 ============  ===========================================================================
@@ -30,6 +32,7 @@ from __future__ import annotations
 from curious.analysis.figures.distracting import distractors
 from curious.analysis.figures.failure_recovery import forgetting
 from curious.analysis.figures.fig2 import fig2a, fig2b, fig2c, table1
+from curious.analysis.figures.long_runs import long_runs
 from curious.analysis.figures.parts import CONDITION_ORDER
 from curious.analysis.style import save_figure
 
@@ -40,6 +43,7 @@ __all__ = [
     "fig2b",
     "fig2c",
     "forgetting",
+    "long_runs",
     "save_figure",
     "table1",
 ]
