@@ -2,103 +2,118 @@
 # Start or resume the `laptop` evidence campaign (docs/results.md), whatever the machine still holds.
 #
 #   bash tools/campaign.sh            # install what is missing, check out the campaign, train
-#   bash tools/campaign.sh --dry-run  # the same, but only list the runs each phase would train
+#   bash tools/campaign.sh --dry-run  # the same, but only list the runs each lane would train
 #
-# Installs torch and this checkout when they are missing, adds each phase's worktree (one fixed
-# commit, outside the repository) when it is gone, and starts the queue in the background, unless
-# a campaign.py is already training into the same folder: three phases, one after the other, each
-# tools/campaign.py run from the worktree of its experiments' commit, so that every experiment
-# trains from one commit. Each trains the runs the campaign lacks, two at a time, leaving out
-# those data/laptop holds finished, and ships and commits each run into data/laptop the moment
-# it finishes.
+# Installs torch and this checkout when they are missing, adds each experiment's worktree (one
+# fixed commit, outside the repository) when it is gone, and starts two lanes in the background,
+# each one run at a time (one core each), unless that lane is already training. A lane is a list
+# of steps, each tools/campaign.py from the worktree of its experiment's commit, so that every
+# experiment trains from one commit; each step trains the runs it names that data/laptop does
+# not hold finished (a run folder part-way resumes from its last checkpoint), and ships and
+# commits each run into data/laptop the moment it finishes. A step with nothing left to train
+# ends at once, so a lane started again goes on where it stopped.
 #
-#   phase 1, from CAMPAIGN_COMMIT (9972821) in CAMPAIGN_WORKTREE (~/campaign): the `laptop`
-#     budget's runs (`--seeds none`);
-#   phase 2, from C5_COMMIT (8d18b17) in CAMPAIGN_C5_WORKTREE (~/campaign-c5): the sensory
-#     failure on a mastered module (`--only 'sensor_failure_mastered/*'`), which 9972821 does not
-#     know, into the same output folder;
-#   phase 3, from CAMPAIGN_COMMIT again: the seeds beyond the budget's (tools/campaign.py's
-#     DEFAULT_SEEDS: the distractors' seed 2, then main's seeds 3 and 4).
-# Phase 2 comes before phase 3 because C5 has no reading on a mastered module until its runs are
-# trained, while C1 and C4 already have theirs at the budget's seeds; the extra seeds sharpen them.
+#   lane a: the long runs (C3 at the paper's 300,000 episodes), seeds 0, 1 and 2, from
+#     LONG_COMMIT in CAMPAIGN_LONG_WORKTREE (~/campaign-long); then the distractors' seed 3
+#     (C4 to five seeds a side), from MAIN_COMMIT in CAMPAIGN_WORKTREE (~/campaign).
+#   lane b: the study on a mastered module's seeds 3 and 4 (C5 to five seeds a side), from
+#     C5_COMMIT in CAMPAIGN_C5_WORKTREE (~/campaign-c5); then the long runs' seeds 3 and 4,
+#     from LONG_COMMIT; then the distractors' seed 4, from MAIN_COMMIT.
+# The long runs come first (the claim no run has tested); C5's runs share the first stretch of
+# lane b because they are shorter (120,000 episodes against 300,000), so a machine lost mid-run
+# loses less of them, and C5 needs them for its test; C4's seeds come after both (docs/results.md,
+# "The campaign's runs"). The earlier phases of the campaign (the budget's runs, the study on a
+# mastered module's seeds 0-2, the distractors' seed 2 and main's seeds 3 and 4) are all shipped.
 #
-# A campaign.py started from an earlier checkout goes on with its own queue until it ends: this
-# script starts the new one once it has (or once it is stopped; the runs in flight resume from
-# their checkpoints). Settings (environment): CAMPAIGN_COMMIT, CAMPAIGN_WORKTREE,
-# CAMPAIGN_C5_COMMIT (overrides C5_COMMIT), CAMPAIGN_C5_WORKTREE, CAMPAIGN_RUNS.
-# The background job is `campaign.sh --queue` (phase 1, then `campaign.sh --phase2`, which runs
-# phase 2 and then `campaign.sh --phase3`); each later phase is read anew from this file.
+# Settings (environment): CAMPAIGN_RUNS (~/curious-runs), CAMPAIGN_WORKTREE,
+# CAMPAIGN_C5_WORKTREE, CAMPAIGN_LONG_WORKTREE. Logs: $CAMPAIGN_RUNS/laptop-lane-{a,b}.log. The
+# background jobs are `campaign.sh --lane a` and `campaign.sh --lane b`.
 set -euo pipefail
 
-# The commit `sensor_failure_mastered` trains from.
+# The commits the experiments train from: main, distractors and sensor_failure; the study on a
+# mastered module (sensor_failure_mastered); the long runs (long).
+MAIN_COMMIT=9972821
 C5_COMMIT=8d18b17
+LONG_COMMIT=24d01ae
 
 main() {
-    local commit=${CAMPAIGN_COMMIT:-9972821}
-    local worktree=${CAMPAIGN_WORKTREE:-$HOME/campaign}
-    local c5_commit=${CAMPAIGN_C5_COMMIT:-$C5_COMMIT}
-    local c5_worktree=${CAMPAIGN_C5_WORKTREE:-$HOME/campaign-c5}
-    local runs=${CAMPAIGN_RUNS:-$HOME/curious-runs}
     local mode=${1:-}
     repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+    runs=${CAMPAIGN_RUNS:-$HOME/curious-runs}
+    main_tree=${CAMPAIGN_WORKTREE:-$HOME/campaign}
+    c5_tree=${CAMPAIGN_C5_WORKTREE:-$HOME/campaign-c5}
+    long_tree=${CAMPAIGN_LONG_WORKTREE:-$HOME/campaign-long}
     queue=(python "$repo/tools/campaign.py" --out "$runs/laptop" --shipped "$repo/data/laptop"
-           --ship --set torch_threads=1)
-    phase1=(--seeds none)
-    phase2=(--only 'sensor_failure_mastered/*')
+           --ship --set torch_threads=1 --workers 1)
 
     case "$mode" in
-        "" | --dry-run | --queue | --phase2 | --phase3) ;;
+        "" | --dry-run) ;;
+        --lane)
+            case "${2:-}" in
+                a | b) ;;
+                *) echo "campaign.sh: --lane takes a or b" >&2; return 2 ;;
+            esac
+            ;;
         *) echo "campaign.sh: unknown option $mode (--dry-run)" >&2; return 2 ;;
     esac
     python -c "import torch" 2>/dev/null || python -m pip install -q torch==2.13.0
     # from /, so that the checkout itself on the path does not pass for an installed curious
     (cd / && python -c "import curious, dagster, pytest" 2>/dev/null) ||
         python -m pip install -q -e "$repo[test]"
+    checkout "$main_tree" "$MAIN_COMMIT"
+    checkout "$c5_tree" "$C5_COMMIT"
+    checkout "$long_tree" "$LONG_COMMIT"
 
     case "$mode" in
         --dry-run)
-            checkout "$worktree" "$commit"
-            checkout "$c5_worktree" "$c5_commit"
-            echo "phase 1, the budget's runs, from ${commit} in $worktree:"
-            in_worktree "$worktree" "${queue[@]}" "${phase1[@]}" --dry-run
-            echo "phase 2, once phase 1 ends, from ${c5_commit} in $c5_worktree:"
-            in_worktree "$c5_worktree" "${queue[@]}" "${phase2[@]}" --dry-run
-            echo "phase 3, once phase 2 ends, the seeds beyond the budget's, from ${commit}" \
-                 "in $worktree (with the runs phase 1 has not finished):"
-            in_worktree "$worktree" "${queue[@]}" --dry-run
+            for lane in a b; do
+                echo "lane $lane:"
+                lane_steps "$lane" --dry-run
+            done
             ;;
-        --queue)
-            checkout "$worktree" "$commit"
-            echo "campaign.sh: phase 1 from ${commit} in $worktree, $(date -u '+%F %T UTC')"
-            in_worktree "$worktree" "${queue[@]}" "${phase1[@]}"
-            # read anew, so that an edit made while phase 1 trained is the one phase 2 uses
-            exec bash "$repo/tools/campaign.sh" --phase2
-            ;;
-        --phase2)
-            refuse_if_training "$runs"
-            checkout "$c5_worktree" "$c5_commit"
-            echo "campaign.sh: phase 2 from ${c5_commit} in $c5_worktree, $(date -u '+%F %T UTC')"
-            in_worktree "$c5_worktree" "${queue[@]}" "${phase2[@]}"
-            exec bash "$repo/tools/campaign.sh" --phase3
-            ;;
-        --phase3)
-            refuse_if_training "$runs"
-            checkout "$worktree" "$commit"
-            echo "campaign.sh: phase 3 from ${commit} in $worktree, $(date -u '+%F %T UTC')"
-            in_worktree "$worktree" "${queue[@]}"
+        --lane)
+            echo "campaign.sh: lane $2, $(date -u '+%F %T UTC')"
+            lane_steps "$2"
+            echo "campaign.sh: lane $2 done, $(date -u '+%F %T UTC')"
             ;;
         "")
-            checkout "$worktree" "$commit"
-            checkout "$c5_worktree" "$c5_commit"
-            if pgrep -f "tools/campaign.py --out $runs/laptop" >/dev/null; then
-                echo "campaign.sh: the campaign is already training (pgrep -af tools/campaign.py)"
-                return 0
-            fi
             mkdir -p "$runs"
-            nohup nice -n 5 bash "$repo/tools/campaign.sh" --queue >>"$runs/laptop-main.log" 2>&1 &
-            echo "campaign.sh: training (pid $!) phase 1 from ${commit} in $worktree, then" \
-                 "phase 2 from ${c5_commit} in $c5_worktree, then phase 3 from ${commit};" \
-                 "runs in $runs/laptop, log $runs/laptop-main.log"
+            for lane in a b; do
+                if pgrep -f "tools/campaign.sh --lane $lane" >/dev/null; then
+                    echo "campaign.sh: lane $lane is already training (pgrep -af campaign)"
+                    continue
+                fi
+                nohup nice -n 5 bash "$repo/tools/campaign.sh" --lane "$lane" \
+                    >>"$runs/laptop-lane-$lane.log" 2>&1 &
+                echo "campaign.sh: lane $lane training (pid $!), log $runs/laptop-lane-$lane.log"
+                sleep 15  # the two lanes' first writes of reproduce.json one after the other
+            done
+            echo "campaign.sh: runs in $runs/laptop; \`curious progress $runs/laptop" \
+                 "$repo/data/laptop --at-once 2\` says how far they are"
+            ;;
+    esac
+}
+
+# lane_steps LANE [--dry-run]: the lane's steps, one after the other.
+lane_steps() {
+    local lane=$1
+    shift
+    local step=(--seeds none)
+    case "$lane" in
+        a)
+            in_worktree "$long_tree" "${queue[@]}" "${step[@]}" "$@" \
+                --only 'long/curious/seed-0' --only 'long/curious/seed-1' \
+                --only 'long/curious/seed-2'
+            in_worktree "$main_tree" "${queue[@]}" --seeds distractors=0-3 "$@" \
+                --only 'distractors/*/seed-3'
+            ;;
+        b)
+            in_worktree "$c5_tree" "${queue[@]}" --seeds sensor_failure_mastered=0-4 "$@" \
+                --only 'sensor_failure_mastered/*'
+            in_worktree "$long_tree" "${queue[@]}" "${step[@]}" "$@" \
+                --only 'long/curious/seed-3' --only 'long/curious/seed-4'
+            in_worktree "$main_tree" "${queue[@]}" --seeds distractors=0-4 "$@" \
+                --only 'distractors/*/seed-4'
             ;;
     esac
 }
@@ -109,7 +124,7 @@ checkout() {
     local dir=$1 commit=$2 head
     if [ ! -d "$dir" ]; then
         git -C "$repo" worktree prune
-        git -C "$repo" worktree add --detach "$dir" "$commit"
+        git -C "$repo" worktree add --detach "$dir" "$commit" >/dev/null
     fi
     head=$(git -C "$dir" rev-parse HEAD)
     if [ "$head" != "$(git -C "$repo" rev-parse "$commit^{commit}")" ]; then
@@ -127,14 +142,6 @@ in_worktree() {
     local dir=$1
     shift
     (cd "$dir" && PYTHONPATH=$dir MUJOCO_GL=disable "$@")
-}
-
-# refuse_if_training RUNS: stop where a campaign.py already trains into RUNS/laptop.
-refuse_if_training() {
-    if pgrep -f "tools/campaign.py --out $1/laptop" >/dev/null; then
-        echo "campaign.sh: the campaign is already training (pgrep -af tools/campaign.py)" >&2
-        exit 2
-    fi
 }
 
 # one line, read whole before it runs: the file may be edited while it trains
