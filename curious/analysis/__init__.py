@@ -32,14 +32,17 @@ self-evaluations, which drives learning progress). `curious.analysis.statistics`
 precisely, `curious.analysis.milestones` when each module is learned,
 `curious.analysis.perturbation` the recovery after the sensory failure (of the competence, and
 of the test success, the primary measure of the study on a mastered module),
+`curious.analysis.censored` recoveries compared with the runs not recovered counted,
 `curious.analysis.drops` the spontaneous drops of mastered modules (forgetting with nothing
-perturbed), and `curious.analysis.degradation` C4's test of which condition loses less as
-distracting modules are added. Module and condition colours live in `curious.analysis.palette`,
+perturbed), `curious.analysis.dips` the smaller falls and the practice they draw, and
+`curious.analysis.degradation` C4's test of which condition loses less as distracting modules
+are added. Module and condition colours live in `curious.analysis.palette`,
 shared with the Rerun recordings.
 
-The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `drops`,
-`degradation` and `figures` (each module's ``__all__``), imported on first use, so that ``import
-curious.analysis.palette`` (the recording code does) does not pull in pandas, scipy and matplotlib.
+The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `censored`,
+`drops`, `dips`, `degradation` and `figures` (each module's ``__all__``), imported on first use,
+so that ``import curious.analysis.palette`` (the recording code does) does not pull in pandas,
+scipy and matplotlib.
 """
 
 from __future__ import annotations
@@ -59,7 +62,9 @@ _PUBLIC_MODULES = (
     "statistics",
     "milestones",
     "perturbation",
+    "censored",
     "drops",
+    "dips",
     "degradation",
     "figures",
 )

@@ -78,6 +78,7 @@ __all__ = [
     "final_competence",
     "final_success",
     "final_test_success",
+    "holm",
     "main_comparison",
     "nice_bin_size",
     "on_achievable",
@@ -302,7 +303,9 @@ def welch_per_bin(
 
     Returns one row per bin both conditions reach: ``episodes``, ``n_better``, ``n_worse``,
     ``mean_better``, ``mean_worse``, ``t``, ``p`` and ``significant`` (``p < alpha``; False where
-    p is NaN, i.e. fewer than two seeds on a side or no variance at all).
+    p is NaN, i.e. fewer than two seeds on a side or no variance at all), and ``p_holm`` and
+    ``significant_holm``: the same tests corrected for their number by `holm` (the paper
+    corrects nothing; both readings are given).
     """
     require_alpha(alpha)
     require_values(binned, "welch_per_bin")
@@ -352,7 +355,25 @@ def welch_per_bin(
         "p",
         "significant",
     ]
-    return pd.DataFrame(rows, columns=columns)
+    out = pd.DataFrame(rows, columns=columns)
+    out["p_holm"] = holm(out["p"].to_numpy(np.float64))
+    out["significant_holm"] = out["p_holm"] < alpha  # NaN compares False
+    return out
+
+
+def holm(p: np.ndarray) -> np.ndarray:
+    """Holm's step-down adjusted p values of a family of tests (NaN where a test has no p,
+    and left out of the family's size): the i-th smallest of m p values times (m - i + 1),
+    made non-decreasing and capped at 1, so that `adjusted < alpha` controls the chance of any
+    false rejection among them at alpha."""
+    p = np.asarray(p, dtype=np.float64)
+    out = np.full(p.shape, np.nan)
+    tested = np.flatnonzero(np.isfinite(p))
+    order = tested[np.argsort(p[tested], kind="stable")]
+    m = order.size
+    scaled = p[order] * (m - np.arange(m))
+    out[order] = np.minimum(np.maximum.accumulate(scaled), 1.0)
+    return out
 
 
 def welch_greater(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
