@@ -238,7 +238,8 @@ def _draw(
                 tests = None
             fig = analysis.distractors(table, note=note, out_dir=out_dir, tests=tests)
         elif name == "long_runs":
-            fig = analysis.long_runs(table, note=note, out_dir=out_dir)
+            dips = analysis.mastery_dips(table, analysis.TEST_DEPTH)
+            fig = analysis.long_runs(table, dips=dips, note=note, out_dir=out_dir)
         elif name in FAILURE_FIGURES:
             tests = None
             if FAILURE_FIGURES[name]:

@@ -59,10 +59,13 @@ def _build(name, studies, out_dir=None, note=None):
     if name == "distractors":
         tests = studies["distractors_tests"]
         return analysis.distractors(studies["distractors"], tests=tests, **kw)
+    if name == "long_runs":
+        table = studies["main"]
+        return analysis.long_runs(table, dips=analysis.mastery_dips(table, 0.05), **kw)
     raise AssertionError(name)
 
 
-FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "forgetting", "distractors")
+FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "forgetting", "distractors", "long_runs")
 
 
 def _caption(fig: Figure) -> str:
@@ -401,3 +404,26 @@ def test_public_names_resolve_and_the_palette_imports_alone():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_the_long_runs_figure_draws_every_seed_whole_and_marks_drops_and_dips(studies):
+    """One row of panels (competence, LP) per seed of the condition, each over its whole run;
+    a drop of a mastered module shaded on both panels, each dip a triangle at its trough."""
+    table = studies["main"]
+    seeds = sorted(int(s) for s in table.loc[table["condition"] == "curious", "seed"].unique())
+    dips = pd.DataFrame(
+        {
+            "run": [str(table.loc[table["condition"] == "curious", "run"].iat[0])],
+            "module": ["reach"],
+            "trough_episode": [300],
+            "trough": [0.42],
+        }
+    )
+    fig = analysis.long_runs(table, dips=dips)
+    assert len(fig.axes) == 2 * len(seeds)
+    assert fig.axes[0].get_ylabel().startswith(f"seed {seeds[0]}")
+    marks = [line for ax in fig.axes for line in ax.lines if line.get_marker() == "v"]
+    assert len(marks) == 1 and list(marks[0].get_xdata()) == [300]
+    assert "Triangles: the troughs of the 1 dip (" in _caption(fig)
+    with pytest.raises(analysis.AnalysisError, match="no seed"):
+        analysis.long_runs(table, seeds=[99])

@@ -197,11 +197,11 @@ def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extr
     manifest = json.loads((extra_seed.out / "reproduce.json").read_text())
     assert manifest["budget"] == "smoke" and manifest["extra_seeds"] == {"main": [2]}
     shipped = ShippedFolder(extra_seed.data).read_manifest()
-    assert len(shipped.runs) == 16 + 3
+    assert len(shipped.runs) == 17 + 3
     assert all(shipped.get(run).finished for run in seed_2)
 
     rows = progress_table([extra_seed.out, extra_seed.data])
-    assert len(rows) == 19 and all(r.shipped and r.done == 1 for r in rows)
+    assert len(rows) == 20 and all(r.shipped and r.done == 1 for r in rows)
     assert [(r.name, r.checkpoint) for r in rows if r.seed == 2] == [
         (run, 24) for run in sorted(seed_2)
     ]

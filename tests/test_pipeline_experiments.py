@@ -289,3 +289,28 @@ def test_every_seed_of_every_condition_comes_before_the_next_seed(name):
             chunk = runs[i * per_seed : (i + 1) * per_seed]
             assert {r.seed for r in chunk} == {seed}
             assert [r.condition_key for r in chunk] == list(experiment.condition_keys)
+
+
+def test_the_long_runs_are_curious_on_the_default_variant_for_the_papers_episodes():
+    """`long` at `laptop`: the numbers docs/results.md (C3, "The long runs and the dips: rules
+    fixed before their runs") fixed before its runs trained: CURIOUS alone, the main
+    comparison's variant and preset, seeds 0 to 4, 300,000 episodes (the paper's), each run the
+    main comparison's CURIOUS run in every setting but its length; trained last. Changing them
+    is changing the study."""
+    laptop = get_budget("laptop")
+    long, main = laptop.experiments["long"], laptop.experiments["main"]
+    assert long.conditions == ("curious",) and long.variants == ("default",)
+    assert long.seeds == (0, 1, 2, 3, 4) and long.total_episodes == 300_000
+    assert long.train_preset == main.train_preset == "laptop" and not long.perturbed
+    same = main.runs()[0].config()
+    assert replace(long.runs()[0].config(), total_episodes=same.total_episodes) == same
+    assert [str(r.relative_path) for r in long.runs()] == [
+        f"long/curious/seed-{s}" for s in range(5)
+    ]
+    assert EXPERIMENTS[-1] == "long" and budgets_with("long") == ["smoke", "laptop"]
+    assert "the paper's 300,000 episodes" in laptop.caption_note_for(long)
+    assert "a third of the paper's" in laptop.caption_note_for(main)
+    for budget, words in (("quick", "three hundred times a quick run"), ("paper", "already")):
+        assert words in get_budget(budget).omitted["long"]
+        with pytest.raises(ExperimentError, match="has no long experiment"):
+            get_budget(budget).select(["long"])

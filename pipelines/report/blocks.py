@@ -133,6 +133,11 @@ def welch_summary(
         f"{condition_label(worse)}, alpha = {analysis.ALPHA:g}: significant in "
         f"{int(test['significant'].sum())} of {len(test)}{unit}"
     )
+    if tested > 1:
+        text += (
+            f", in {int(test['significant_holm'].sum())} of {len(test)} after Holm's correction "
+            f"for the {tested} tests"
+        )
     if tested == 0 and len(test):
         few = int(min(test["n_better"].min(), test["n_worse"].min())) < 2
         why = "fewer than two seeds a side" if few else "no variance across seeds"

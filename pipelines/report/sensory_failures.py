@@ -232,11 +232,51 @@ def _recovery_welch(e: Experiment, by_tests: pd.DataFrame, faster: str, slower: 
     return lines
 
 
+def _recovery_censored(by_tests: pd.DataFrame, faster: str, slower: str) -> list[str]:
+    """The log-rank test on the recoveries by test success, the runs not recovered censored at
+    the episodes they had after their onset (`analysis.compare_censored_recoveries`)."""
+    test = analysis.compare_censored_recoveries(by_tests, faster, slower)
+    counts = (
+        f"{test['recovered_faster']} of {test['n_faster']} {condition_label(faster)} runs and "
+        f"{test['recovered_slower']} of {test['n_slower']} {condition_label(slower)} runs "
+        "recovered, the others censored at the episodes they had after their onset"
+    )
+    head = (
+        f"One-sided log-rank test on the episodes to recover by test success, "
+        f"{condition_label(faster)} sooner than {condition_label(slower)}, alpha = "
+        f"{test['alpha']:g} ({counts}): "
+    )
+    if math.isfinite(test["p"]):
+        verdict = "significant" if test["significant"] else "not significant"
+        smallest = 1 / test["splits"]
+        head += (
+            f"Z = {fmt(test['z'])}, exact permutation p = {fmt_p(test['p'])} over the "
+            f"{test['splits']:,} splits of the runs (the smallest it can be: {fmt_p(smallest)}), "
+            f"{verdict}; normal approximation p = {fmt_p(test['p_normal'])}. Gehan's generalised "
+            f"Wilcoxon, as a check: {fmt(test['gehan'], 0)}, exact p = {fmt_p(test['p_gehan'])}."
+        )
+    else:
+        head += "not tested (no recovery, or a condition without runs to compare)."
+    lines = [head, ""]
+    if len(test["left_out"]):
+        lines += [
+            "Left out, with nothing to recover: "
+            + "; ".join(
+                f"{condition_label(t.condition)} seed {t.seed} ({t.note})"
+                for t in test["left_out"].itertuples()
+            )
+            + ".",
+            "",
+        ]
+    return lines
+
+
 def sensor_failure_mastered(
     repro: Reproduction, e: Experiment, tables: ExperimentTables
 ) -> list[str]:
     """The study on a mastered module: per run, its recovery by test success (primary) and by
-    competence (secondary), with the refocus, and the Welch test on the episodes to recover."""
+    competence (secondary), with the refocus, the Welch test on the episodes to recover (the
+    recovered runs), and the log-rank test with the others censored."""
     lines, per_run = _failure_runs(repro, e, tables)
     if per_run is None:
         return lines
@@ -285,4 +325,5 @@ def sensor_failure_mastered(
     lines += _primary_summary(e, by_tests)
     if e.compare is not None:
         lines += _recovery_welch(e, by_tests, *e.compare)
+        lines += _recovery_censored(by_tests, *e.compare)
     return lines

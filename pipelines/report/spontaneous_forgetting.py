@@ -10,7 +10,7 @@ import pandas as pd
 from curious import analysis
 from curious.analysis.palette import condition_label, module_label
 from curious.reproduction.experiments import Experiment
-from pipelines.report.blocks import fmt, fmt_episodes, in_order, markdown_table
+from pipelines.report.blocks import fmt, fmt_episodes, fmt_p, in_order, markdown_table
 
 
 def spontaneous_forgetting(e: Experiment, table: pd.DataFrame) -> list[str]:
@@ -77,7 +77,7 @@ def spontaneous_forgetting(e: Experiment, table: pd.DataFrame) -> list[str]:
     lines += markdown_table(header, rows)
     lines += mastery_summary(e, read)
     if drops.empty:
-        return [*lines, "No drop of a mastered module in these runs.", ""]
+        return [*lines, "No drop of a mastered module in these runs.", "", *dips_reading(e, table)]
     rows = [
         (
             condition_label(r.condition),
@@ -110,6 +110,7 @@ def spontaneous_forgetting(e: Experiment, table: pd.DataFrame) -> list[str]:
         "against as many mastered episodes before it.",
         "",
         *markdown_table(header, rows),
+        *dips_reading(e, table),
     ]
 
 
@@ -151,3 +152,96 @@ def mastery_summary(e: Experiment, read: pd.DataFrame) -> list[str]:
         "drops",
     )
     return ["Per condition:", "", *markdown_table(header, rows)]
+
+
+DIPS_RULE = (
+    "Dips, C3's mechanism at any size (`curious.analysis.dips`, rule fixed before the runs were "
+    "read for dips): from a module's mastery on, a dip of depth d is detected where its "
+    "competence falls d below its peak since the mastery (or the last dip), and ends back within "
+    "d/2 of it. Its response is the change in the module's mean p_LP and share of practice from "
+    "the {window:,} episodes before the detection to the {window:,} from it; its excess, that "
+    "change minus the mean change over the same module's windows without a dip (every "
+    "{window:,}th episode from its mastery). A dip whose windows reach before the mastery or "
+    "past the run's end is not read."
+)
+
+
+def _dip_sentence(test: dict, what: str) -> str:
+    """One condition's `analysis.dip_test` in a clause."""
+    if not test["n_runs"]:
+        return f"{what}: no dip read"
+    runs, dips = test["n_runs"], test["n_dips"]
+    return (
+        f"{what}: mean excess {test['mean']:+.3f} over {runs} run{'s' * (runs != 1)} with a "
+        f"read dip ({dips} dip{'s' * (dips != 1)}; above 0 in {test['n_positive']}), exact "
+        f"sign-flip p = {fmt_p(test['p'])}"
+    )
+
+
+def dips_reading(e: Experiment, table: pd.DataFrame) -> list[str]:
+    """Per depth of `analysis.DIP_DEPTHS`: the dips each rule finds, the read ones with their
+    response and excess, and per condition the sign-flip test of the excess by run."""
+    lines = ["#### Dips", "", DIPS_RULE.format(window=analysis.DIP_WINDOW), ""]
+    with_variant = table["variant"].nunique() > 1
+    for depth in analysis.DIP_DEPTHS:
+        found = analysis.dip_responses(table, depth)
+        counts = found["status"].value_counts()
+        tested = " (the depth tested)" if depth == analysis.TEST_DEPTH else ""
+        parts = [
+            f"{counts.get(status, 0)} {words}"
+            for status, words in DIP_STATUS_WORDS.items()
+            if counts.get(status, 0)
+        ]
+        lines += [
+            f"At a depth of {depth:g}{tested}: {len(found)} dip{'s' * (len(found) != 1)}"
+            + (f" ({', '.join(parts)})." if parts else "."),
+            "",
+        ]
+        read = in_order(found[found["status"] == "read"], e)
+        if read.empty:
+            continue
+        rows = []
+        for r in read.itertuples():
+            row = [condition_label(r.condition), r.seed, module_label(str(r.module))]
+            if with_variant:
+                row.insert(1, r.variant)
+            rows.append(
+                (
+                    *row,
+                    f"{int(r.detect_episode):,}",
+                    f"{fmt(r.peak)} → {fmt(r.trough)}",
+                    f"{r.p_lp_change:+.3f} ({r.matched_p_lp_change:+.3f})",
+                    f"{r.practice_change:+.3f} ({r.matched_practice_change:+.3f})",
+                    f"{r.excess_p_lp:+.3f}",
+                    f"{r.excess_practice:+.3f}",
+                )
+            )
+        header: tuple[str, ...] = ("condition", "seed", "module")
+        if with_variant:
+            header = ("condition", "variant", "seed", "module")
+        header += (
+            "detected at",
+            "peak → trough",
+            "p_LP change (matched)",
+            "practice change (matched)",
+            "excess p_LP",
+            "excess practice",
+        )
+        lines += markdown_table(header, rows)
+        for condition in dict.fromkeys(read["condition"].astype(str)):
+            own = found[found["condition"] == condition]
+            clauses = [
+                _dip_sentence(analysis.dip_test(own, column), what)
+                for column, what in (("excess_p_lp", "p_LP"), ("excess_practice", "practice"))
+            ]
+            lines += [f"{condition_label(condition)}, by run: {'; '.join(clauses)}.", ""]
+    return lines
+
+
+DIP_STATUS_WORDS = {
+    "read": "read",
+    "before_mastery": "too soon after the mastery to read",
+    "past_end": "too late in the run to read",
+    "unmatched": "read but without a matched window",
+}
+"""How the report counts the dips of each `analysis.dip_responses` status."""

@@ -116,7 +116,8 @@ def long_runs(
         dips_text = (
             ""
             if dips is None
-            else f" Triangles: the {len(dips)} smaller dips read apart, at their troughs."
+            else f" Triangles: the troughs of the {len(dips)} dip{'s' * (len(dips) != 1)} "
+            "(smaller falls, read apart: docs/results.md, C3)."
         )
         caption(
             fig,
