@@ -629,12 +629,14 @@ def test_c3_the_dips_in_the_shipped_runs():
     read = deep[deep["status"] == "read"]
     assert read.empty and len(deep) == 1
     only = deep.iloc[0]
-    assert f"({only.peak:.2f} to {only.trough:.2f}, detected at {int(only.detect_episode):,})" in text
+    where = f"({only.peak:.2f} to {only.trough:.2f}, detected at {int(only.detect_episode):,})"
+    assert where in text
     gap = int(only.detect_episode - only.mastered_episode)
     assert f"{gap:,} episodes after that module's mastery, too soon to read" in text
     shallow = _shipped_dips(0.05)
     counts = shallow["status"].value_counts()
-    assert f"{len(shallow)} dips, {counts['read']} read ({counts['before_mastery']} too soon" in text
+    found = f"{len(shallow)} dips, {counts['read']} read ({counts['before_mastery']} too soon"
+    assert found in text
     p_lp, practice = (analysis.dip_test(shallow, c) for c in ("excess_p_lp", "excess_practice"))
     n = p_lp["n_runs"]
     assert f"in {n} runs. Their p_LP rose by {p_lp['mean']:.2f} more" in text
@@ -652,7 +654,7 @@ def test_c3_the_dips_in_the_shipped_runs():
 def test_c5_the_censored_reading_at_three_seeds_a_side():
     """The log-rank test fixed for five seeds a side, on the three shipped, as results.md gives
     it (while seeds 3 and 4 train)."""
-    shipped, budget = _read_by_report()
+    _, budget = _read_by_report()
     e = budget.experiments["sensor_failure_mastered"]
     if len(e.seeds) != 3:
         pytest.skip("the study on a mastered module is read with more than three seeds a side")
