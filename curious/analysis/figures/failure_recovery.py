@@ -306,7 +306,7 @@ def _draw_tested(
         f"{window} epochs ({window * epoch:,} episodes), the primary measure of recovery: a "
         f"circle where a run's rate, pooled over epochs tested wholly after the failure, is back "
         f"at {fraction:.0%} of its rate over the {window} epochs before it, a cross at the end "
-        "of a run where it is not."
+        "of a run where it is not (censored there by the log-rank test of the recoveries)."
     )
 
 
