@@ -42,7 +42,7 @@ run of every experiment:
 =========  ===============================================================================
 `smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
 `quick`    the README's job: `main` and `distractors`, short runs (README)
-`laptop`   two to five days on 2 cores (hours on a workstation or a Ray cluster)
+`laptop`   three to eight days on 2 cores (hours on a workstation or a Ray cluster)
 `paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
 =========  ===============================================================================
 
