@@ -174,17 +174,37 @@ def test_every_figure_caption_says_how_many_seeds_it_reads_where_the_paper_budge
     the experiment's, not the budget's."""
     laptop, paper = get_budget("laptop"), get_budget("paper")
     main = laptop.experiments["main"]
-    assert laptop.caption_note_for(main) == (
-        f"{laptop.caption_note} 3 seeds where the `paper` budget trains 5."
-    )
-    assert laptop.caption_note_for(main.with_seeds([3, 4])) == laptop.caption_note
+    own = "Budget laptop (reduced): 100,000 episodes per run, a third of the paper's 300,000."
+    assert laptop.caption_note_for(main) == f"{own} 3 seeds where the `paper` budget trains 5."
+    assert laptop.caption_note_for(main.with_seeds([3, 4])) == own
     assert laptop.caption_note_for(main.with_seeds_only([0])).endswith(
         " 1 seed where the `paper` budget trains 5."
     )
     # no `paper` experiment to compare with, or the paper budget itself: the note alone
     mastered = laptop.experiments["sensor_failure_mastered"]
-    assert laptop.caption_note_for(mastered) == laptop.caption_note
+    assert laptop.caption_note_for(mastered) == (
+        "Budget laptop (reduced): 120,000 episodes per run, two fifths of the paper's 300,000."
+    )
     assert all(paper.caption_note_for(e) == "" for e in paper.experiments.values())
+    quick = get_budget("quick")
+    assert quick.caption_note_for(quick.experiments["main"]).startswith(quick.caption_note)
+
+
+@pytest.mark.parametrize(
+    "experiment, words",
+    [
+        ("main", "100,000 episodes per run, a third of the paper's 300,000."),
+        ("distractors", "50,000 episodes per run; the paper gives no episode count for this"),
+        ("sensor_failure", "60,000 episodes per run, a fifth of the paper's 300,000."),
+        ("long", "300,000 episodes per run, as many as the paper's runs, with the `laptop`"),
+    ],
+)
+def test_each_laptop_caption_states_its_own_experiments_episodes_against_the_papers(
+    experiment, words
+):
+    """The `laptop` experiments run 50,000 to 300,000 episodes: no one sentence fits them all."""
+    laptop = get_budget("laptop")
+    assert words in laptop.caption_note_for(laptop.experiments[experiment])
 
 
 def test_an_experiment_cut_to_some_seeds_names_the_same_run_folders_and_the_seeds_left_out():
@@ -308,8 +328,7 @@ def test_the_long_runs_are_curious_on_the_default_variant_for_the_papers_episode
         f"long/curious/seed-{s}" for s in range(5)
     ]
     assert EXPERIMENTS[-1] == "long" and budgets_with("long") == ["smoke", "laptop"]
-    assert "the paper's 300,000 episodes" in laptop.caption_note_for(long)
-    assert "a third of the paper's" in laptop.caption_note_for(main)
+    assert "as many as the paper's runs" in laptop.caption_note_for(long)
     for budget, words in (("quick", "three hundred times a quick run"), ("paper", "already")):
         assert words in get_budget(budget).omitted["long"]
         with pytest.raises(ExperimentError, match="has no long experiment"):
