@@ -1,6 +1,6 @@
 """Dagster assets that train every condition and seed and rebuild the figures of the paper.
 
-    dagster-webserver -m pipelines                # the asset graph in the UI (needs curious[ui])
+    dagster-webserver -h 127.0.0.1 -m pipelines   # the asset graph in the UI (needs curious[ui])
     curious reproduce --budget quick              # the same assets, materialised in process
 
 `defs` (the `Definitions` Dagster loads) is built on first access from environment variables

@@ -13,7 +13,8 @@ variables, which is what `dagster-webserver -m pipelines` (or `dagster dev`) loa
                          (as `curious reproduce --from-data`; CURIOUS_RUNS_DIR is then unused)
 
 To see the runs `curious reproduce` made in the UI, point Dagster at its instance:
-`DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster-webserver -m pipelines`.
+`DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster-webserver -h 127.0.0.1 -m pipelines`
+(on the loopback address, this machine only; another machine reaches it through an SSH tunnel).
 
 `CURIOUS_PRESET`, the variable's name before budgets were named apart from training presets,
 is refused with an error naming `CURIOUS_BUDGET` rather than ignored (ignored, the default

@@ -20,7 +20,7 @@ holds either trained runs' results or shipped data's, never both.
 
 The Dagster instance lives in `OUT/.dagster` (sqlite storage, no server, no daemon), so the
 history of materialisations is kept with the results and the Dagster UI
-(`dagster-webserver -m pipelines`) can show it.
+(`dagster-webserver -h 127.0.0.1 -m pipelines`, this machine only) can show it.
 """
 
 from __future__ import annotations

@@ -427,6 +427,7 @@ REPRODUCE = ["reproduce", "--budget", "smoke", "--out", "{tmp}/r", "--no-progres
         ([*REPRODUCE, "--cpus-per-run", "nan"], "--cpus-per-run must be a number > 0, got nan"),
         ([*REPRODUCE, "--gpus-per-run", "nan"], "--gpus-per-run must be a number >= 0, got nan"),
         ([*REPRODUCE, "--gpus-per-run", "inf"], "--gpus-per-run must be a number >= 0, got inf"),
+        (["view", "--web", "--bind", "every", "{tmp}"], "--bind must be an IP address"),
     ],
 )
 def test_numbers_past_what_a_command_can_hold_are_refused_naming_the_option(

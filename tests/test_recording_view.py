@@ -236,13 +236,109 @@ def test_the_printed_addresses_name_this_machine_or_localhost_never_a_placeholde
     monkeypatch.setattr(view, "run_viewer", lambda cmd: 0)
     a = _run_folder(tmp_path, "run_a")
     host = socket.gethostname()
-    for args in (["--web"], []):
+    for args in (["--web", "--bind", "0.0.0.0"], []):
         assert main(["view", *args, str(a)]) == 0
         out = capsys.readouterr().out
         assert "<" not in out and "this-host" not in out
         assert f"http://{host}:9090/?url=rerun%2Bhttp://{host}:9876/proxy" in out
         assert "http://localhost:9090/?url=rerun%2Bhttp://localhost:9876/proxy" in out
-        assert f"{host} is this machine's name" in out or f"this machine's name, {host}" in out
+
+
+def test_web_serves_on_the_loopback_address_unless_bind_names_another(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch, no_display: None
+) -> None:
+    """Rerun's own default is every interface (0.0.0.0): `--web` tells it 127.0.0.1, so that
+    nobody else who can reach the machine reads the recordings, and says how to reach it from
+    another machine (an SSH tunnel of both ports), naming no address that would not answer."""
+    import socket
+
+    calls: list[list[str]] = []
+    monkeypatch.setattr(view, "run_viewer", lambda cmd: calls.append(cmd) or 0)
+    a = _run_folder(tmp_path, "run_a")
+    host = socket.gethostname()
+    assert main(["view", "--web", str(a)]) == 0
+    assert main(["view", "--web", "--bind", "0.0.0.0", str(a)]) == 0
+    local, everywhere = calls
+    assert local[local.index("--bind") + 1] == "127.0.0.1"
+    assert everywhere[everywhere.index("--bind") + 1] == "0.0.0.0"
+    out = capsys.readouterr().out.split("Ctrl-C")[0]  # the first server's lines
+    assert "on 127.0.0.1, this machine only" in out
+    assert f"ssh -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 {host}" in out
+    assert f"rerun+http://{host}:9876" not in out  # a native viewer could not connect there
+
+
+@pytest.mark.parametrize(
+    ("bind", "message"),
+    [
+        ("my-laptop", "--bind must be an IP address of this machine"),
+        ("192.0.2.1", "--bind 192.0.2.1: no server can listen there"),  # TEST-NET-1: nobody's
+    ],
+)
+def test_web_refuses_an_address_it_cannot_listen_on_naming_bind(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch, bind: str, message: str
+) -> None:
+    monkeypatch.setattr(view, "run_viewer", _no_viewer)
+    a = _run_folder(tmp_path, "run_a")
+    assert main(["view", "--web", "--bind", bind, str(a)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err
+
+
+def _listening(port: int) -> list[str]:
+    """The local addresses of the TCP sockets listening on `port`, from Linux's /proc/net tables
+    (an address there is 32-bit words of hex, each in the machine's little-endian order)."""
+    import ipaddress
+
+    found = []
+    for table in (Path("/proc/net/tcp"), Path("/proc/net/tcp6")):
+        lines = table.read_text().splitlines()[1:] if table.exists() else []
+        for fields in (line.split() for line in lines):
+            address, hex_port = fields[1].split(":")
+            if fields[3] == "0A" and int(hex_port, 16) == port:  # 0A: LISTEN
+                words = [bytes.fromhex(address[i : i + 8])[::-1] for i in range(0, len(address), 8)]
+                found.append(str(ipaddress.ip_address(b"".join(words))))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads Linux's /proc/net/tcp")
+def test_the_served_viewer_listens_on_the_loopback_address_alone(
+    tmp_path: Path, monkeypatch, no_display: None
+) -> None:
+    """The real `rerun --serve-web` that `curious view --web` starts: its page and its gRPC
+    server listen on 127.0.0.1, on no other address."""
+    import socket
+    import subprocess
+    import time
+
+    from curious.watching.recording import RunRecorder
+
+    RunRecorder(tmp_path / "run", ("reach",)).close()
+    ports = []
+    for _ in range(2):
+        with socket.socket() as probe:
+            probe.bind(("127.0.0.1", 0))
+            ports.append(probe.getsockname()[1])
+    seen: dict[int, list[str]] = {}
+
+    def serve(command: list[str]) -> int:
+        proc = subprocess.Popen(command, start_new_session=True, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)  # fmt: skip
+        try:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and proc.poll() is None:
+                seen.update({port: _listening(port) for port in ports})
+                if all(seen.values()):
+                    break
+                time.sleep(0.1)
+        finally:
+            view._stop_group(proc)
+        return 0
+
+    monkeypatch.setattr(view, "run_viewer", serve)
+    web, grpc = (str(port) for port in ports)
+    run = str(tmp_path / "run")
+    assert main(["view", "--web", "--web-port", web, "--grpc-port", grpc, run]) == 0
+    assert seen == {ports[0]: ["127.0.0.1"], ports[1]: ["127.0.0.1"]}
 
 
 def test_a_shipped_run_says_shipped_runs_carry_no_recording_and_no_checkpoint(

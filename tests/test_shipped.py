@@ -13,6 +13,7 @@ import io
 import json
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -188,6 +189,17 @@ def test_the_default_out_of_a_reproduction_is_data_and_its_budget(smoke, tmp_pat
 
 
 # ---------------------------------------------------------------------- reproduce --from-data
+
+
+def test_the_dagster_line_a_reproduction_ends_with_serves_this_machine_only(smoke, from_data):
+    """The closing line that starts the Dagster UI on a reproduction's output, trained or read
+    from shipped data, binds it to the loopback address: nobody else who can reach the machine
+    browses the runs."""
+    for stdout in (smoke.stdout, from_data[1]):
+        (line,) = [text for text in stdout.splitlines() if text.strip().startswith("Dagster:")]
+        words = shlex.split(line.split(":", 1)[1])
+        server = words[words.index("dagster-webserver") + 1 :]
+        assert "-h" in server and server[server.index("-h") + 1] == "127.0.0.1", line
 
 
 def test_report_and_figures_from_the_shipped_data_are_those_of_the_run_folders(

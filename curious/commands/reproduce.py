@@ -49,6 +49,10 @@ from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENT
 if TYPE_CHECKING:
     from pipelines.reproduce import ReproduceResult
 
+LOOPBACK = "127.0.0.1"
+"""Where the Dagster UI of the closing line listens: this machine only (an SSH tunnel reaches it
+from another)."""
+
 
 class _PresetIsForTrain(argparse.Action):
     """`--preset` given to `curious reproduce`: an error naming `--budget`, its option.
@@ -450,5 +454,5 @@ def _done(result: ReproduceResult) -> None:
     shipped = f"CURIOUS_FROM_DATA={result.from_data} " if result.from_data else ""
     print(
         f"  Dagster: DAGSTER_HOME={layout.dagster_home} CURIOUS_BUDGET={result.budget} "
-        f"CURIOUS_OUT={layout.out} {shipped}dagster-webserver -m pipelines"
+        f"CURIOUS_OUT={layout.out} {shipped}dagster-webserver -h {LOOPBACK} -m pipelines"
     )

@@ -6,13 +6,16 @@ layout, listed in the viewer's recordings panel to switch between. Every `curiou
 window of its own, also when another viewer is running (which would otherwise receive the
 recordings silently). Without a display it prints
 how to look at them elsewhere, and `--web` serves them here to a browser (or to a native viewer
-on another machine) instead.
+on another machine) instead: on the loopback address (127.0.0.1) unless `--bind` names another,
+so that nobody else who can reach the machine reads them; another machine reaches the server
+through an SSH tunnel.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import ipaddress
 import os
 import shlex
 import shutil
@@ -34,6 +37,9 @@ RRD_HEADER_BYTES = 12
 """The file header: the magic and version (4 bytes), Rerun's version (4), options (4)."""
 DEFAULT_WEB_PORT = 9090
 DEFAULT_GRPC_PORT = 9876
+DEFAULT_BIND = "127.0.0.1"
+"""Where `--web` listens unless `--bind` says otherwise: this machine alone (Rerun's own default,
+0.0.0.0, would serve the recordings to anyone who can reach it)."""
 MAX_PORT = 65_535
 """Ports go from 1 to this: a TCP port is a 16-bit number, and 0 asks the system for any free
 one, which no browser could be told in advance."""
@@ -47,7 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description=(
             "Open the Rerun recording (recording.rrd) of one run, or of several runs to compare "
             "them. Without a display, prints how to open them elsewhere; --web serves them to a "
-            "browser instead."
+            f"browser instead, on {DEFAULT_BIND} (this machine only) unless --bind names another "
+            "address."
         ),
     )
     parser.add_argument(
@@ -73,6 +80,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=int,
         default=DEFAULT_GRPC_PORT,
         help=f"gRPC port, 1 to {MAX_PORT} (with --web; default {DEFAULT_GRPC_PORT})",
+    )
+    parser.add_argument(
+        "--bind",
+        default=DEFAULT_BIND,
+        metavar="ADDRESS",
+        help=f"the address --web listens on (default {DEFAULT_BIND}: this machine only, reached "
+        "from another through an SSH tunnel); 0.0.0.0 serves every interface, to anyone who "
+        "can reach this machine",
     )
     parser.set_defaults(func=run)
 
@@ -152,17 +167,66 @@ def web_viewer_url(host: str, web_port: int, grpc_port: int) -> str:
     return f"http://{host}:{web_port}/?url=rerun%2Bhttp://{host}:{grpc_port}/proxy"
 
 
-def port_in_use(port: int) -> bool:
-    """True when something on this machine already listens on `port` (a running viewer)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as sock:
+IPAddress = ipaddress.IPv4Address | ipaddress.IPv6Address
+
+
+def check_bind(address: str) -> IPAddress:
+    """The IP address `--bind` names; a `ValueError` naming the option for one that is not an
+    IP address, or that no server on this machine can listen on (another machine's)."""
+    try:
+        ip = ipaddress.ip_address(address)
+    except ValueError:
+        raise ValueError(
+            f"--bind must be an IP address of this machine ({DEFAULT_BIND}, the default, serves "
+            f"it alone; 0.0.0.0 every interface), got {address!r}"
+        ) from None
+    family = socket.AF_INET6 if ip.version == 6 else socket.AF_INET
+    try:
+        with socket.socket(family, socket.SOCK_STREAM) as sock:
+            sock.bind((str(ip), 0))
+    except OSError as exc:
+        raise ValueError(
+            f"--bind {address}: no server can listen there ({exc.strerror or exc}); name one of "
+            "this machine's addresses, or 0.0.0.0 for every interface"
+        ) from None
+    return ip
+
+
+def _url_host(ip: IPAddress) -> str:
+    """`ip` as the host of a URL (an IPv6 address in brackets)."""
+    return f"[{ip}]" if ip.version == 6 else str(ip)
+
+
+def _scope(ip: IPAddress) -> str:
+    """Who can reach a server bound to `ip`, as a clause after its address."""
+    if ip.is_loopback:
+        return ", this machine only"
+    if ip.is_unspecified:
+        return ", every interface: anyone who can reach this machine can read them"
+    return ""
+
+
+def _local_host(ip: IPAddress) -> str:
+    """The host a browser on this machine names to reach a server bound to `ip`."""
+    return "localhost" if ip.is_unspecified or str(ip) == DEFAULT_BIND else _url_host(ip)
+
+
+def port_in_use(port: int, ip: IPAddress | None = None) -> bool:
+    """True when something on this machine already listens on `port` at `ip` (a running
+    viewer); for every interface (0.0.0.0, ::), at the loopback address of that family."""
+    ip = ipaddress.ip_address(DEFAULT_BIND) if ip is None else ip
+    if ip.is_unspecified:
+        ip = ipaddress.ip_address("::1" if ip.version == 6 else DEFAULT_BIND)
+    family = socket.AF_INET6 if ip.version == 6 else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as sock:
         sock.settimeout(0.5)
-        return sock.connect_ex(("127.0.0.1", port)) == 0
+        return sock.connect_ex((str(ip), port)) == 0
 
 
-def busy_ports_error(web_port: int, grpc_port: int) -> str | None:
+def busy_ports_error(web_port: int, grpc_port: int, ip: IPAddress | None = None) -> str | None:
     """Why `--web` cannot serve on these ports, or None when both are free."""
     for port, flag in ((web_port, "--web-port"), (grpc_port, "--grpc-port")):
-        if port_in_use(port):
+        if port_in_use(port, ip):
             return (
                 f"port {port} is already in use (another `curious view --web` or Rerun server?); "
                 f"stop it, or choose a free port with {flag}"
@@ -170,13 +234,39 @@ def busy_ports_error(web_port: int, grpc_port: int) -> str | None:
     return None
 
 
+def access_lines(ip: IPAddress, web_port: int, grpc_port: int) -> list[str]:
+    """How to open recordings served on `ip`: from this machine, and from another one (through
+    an SSH tunnel where `ip` is a loopback address, which no other machine reaches)."""
+    host = socket.gethostname()
+    here = _local_host(ip)
+    lines = [f"in a browser on this machine: {web_viewer_url(here, web_port, grpc_port)}"]
+    if ip.is_loopback:
+        target = _url_host(ip)
+        lines += [
+            f"from another machine, through an SSH tunnel: ssh -L {web_port}:{target}:{web_port} "
+            f"-L {grpc_port}:{target}:{grpc_port} {host}, then on that machine",
+            f"  {web_viewer_url('localhost', web_port, grpc_port)}",
+            f"  or a native viewer: rerun --connect rerun+http://localhost:{grpc_port}/proxy",
+            "(--bind 0.0.0.0 serves every interface instead, to anyone who can reach "
+            f"{host}: {web_viewer_url(host, web_port, grpc_port)})",
+        ]
+    else:
+        remote = host if ip.is_unspecified else _url_host(ip)
+        named = f" (by this machine's name, {host})" if ip.is_unspecified else ""
+        lines += [
+            f"from another machine{named}: {web_viewer_url(remote, web_port, grpc_port)}",
+            f"  or a native viewer: rerun --connect rerun+http://{remote}:{grpc_port}/proxy",
+        ]
+    return lines
+
+
 def elsewhere_instructions(
-    runs: list[str], paths: list[Path], web_port: int, grpc_port: int
+    runs: list[str], paths: list[Path], web_port: int, grpc_port: int, ip: IPAddress
 ) -> str:
     """How to open the recordings from a machine without a display."""
     files = " ".join(shlex.quote(str(p.resolve())) for p in paths)
     runs_text = " ".join(shlex.quote(r) for r in runs)
-    host = socket.gethostname()
+    bind = "" if str(ip) == DEFAULT_BIND else f"--bind {ip} "
     return "\n".join(
         [
             "No display here (DISPLAY and WAYLAND_DISPLAY are unset), so no viewer window can "
@@ -186,15 +276,10 @@ def elsewhere_instructions(
             "     and open them:",
             f"       rerun {files}",
             "",
-            "  2. Or serve them from here:",
-            f"       curious view --web {runs_text}",
-            f"     then open in a browser (from another machine; {host} is this machine's name)",
-            f"       {web_viewer_url(host, web_port, grpc_port)}",
-            f"     (over ssh: ssh -L {web_port}:localhost:{web_port} -L {grpc_port}:localhost:"
-            f"{grpc_port} {host}, then",
-            f"       {web_viewer_url('localhost', web_port, grpc_port)} ),",
-            "     or connect a native viewer to it:",
-            f"       rerun --connect rerun+http://{host}:{grpc_port}/proxy",
+            f"  2. Or serve them from here (on {ip}{_scope(ip)}):",
+            f"       curious view --web {bind}{runs_text}",
+            "     then open them",
+            *(f"       {line}" for line in access_lines(ip, web_port, grpc_port)),
         ]
     )
 
@@ -254,35 +339,38 @@ def run(args: argparse.Namespace) -> int:
             "are served on two ports; choose two"
         ))  # fmt: skip
     try:
+        ip = check_bind(args.bind)
+    except ValueError as exc:
+        return refuse("view", exc)
+    try:
         paths = recording_paths(args.runs)
     except FileNotFoundError as exc:
         return refuse("view", exc)
     files = [str(p) for p in paths]
     if args.web:
-        busy = busy_ports_error(args.web_port, args.grpc_port)
+        busy = busy_ports_error(args.web_port, args.grpc_port, ip)
         if busy:
             return refuse("view", OSError(busy))
         command = [
             *viewer_command(),
             "--serve-web",
+            "--bind",
+            str(ip),
             "--web-viewer-port",
             str(args.web_port),
             "--port",
             str(args.grpc_port),
             *files,
         ]
-        host = socket.gethostname()
+        lines = access_lines(ip, args.web_port, args.grpc_port)
         print(
-            f"Serving {len(files)} recording(s). In a browser on this machine open\n"
-            f"  {web_viewer_url('localhost', args.web_port, args.grpc_port)}\n"
-            f"from another machine (by this machine's name, {host}) open\n"
-            f"  {web_viewer_url(host, args.web_port, args.grpc_port)}\n"
-            f"or connect a native viewer: rerun --connect rerun+http://{host}:"
-            f"{args.grpc_port}/proxy\nCtrl-C (or SIGTERM, SIGHUP) stops the server."
+            f"Serving {len(files)} recording(s) on {ip}{_scope(ip)}. Open them\n"
+            + "".join(f"  {line}\n" for line in lines)
+            + "Ctrl-C (or SIGTERM, SIGHUP) stops the server."
         )
         return run_viewer(command)
     if not has_display():
-        print(elsewhere_instructions(args.runs, paths, args.web_port, args.grpc_port))
+        print(elsewhere_instructions(args.runs, paths, args.web_port, args.grpc_port, ip))
         return 0
     # `--new`: a window of this command's own; without it, a viewer already listening on the
     # default port receives the recordings, and nothing opens here.
