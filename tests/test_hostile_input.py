@@ -427,6 +427,10 @@ REPRODUCE = ["reproduce", "--budget", "smoke", "--out", "{tmp}/r", "--no-progres
         ([*REPRODUCE, "--cpus-per-run", "nan"], "--cpus-per-run must be a number > 0, got nan"),
         ([*REPRODUCE, "--gpus-per-run", "nan"], "--gpus-per-run must be a number >= 0, got nan"),
         ([*REPRODUCE, "--gpus-per-run", "inf"], "--gpus-per-run must be a number >= 0, got inf"),
+        # an OverflowError from the worker pool once, after reproduce.json was written
+        ([*REPRODUCE, "--workers", "100000000000000000000"], "--workers must be from 1 to 4,096"),
+        ([*REPRODUCE, "--workers", "4294967296"], "--workers must be from 1 to 4,096"),
+        ([*REPRODUCE, "--workers", "0"], "--workers must be from 1 to 4,096"),
         (["view", "--web", "--bind", "every", "{tmp}"], "--bind must be an IP address"),
     ],
 )

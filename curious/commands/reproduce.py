@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -49,6 +50,9 @@ from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENT
 if TYPE_CHECKING:
     from pipelines.reproduce import ReproduceResult
 
+MAX_WORKERS = 4096
+"""The most worker processes `--workers` asks for: more cores than any one machine has, far
+below what would overflow the pool's bounded queue (Python's semaphores end at 2**31 - 1)."""
 LOOPBACK = "127.0.0.1"
 """Where the Dagster UI of the closing line listens: this machine only (an SSH tunnel reaches it
 from another)."""
@@ -130,9 +134,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--workers",
         type=int,
         default=None,
-        help="worker processes training runs at once on this machine (default: one per core, "
-        "with --device cuda too, the processes sharing the GPU), given no more runs at a time "
-        "than fit in its memory together; ignored with Ray",
+        help="worker processes training runs at once on this machine, 1 to "
+        f"{MAX_WORKERS:,} (default: one per core, with --device cuda too, the processes sharing "
+        "the GPU), given no more runs at a time than fit in its memory together; ignored with Ray",
     )
     parser.add_argument(
         "--population",
@@ -221,10 +225,17 @@ def run(args: argparse.Namespace) -> int:
     if args.from_data is not None:
         return _from_data(args)
     args.budget = DEFAULT_BUDGET if args.budget is None else args.budget  # '' is unknown
-    for option, value in (("--workers", args.workers), ("--population", args.population)):
-        if value is not None and value < 1:
-            print(f"curious reproduce: error: {option} must be >= 1, got {value}", file=sys.stderr)
-            return 2
+    if args.population is not None and args.population < 1:
+        message = f"--population must be >= 1, got {args.population}"
+        print(f"curious reproduce: error: {message}", file=sys.stderr)
+        return 2
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        print(
+            f"curious reproduce: error: --workers must be from 1 to {MAX_WORKERS:,} (worker "
+            f"processes on this machine; it has {os.cpu_count() or 1} cores), got {args.workers:,}",
+            file=sys.stderr,
+        )
+        return 2
     cpus = 1.0 if args.cpus_per_run is None else args.cpus_per_run
     resources = (
         ("--cpus-per-run", cpus, cpus > 0, "> 0"),
