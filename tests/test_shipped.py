@@ -15,6 +15,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -179,6 +180,75 @@ def test_a_ship_cleans_what_a_killed_ship_left_beside_its_out(smoke, shipped, tm
     assert code == 0, stderr
     assert sorted(p.name for p in data.iterdir()) == [f".other.old-{pid}", "smoke"]
     assert hashes(out) == hashes(shipped.data)
+
+
+def _signal_at(signum: int, target, when, after: bool = False):
+    """`target` (a function or method), sending this process `signum` just before it runs (or
+    just `after`) where `when(path)` holds for its first argument: a Ctrl-C (or a kill) that
+    comes at that very step."""
+
+    def wrapped(path, *args, **kwargs):
+        due = when(Path(path))
+        if due and not after:
+            signal.raise_signal(signum)
+        result = target(path, *args, **kwargs)
+        if due and after:
+            signal.raise_signal(signum)
+        return result
+
+    return wrapped
+
+
+@pytest.mark.parametrize(
+    ("step", "signum"),
+    [
+        ("set the earlier ship aside", signal.SIGINT),
+        ("remove the earlier ship", signal.SIGINT),
+        ("remove the staging folder", signal.SIGINT),  # a second Ctrl-C, after a first one
+        ("remove the earlier ship", signal.SIGTERM),
+    ],
+    ids=["ctrl-c-setting-aside", "ctrl-c-removing-earlier", "ctrl-c-removing-staging", "kill"],
+)
+def test_a_ship_stopped_at_any_step_leaves_nothing_beside_its_out(
+    smoke, shipped, tmp_path, monkeypatch, step, signum
+):
+    """Ctrl-C while a ship swapped its output in left `.<out>.old-PID` holding part of the
+    earlier ship: now a ship stopped at any step (Ctrl-C: one line, exit status 130; SIGTERM:
+    status 143) leaves nothing beside `out`, which holds the earlier ship or the new one whole."""
+    import curious.reproduction.shipping as shipping
+
+    data = tmp_path / "data"
+    out = data / "smoke"
+    shutil.copytree(shipped.data, out)
+    (out / "main" / "stale.txt").write_text("from an earlier ship")
+    earlier = hashes(out)
+    if step == "set the earlier ship aside":  # between the two renames of the swap
+        rename = _signal_at(signum, Path.rename, lambda p: p == out.resolve(), after=True)
+        monkeypatch.setattr(Path, "rename", rename)
+    else:
+        prefix = ".smoke.old-" if step == "remove the earlier ship" else ".smoke.shipping-"
+        if step == "remove the staging folder":  # the first Ctrl-C, while the ship is checked
+
+            def first_ctrl_c(*args):
+                raise KeyboardInterrupt
+
+            monkeypatch.setattr(shipping, "_verify", first_ctrl_c)
+
+        def there(path: Path) -> bool:  # not the removal of a stale one before it is made
+            return path.name.startswith(prefix) and path.exists()
+
+        rmtree = _signal_at(signum, shutil.rmtree, there)
+        monkeypatch.setattr(shipping.shutil, "rmtree", rmtree)
+    if signum == signal.SIGINT:
+        code, _, stderr = cli(["ship", str(smoke.out), "--out", str(out)])
+        assert code == 130 and stderr == "curious ship: interrupted\n", stderr
+    else:
+        with pytest.raises(SystemExit) as stopped:
+            cli(["ship", str(smoke.out), "--out", str(out)])
+        assert stopped.value.code == 128 + signum
+    monkeypatch.undo()
+    assert sorted(p.name for p in data.iterdir()) == ["smoke"]
+    assert hashes(out) in (earlier, hashes(shipped.data))
 
 
 def test_the_default_out_of_a_reproduction_is_data_and_its_budget(smoke, tmp_path, monkeypatch):
