@@ -444,6 +444,27 @@ def test_numbers_past_what_a_command_can_hold_are_refused_naming_the_option(
     assert sorted(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    ("options", "message", "not_given"),
+    [
+        (["--every", "100000000000000000000"], "--every 100000000000000000000 makes", "--speed"),
+        (["--every", "3000", "--speed", "0.5"], "--every 3000 with --speed 0.5 makes", "--fps"),
+        (["--fps", "-1"], "--fps must be positive, got -1", "--speed"),
+        (["--speed", "0"], "--speed must be positive, got 0", "--fps"),
+    ],
+)
+def test_a_render_refusal_names_the_option_given_and_none_that_was_not(
+    options, message, not_given, tmp_path, capsys, monkeypatch
+):
+    """`--every 1e20` made too few frames per second, and the refusal named `--speed`, which
+    was not given: a refusal names the options at fault."""
+    monkeypatch.setenv("MUJOCO_GL", "egl")
+    assert main(["render", *options, *(a.format(tmp=tmp_path) for a in GIF)]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert message in line and not_given not in line, line
+    assert sorted(tmp_path.iterdir()) == []
+
+
 def test_the_bounds_of_render_are_its_help_and_its_edges_are_taken(tmp_path, capsys, monkeypatch):
     """The range a refusal names is the range that passes: its edges are accepted."""
     from curious.cli import build_parser

@@ -32,6 +32,11 @@ from typing import Any
 
 from curious.commands import HelpFormatter, folder_name
 
+DEFAULT_SPEED = 1.0
+"""`--speed` unless given: real time."""
+PNG_EVERY = 10
+"""`--every` unless given, for PNG frames (a video keeps every frame)."""
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious render`."""
@@ -113,10 +118,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--speed",
         type=float,
-        default=1.0,
-        help="video playback speed against the simulation's time (default: %(default)s, real "
-        "time: 1 / (control timestep x every) frames per second); the frames per second it "
-        f"makes must be from {MIN_FPS:g} to {MAX_FPS:g}",
+        default=None,
+        help=f"video playback speed against the simulation's time (default: {DEFAULT_SPEED:g}, "
+        "real time: 1 / (control timestep x every) frames per second); the frames per second "
+        f"it makes must be from {MIN_FPS:g} to {MAX_FPS:g}",
     )
     parser.add_argument(
         "--fps",
@@ -158,17 +163,19 @@ def _check(args: argparse.Namespace) -> str:
     for option, value in (("--speed", args.speed), ("--fps", args.fps), ("--hold", args.hold)):
         if value is not None and not math.isfinite(value):
             raise ValueError(f"{option} must be a finite number, got {value}")
-    if args.speed <= 0 or (args.fps is not None and args.fps <= 0):
-        raise ValueError("--speed and --fps must be positive")
+    for option, value in (("--speed", args.speed), ("--fps", args.fps)):
+        if value is not None and value <= 0:
+            raise ValueError(f"{option} must be positive, got {value:g}")
     if args.hold < 0:
         raise ValueError(f"--hold must be >= 0 seconds, got {args.hold}")
     if kind != "png":
-        every = args.every if args.every is not None else 1
         if args.fps is not None:
-            check_timing(args.fps, "--fps", args.fps, args.hold)
+            check_timing(args.fps, f"--fps {args.fps:g}", args.hold, derived=False)
         else:
-            fps = real_time_fps(CONTROL_TIMESTEP, every, args.speed)
-            check_timing(fps, "--speed", args.speed, args.hold)
+            every, speed = _every_and_speed(args, kind)
+            check_timing(
+                real_time_fps(CONTROL_TIMESTEP, every, speed), _timing_options(args), args.hold
+            )
     if args.run is not None:
         for name, given in (("--policy", args.policy), ("--goal", args.goal)):
             if given is not None:
@@ -183,12 +190,26 @@ def _check(args: argparse.Namespace) -> str:
     return kind
 
 
+def _every_and_speed(args: argparse.Namespace, kind: str) -> tuple[int, float]:
+    """`--every` and `--speed` as the output uses them, their defaults where not given."""
+    every = args.every if args.every is not None else (PNG_EVERY if kind == "png" else 1)
+    return every, DEFAULT_SPEED if args.speed is None else args.speed
+
+
+def _timing_options(args: argparse.Namespace) -> str:
+    """The options given that set a video's frames per second without --fps, with their
+    values, for a refusal to name (`--speed 1` where neither was given)."""
+    given = [f"--every {args.every}"] if args.every is not None else []
+    given += [f"--speed {args.speed:g}"] if args.speed is not None else []
+    return " with ".join(given) or f"--speed {DEFAULT_SPEED:g}"
+
+
 def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tuple[int, float, int]:
     """(every, fps, hold frames) of the output."""
     from curious.watching.video import real_time_fps
 
-    every = args.every if args.every is not None else (10 if kind == "png" else 1)
-    fps = args.fps if args.fps is not None else real_time_fps(control_timestep, every, args.speed)
+    every, speed = _every_and_speed(args, kind)
+    fps = args.fps if args.fps is not None else real_time_fps(control_timestep, every, speed)
     hold = 0 if kind == "png" else round(args.hold * fps)
     return every, fps, hold
 

@@ -100,14 +100,15 @@ def check_writer(kind: str, width: int, height: int) -> None:
             )
 
 
-def check_timing(fps: float, option: str, given: float, hold: float) -> None:
-    """A `ValueError` naming `option` (--fps or --speed, whose value `given` made `fps`) where a
-    video cannot play at `fps` frames per second (`MIN_FPS`, `MAX_FPS`), or naming --hold where
-    `hold` is past `MAX_HOLD` seconds."""
+def check_timing(fps: float, options: str, hold: float, derived: bool = True) -> None:
+    """A `ValueError` naming `options` (the options with their values that set `fps`: "--fps
+    200", or, `derived` from them, "--every 5000 with --speed 2") where a video cannot play at
+    `fps` frames per second (`MIN_FPS`, `MAX_FPS`), or naming --hold where `hold` is past
+    `MAX_HOLD` seconds."""
     if not MIN_FPS <= fps <= MAX_FPS:
-        made = "" if option == "--fps" else f" makes {fps:g} frames per second"
+        made = f" makes {fps:g} frames per second" if derived else ""
         raise ValueError(
-            f"{option} {given:g}{made}: videos play at {MIN_FPS:g} to {MAX_FPS:g} frames per "
+            f"{options}{made}: videos play at {MIN_FPS:g} to {MAX_FPS:g} frames per "
             "second (why: curious.watching.video.MIN_FPS, MAX_FPS)"
         )
     if hold > MAX_HOLD:
