@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -205,8 +206,10 @@ def test_a_resume_rebuilds_a_missing_or_damaged_recording_from_the_tables(
 ) -> None:
     """Killed after its checkpoint at 24 with its recording then deleted, cut short or
     overwritten, a run resumed holds every series its tables hold as an uninterrupted run does
-    (the statistics at float32), and says what it could not rebuild: the replay shares and
-    learner statistics then start after the resumed episode, and the 3-D rollouts at it."""
+    (the statistics at float32), and says what it could not rebuild, each series with the
+    episode of its first point: the replay shares and learner statistics after the resumed
+    episode's cycle (28, where the warning once said 24), the 3-D rollouts at the first
+    evaluation from it on."""
     from curious.cli import main
     from curious.watching.recording.resume import NOT_IN_TABLES
 
@@ -220,20 +223,27 @@ def test_a_resume_rebuilds_a_missing_or_damaged_recording_from_the_tables(
     else:
         recording.write_bytes(b"not a recording at all")
     unreadable = "could not be read" if damage != "deleted" else None  # a file kept aside
+    rebuilt = "rebuilt from metrics.parquet and tests.parquet"
     with (
         pytest.warns(RuntimeWarning, match=unreadable) if unreadable else contextlib.nullcontext(),
-        pytest.warns(RuntimeWarning, match="rebuilt from metrics.parquet and tests.parquet"),
+        pytest.warns(RuntimeWarning, match=rebuilt) as warned,
     ):
         assert main([*TRAIN, "--out", str(out), "--resume"]) == 0
+    (said,) = [str(w.message) for w in warned if rebuilt in str(w.message)]
+    named = {
+        series: int(re.search(rf"{series} \(.*?\) at episode ([\d,]+)", said)[1])
+        for series in ("learner statistics", "3-D rollouts")
+    }
     (got, got_static), (want, want_static) = read_points(recording), read_points(uninterrupted_run)
     assert sorted(got) == sorted(want) and sorted(got_static) == sorted(want_static)
     for (entity, component), rows in want.items():
         mine = got[(entity, component)]
         if entity.startswith("scene/"):  # the rest pose, then rollouts from episode 24 on
             rollouts = [e for e, frame, _ in mine if frame != 0 and e is not None]
-            assert rollouts and min(rollouts) >= 24, entity
+            assert rollouts and min(rollouts) == named["3-D rollouts"] >= 24, (entity, said)
         elif entity.startswith(NOT_IN_TABLES):  # logged after each cycle: from 24's next on
             assert mine == [r for r in rows if r[0] > 24], entity
+            assert mine[0][0] == named["learner statistics"], (entity, said)
         else:
             assert float32_points(mine) == float32_points(rows), entity
 

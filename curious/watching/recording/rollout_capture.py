@@ -238,7 +238,7 @@ def _rebuild(recorder: Any, trainer: Any, folder: Any) -> None:
     import pyarrow.parquet as pq
 
     from curious.runs.metrics import metrics_schema, tests_schema
-    from curious.watching.recording.resume import NOT_IN_TABLES, rebuild_from_tables
+    from curious.watching.recording.resume import rebuild_from_tables
 
     def read(path: Any, schema: Any) -> Any:
         return pq.read_table(path) if path.exists() else schema.empty_table()
@@ -249,13 +249,45 @@ def _rebuild(recorder: Any, trainer: Any, folder: Any) -> None:
     logged = rebuild_from_tables(
         recorder, metrics, tests, episodes, trainer.config.episodes_per_cycle
     )
-    lacking = ", ".join(f"{p}..." for p in NOT_IN_TABLES)
+    restarts = restart_episodes(trainer.config, recorder.settings.rollout_every, episodes)
+    lacking = "; ".join(
+        f"{what} ({', '.join(f'{p}...' for p in prefixes)}) "
+        + (f"at episode {first:,}" if first is not None else "not again: the run has ended")
+        for what, prefixes, first in restarts
+    )
     warnings.warn(
         f"{recorder.path} had no readable recording to resume: its series of episodes 0 to "
         f"{episodes - 1:,} were rebuilt from {folder.metrics_path.name} and "
-        f"{folder.tests_path.name} ({logged:,} episodes); what those tables do not hold "
-        f"({lacking}: the 3-D rollouts, replay shares and learner statistics) starts at episode "
-        f"{episodes:,}",
+        f"{folder.tests_path.name} ({logged:,} episodes)"
+        + (f"; what those tables do not hold starts after them: {lacking}" if lacking else ""),
         RuntimeWarning,
         stacklevel=3,
     )
+
+
+def restart_episodes(
+    config: Any, rollout_every: int, episodes: int
+) -> list[tuple[str, tuple[str, ...], int | None]]:
+    """The series no table holds (`curious.watching.recording.resume.NOT_IN_TABLES`) that a run
+    resumed at `episodes` records, each as (what, its entity prefixes, the episode of its first
+    point after the resume, None where the run has no episode left to record it at): the
+    replay shares and learner statistics at the end of the first cycle resumed (they are
+    logged once a cycle, at the count after it), the 3-D rollouts at the first evaluation
+    episode due for one from `episodes` on (every `rollout_every`-th evaluation). A series the
+    run never records (no updates, `rollout_every` 0) is left out."""
+    total, every = config.total_episodes, config.eval_every
+    restarts: list[tuple[str, tuple[str, ...], int | None]] = []
+    if config.n_updates > 0:
+        cycle_end = min(episodes + config.episodes_per_cycle, total)
+        first = cycle_end if episodes < total else None
+        restarts.append(("the replay shares and learner statistics", PER_CYCLE_LOST, first))
+    if rollout_every > 0:
+        evaluation = -(-(episodes // every) // rollout_every) * rollout_every  # the first due
+        rollout = evaluation * every + every - 1
+        restarts.append(("the 3-D rollouts", ("scene/",), rollout if rollout < total else None))
+    return restarts
+
+
+PER_CYCLE_LOST = ("replay/", "losses/", "q/")
+"""The entity prefixes of the per-cycle series that no table holds: the replay shares, the
+losses and the Q values."""
