@@ -1,22 +1,20 @@
 """Where training partitions run: local worker processes, or Ray tasks across a cluster.
 
-Both take the same jobs (`Job`: one run's `RunSpec`, or a group of them trained together as a
-population, and the runs root) and write the same run folders:
+Both take the same jobs (`Job`: one run's `RunSpec` and the runs root) and write the same run
+folders:
 
 * `LocalPool`: a pool of `workers` processes on this machine (default: one per core), a job at a
   time in each. Processes are started with `spawn`, so a worker never inherits the parent's
   threads or open databases, and are reused from job to job (and from experiment to experiment).
-* `RayPool`: one Ray task per job with `cpus_per_run` CPUs and `gpus_per_run` GPUs for each of
-  its runs (a run with a GPU trains its networks with `device=cuda`), so a population lands on
-  one node that holds all its runs. The runs root must be storage every node sees (`--runs-dir`
-  on a shared file system). `connect_ray` first checks that the address answers, so a wrong
-  address fails in seconds with a clear error instead of hanging.
+* `RayPool`: one Ray task per job with `cpus_per_run` CPUs and `gpus_per_run` GPUs (a run with a
+  GPU trains its networks with `device=cuda`). The runs root must be storage every node sees
+  (`--runs-dir` on a shared file system). `connect_ray` first checks that the address answers,
+  so a wrong address fails in seconds with a clear error instead of hanging.
 
 `run_all` submits jobs, shows one progress bar over every run's episodes (read from the run
 folders' metrics, which the runs flush at each checkpoint) and returns one result per run, in
 order. The first failing job stops the others' submission and raises `PartitionFailed` naming
-the runs that failed; a Ctrl-C stops every run at once (`Pool.stop`: a run alone stops where it
-is, the runs of a population each at their cycle's checkpoint).
+the run that failed; a Ctrl-C stops every run at once, where it is (`Pool.stop`).
 """
 
 from __future__ import annotations
@@ -38,7 +36,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from curious.reproduction.experiments import RunSpec
-from pipelines.training import PartitionResult, RunsFailed, episodes_logged, run_folder, run_group
+from pipelines.training import PartitionResult, episodes_logged, run_folder, run_partition
 
 RAY_CONNECT_TIMEOUT_S = 30.0
 
@@ -53,31 +51,12 @@ class RayUnavailable(RuntimeError):
 
 @dataclass(frozen=True)
 class Job:
-    """Runs to train in one worker process or Ray task, together as a population
-    (`pipelines.training.run_group`); a single run is a group of one, and `Job(spec, ...)` with
-    a lone `RunSpec` makes that group."""
+    """One run to train in a worker process or a Ray task (`pipelines.training.run_partition`)."""
 
-    specs: tuple[RunSpec, ...]
+    spec: RunSpec
     runs_root: str
     overrides: dict[str, Any] = field(default_factory=dict)
     record: bool = True
-
-    def __post_init__(self) -> None:
-        specs = (self.specs,) if isinstance(self.specs, RunSpec) else tuple(self.specs)
-        if not specs:
-            raise ValueError("a job trains at least one run")
-        object.__setattr__(self, "specs", specs)
-
-    @property
-    def spec(self) -> RunSpec:
-        """The run of a job of one run (`runs()` hands a group's runs out as such jobs)."""
-        if len(self.specs) != 1:
-            raise ValueError(f"a job of {len(self.specs)} runs has no one spec: see Job.runs()")
-        return self.specs[0]
-
-    def runs(self) -> list[Job]:
-        """Each run of the group as a job of its own: what `run_all` hands to `on_done`."""
-        return [replace(self, specs=(spec,)) for spec in self.specs]
 
 
 class _WorkerState:
@@ -97,13 +76,13 @@ def _on_interrupt(signum: int, frame: object) -> None:
         raise KeyboardInterrupt
 
 
-def run_job(job: Job) -> list[PartitionResult]:
-    """Entry point in a worker process or a Ray task: one result per run of the job."""
+def run_job(job: Job) -> PartitionResult:
+    """Entry point in a worker process or a Ray task."""
     if _WorkerState.interrupted:  # a job queued before the Ctrl-C reached this worker
         raise KeyboardInterrupt
     _WorkerState.running = True
     try:
-        return run_group(job.specs, job.runs_root, job.overrides, record=job.record)
+        return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
     finally:
         _WorkerState.running = False
 
@@ -112,15 +91,14 @@ class Pool(Protocol):
     """What `run_all` needs from an executor."""
 
     description: str
-    largest_group: int | None
-    """The most runs one job may hold (on Ray, the most one node holds); None: no limit."""
+    local: bool
+    """Whether the jobs train on this machine (whose memory then bounds how many at a time)."""
 
     def submit(self, job: Job) -> Any: ...
 
     def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]: ...
 
-    def result(self, handle: Any) -> list[PartitionResult]:
-        """One result per run of the job."""
+    def result(self, handle: Any) -> PartitionResult: ...
 
     def cancel(self, handles: Sequence[Any]) -> None: ...
 
@@ -167,7 +145,7 @@ def busy_description(pool: Pool, jobs: int) -> str:
 class LocalPool:
     """`workers` worker processes on this machine (started on first use, then reused)."""
 
-    largest_group = None
+    local = True
 
     def __init__(self, workers: int | None = None) -> None:
         self.workers = max(1, int(workers or os.cpu_count() or 1))
@@ -193,7 +171,7 @@ class LocalPool:
         done, pending = cf.wait(handles, timeout=timeout, return_when=cf.FIRST_COMPLETED)
         return [h for h in handles if h in done], [h for h in handles if h in pending]
 
-    def result(self, handle: cf.Future) -> list[PartitionResult]:
+    def result(self, handle: cf.Future) -> PartitionResult:
         return handle.result()
 
     def cancel(self, handles: Sequence[Any]) -> None:
@@ -391,7 +369,9 @@ def connect_ray(
 
 class RayPool:
     """One Ray task per job on the cluster this process is connected to, with `cpus_per_run`
-    CPUs and `gpus_per_run` GPUs for each of its runs."""
+    CPUs and `gpus_per_run` GPUs."""
+
+    local = False
 
     def __init__(self, address: str, cpus_per_run: float = 1.0, gpus_per_run: float = 0.0) -> None:
         import ray
@@ -399,9 +379,8 @@ class RayPool:
         self.cpus_per_run = float(cpus_per_run)
         self.gpus_per_run = float(gpus_per_run)
         self.address, self._connected, nodes = connect_ray(address)
-        held = [self._runs_held(n) for n in nodes]
-        self.largest_group = max(held, default=0)
-        if not self.largest_group:
+        cpus, gpus = self.resources()
+        if not any(n.get("CPU", 0.0) >= cpus and n.get("GPU", 0.0) >= gpus for n in nodes):
             self.close()
             have = "; ".join(f"{n.get('CPU', 0):g} CPU, {n.get('GPU', 0):g} GPU" for n in nodes)
             raise RayUnavailable(
@@ -409,39 +388,23 @@ class RayPool:
                 f"{self.gpus_per_run:g} GPU for one run (nodes: {have or 'none'}): lower "
                 "--cpus-per-run / --gpus-per-run"
             )
-        self._remote = ray.remote(max_retries=0)(run_job)
+        self._remote = ray.remote(num_cpus=cpus, num_gpus=gpus, max_retries=0)(run_job)
         gpu = f", {self.gpus_per_run:g} GPU" if self.gpus_per_run else ""
         self.description = f"Ray tasks at {self.address} ({self.cpus_per_run:g} CPU{gpu} per run)"
 
-    def resources(self, runs: int) -> tuple[float, float]:
-        """The CPUs and GPUs a task of `runs` runs asks for: the runs' shares added up, rounded
+    def resources(self) -> tuple[float, float]:
+        """The CPUs and GPUs a run's task asks for: `cpus_per_run` and `gpus_per_run`, rounded
         up to a whole number above 1 (where Ray takes only whole numbers)."""
 
         def whole_above_one(amount: float) -> float:
             return amount if amount <= 1 else float(math.ceil(amount - 1e-9))
 
-        return whole_above_one(self.cpus_per_run * runs), whole_above_one(self.gpus_per_run * runs)
-
-    def _runs_held(self, node: dict[str, float]) -> int:
-        """The most runs one task on `node` can hold (0: not even one)."""
-        cpu, gpu = node.get("CPU", 0.0), node.get("GPU", 0.0)
-        runs = int(cpu / self.cpus_per_run + 1e-9)
-        if self.gpus_per_run > 0:
-            runs = min(runs, int(gpu / self.gpus_per_run + 1e-9))
-        while runs > 0 and not self._holds(cpu, gpu, runs):
-            runs -= 1  # the rounding up asked for more than the node has
-        return runs
-
-    def _holds(self, cpu: float, gpu: float, runs: int) -> bool:
-        """Whether a node of `cpu` CPUs and `gpu` GPUs holds a task of `runs` runs."""
-        cpus, gpus = self.resources(runs)
-        return cpus <= cpu and gpus <= gpu
+        return whole_above_one(self.cpus_per_run), whole_above_one(self.gpus_per_run)
 
     def submit(self, job: Job) -> Any:
         if self.gpus_per_run > 0:
             job = replace(job, overrides={**job.overrides, "device": "cuda"})
-        cpus, gpus = self.resources(len(job.specs))
-        return self._remote.options(num_cpus=cpus, num_gpus=gpus).remote(job)
+        return self._remote.remote(job)
 
     def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]:
         import ray
@@ -451,7 +414,7 @@ class RayPool:
         done, pending = ray.wait(list(handles), num_returns=1, timeout=timeout)
         return done, pending
 
-    def result(self, handle: Any) -> list[PartitionResult]:
+    def result(self, handle: Any) -> PartitionResult:
         import ray
 
         return ray.get(handle)
@@ -482,19 +445,19 @@ def run_all(
     poll_seconds: float = 1.0,
     at_once: int | None = None,
 ) -> list[PartitionResult]:
-    """Train every job on `pool`; one result per run, in the order of `jobs` and of their runs.
+    """Train every job on `pool`; one result per job, in the order of `jobs`.
 
     `on_progress(episodes_done, episodes_total)` is called about every `poll_seconds` with the
-    episodes found in every run's folder; `on_done(run, result)` after each run, `run` its job
-    of one (`Job.runs`), once its job has ended. `at_once`: at most that many jobs handed to the
-    pool at a time, the next as one ends (None: all at once, the pool queueing them).
+    episodes found in every run's folder; `on_done(job, result)` after each job has ended.
+    `at_once`: at most that many jobs handed to the pool at a time, the next as one ends (None:
+    all at once, the pool queueing them).
     """
-    results: dict[int, list[PartitionResult]] = {}
+    results: dict[int, PartitionResult] = {}
     handles: dict[Any, int] = {}
     waiting = list(enumerate(jobs))
-    total = sum(spec.total_episodes for job in jobs for spec in job.specs)
+    total = sum(job.spec.total_episodes for job in jobs)
     pending: list[Any] = []
-    folders = [[run_folder(spec, job.runs_root) for spec in job.specs] for job in jobs]
+    folders = [run_folder(job.spec, job.runs_root) for job in jobs]
     limit = len(jobs) if at_once is None else max(1, at_once)
     try:
         while waiting or pending:
@@ -509,15 +472,14 @@ def run_all(
                 try:
                     results[i] = pool.result(handle)
                 except Exception as exc:
-                    raise PartitionFailed(_failure(jobs[i], exc)) from exc
+                    raise PartitionFailed(
+                        f"{jobs[i].spec.label} failed: {type(exc).__name__}: {exc}"
+                    ) from exc
                 if on_done is not None:
-                    for run, result in zip(jobs[i].runs(), results[i], strict=True):
-                        on_done(run, result)
+                    on_done(jobs[i], results[i])
             if on_progress is not None:
                 seen = sum(
-                    sum(r.episodes for r in results[i])
-                    if i in results
-                    else sum(episodes_logged(folder) for folder in folders[i])
+                    results[i].episodes if i in results else episodes_logged(folders[i])
                     for i in range(len(jobs))
                 )
                 on_progress(min(seen, total), total)
@@ -526,15 +488,7 @@ def run_all(
         if not isinstance(exc, Exception):  # a Ctrl-C (Dagster's interrupt is one too)
             pool.stop()
         raise
-    return [result for i in range(len(jobs)) for result in results[i]]
-
-
-def _failure(job: Job, exc: Exception) -> str:
-    """What `PartitionFailed` says: the runs that failed, each with its error."""
-    if isinstance(exc, RunsFailed):  # runs of a population, named by the worker
-        return str(exc)
-    labels = " + ".join(spec.label for spec in job.specs)
-    return f"{labels} failed: {type(exc).__name__}: {exc}"
+    return [results[i] for i in range(len(jobs))]
 
 
 def make_pool(

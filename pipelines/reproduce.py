@@ -9,8 +9,8 @@
    folder is empty, or holds (part of) the very run its partition should hold; the Ray cluster,
    if one is named, answers;
 2. for each experiment, one Dagster run materialises its `runs` asset over all its partitions
-   (trained side by side on the pool, alone or in populations, `population`; finished ones
-   are skipped, interrupted ones resume);
+   (trained side by side on the pool, a run a process or a Ray task; finished ones are
+   skipped, interrupted ones resume);
 3. one Dagster run materialises the metrics tables, the figures and `report.md`.
 
 With `from_data` (`curious reproduce --from-data DATA`), step 2 trains nothing: the runs are read
@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from curious.config import ConfigError
 from curious.reproduction.experiments import (
     FIGURES,
     Experiment,
@@ -267,28 +266,24 @@ def reproduce(
     progress: bool = True,
     say: Callable[[str], None] | None = None,
     from_data: str | os.PathLike | None = None,
-    population: int | None = None,
 ) -> ReproduceResult:
     """Train and draw everything `budget` asks for (see the module docstring).
 
     `make_pool` builds the training pool (`pipelines.executors.make_pool`); it is called before
     anything is written, so that a Ray cluster that does not answer fails first. `overrides`
     change single training settings of every run (`--device`); `say` prints progress lines.
-    `population`: the runs trained together in one process (`curious reproduce --population`;
-    None: the rule of `pipelines.resources.Reproduction.population_size`), checked with the
-    rest before anything is written (`ConfigError`).
     While it runs, OUT is locked against a second reproduction (`ReproduceError`).
 
     With `from_data`, a shipped data folder (`curious ship`), nothing is trained: the runs are
     read from it (`pipelines.from_data`), by default every experiment it holds complete, into
-    OUT (default `runs/<budget>-shipped`); `runs_dir`, `make_pool`, `overrides` and
-    `population` must be None.
+    OUT (default `runs/<budget>-shipped`); `runs_dir`, `make_pool` and `overrides` must be
+    None.
     """
     tic = time.perf_counter()
     chosen = get_budget(budget)
     data = None
     if from_data is not None:
-        if runs_dir is not None or make_pool is not None or overrides or population is not None:
+        if runs_dir is not None or make_pool is not None or overrides:
             raise ReproduceError(
                 "--from-data reads shipped runs: it takes no --runs-dir, pool or training setting"
             )
@@ -304,8 +299,7 @@ def reproduce(
     _check_writable(layout)
     with _reproduction_lock(layout):
         return _reproduce(
-            chosen, selected, layout, make_pool, overrides, record, progress, say, tic, data,
-            population,
+            chosen, selected, layout, make_pool, overrides, record, progress, say, tic, data
         )  # fmt: skip
 
 
@@ -390,7 +384,6 @@ def _reproduce(
     say: Callable[[str], None] | None,
     tic: float,
     data: ShippedData | None = None,
-    population: int | None = None,
 ) -> ReproduceResult:
     import dagster as dg
 
@@ -408,7 +401,6 @@ def _reproduce(
         record=record,
         progress=progress,
         data=data,
-        population=population,
     )
     if say is not None:
         repro.say = say
@@ -421,17 +413,12 @@ def _reproduce(
         )
     else:
         pool = repro.pool  # connects to Ray (or fails) before anything is written
-        try:
-            repro.check_population([spec for e in selected for spec in e.runs()])
-        except ConfigError:
-            repro.close()
-            raise
         to_train = counts.get("partial", 0) + counts.get("new", 0)
         repro.say(
             f"curious reproduce --budget {chosen.name}: {names}; "
             f"{sum(counts.values())} runs ({counts.get('finished', 0)} finished, "
             f"{counts.get('partial', 0)} to resume, {counts.get('new', 0)} new) on "
-            f"{busy_description(pool, -(-to_train // (population or 1)))}"
+            f"{busy_description(pool, to_train)}"
         )
         hint = gpu_sharing_hint(pool, repro.overrides.get("device"))
         if hint is not None:

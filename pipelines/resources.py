@@ -6,10 +6,8 @@ first use, so building the definitions, e.g. for the Dagster UI, starts no proce
 cluster), or the shipped data folder read in place of training (`curious reproduce --from-data`,
 `pipelines.from_data`).
 
-It sends an experiment's runs to the pool in populations (`curious reproduce --population`,
-`Reproduction.population_size`): the runs still to train, in the budget's order, cut into groups
-that each train in one process, their physics stepped as one batch; a group of one is a run
-alone, the default.
+It sends an experiment's runs still to train to the pool, one run a job, in the budget's order,
+on this machine no more at a time than fit in its memory together (`Reproduction.at_once`).
 
 Output folder layout (`OutputLayout`):
 
@@ -27,8 +25,6 @@ Output folder layout (`OutputLayout`):
 
 from __future__ import annotations
 
-import bisect
-import itertools
 import json
 import sys
 import time
@@ -37,7 +33,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from curious.config import ConfigError
 from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
 from curious.reproduction.shipped_folder import ShippedFolder
 from pipelines.executors import Job, Pool, busy_description, run_all
@@ -188,8 +183,6 @@ class Reproduction:
     data: ShippedData | None = None
     """The shipped data folder read instead of training (`curious reproduce --from-data`); its
     path is the layout's runs root."""
-    population: int | None = None
-    """Runs trained together in one process (`population_size`); None: the default rule."""
     _pool: Pool | None = None
 
     @property
@@ -222,56 +215,13 @@ class Reproduction:
             return self.data.state(spec)
         return folder_state(spec, self.layout.runs_root, self.overrides)
 
-    def copies_in_processes(self, specs: Sequence[RunSpec]) -> bool:
-        """Whether the runs of `specs` step their copies in worker processes (`env_processes`
-        other than 1), which a population cannot: it steps them in its own process."""
-        return any(spec.config(self.overrides).processes > 1 for spec in specs)
-
-    def population_size(self, specs: Sequence[RunSpec]) -> int:
-        """Runs per population for the runs of `specs`, an experiment's runs still to train: 1
-        (one run per process) unless `population` is given, on CPUs and GPUs alike: on a
-        16-core node with a GPU, fifteen `paper` runs as processes trained 2.2 to 3.2 times the
-        episodes of the same runs as one population (docs/benchmarks.md). A given `population`
-        is kept, except that on this machine a population holds no more runs than fit in its
-        memory together (`curious.runs.population.runs_that_fit`), the rest in further
-        populations after them (on Ray, `check_population` refuses more than a node holds)."""
-        if self.population is None or self.population == 1:
-            return 1
-        if self.pool.largest_group is not None:  # Ray: its nodes' memory is theirs to check
-            return self.population
-        from curious.runs.population import runs_that_fit
-
-        configs = [spec.config(self.overrides) for spec in specs[: self.population]]
-        return max(1, min(self.population, runs_that_fit(configs)))
-
-    def check_population(self, specs: Sequence[RunSpec]) -> None:
-        """A `ConfigError` where the given `population` cannot train the runs of `specs`: fewer
-        than 1, copies stepped in worker processes, or more runs than one Ray node holds."""
-        size = self.population
-        if size is None:
-            return
-        if size < 1:
-            raise ConfigError(f"--population must be >= 1, got {size}")
-        if size > 1 and self.copies_in_processes(specs):
-            raise ConfigError(
-                f"--population {size} steps its runs' copies in its own process, but "
-                "env_processes asks for worker processes: leave out --set env_processes, or "
-                "train one run per process (--population 1)"
-            )
-        largest = self.pool.largest_group
-        if largest is not None and size > largest:
-            raise ConfigError(
-                f"--population {size} asks for {size} runs' CPUs and GPUs in one Ray task, but "
-                f"no node of the cluster holds more than {largest}: lower --population"
-            )
-
     def train(self, experiment: Experiment, specs: Sequence[RunSpec]) -> list[PartitionResult]:
         """Bring every run of `specs` to its budget on the pool, with a progress bar.
 
         Runs whose folders already hold the finished run are not sent to the pool at all; the
-        others go in populations of `population_size`, in the order of `specs` (the budget's,
-        so that a reproduction stopped part-way holds comparable seeds). From shipped data
-        nothing is trained, and a run that is not there finished is an error.
+        others go a run a job, in the order of `specs` (the budget's, so that a reproduction
+        stopped part-way holds comparable seeds). From shipped data nothing is trained, and a
+        run that is not there finished is an error.
         """
         if self.data is not None:
             return self._read_shipped(experiment, specs)
@@ -289,11 +239,7 @@ class Reproduction:
         if results:
             self.say(f"  {experiment.name}: {len(results)} run(s) already finished, not retrained")
         if todo:
-            size = self.population_size(todo)
-            jobs = [
-                Job(tuple(todo[i : i + size]), str(root), dict(self.overrides), self.record)
-                for i in range(0, len(todo), size)
-            ]
+            jobs = [Job(spec, str(root), dict(self.overrides), self.record) for spec in todo]
             results.update(self._train(experiment, jobs))
         ordered = [results[s.partition_key] for s in specs]
         self.results.extend(ordered)
@@ -328,27 +274,22 @@ class Reproduction:
 
     def at_once(self, jobs: Sequence[Job]) -> int | None:
         """Jobs trained at a time on this machine: as many, in order, as fit in its memory
-        together (`curious.runs.population.runs_that_fit` over their runs), since each run
-        checks its own memory as it starts, not that of the runs beside it, and a `paper`
-        run's replay grows to about 5 GB; None on Ray, whose tasks hold their nodes' memory."""
-        if self.pool.largest_group is not None:
+        together (`curious.runs.memory.runs_that_fit`), since each run checks its own memory as
+        it starts, not that of the runs beside it, and a `paper` run's replay grows to about
+        5 GB; None on Ray, whose tasks hold their nodes' memory."""
+        if not self.pool.local:
             return None
-        from curious.runs.population import runs_that_fit
+        from curious.runs.memory import runs_that_fit
 
-        fit = runs_that_fit([spec.config(self.overrides) for job in jobs for spec in job.specs])
-        runs = list(itertools.accumulate(len(job.specs) for job in jobs))
-        return max(1, bisect.bisect_right(runs, fit))
+        return runs_that_fit([job.spec.config(self.overrides) for job in jobs])
 
     def _train(self, experiment: Experiment, jobs: list[Job]) -> dict[str, PartitionResult]:
         from tqdm.auto import tqdm
 
-        runs = sum(len(job.specs) for job in jobs)
-        plural = "s" if len(jobs) > 1 else ""
-        grouped = f" in {len(jobs)} population{plural}" if runs > len(jobs) else ""
         bar = tqdm(
-            total=sum(spec.total_episodes for job in jobs for spec in job.specs),
+            total=sum(job.spec.total_episodes for job in jobs),
             unit="ep",
-            desc=f"{experiment.name} ({runs} runs{grouped})",
+            desc=f"{experiment.name} ({len(jobs)} runs)",
             disable=not self.progress,
             dynamic_ncols=True,
             file=sys.stderr,
@@ -374,7 +315,7 @@ class Reproduction:
             bar.close()
         busy = busy_description(self.pool, min(len(jobs), at_once or len(jobs)))
         self.say(
-            f"  {experiment.name}: {len(results)} run(s){grouped} trained in "
+            f"  {experiment.name}: {len(results)} run(s) trained in "
             f"{time.perf_counter() - tic:.0f} s on {busy}"
         )
         return {r.partition_key: r for r in results}

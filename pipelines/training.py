@@ -13,11 +13,6 @@ state          what happens
                nothing is done
 =============  ===================================================================
 
-`run_group(specs, runs_root)` does the same for several runs at once (`curious reproduce
---population`): each folder's state is decided as above, and the runs still to train train as
-one population in this process (`curious.runs.population`), each resumed or started as its
-folder says, under its own lock, with its own recorder.
-
 A folder holding anything else (another budget's run, another condition, files that are not a
 run) raises `RunFolderMismatch` before anything is written, so a finished run is never touched.
 While a process trains a run it holds a lock beside the folder (`.seed-<s>.lock`, an advisory
@@ -37,17 +32,11 @@ import contextlib
 import os
 import sys
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from curious.reproduction.experiments import RunSpec
-
-if TYPE_CHECKING:
-    from curious.runs.folder import RunFolder
-    from curious.runs.hooks import Recorder
-    from curious.runs.trainer import Trainer
 
 FINISHED, PARTIAL, NEW = "finished", "partial", "new"
 
@@ -58,12 +47,6 @@ class RunFolderMismatch(RuntimeError):
 
 class RunFolderBusy(RunFolderMismatch):
     """Another process is training the partition's run folder right now."""
-
-
-class RunsFailed(RuntimeError):
-    """Runs of a group trained as a population failed (the others trained to their end): the
-    message names each failed run and its error, a line each. Only a message, so that it
-    crosses from a worker process or a Ray task as it is."""
 
 
 @dataclass(frozen=True)
@@ -190,102 +173,33 @@ def run_partition(
     record: bool = True,
     stop_after_cycles: int | None = None,
 ) -> PartitionResult:
-    """Bring one partition's run folder to its budget (see the module docstring): a group of
-    one run (`run_group`)."""
-    return run_group((spec,), runs_root, overrides, record, stop_after_cycles)[0]
-
-
-def run_group(
-    specs: Sequence[RunSpec],
-    runs_root: str | os.PathLike,
-    overrides: dict | None = None,
-    record: bool = True,
-    stop_after_cycles: int | None = None,
-) -> list[PartitionResult]:
-    """Bring the run folders of `specs` to their budgets, each as `run_partition` would (the
-    module docstring: a finished run is left as it is, a partial one resumes, a new one starts),
-    the runs still to train trained at once in this process: a population
-    (`curious.runs.population`), or one run alone as `curious train` trains it. One result per
-    run, in the order of `specs`; runs of the population that fail raise `RunsFailed` naming
-    them, once the others have trained."""
+    """Bring one partition's run folder to its budget (see the module docstring): a finished
+    run is left as it is, a partial one resumes, a new one starts, as `curious train` trains
+    it, with its own recorder."""
+    from curious.runs.driver import train
     from curious.runs.folder_errors import RunFolderBusy as Busy
 
     os.environ.setdefault("MUJOCO_GL", "disable")
     tic = time.perf_counter()
-    folders = [run_folder(spec, runs_root) for spec in specs]
-    states = [folder_state(spec, runs_root, overrides) for spec in specs]
-    todo = [i for i, state in enumerate(states) if state != FINISHED]
-    try:  # `train` holds each run folder's lock while it trains
-        trainers = _train_runs(
-            [specs[i] for i in todo],
-            [folders[i] for i in todo],
-            [states[i] == PARTIAL for i in todo],
-            overrides,
-            record,
-            stop_after_cycles,
+    folder = run_folder(spec, runs_root)
+    state = folder_state(spec, runs_root, overrides)
+    if state == FINISHED:
+        episodes = episodes_logged(folder)
+        return PartitionResult(
+            spec.partition_key, str(folder), state, episodes, 0.0, False, runner_name()
+        )
+    resume = state == PARTIAL
+    try:  # `train` holds the run folder's lock while it trains
+        trainer = train(
+            spec.config(overrides),
+            folder,
+            resume=resume,
+            make_recorder=_make_recorder(spec, record, resume),
+            stop_after_cycles=stop_after_cycles,
         )
     except Busy as exc:
         raise RunFolderBusy(str(exc)) from None
-    episodes = dict(zip(todo, (t.episodes for t in trainers), strict=True))
     seconds = time.perf_counter() - tic
-    return [
-        PartitionResult(
-            spec.partition_key,
-            str(folder),
-            state,
-            episodes[i] if i in episodes else episodes_logged(folder),
-            seconds if i in episodes else 0.0,
-            i in episodes,
-            runner_name(),
-        )
-        for i, (spec, folder, state) in enumerate(zip(specs, folders, states, strict=True))
-    ]
-
-
-def _train_runs(
-    specs: Sequence[RunSpec],
-    folders: Sequence[Path],
-    resumes: Sequence[bool],
-    overrides: dict | None,
-    record: bool,
-    stop_after_cycles: int | None,
-) -> list[Trainer]:
-    """Train the runs of `specs` in `folders` (resuming where `resumes` says): one alone, so
-    that its copies may step in worker processes (`env_processes`); several as a population,
-    each with its own recorder."""
-    from curious.runs.driver import train
-    from curious.runs.population import PopulationError, train_population
-
-    if not specs:
-        return []
-    configs = [spec.config(overrides) for spec in specs]
-    recorders = [
-        _make_recorder(spec, record, resume) for spec, resume in zip(specs, resumes, strict=True)
-    ]
-    if len(specs) == 1:
-        trainer = train(
-            configs[0],
-            folders[0],
-            resume=resumes[0],
-            make_recorder=recorders[0],
-            stop_after_cycles=stop_after_cycles,
-        )
-        return [trainer]
-    by_folder = {folder.resolve(): make for folder, make in zip(folders, recorders, strict=True)}
-
-    def make_recorder(trainer: Trainer, folder: RunFolder) -> Recorder:
-        """The recorder of the run in `folder`, made as that run alone makes it."""
-        return by_folder[folder.path.resolve()](trainer, folder)
-
-    labels = {folder.resolve(): spec.label for folder, spec in zip(folders, specs, strict=True)}
-    try:
-        return train_population(
-            configs,
-            folders,
-            resume=resumes,
-            make_recorder=make_recorder if record else None,
-            stop_after_cycles=stop_after_cycles,
-        )
-    except PopulationError as exc:
-        lines = [f"{labels[p]} failed: {type(e).__name__}: {e}" for p, e in exc.failures.items()]
-        raise RunsFailed("\n".join(lines)) from None
+    return PartitionResult(
+        spec.partition_key, str(folder), state, trainer.episodes, seconds, True, runner_name()
+    )

@@ -9,8 +9,6 @@ beyond the arm's reach (the authors' walk has no bound; docs/suite.md says what 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 
 from suite import layout
@@ -100,22 +98,6 @@ class DistractorWalk:
             self._redraw(random_state)
         return candidate
 
-    def redraw(
-        self,
-        others_xy: np.ndarray,
-        xy: np.ndarray,
-        candidate: np.ndarray,
-        random_state: np.random.RandomState,
-    ) -> np.ndarray:
-        """`step`'s redraws for a move to `candidate` (n, 2) from `xy` among `others_xy`: the
-        candidates that end too close to another cube drawn again (a view: copy it to keep
-        it)."""
-        self._others[:] = others_xy
-        self._current[:] = xy
-        self._candidate[:] = candidate
-        self._redraw(random_state)
-        return self._candidate
-
     def _redraw(self, random_state: np.random.RandomState) -> None:
         """Redraw the candidates that end too close to another cube; whoever still collides
         after `MAX_REDRAWS` redraws stays where it is. The others were checked against the current
@@ -131,28 +113,3 @@ class DistractorWalk:
             candidate[bad] = np.clip(redraw, _LOW, _HIGH)
         bad = self._too_close()
         candidate[bad] = current[bad]
-
-
-def step_walks(
-    walks: Sequence[DistractorWalk],
-    others_xy: np.ndarray,
-    xy: np.ndarray,
-    random_states: Sequence[np.random.RandomState],
-) -> np.ndarray:
-    """`DistractorWalk.step` of many copies' walks (one variant's) at once: the distractors' new
-    xy (n, n_distractors, 2) from their current xy (n, n_distractors, 2) and the other cubes'
-    (n, n_cubes - n_distractors, 2). The moves and the clipping of all copies take a few numpy
-    operations, the same ones element by element as `step`'s; only a copy whose move ends too
-    close to another cube redraws, through its own walk and random state."""
-    moves = np.stack([w.next_move(rs) for w, rs in zip(walks, random_states, strict=True)])
-    candidate = np.add(xy, moves)
-    np.maximum(candidate, _LOW, out=candidate)
-    np.minimum(candidate, _HIGH, out=candidate)
-    points = np.ascontiguousarray(np.concatenate((others_xy, xy, candidate), axis=1))
-    z = points.view(np.complex128)[..., 0]  # (n, n_cubes + n_distractors): x + iy
-    d = np.abs(z[:, -walks[0].n :, None] - z[:, None, :])
-    d += walks[0]._self_pairs
-    redraw = np.flatnonzero(d.min(axis=(1, 2)) < layout.DISTRACTOR_MIN_SEPARATION)
-    for i in redraw:
-        candidate[i] = walks[i].redraw(others_xy[i], xy[i], candidate[i], random_states[i])
-    return candidate

@@ -255,23 +255,6 @@ class SuiteEnvironment(composer.Environment):
             self._single_call = self._can_step_in_one_call()
         return self._single_call
 
-    @property
-    def legacy_stepping(self) -> bool:
-        """Whether a control step is composer's legacy stepping (`mj_step2`, `mj_step` for the
-        other substeps, `mj_step1`), the order `suite.lockstep_physics` reproduces."""
-        return bool(self._raw is not None and self._raw[3])
-
-    def foreign_step_hooks(self) -> tuple[str, ...]:
-        """The step hooks (before_step, after_step and the substep ones) that an entity or an
-        extra hook registered besides the task's own."""
-        names = ("before_step", "after_step", *_SUBSTEP_HOOKS)
-        return tuple(
-            name
-            for name in names
-            if getattr(self._hooks, "_" + name).entity_hooks
-            or getattr(self._hooks, "_" + name).extra_hooks
-        )
-
     def _can_step_in_one_call(self) -> bool:
         if not self._fast_observation or self._overridden_n_sub_steps is not None:
             return False

@@ -105,21 +105,6 @@ class ModuleEvaluator:
             self.achieved[None], self.goals[None], self.success[None],
         )  # fmt: skip
 
-    def evaluate_stacked(
-        self, positions: np.ndarray, slots: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """`evaluate` for many copies at once: (achieved (n, sum of outcome dims) float32,
-        success (n, n_modules) bool) from the positions (n, 3 + 3 n_cubes) as perceived and each
-        copy's goal slots (n, n_modules, 3). The same float32 numbers as `evaluate` copy by
-        copy (`_evaluate` is both)."""
-        n = len(positions)
-        achieved = np.empty((n, self.achieved.shape[0]), np.float32)
-        goals = np.empty((n, len(self.modules), 3), np.float32)
-        success = np.zeros((n, len(self.modules)), bool)
-        gripper, cubes = positions[:, :3], positions[:, 3:].reshape(n, -1, 3)
-        self._evaluate(positions, gripper, cubes, slots, achieved, goals, success)
-        return achieved, success
-
     def row_goals(self, modules: np.ndarray, slots: np.ndarray, achieved: np.ndarray) -> np.ndarray:
         """Each row's goal (n, 3) float32 for its own module: row i's slot (n, 3) for module
         `modules[i]`, placed where outcomes `achieved` (n, sum of outcome dims) put it

@@ -22,7 +22,6 @@ import collections
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -42,29 +41,6 @@ from suite.outcomes import ModuleEvaluator
 OBSERVATION_KEYS = ("state", "achieved", "goal", "task", "success")
 _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _SETTLE_STEPS = 10  # control steps to settle the arm at construction, as the Fetch envs do
-
-
-@dataclass(frozen=True)
-class TaskBindings:
-    """Where the task's quantities sit in its compiled model's arrays: the same numbers in every
-    copy of a variant, so that code stepping many copies at once can read them from stacked
-    arrays (`suite.lockstep_task`)."""
-
-    gripper_body: int
-    """Body whose position the mocap target is taken from (`before_step`)."""
-    grip_site: int
-    reach_bodies: tuple[int, ...]
-    """Bodies of the reachable cubes, cube 1 first."""
-    reach_qpos: int
-    """qpos address of cube 1's free joint; the reachable cubes' 7 numbers follow one another."""
-    arm_mocap: int
-    """Mocap index of the body the gripper is welded to."""
-    distractor_mocap: int
-    """Mocap index of the first distractor; the others follow (none without distractors)."""
-    n_distractors: int
-    finger_qpos: slice
-    finger_qvel: slice
-    finger_ctrl: slice
 
 
 class _ArrayObservable(observable.Generic):
@@ -123,7 +99,6 @@ class MultiTaskFetch(composer.Task):
         self._failure_bias = _failure_bias(n_cubes, failing_cube)
         self._sensor_on = False
         self._reader: StateReader | None = None
-        self._bindings: TaskBindings | None = None
 
         self._arena = TableArena()
         self._robot = FetchArm()
@@ -443,13 +418,6 @@ class MultiTaskFetch(composer.Task):
         return self._walk
 
     @property
-    def bindings(self) -> TaskBindings:
-        """Where the task's quantities sit in the compiled model's arrays."""
-        if self._bindings is None:
-            raise RuntimeError("the task is not bound to a physics yet (compile it first)")
-        return self._bindings
-
-    @property
     def arena(self) -> TableArena:
         return self._arena
 
@@ -515,18 +483,6 @@ class MultiTaskFetch(composer.Task):
             finger_qvel=self._finger_qvel,
         )
         self._grip_site = grip_site
-        self._bindings = TaskBindings(
-            gripper_body=self._gripper_body,
-            grip_site=grip_site,
-            reach_bodies=tuple(int(b) for b in cube_bodies[:n_reach]),
-            reach_qpos=int(qadr[0]),
-            arm_mocap=arm_mocap,
-            distractor_mocap=first,
-            n_distractors=self._n_distractors,
-            finger_qpos=self._finger_qpos,
-            finger_qvel=self._finger_qvel,
-            finger_ctrl=_as_slice(fa, "finger actuators"),
-        )
         self._apply_sensor_failure()
         self._computed = (-1, -1.0)
 

@@ -12,7 +12,7 @@ class InterruptingPool:
     one cycle and a Ctrl-C, as a kill between two checkpoints would; `jobs`: what was sent."""
 
     description = "this process (interrupting the second job)"
-    largest_group = None
+    local = True
 
     def __init__(self) -> None:
         self.jobs: list = []
@@ -20,8 +20,8 @@ class InterruptingPool:
     def submit(self, job):
         self.jobs.append(job)
         if len(self.jobs) == 1:
-            return tuple(run_job(job))
-        run_partition(job.specs[0], job.runs_root, job.overrides, job.record, stop_after_cycles=1)
+            return run_job(job)
+        run_partition(job.spec, job.runs_root, job.overrides, job.record, stop_after_cycles=1)
         raise KeyboardInterrupt  # the run is gone between two checkpoints
 
     def wait(self, handles, timeout):
@@ -42,7 +42,7 @@ class InterruptingPool:
 
 class OrderPool(InterruptingPool):
     """Records the runs of each job in the order they are sent (`sent`: each job's run
-    folders below the runs root), then stops before any trains."""
+    folders below the runs root, one a job), then stops before any trains."""
 
     description = "this process (recording the order)"
 
@@ -50,7 +50,7 @@ class OrderPool(InterruptingPool):
         self.sent: list[list[str]] = []
 
     def submit(self, job):
-        self.sent.append([str(spec.relative_path) for spec in job.specs])
+        self.sent.append([str(job.spec.relative_path)])
         return len(self.sent)
 
     def wait(self, handles, timeout):

@@ -105,33 +105,6 @@ def test_the_checkpoint_benchmark_keeps_the_replay_once_where_the_peer_keeps_it_
     assert both < result["disk_two_checkpoints_peer_mb"] < 1.1 * both
 
 
-def test_the_threads_benchmark_runs_every_contender_on_the_same_rounds():
-    from benchmarks import batched_physics
-
-    parser = argparse.ArgumentParser()
-    batched_physics.add_arguments(parser)
-    args = ["--copies", "3", "--rounds", "1", "--variant", "distractors_4"]
-    result = batched_physics.measure(parser.parse_args(args))
-    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
-    assert result["unit"] == "episodes/s" and result["copies"] == 3 and result["shared_model"]
-    for name in ("ours", "bound", "peer", "batch_physics"):
-        assert result[name] > 0 and result[f"cpu_{name}"] > 0
-
-
-def test_the_stacked_benchmark_reports_every_contender_for_every_number_of_runs():
-    from benchmarks import stacked_update_speed
-
-    parser = argparse.ArgumentParser()
-    stacked_update_speed.add_arguments(parser)
-    args = ["--runs", "1,2", "--updates", "2", "--hidden", "16", "--batch", "32"]
-    result = stacked_update_speed.measure(parser.parse_args(args))
-    assert result["unit"] == "learner updates/s"
-    for runs in (1, 2):
-        for name in ("ours", "ours_batched", "peer"):
-            assert result[f"{name}_{runs}"] > 0
-    assert result["ours"] == result["ours_2"] and result["bound"] > 0
-
-
 def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
     from benchmarks import relabel_speed
 
@@ -178,70 +151,38 @@ def test_a_count_below_its_floor_is_refused_naming_the_option(name, option, mini
     assert parser.parse_args([option, str(minimum)]) is not None
 
 
-def test_the_population_benchmark_needs_two_cycles_and_says_why(capsys):
+def test_the_seeds_benchmark_needs_two_cycles_and_says_why(capsys):
     """One cycle leaves no rate to read (the rate is read after each run's first cycle)."""
     from curious.cli import main
 
     with pytest.raises(SystemExit) as refused:  # argparse's own refusal: status 2
-        main(["bench", "population", "--cycles", "1"])
+        main(["bench", "seeds", "--cycles", "1"])
     assert refused.value.code == 2
     err = capsys.readouterr().err
     assert "--cycles: must be at least 2 (the rate is read after each run's first cycle)" in err
 
 
-def test_the_population_benchmark_gives_every_run_its_settings_and_refuses_bad_ones(capsys):
+def test_the_seeds_benchmark_gives_every_run_its_settings_and_refuses_bad_ones(capsys):
     """`--set` reaches every run's `curious train` (and the episodes a cycle, which settings
-    may change); an unknown key is one line before any run starts."""
-    from benchmarks import population_speed
+    may change); an unknown key is one line before any run starts. Ours is one `curious train
+    --seeds` with every run at once, the peer a `curious train --seed` process per run."""
+    from benchmarks import seeds_speed
     from curious.cli import main
 
     parser = argparse.ArgumentParser()
-    population_speed.add_arguments(parser)
+    seeds_speed.add_arguments(parser)
     args = parser.parse_args(["--preset", "smoke", "--cycles", "3", "--set", "n_workers=3"])
-    command = population_speed._train_command(args, Path("out"), "0", "--seed")
+    command = seeds_speed._train_command(args, Path("out"), "0", "--seed")
     assert command[-2:] == ["--set", "n_workers=3"]
     assert "total_episodes=18" in command  # 3 cycles of 3 workers x 2 episodes
+    (ours,) = seeds_speed._contender_commands(args, "ours", Path("o"), 5)
+    assert ours[ours.index("--seeds") + 1] == "0-4"
+    peer = seeds_speed._contender_commands(args, "peer", Path("p"), 5)
+    assert [c[c.index("--out") + 1] for c in peer] == [f"p/seed-{i}" for i in range(5)]
     with pytest.raises(SystemExit) as exit_:
-        sys.exit(main(["bench", "population", "--set", "nonsense=1"]))
+        sys.exit(main(["bench", "seeds", "--set", "nonsense=1"]))
     assert exit_.value.code == 2
     assert "curious bench: error: unknown config key 'nonsense'" in capsys.readouterr().err
-
-
-def test_the_population_benchmark_names_its_contenders_when_one_is_unknown(capsys):
-    from benchmarks import population_speed
-    from curious.cli import main
-
-    with pytest.raises(SystemExit) as exit_:
-        main(["bench", "population", "--contenders", "ours,fast"])
-    assert exit_.value.code == 2
-    assert "fast: the contenders are ours, ours_stacked, groups, groups_stacked, or none" in (
-        capsys.readouterr().err
-    )
-    parser = argparse.ArgumentParser()
-    population_speed.add_arguments(parser)
-    assert parser.parse_args(["--contenders", "none"]).contenders == ()  # the peer alone
-
-
-def test_the_population_benchmarks_groups_are_populations_of_the_group_size_a_process_each():
-    """`groups` trains what `curious reproduce --population K` trains: the runs cut into
-    populations of K, one `curious train --seeds` each, every run in its own folder seed-i;
-    `groups_stacked` stacks the updates of every group of more than one run."""
-    from benchmarks import population_speed
-
-    parser = argparse.ArgumentParser()
-    population_speed.add_arguments(parser)
-    args = parser.parse_args(["--preset", "smoke", "--group-size", "2"])
-    assert population_speed._groups(5, 2) == ["0-1", "2-3", "4"]
-    assert population_speed._groups(15, 3) == ["0-2", "3-5", "6-8", "9-11", "12-14"]
-    commands = population_speed._contender_commands(args, "groups_stacked", Path("g"), 5)
-    seeds = [c[c.index("--seeds") + 1] for c in commands]
-    assert seeds == ["0-1", "2-3", "4"]
-    assert ["--stack-updates" in c for c in commands] == [True, True, False]
-    assert all(c[c.index("--out") + 1] == "g" for c in commands)
-    plain = population_speed._contender_commands(args, "groups", Path("g"), 5)
-    assert not any("--stack-updates" in c for c in plain)
-    (whole,) = population_speed._contender_commands(args, "ours_stacked", Path("o"), 5)
-    assert whole[whole.index("--seeds") + 1] == "0-4" and "--stack-updates" in whole
 
 
 def _gpu_checks_on_cpu(out: Path, **settings: str) -> None:
@@ -259,31 +200,25 @@ def _gpu_checks_on_cpu(out: Path, **settings: str) -> None:
     assert "exit 0" in done.stdout and "exit 1" not in done.stdout, done.stdout + done.stderr
 
 
-def test_the_gpu_checks_population_step_passes_its_settings_to_the_benchmark(tmp_path):
+def test_the_gpu_checks_seeds_step_passes_its_settings_to_the_benchmark(tmp_path):
     """`tools/gpu_checks.sh`, as a GPU node runs it but on a CPU (PRESET=smoke DEVICE=cpu, as
-    its header says): the population step hands POPULATION_* to `curious bench population` and
-    writes its JSON where docs/scaling.md says."""
+    its header says): the seeds step hands SEEDS_* to `curious bench seeds` and writes its JSON
+    where its header says."""
     import json
 
     _gpu_checks_on_cpu(
-        tmp_path,
-        STEPS="population",
-        POPULATION_RUNS="2",
-        POPULATION_CYCLES="2",
-        POPULATION_CONTENDERS="groups",
-        POPULATION_GROUP_SIZE="2",
-        POPULATION_SET="n_workers=1",
+        tmp_path, STEPS="seeds", SEEDS_RUNS="2", SEEDS_CYCLES="2", SEEDS_SET="n_workers=1"
     )
-    result = json.loads((tmp_path / "population.json").read_text())
-    assert result["group_size"] == 2 and result["groups"] > 0 and result["ours"] is None
+    result = json.loads((tmp_path / "seeds.json").read_text())
+    assert result["ours"] > 0 and result["peer"] > 0 and result["ours_over_peer"] > 0
     # two cycles: the second half of the cycles is the rate after the first
-    assert result["late_after_cycles"] == 1 and result["groups_late"] == result["groups"]
-    assert len(result["groups_cycle_s"]) == 1 and result["ours_cycle_s"] is None
+    assert result["late_after_cycles"] == 1 and result["ours_late"] == result["ours"]
+    assert len(result["ours_cycle_s"]) == 1 and len(result["peer_cycle_s"]) == 1
     assert result["shape"].startswith("2 curious runs of preset smoke, 2 cycles of 2 episodes")
     assert "n_workers=1" in result["shape"] and (tmp_path / "env.txt").exists()
 
 
-def test_the_population_benchmark_reads_a_warm_up_apart_from_the_steady_rate(tmp_path):
+def test_the_seeds_benchmark_reads_a_warm_up_apart_from_the_steady_rate(tmp_path):
     """The rate after the first cycle and over the second half of the cycles, summed over the
     runs, from each run's own `wall_time`: a run whose first cycles are slow (a compiled
     learner warming up) reads faster late than after its first cycle."""
@@ -291,7 +226,7 @@ def test_the_population_benchmark_reads_a_warm_up_apart_from_the_steady_rate(tmp
 
     import pandas as pd
 
-    from benchmarks import population_speed
+    from benchmarks import seeds_speed
 
     per_cycle = 2  # 1 worker x 2 episodes
     # 4 cycles: the first two take 10 s a cycle, the last two 1 s
@@ -308,11 +243,11 @@ def test_the_population_benchmark_reads_a_warm_up_apart_from_the_steady_rate(tmp
         pd.DataFrame({"wall_time": wall}).to_parquet(folder / "metrics.parquet")
         folders.append(folder)
     # after cycle 1: 6 episodes in 12 s a run; after cycle 2: 4 episodes in 2 s a run
-    assert population_speed._steady_rate(folders) == pytest.approx(2 * 6 / 12)
-    assert population_speed._steady_rate(folders, 2) == pytest.approx(2 * 4 / 2)
-    assert [population_speed._late_cycles(c) for c in (2, 3, 4, 10)] == [1, 1, 2, 5]
+    assert seeds_speed._steady_rate(folders) == pytest.approx(2 * 6 / 12)
+    assert seeds_speed._steady_rate(folders, 2) == pytest.approx(2 * 4 / 2)
+    assert [seeds_speed._late_cycles(c) for c in (2, 3, 4, 10)] == [1, 1, 2, 5]
     # cycles 2 to 4, where the warm-up ends
-    assert population_speed._cycle_seconds(folders) == [10.0, 1.0, 1.0]
+    assert seeds_speed._cycle_seconds(folders) == [10.0, 1.0, 1.0]
 
 
 def test_the_gpu_checks_long_step_times_each_backend_over_its_cycles(tmp_path):
@@ -322,21 +257,22 @@ def test_the_gpu_checks_long_step_times_each_backend_over_its_cycles(tmp_path):
 
     # the compiled backend's compile is a GPU node's minutes: the eager one alone here
     _gpu_checks_on_cpu(
-        tmp_path, STEPS="long", POPULATION_RUNS="2", LONG_CYCLES="4", LONG_BACKENDS="autograd"
+        tmp_path, STEPS="long", SEEDS_RUNS="2", LONG_CYCLES="4", LONG_BACKENDS="autograd"
     )
     result = json.loads((tmp_path / "long-autograd.json").read_text())
     assert len(result["peer_cycle_s"]) == 3 and result["late_after_cycles"] == 2
+    assert result["ours"] is None  # the processes alone
     assert "4 cycles" in result["shape"] and "learner_backend=autograd" in result["shape"]
     assert not (tmp_path / "long-compiled.json").exists()
 
 
-def test_the_population_benchmark_refuses_the_settings_it_sets_itself(capsys):
+def test_the_seeds_benchmark_refuses_the_settings_it_sets_itself(capsys):
     """`--set total_episodes=4` made the runs shorter than the cycles the rate is read over, and
     the benchmark printed `nan episodes/s` with numpy's warning."""
     from curious.cli import main
 
-    assert main(["bench", "population", "--preset", "smoke", "--runs", "1", "--cycles", "2",
-                 "--contenders", "none", "--set", "total_episodes=4"]) == 2  # fmt: skip
+    assert main(["bench", "seeds", "--preset", "smoke", "--runs", "1", "--cycles", "2",
+                 "--peer-only", "--set", "total_episodes=4"]) == 2  # fmt: skip
     assert "--set total_episodes: the benchmark sets it from --cycles" in capsys.readouterr().err
 
 

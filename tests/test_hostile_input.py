@@ -482,7 +482,7 @@ def test_the_bounds_of_render_are_its_help_and_its_edges_are_taken(tmp_path, cap
 
 # ------------------------------------------------------------------------------ folders
 
-POPULATION = ["train", "--preset", "smoke", "--seeds", "0-1", "--no-record", "--no-progress"]
+SEEDS = ["train", "--preset", "smoke", "--seeds", "0-1", "--no-record", "--no-progress"]
 
 
 @pytest.mark.parametrize(
@@ -491,7 +491,7 @@ POPULATION = ["train", "--preset", "smoke", "--seeds", "0-1", "--no-record", "--
         (["progress", "{file}"], "{file} is a file, not a folder: name a run folder"),
         (["progress", "{tmp}", "{file}"], "{file} is a file, not a folder"),
         (["reproduce", "--from-data", "{file}", "--out", "{tmp}/r"], "--from-data {file} is a"),
-        ([*POPULATION, "--out", "{file}"], "--out {file}: {file} is a file, not a folder"),
+        ([*SEEDS, "--out", "{file}"], "--out {file}: {file} is a file, not a folder"),
         (["bench", "checkpoint", "--dir", "{file}"], "--dir {file}: {file} is a file, not a"),
         (["ship", "{file}"], "{file} is a file, not a folder of run folders"),
         (["ship", "{tmp}/nowhere"], "{tmp}/nowhere does not exist"),
@@ -690,7 +690,7 @@ def test_an_unknown_option_is_refused_by_the_command_it_was_given_to(
     assert sorted(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("which", ["learner", "stacked", "population"])
+@pytest.mark.parametrize("which", ["learner", "seeds"])
 def test_a_benchmark_on_cuda_without_a_gpu_is_one_line(which, capsys):
     import torch
 

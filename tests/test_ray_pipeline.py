@@ -122,24 +122,10 @@ def test_ray_pool_refuses_runs_no_node_can_hold(ray_cluster):
         RayPool(ray_cluster, cpus_per_run=1, gpus_per_run=1)
 
 
-def test_a_population_asks_for_its_runs_resources_on_one_node(ray_cluster, tmp_path):
-    """A task of N runs asks for N runs' CPUs; a population no node holds is refused before
-    anything is written."""
-    import ray
-
-    from curious.config import ConfigError
-
-    pool = RayPool(ray_cluster, cpus_per_run=0.75)
-    assert pool.largest_group == 2
-    assert pool.resources(1) == (0.75, 0.0) and pool.resources(2) == (2.0, 0.0)
-    out = tmp_path / "out"
-    with pytest.raises(ConfigError, match="no node of the cluster holds more than 2"):
-        reproduce(
-            "smoke", ["sensor_failure"], out=out, make_pool=lambda: pool, progress=False,
-            say=lambda _: None, population=3,
-        )  # fmt: skip
-    assert not (out / "reproduce.json").exists()
-    assert not ray.is_initialized()  # the refusal disconnected the pool
+def test_a_runs_task_asks_for_whole_cpus_above_one(ray_cluster):
+    """Ray takes a share of a CPU, or whole CPUs: 0.75 is asked as it is, 1.5 as 2."""
+    assert RayPool(ray_cluster, cpus_per_run=0.75).resources() == (0.75, 0.0)
+    assert RayPool(ray_cluster, cpus_per_run=1.5).resources() == (2.0, 0.0)
 
 
 def test_a_port_that_answers_but_is_not_ray_times_out_clearly():

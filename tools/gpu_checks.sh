@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The checks a GPU node owes the project (docs/scaling.md). STEPS picks the steps; the default,
-# "population tests", is the population benchmark and the CUDA tests, whose time limits (400 s
-# and 140 s) fit one device call of 10 minutes with the wheels' install. "bench one side" (the cycle benchmark and the
-# runs) and "resume" are a second call's; "tests bench one side" took 309 s on a 16-core node with
+# "seeds tests", is the benchmark of runs side by side and the CUDA tests, whose time limits
+# (400 s and 140 s) fit one device call of 10 minutes with the wheels' install. "bench one side"
+# (the cycle benchmark and the runs) and "resume" are a second call's; "tests bench one side" took 309 s on a 16-core node with
 # an H100 (node D of docs/benchmarks.md, 2026-11-26, three contenders, two runs side by side):
 #
 #   bash tools/gpu_checks.sh OUT            # on a node with a CUDA device: results into OUT/
@@ -13,15 +13,15 @@
 # them as wheels made beside the repository (`bash tools/offline_wheels.sh DIR`, which says how
 # to install them there).
 #
-# 0. (STEPS with "population") `curious bench population`: POPULATION_RUNS (15) `paper` runs as
-#    one population against as many processes side by side, into OUT/population.json;
-# 0b. (STEPS with "long") the POPULATION_RUNS processes alone over LONG_CYCLES (40) cycles a
+# 0. (STEPS with "seeds") `curious bench seeds`: SEEDS_RUNS (15) `paper` runs side by side, as one
+#    `curious train --seeds` against as many processes started at once, into OUT/seeds.json;
+# 0b. (STEPS with "long") the SEEDS_RUNS processes alone over LONG_CYCLES (40) cycles a
 #    run, once for each learner backend of LONG_BACKENDS ("autograd compiled"), into
 #    OUT/long-BACKEND.json: each cycle's seconds and the rate over the second half of the cycles
 #    tell the compiled learner's warm-up from its steady rate (docs/scaling.md); with MPS=1 the
 #    whole step runs under the MPS server, as `curious reproduce --device cuda` is advised to;
-# 1. (STEPS with "tests") the CUDA tests (-k cuda of the learner's, the runs', the stacked
-#    update's and the population's tests), into OUT/cuda-tests.txt;
+# 1. (STEPS with "tests") the CUDA tests (-k cuda of the learner's and the runs'
+#    tests), into OUT/cuda-tests.txt;
 # 2. (STEPS with "bench") `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
 # 3. (STEPS with "one") one short run with a worker process per core and prefetched minibatches
 #    (the autograd update), into OUT/one-run/;
@@ -37,12 +37,10 @@
 # episodes/s. Settings (environment): PRESET (paper), DEVICE (cuda), EPISODES (1900, two epochs of
 # `paper`), CONTENDERS (workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu),
 # SIDE_BY_SIDE (2; "2 4 8" adds four and eight runs, N runs each within 80 + 25 N s), STEPS
-# ("population tests"), LONG_CYCLES (40), LONG_BACKENDS ("autograd compiled"), LONG_SECONDS (260:
-# each backend's time limit in step 0b), POPULATION_RUNS (15), POPULATION_CYCLES (3), POPULATION_CONTENDERS (ours,ours_stacked:
-# the population's contenders beside the processes; groups and groups_stacked train populations of
-# POPULATION_GROUP_SIZE (3) runs, a process each; none: the processes alone), POPULATION_SET (settings for every run, e.g.
-# "learner_backend=compiled"), POPULATION_SECONDS (400: step 0's time limit), MPS (1: every step
-# under NVIDIA's Multi-Process Service, docs/scaling.md), RESUME_SECONDS (170: each
+# ("seeds tests"), LONG_CYCLES (40), LONG_BACKENDS ("autograd compiled"), LONG_SECONDS (260:
+# each backend's time limit in step 0b), SEEDS_RUNS (15), SEEDS_CYCLES (3), SEEDS_SET (settings
+# for every run, e.g. "learner_backend=compiled"), SEEDS_SECONDS (400: step 0's time limit), MPS
+# (1: every step under NVIDIA's Multi-Process Service, docs/scaling.md), RESUME_SECONDS (170: each
 # leg of step 5), RESUME_DIR (/tmp/curious-resume: its run folder, outside OUT).
 set -uo pipefail
 
@@ -52,7 +50,7 @@ device=${DEVICE:-cuda}
 episodes=${EPISODES:-1900}
 contenders=${CONTENDERS:-workers_prefetch,workers_compiled,workers_prefetch_compiled,ours_gpu}
 side_by_side=${SIDE_BY_SIDE:-2}
-steps=" ${STEPS:-population tests} "
+steps=" ${STEPS:-seeds tests} "
 wanted() { [[ $steps == *" $1 "* ]]; }
 cores=$(nproc)
 mkdir -p "$out"
@@ -78,26 +76,25 @@ if [[ ${MPS:-0} == 1 ]]; then
     trap 'echo quit | nvidia-cuda-mps-control' EXIT
 fi
 
-if wanted population; then
-    step population of "${POPULATION_RUNS:-15}" runs against as many processes
-    # each contender's rate reaches population.err as it ends, should the limit end the rest
-    population_set=()
-    for setting in ${POPULATION_SET:-}; do population_set+=(--set "$setting"); done
-    timeout "${POPULATION_SECONDS:-400}" python3 -m curious.cli bench population \
-        --preset "$preset" --device "$device" --group-size "${POPULATION_GROUP_SIZE:-3}" \
-        --runs "${POPULATION_RUNS:-15}" --cycles "${POPULATION_CYCLES:-3}" \
-        --contenders "${POPULATION_CONTENDERS:-ours,ours_stacked}" "${population_set[@]}" --json \
-        >"$out/population.json" 2>"$out/population.err"
+if wanted seeds; then
+    step "${SEEDS_RUNS:-15}" runs side by side: curious train --seeds against as many processes
+    # each contender's rate reaches seeds.err as it ends, should the limit end the rest
+    seeds_set=()
+    for setting in ${SEEDS_SET:-}; do seeds_set+=(--set "$setting"); done
+    timeout "${SEEDS_SECONDS:-400}" python3 -m curious.cli bench seeds \
+        --preset "$preset" --device "$device" --runs "${SEEDS_RUNS:-15}" \
+        --cycles "${SEEDS_CYCLES:-3}" "${seeds_set[@]}" --json \
+        >"$out/seeds.json" 2>"$out/seeds.err"
     echo "exit $?"
-    cat "$out/population.json"
+    cat "$out/seeds.json"
 fi
 
 if wanted long; then
     for backend in ${LONG_BACKENDS:-autograd compiled}; do
-        step "${POPULATION_RUNS:-15}" processes alone, "${LONG_CYCLES:-40}" cycles, "$backend"
-        timeout "${LONG_SECONDS:-260}" python3 -m curious.cli bench population \
-            --preset "$preset" --device "$device" --runs "${POPULATION_RUNS:-15}" \
-            --cycles "${LONG_CYCLES:-40}" --contenders none --set "learner_backend=$backend" \
+        step "${SEEDS_RUNS:-15}" processes alone, "${LONG_CYCLES:-40}" cycles, "$backend"
+        timeout "${LONG_SECONDS:-260}" python3 -m curious.cli bench seeds \
+            --preset "$preset" --device "$device" --runs "${SEEDS_RUNS:-15}" \
+            --cycles "${LONG_CYCLES:-40}" --peer-only --set "learner_backend=$backend" \
             --json >"$out/long-$backend.json" 2>"$out/long-$backend.err"
         status=$?
         echo "exit $status"
@@ -110,7 +107,7 @@ fi
 if wanted tests; then
     step CUDA tests
     timeout 140 python3 -m pytest -p no:cacheprovider -n 0 tests/test_agent_learner.py \
-        tests/test_agent_runs.py tests/test_stacked_update.py tests/test_population.py -k cuda -rs -q \
+        tests/test_agent_runs.py -k cuda -rs -q \
         >"$out/cuda-tests.txt" 2>&1
     tail -1 "$out/cuda-tests.txt"
 fi

@@ -29,7 +29,6 @@ tensors of its device.
 from __future__ import annotations
 
 import copy
-import threading
 from typing import Any
 
 import torch
@@ -39,11 +38,6 @@ from torch.func import functional_call
 from curious.agent.networks import Actor, Critic
 from curious.agent.update_backends import UpdateBackend
 from curious.config import Config
-
-_TORCH_SEEDING = threading.Lock()
-"""Held while a learner seeds torch's global generator and draws its initial weights: runs of a
-population build their learners in threads of their own, and would otherwise draw from one
-another's seeding."""
 
 
 class Learner:
@@ -56,14 +50,13 @@ class Learner:
         self.td3 = config.algorithm == "td3"
         h, n_layers = config.hidden, config.layers
         n_critics = 2 if self.td3 else 1
-        with _TORCH_SEEDING:  # deterministic initial weights, whatever else draws meanwhile
-            cpu_rng_state = torch.get_rng_state()
-            torch.manual_seed(seed)
-            actor = Actor(input_dim, action_dim, h, n_layers)
-            critics = nn.ModuleList(
-                Critic(input_dim, action_dim, h, n_layers) for _ in range(n_critics)
-            )
-            torch.set_rng_state(cpu_rng_state)
+        cpu_rng_state = torch.get_rng_state()  # deterministic initial weights from `seed`
+        torch.manual_seed(seed)
+        actor = Actor(input_dim, action_dim, h, n_layers)
+        critics = nn.ModuleList(
+            Critic(input_dim, action_dim, h, n_layers) for _ in range(n_critics)
+        )
+        torch.set_rng_state(cpu_rng_state)
         self.actor = actor.to(self.device)
         self.critics = critics.to(self.device)
         self.actor_target = copy.deepcopy(self.actor).requires_grad_(False)

@@ -1,5 +1,5 @@
-"""`curious bench {env,learner,relabel,cycle,rollouts,threads,stacked,population,recording,
-checkpoint}`: speed benchmarks, ours side by side with a bound and a peer.
+"""`curious bench {env,learner,relabel,cycle,rollouts,seeds,recording,checkpoint}`: speed
+benchmarks, ours side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
@@ -36,22 +36,14 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "benchmarks.rollout_scaling",
         "rollout episodes/s with 1, 2, ... worker processes vs the physics bound per core",
     ),
-    "threads": (
-        "benchmarks.batched_physics",
-        "episodes/s of copies whose physics steps in MuJoCo's threads vs bare mujoco.rollout "
-        "vs the copies stepped in turn",
+    "seeds": (
+        "benchmarks.seeds_speed",
+        "training episodes/s of runs side by side: curious train --seeds vs processes started "
+        "by hand",
     ),
     "recording": (
         "benchmarks.recording_overhead",
         "training with vs without the Rerun recording: the overhead and the .rrd size",
-    ),
-    "stacked": (
-        "benchmarks.stacked_update_speed",
-        "learner updates/s of several runs' updates as one stacked step vs one after the other",
-    ),
-    "population": (
-        "benchmarks.population_speed",
-        "training episodes/s of runs as one population in one process vs as processes",
     ),
     "checkpoint": (
         "benchmarks.checkpoint_cost",

@@ -5,14 +5,13 @@
     curious reproduce --experiments main,distractors    # a subset of the experiments
     curious reproduce --budget paper --ray-address auto --runs-dir /shared/curious
     curious reproduce --budget paper --device cuda      # one GPU node: a run per core, sharing it
-    curious reproduce --budget paper --device cuda --workers 4 --population 4  # in populations
     curious reproduce --from-data data/laptop           # the report and figures from shipped runs
 
 The assets (pipelines/) are materialised in this process on a Dagster instance kept in
 OUT/.dagster: no server to start. Training runs go to worker processes (one per core unless
---workers says otherwise), or to Ray tasks with --ray-address, one run to a process, or several
-as a population (--population). A second call with the same budget and --out retrains nothing
-that is finished and resumes what was interrupted.
+--workers says otherwise), or to Ray tasks with --ray-address, one run to a process or a task.
+A second call with the same budget and --out retrains nothing that is finished and resumes what
+was interrupted.
 
 The README's job, `curious reproduce` (budget quick), ends by also building the report and
 figures of the shipped `laptop` campaign (data/laptop, committed with the repository) into
@@ -139,17 +138,6 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the GPU), given no more runs at a time than fit in its memory together; ignored with Ray",
     )
     parser.add_argument(
-        "--population",
-        type=int,
-        default=None,
-        metavar="N",
-        help="runs trained together in one process (a worker or a Ray task), their physics "
-        "stepped as one batch; on this machine no more than fit in its memory together, on Ray "
-        "no more than a node holds. Default: 1 run per process: a population of 2 trained 0.85 "
-        "x the episodes of 2 processes on a 2-core CPU, and one of 15 `paper` runs 0.31 x 15 "
-        "processes on a 16-core node with a GPU (docs/benchmarks.md)",
-    )
-    parser.add_argument(
         "--cpus-per-run",
         type=float,
         default=None,
@@ -225,10 +213,6 @@ def run(args: argparse.Namespace) -> int:
     if args.from_data is not None:
         return _from_data(args)
     args.budget = DEFAULT_BUDGET if args.budget is None else args.budget  # '' is unknown
-    if args.population is not None and args.population < 1:
-        message = f"--population must be >= 1, got {args.population}"
-        print(f"curious reproduce: error: {message}", file=sys.stderr)
-        return 2
     if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
         print(
             f"curious reproduce: error: --workers must be from 1 to {MAX_WORKERS:,} (worker "
@@ -300,7 +284,6 @@ def run(args: argparse.Namespace) -> int:
             overrides=overrides or None,
             record=not args.no_record,
             progress=not args.no_progress,
-            population=args.population,
         )
     except (ExperimentError, ConfigError, ReproduceError, RunFolderMismatch, RayUnavailable) as exc:
         return refuse("reproduce", exc)
@@ -409,7 +392,6 @@ _TRAINING_OPTIONS = {
     "runs_dir": "--runs-dir",
     "ray_address": "--ray-address",
     "workers": "--workers",
-    "population": "--population",
     "device": "--device",
     "overrides": "--set",
 }

@@ -1,7 +1,7 @@
 """`curious train`: train one condition with one seed into a run folder, or several seeds at once.
 
     curious train --condition curious --seed 0 --preset quick --out runs/curious-0
-    curious train --condition curious --seeds 0-4 --preset quick --out runs/curious  # a population
+    curious train --condition curious --seeds 0-4 --preset quick --out runs/curious  # seed-N each
     curious train ... --set n_workers=8 --set algorithm=td3      # override single settings
     curious train --out runs/curious-0 --resume   # go on from the last checkpoint, as it started
     curious train ... --restart                                   # start the run in --out over
@@ -13,13 +13,8 @@ reported in one line, exit status 2, and nothing in the folder is written. A run
 diverges (a learning rate too high) stops with one line, exit status 1, its folder as it was at
 its last checkpoint; Ctrl-C stops it with exit status 130.
 
-With `--seeds`, the seeds train as one population in this process (`curious.runs.population`):
-each run is the run `--seed` would train, in `--out/seed-N`, and they step their copies
-together. Ctrl-C then stops every run at the end of its cycle, after a checkpoint; one run's
-failure leaves the others training, and is reported (exit status 1) once they are done.
-`--stack-updates` also computes the updates of the runs updating at the same time as one
-stacked step (`curious.agent.update_lockstep`), which a GPU runs as one batched product per
-layer for all of them.
+With `--seeds`, the seeds train one after the other in this process: each run is the run
+`--seed` would train, in `--out/seed-N`.
 """
 
 from __future__ import annotations
@@ -84,16 +79,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--seeds",
         default=None,
         metavar="SEEDS",
-        help="train several seeds at once in this process, as one population (e.g. 0-4 or "
-        "0,2,5): run i goes to --out/seed-i, each the run --seed would train, its copies "
-        "stepped together with the others'",
-    )
-    parser.add_argument(
-        "--stack-updates",
-        action="store_true",
-        help="with --seeds: the runs' updates at the same time computed as one stacked step "
-        "per shape of network (curious.agent.update_lockstep; for a GPU: on a CPU it is no "
-        "faster, and gives each run its bits alone)",
+        help="train several seeds (e.g. 0-4 or 0,2,5): run i goes to --out/seed-i, each the "
+        "run --seed would train",
     )
     parser.add_argument(
         "--preset",
@@ -185,12 +172,10 @@ def run(args: argparse.Namespace) -> int:
         seeds = parse_seeds(args.seeds) if args.seeds is not None else (args.seed,)
         configs = [_config(args, seed, overrides) for seed in seeds]
         _warn_if_the_sensor_never_fails(configs[0])
-        if args.stack_updates and args.seeds is None:
-            raise ConfigError("--stack-updates stacks a population's updates: name --seeds")
         if args.seeds is not None and (Path(args.out) / CONFIG_FILE).exists():
             raise ConfigError(
                 f"{args.out} holds a run (config.json): --seeds trains each seed in "
-                "--out/seed-K, which would nest the population in it; choose another --out"
+                "--out/seed-K, which would nest them in it; choose another --out"
             )
         if args.no_record and (args.spawn_viewer or args.connect or args.rollout_every is not None):
             raise ConfigError(
@@ -207,7 +192,6 @@ def run(args: argparse.Namespace) -> int:
         return refuse("train", exc)
 
     from curious.runs.driver import train
-    from curious.runs.population import PopulationError
     from curious.runs.trainer import TrainingDiverged
 
     make_recorder = None
@@ -227,15 +211,11 @@ def run(args: argparse.Namespace) -> int:
         from curious.runs.folder_lock import check_writable
 
         if population:
-            from curious.agent.update_lockstep import UpdateLockstep
-            from curious.runs.population import train_population
-
             check_writable(args.out, "--out", folder=True)  # the seeds' common folder, first
-            updates = UpdateLockstep() if args.stack_updates else None
-            trainers = train_population(
-                configs, outs, resume=args.resume, restart=args.restart,
-                make_recorder=make_recorder, updates=updates,
-            )  # fmt: skip
+            trainers = [
+                train(c, o, resume=args.resume, restart=args.restart, make_recorder=make_recorder)
+                for c, o in zip(configs, outs, strict=True)
+            ]
         else:
             check_writable(args.out, "--out")  # where its lock lands, beside it
             if Path(args.out).is_dir():  # and the folder itself, where it is one already
@@ -252,16 +232,6 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:  # a folder that cannot be written: read-only, under a file, full disk
         where = f": {exc.filename}" if exc.filename else ""
         return refuse("train", exc, message=f"{exc.strerror or exc}{where}")
-    except KeyboardInterrupt:
-        if not population:
-            raise
-        print(
-            "curious train: stopped; every run ended at a checkpoint: go on with --resume",
-            file=sys.stderr,
-        )
-        return 130
-    except PopulationError as exc:
-        return refuse("train", exc, status=1)
     for trainer, out in zip(trainers, outs, strict=True):
         print(_summary(trainer, out))
     return 0

@@ -12,20 +12,16 @@ shows a progress bar and hands every cycle to an optional recorder (`curious.run
 from __future__ import annotations
 
 import contextlib
-import threading
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pyarrow.compute as pc
 
 from curious.agent.conditions import Condition, make_condition
-from curious.agent.update_lockstep import UpdateLockstep
 from curious.config import Config, ConfigError
 from curious.envs.batch import EnvBatch, ProcessEnvs
 from curious.envs.goal_env import GoalEnv
-from curious.envs.lockstep import Lockstep
 from curious.runs import checkpoint
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
@@ -34,27 +30,6 @@ from curious.runs.hooks import Recorder
 from curious.runs.memory import SUITE_COPY_BYTES, check_memory
 from curious.runs.metrics import MetricsLog, TableLog, TestsLog
 from curious.runs.trainer import CycleResult, Trainer
-
-RunCopies = tuple[list[GoalEnv], list[GoalEnv] | None]
-"""A run's training copies and its test rollouts' (None without test rollouts)."""
-
-
-@dataclass(frozen=True)
-class Seat:
-    """A run's place in a population (`curious.runs.population`): the lockstep its copies step
-    through, its progress bar's line, the event that asks every run to stop (each at the end of
-    its cycle, after a checkpoint), its copies where the population built them (to step them
-    all in one physics; else the run builds its own), and the lockstep its learners' steps go
-    through, where the population stacks its runs' updates."""
-
-    lockstep: Lockstep
-    position: int = 0
-    stop: threading.Event | None = None
-    copies: RunCopies | None = None
-    updates: UpdateLockstep | None = None
-
-    def stopping(self) -> bool:
-        return self.stop is not None and self.stop.is_set()
 
 
 def train(
@@ -65,7 +40,8 @@ def train(
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None = None,
     stop_after_cycles: int | None = None,
     restart: bool = False,
-    seat: Seat | None = None,
+    stop: Callable[[], bool] | None = None,
+    position: int | None = None,
 ) -> Trainer:
     """Train `config` in the run folder `out` (created, continued with `resume=True`, or started
     over with `restart=True`, which removes the run the folder held once every check passed).
@@ -79,63 +55,34 @@ def train(
     a run. Errors about the folder, the checkpoint or what the run needs (memory) are raised
     before anything in the folder is written (`resume_checks` says what a resume refuses);
     while it trains, the folder is locked against a second process (`RunFolderBusy`).
-    `seat`: the run is one of a population trained in this process (`curious.runs.population`).
+    `stop()`, asked after every cycle, ends the run at the end of that cycle, after a
+    checkpoint (how `curious train --seeds` stops its runs on Ctrl-C); `position` is the line of
+    its progress bar among several runs' bars.
     """
     with folder_lock(out):
-        return _train(
-            config, out, resume, restart, make_envs, make_recorder, stop_after_cycles, seat
-        )
-
-
-def _train(
-    config: Config,
-    out: str | Path,
-    resume: bool,
-    restart: bool,
-    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
-    make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
-    stop_after_cycles: int | None,
-    seat: Seat | None,
-) -> Trainer:
-    folder = RunFolder.prepare(out, config, resume, restart)
-    envs, test_envs, condition = _environments(config, make_envs, seat)
-    if seat is not None:  # the copies step through the population's lockstep
-        envs = seat.lockstep.lane(envs)
-        test_envs = seat.lockstep.lane(test_envs) if test_envs is not None else None
-    trainer = Trainer(config, envs, test_envs, condition)
-    with contextlib.ExitStack() as closing:  # last in, first closed
-        closing.enter_context(contextlib.closing(trainer))  # the environment workers stop
-        if seat is not None and seat.updates is not None and config.n_updates:
-            # the learners' steps go through the population's lockstep, which this run leaves
-            # on its way out, failed or not, before the trainer closes
-            lanes = seat.updates.join(trainer.agent.experts, config.n_updates)
-            closing.enter_context(contextlib.closing(lanes))
-        return _run(trainer, folder, resume, restart, make_recorder, stop_after_cycles, seat)
+        folder = RunFolder.prepare(out, config, resume, restart)
+        envs, test_envs, condition = _environments(config, make_envs)
+        trainer = Trainer(config, envs, test_envs, condition)
+        with contextlib.closing(trainer):  # the environment workers stop
+            return _run(
+                trainer, folder, resume, restart, make_recorder, stop_after_cycles, stop, position
+            )
 
 
 def _environments(
-    config: Config,
-    make_envs: Callable[[Config], Sequence[GoalEnv]] | None,
-    seat: Seat | None = None,
+    config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
 ) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None, Condition | None]:
     """The training copies and the test rollouts' copies of a run (see `train`), and the run's
     condition where it was built here to check the memory before the copies (the suite's
     copies; with `make_envs`, the trainer builds and checks it)."""
     tests_wanted = config.test_rollouts_per_worker > 0
-    if config.processes > 1 and (make_envs is not None or seat is not None):
+    if config.processes > 1 and make_envs is not None:
         raise ConfigError(
-            "env_processes > 1 builds the suite's environments in worker processes; "
-            + (
-                "a population steps its runs' copies in this process"
-                if seat is not None
-                else "a custom make_envs runs in this process"
-            )
-            + " (env_processes=1)"
+            "env_processes > 1 builds the suite's environments in worker processes; a custom "
+            "make_envs runs in this process (env_processes=1)"
         )
     if make_envs is not None:
         return make_envs(config), make_envs(config) if tests_wanted else None, None
-    if seat is not None and seat.copies is not None:  # the population built and checked them
-        return (*seat.copies, None)
     from curious.envs.goal_env import suite_env_fns
 
     train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
@@ -218,7 +165,8 @@ def _run(
     restart: bool,
     make_recorder: Callable[[Trainer, RunFolder], Recorder] | None,
     stop_after_cycles: int | None,
-    seat: Seat | None = None,
+    stop: Callable[[], bool] | None = None,
+    position: int | None = None,
 ) -> Trainer:
     from tqdm.auto import tqdm
 
@@ -257,13 +205,13 @@ def _run(
         disable=not config.progress,
         dynamic_ncols=True,
         desc=f"{config.condition} seed {config.seed}",
-        position=seat.position if seat is not None else None,
+        position=position,
     )
     cycles_here = 0
     try:
         while not trainer.done:
             every = config.checkpoint_every_cycles
-            stopping = seat is not None and seat.stopping()
+            stopping = stop is not None and stop()
             drain = (
                 (trainer.cycles + 1) % every == 0
                 or stopping

@@ -14,13 +14,17 @@ need some more (Python, torch, MuJoCo themselves).
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
+from curious.agent.conditions import make_condition
 from curious.agent.replay import EpisodeReplay
 from curious.config import Config, ConfigError
-from curious.envs.goal_env import EnvSpec
+from curious.envs.goal_env import EnvSpec, SuiteEnv
 
 SUITE_COPY_BYTES = 13 * 2**20
 """Memory of one suite environment copy (MuJoCo model, data and dm_control objects): 13.2 MiB
@@ -116,16 +120,7 @@ def check_memory(config: Config, spec: EnvSpec, n_experts: int, copy_bytes: int 
     _check(memory_parts(config, spec, n_experts, copy_bytes), "this run needs")
 
 
-def check_population_memory(
-    runs: Sequence[tuple[Config, EnvSpec, int]], copy_bytes: int = 0
-) -> None:
-    """`check_memory` for runs trained at once in one process, each (config, spec, n_experts):
-    their parts add up, and the error says how many runs asked for it."""
-    parts = [p for run in runs for p in memory_parts(*run, copy_bytes)]
-    _check(parts, f"these {len(runs)} runs trained at once need", " (or train fewer at once)")
-
-
-def _check(parts: list[Part], needs: str, also: str = "") -> None:
+def _check(parts: list[Part], needs: str) -> None:
     need = sum(p.nbytes for p in parts)
     have = available_memory()
     if need <= USABLE * have:
@@ -134,5 +129,36 @@ def _check(parts: list[Part], needs: str, also: str = "") -> None:
     raise ConfigError(
         f"{needs} at least {need / 2**30:,.2f} GiB of memory, {largest.what} "
         f"{largest.nbytes / 2**30:,.2f} GiB of it, but this machine has {have / 2**30:.2f} GiB "
-        f"available: {largest.settings}{also}"
+        f"available: {largest.settings}"
     )
+
+
+def check_each_fits(configs: Sequence[Config]) -> None:
+    """`check_memory` of each of `configs` alone, its suite copies still to be built: what a
+    command that trains them in processes of their own checks before any starts."""
+    for config in configs:
+        spec = _suite_spec(config.variant)
+        n_experts = make_condition(config, spec).n_experts
+        check_memory(config, spec, n_experts, SUITE_COPY_BYTES)
+
+
+def runs_that_fit(configs: Sequence[Config]) -> int:
+    """How many of `configs`, taken in order, fit in this machine's memory together, each a
+    process of its own building its suite copies (at least 1, so that a run too big alone meets
+    its own error as it starts). Each run checks its own memory as it starts, not that of the
+    runs beside it, so what trains runs side by side (`curious train --seeds`, `curious
+    reproduce`) starts no more at a time than this."""
+    need = np.cumsum([_run_bytes(config, _suite_spec(config.variant)) for config in configs])
+    return max(1, int(np.searchsorted(need, USABLE * available_memory(), side="right")))
+
+
+@functools.cache
+def _suite_spec(variant: str) -> EnvSpec:
+    """A suite variant's spec, from one copy built once."""
+    return SuiteEnv(variant, seed=0).spec
+
+
+def _run_bytes(config: Config, spec: EnvSpec) -> int:
+    """The big parts of one run whose suite copies are still to be built, added up."""
+    n_experts = make_condition(config, spec).n_experts
+    return sum(part.nbytes for part in memory_parts(config, spec, n_experts, SUITE_COPY_BYTES))

@@ -1,26 +1,24 @@
-"""`curious bench population`: runs trained as one population in one process (ours) against the
-same runs as processes side by side (peer), for the same episodes.
+"""`curious bench seeds`: `--runs` runs trained side by side by one `curious train --seeds`
+(ours: each seed in a process of its own, all at once) against as many `curious train --seed i`
+processes started at once (peer), for the same episodes.
 
-Every contender is what a user types: peer starts `--runs` `curious train --seed i` processes at
-once; ours starts one `curious train --seeds 0-(runs-1)`, and `ours_stacked` the same with
-`--stack-updates` (the runs' updates at the same time as one stacked step); `groups` cuts the runs
-into populations of `--group-size` runs and starts one `curious train --seeds a-b` process for
-each at once (what `curious reproduce --population K --workers runs/K` trains), and
-`groups_stacked` the same with `--stack-updates`. Every run trains
-`--cycles` cycles of the preset from scratch (no recording, no test rollouts, one torch thread
-per run), into a temporary folder. The rate is read from the runs' own tables: each run's
-episodes after its first cycle over the seconds they took (metrics.parquet's `wall_time`),
-summed over the runs, so that imports and the first cycle's allocations count for neither;
-`*_late` is the same rate over the second half of the cycles alone, which tells a warm-up that
-outlasts the first cycle (a compiled learner's, say) from a steady rate, and `*_cycle_s` each
-cycle's seconds from the second on (the median over the runs), which shows where it ends;
-`*_command_s` is the wall time of the whole command, start-up included.
+Both are what a user types, and both train each run in a process of its own: the benchmark
+measures what `--seeds` costs or gains over processes started by hand, and, with `--peer-only`,
+what runs side by side on a machine train together (on a GPU node: with and without NVIDIA's
+MPS server, and each learner backend over many cycles, `tools/gpu_checks.sh`). Every run
+trains `--cycles` cycles of the preset from scratch (no recording, no test rollouts, one torch
+thread per run), into a temporary folder. The rate is read from the runs' own tables: each
+run's episodes after its first cycle over the seconds they took (metrics.parquet's
+`wall_time`), summed over the runs, so that imports and the first cycle's allocations count for
+neither; `*_late` is the same rate over the second half of the cycles alone, which tells a
+warm-up that outlasts the first cycle (a compiled learner's, say) from a steady rate, and
+`*_cycle_s` each cycle's seconds from the second on (the median over the runs), which shows
+where it ends; `*_command_s` is the wall time of the whole command, start-up included.
 
 `bound` is the physics alone: one core stepping the suite's model for an episode's control
 steps, times the machine's cores (`benchmarks.cycle_speed.physics_episodes_per_second`).
-`--repeats` alternates the contenders that many times and reports the median of each;
-`--contenders` leaves one of ours out (its keys are then null), where a device's minutes are
-few; `--set` gives every run a training setting (the learner's backend, say).
+`--repeats` alternates the two that many times and reports the median of each; `--set` gives
+every run a training setting (the learner's backend, say).
 """
 
 from __future__ import annotations
@@ -41,6 +39,10 @@ from benchmarks import AtLeast, check_device
 
 if TYPE_CHECKING:
     from curious.config import Config
+
+
+CONTENDERS = ("peer", "ours")
+"""Processes started by hand, and one `curious train --seeds`."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -72,40 +74,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a training setting for every run of every contender (`curious train --set`)",
     )
     parser.add_argument(
-        "--contenders",
-        type=_contenders,
-        default=DEFAULT_CONTENDERS,
-        help=f"which of {', '.join(OURS)} run beside the peer, comma-separated, or none "
-        f"(default {','.join(DEFAULT_CONTENDERS)})",
+        "--peer-only",
+        action="store_true",
+        help="train the peer's processes alone (ours' keys are then null)",
     )
-    parser.add_argument(
-        "--group-size",
-        type=AtLeast(1),
-        default=3,
-        help="runs in each population of the groups contenders (default 3)",
-    )
-
-
-OURS = ("ours", "ours_stacked", "groups", "groups_stacked")
-"""The population's contenders: all the runs in one process, their learners stepping alone or
-stacked (`--stack-updates`), and the same in populations of `--group-size` runs, a process each."""
-
-DEFAULT_CONTENDERS = ("ours", "ours_stacked")
-
-
-def _contenders(text: str) -> tuple[str, ...]:
-    """The contenders named, in `OURS`'s order; `none`: the peer alone (settings a population
-    cannot take, `learner_backend=compiled` on cuda, say)."""
-    names = tuple(n.strip() for n in text.split(",") if n.strip())
-    if names == ("none",):
-        return ()
-    unknown = sorted(set(names) - set(OURS))
-    if unknown or not names:
-        raise argparse.ArgumentTypeError(
-            f"{', '.join(unknown) or 'none named'}: the contenders are {', '.join(OURS)}, "
-            "or none (the peer alone)"
-        )
-    return tuple(n for n in OURS if n in names)
 
 
 def _config(args: argparse.Namespace) -> Config:
@@ -181,23 +153,14 @@ def _late_cycles(cycles: int) -> int:
     return max(1, cycles // 2)
 
 
-def _groups(runs: int, size: int) -> list[str]:
-    """The `--seeds` of each population when `runs` runs are cut into groups of `size`."""
-    ends = [(first, min(first + size, runs) - 1) for first in range(0, runs, size)]
-    return [f"{first}-{last}" if last > first else str(first) for first, last in ends]
-
-
 def _contender_commands(
     args: argparse.Namespace, name: str, out: Path, runs: int
 ) -> list[list[str]]:
-    """The commands of one of ours, started at once; the runs' folders are out/seed-i."""
-    extra = ["--stack-updates"] if name.endswith("_stacked") else []
-    if name.startswith("groups"):
-        return [
-            _train_command(args, out, seeds, "--seeds") + (extra if "-" in seeds else [])
-            for seeds in _groups(runs, args.group_size)
-        ]
-    return [_train_command(args, out, f"0-{runs - 1}", "--seeds") + extra]
+    """The commands of `name` (peer or ours), started at once; the runs' folders are
+    out/seed-i."""
+    if name == "peer":
+        return [_train_command(args, out / f"seed-{i}", str(i), "--seed") for i in range(runs)]
+    return [_train_command(args, out, f"0-{runs - 1}", "--seeds")]
 
 
 def _run(commands: list[list[str]]) -> float:
@@ -246,20 +209,16 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     cores = os.cpu_count() or 1
     check_device(args.device)
     runs = args.runs or cores
-    names = ("peer", *OURS)
-    rates: dict[str, list[float]] = {name: [] for name in names}
-    late: dict[str, list[float]] = {name: [] for name in names}
-    seconds: dict[str, list[float]] = {name: [] for name in names}
-    cycle_s: dict[str, list[float] | None] = {name: None for name in names}
-    with tempfile.TemporaryDirectory(prefix="bench-population-") as tmp:
+    names = ("peer",) if args.peer_only else ("peer", "ours")
+    rates: dict[str, list[float]] = {name: [] for name in CONTENDERS}
+    late: dict[str, list[float]] = {name: [] for name in CONTENDERS}
+    seconds: dict[str, list[float]] = {name: [] for name in CONTENDERS}
+    cycle_s: dict[str, list[float] | None] = {name: None for name in CONTENDERS}
+    with tempfile.TemporaryDirectory(prefix="bench-seeds-") as tmp:
         for repeat in range(args.repeats):
-            for name in ("peer", *args.contenders):
+            for name in names:
                 out = Path(tmp) / f"{name}-{repeat}"
-                commands = (
-                    [_train_command(args, out / f"seed-{i}", str(i), "--seed") for i in range(runs)]
-                    if name == "peer"
-                    else _contender_commands(args, name, out, runs)
-                )
+                commands = _contender_commands(args, name, out, runs)
                 folders = [out / f"seed-{i}" for i in range(runs)]
                 rate, late_rate, took, cycle_s[name] = _measure_contender(
                     commands, folders, _late_cycles(args.cycles)
@@ -273,32 +232,23 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         return statistics.median(values) if values else None
 
     out: dict[str, Any] = {
+        "ours": median(rates["ours"]),
         "bound": physics_episodes_per_second(config.variant) * cores,
         "peer": statistics.median(rates["peer"]),
         "unit": "episodes/s",
     }
-    for name in OURS:
-        out[name] = median(rates[name])
-        out[f"{name}_over_peer"] = out[name] / out["peer"] if rates[name] else None
-    both = rates["ours"] and rates["ours_stacked"]
-    out["ours_stacked_over_ours"] = out["ours_stacked"] / out["ours"] if both else None
-    for name in names:
+    out["ours_over_peer"] = out["ours"] / out["peer"] if rates["ours"] else None
+    for name in CONTENDERS:
         out[f"{name}_late"] = median(late[name])
         out[f"{name}_command_s"] = median(seconds[name])
         out[f"{name}_cycle_s"] = cycle_s[name]  # the last alternation's
     out["late_after_cycles"] = _late_cycles(args.cycles)
-    out["group_size"] = args.group_size
     out["cores"] = cores
     out["shape"] = (
         f"{runs} {args.condition} runs of preset {args.preset}, {args.cycles} cycles of "
         f"{config.episodes_per_cycle} episodes and {config.n_updates} updates of "
         f"{config.batch_size} each, networks on {args.device}"
         + "".join(f", {setting}" for setting in args.settings)
-        + (
-            f"; groups of {args.group_size}"
-            if any(n.startswith("groups") for n in args.contenders)
-            else ""
-        )
         + f"; {args.repeats} alternation(s), medians"
     )
     return out
