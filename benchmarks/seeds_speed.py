@@ -160,7 +160,7 @@ def _contender_commands(
     out/seed-i."""
     if name == "peer":
         return [_train_command(args, out / f"seed-{i}", str(i), "--seed") for i in range(runs)]
-    return [_train_command(args, out, f"0-{runs - 1}", "--seeds")]
+    return [[*_train_command(args, out, f"0-{runs - 1}", "--seeds"), "--workers", str(runs)]]
 
 
 def _run(commands: list[list[str]]) -> float:

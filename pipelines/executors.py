@@ -30,12 +30,13 @@ import signal
 import socket
 import subprocess
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
 from curious.reproduction.experiments import RunSpec
+from curious.runs.side_by_side import die_with_parent, interrupts_ignored
 from pipelines.training import PartitionResult, episodes_logged, run_folder, run_partition
 
 RAY_CONNECT_TIMEOUT_S = 30.0
@@ -164,7 +165,7 @@ class LocalPool:
         return self._pool
 
     def submit(self, job: Job) -> cf.Future:
-        with _interrupts_ignored():  # the workers, started here, begin with SIGINT ignored
+        with interrupts_ignored():  # the workers, started here, begin with SIGINT ignored
             return self._executor().submit(run_job, job)
 
     def wait(self, handles: Sequence[Any], timeout: float) -> tuple[list[Any], list[Any]]:
@@ -198,38 +199,13 @@ class LocalPool:
             self._pool = None
 
 
-@contextlib.contextmanager
-def _interrupts_ignored() -> Iterator[None]:
-    """SIGINT ignored in this process for a moment (the main thread's handler is put back): the
-    worker processes started meanwhile inherit it, so that a Ctrl-C while they import their
-    modules does not print their tracebacks; `_set_environment` then installs their handler."""
-    try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: the workers start as they would
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
 def _set_environment(env: dict[str, str]) -> None:
-    """Worker start-up: the environment, the answer to Ctrl-C (`_on_interrupt`), and on Linux,
-    death with the parent process.
-
-    Without the last, a worker whose `curious reproduce` was killed (SIGKILL reaches only the
-    parent) would go on training alone.
-    """
+    """Worker start-up: the environment, the answer to Ctrl-C (`_on_interrupt`), and death with
+    the parent process (`curious.runs.side_by_side.die_with_parent`)."""
     for key, value in env.items():
         os.environ.setdefault(key, value)
     signal.signal(signal.SIGINT, _on_interrupt)
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        pr_set_pdeathsig = 1
-        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
+    die_with_parent()
 
 
 def _probe(host: str, port: int, timeout: float) -> None:

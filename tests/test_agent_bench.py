@@ -176,7 +176,7 @@ def test_the_seeds_benchmark_gives_every_run_its_settings_and_refuses_bad_ones(c
     assert command[-2:] == ["--set", "n_workers=3"]
     assert "total_episodes=18" in command  # 3 cycles of 3 workers x 2 episodes
     (ours,) = seeds_speed._contender_commands(args, "ours", Path("o"), 5)
-    assert ours[ours.index("--seeds") + 1] == "0-4"
+    assert ours[ours.index("--seeds") + 1] == "0-4" and ours[-2:] == ["--workers", "5"]
     peer = seeds_speed._contender_commands(args, "peer", Path("p"), 5)
     assert [c[c.index("--out") + 1] for c in peer] == [f"p/seed-{i}" for i in range(5)]
     with pytest.raises(SystemExit) as exit_:

@@ -20,7 +20,7 @@
 #    OUT/long-BACKEND.json: each cycle's seconds and the rate over the second half of the cycles
 #    tell the compiled learner's warm-up from its steady rate (docs/scaling.md); with MPS=1 the
 #    whole step runs under the MPS server, as `curious reproduce --device cuda` is advised to;
-# 1. (STEPS with "tests") the CUDA tests (-k cuda of the learner's and the runs'
+# 1. (STEPS with "tests") the CUDA tests (-k cuda of the learner's, the runs' and the seeds'
 #    tests), into OUT/cuda-tests.txt;
 # 2. (STEPS with "bench") `curious bench cycle` of the GPU node's contenders, into OUT/bench.json;
 # 3. (STEPS with "one") one short run with a worker process per core and prefetched minibatches
@@ -107,7 +107,7 @@ fi
 if wanted tests; then
     step CUDA tests
     timeout 140 python3 -m pytest -p no:cacheprovider -n 0 tests/test_agent_learner.py \
-        tests/test_agent_runs.py -k cuda -rs -q \
+        tests/test_agent_runs.py tests/test_train_seeds.py -k cuda -rs -q \
         >"$out/cuda-tests.txt" 2>&1
     tail -1 "$out/cuda-tests.txt"
 fi

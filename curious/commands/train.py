@@ -1,7 +1,7 @@
 """`curious train`: train one condition with one seed into a run folder, or several seeds at once.
 
     curious train --condition curious --seed 0 --preset quick --out runs/curious-0
-    curious train --condition curious --seeds 0-4 --preset quick --out runs/curious  # seed-N each
+    curious train --condition curious --seeds 0-4 --preset quick --out runs/curious  # side by side
     curious train ... --set n_workers=8 --set algorithm=td3      # override single settings
     curious train --out runs/curious-0 --resume   # go on from the last checkpoint, as it started
     curious train ... --restart                                   # start the run in --out over
@@ -13,15 +13,21 @@ reported in one line, exit status 2, and nothing in the folder is written. A run
 diverges (a learning rate too high) stops with one line, exit status 1, its folder as it was at
 its last checkpoint; Ctrl-C stops it with exit status 130.
 
-With `--seeds`, the seeds train one after the other in this process: each run is the run
-`--seed` would train, in `--out/seed-N`.
+With `--seeds`, each seed trains in a process of its own, `--workers` of them side by side
+(default: as many as the cores hold; `curious.runs.side_by_side`): each run is the run `--seed`
+would train, in `--out/seed-N`. Ctrl-C then stops every run at the end of its cycle, after a
+checkpoint, and `--resume` goes on with all of them (starting those that never began); one
+run's failure leaves the others training, and is reported (exit status 1) once they are done.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -40,6 +46,8 @@ from curious.config import (
 from curious.runs.folder_layout import CONFIG_FILE
 
 if TYPE_CHECKING:
+    from curious.runs.folder import RunFolder
+    from curious.runs.hooks import Recorder
     from curious.runs.trainer import Trainer
 
 
@@ -79,8 +87,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--seeds",
         default=None,
         metavar="SEEDS",
-        help="train several seeds (e.g. 0-4 or 0,2,5): run i goes to --out/seed-i, each the "
-        "run --seed would train",
+        help="train several seeds side by side, each in a process of its own (e.g. 0-4 or "
+        "0,2,5): run i goes to --out/seed-i, each the run --seed would train",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="with --seeds: runs trained at once (default: the cores over each run's "
+        "env_processes, and no more than fit in memory together)",
     )
     parser.add_argument(
         "--preset",
@@ -172,6 +188,10 @@ def run(args: argparse.Namespace) -> int:
         seeds = parse_seeds(args.seeds) if args.seeds is not None else (args.seed,)
         configs = [_config(args, seed, overrides) for seed in seeds]
         _warn_if_the_sensor_never_fails(configs[0])
+        if args.workers is not None and args.seeds is None:
+            raise ConfigError("--workers trains several seeds side by side: name --seeds")
+        if args.workers is not None and args.workers < 1:
+            raise ConfigError(f"--workers must be >= 1, got {args.workers}")
         if args.seeds is not None and (Path(args.out) / CONFIG_FILE).exists():
             raise ConfigError(
                 f"{args.out} holds a run (config.json): --seeds trains each seed in "
@@ -191,50 +211,153 @@ def run(args: argparse.Namespace) -> int:
     except ConfigError as exc:
         return refuse("train", exc)
 
+    recording = None
+    if not args.no_record:
+        recording = _Recording(args.rollout_every, args.spawn_viewer, args.connect)
+    if args.seeds is not None:
+        return _train_seeds(args, configs, recording)
     from curious.runs.driver import train
+    from curious.runs.folder_lock import check_writable
     from curious.runs.trainer import TrainingDiverged
 
-    make_recorder = None
-    if not args.no_record:
-        from curious.watching.recording import RecorderSettings
-        from curious.watching.recording.rollout_capture import recorder_factory
-
-        settings = RecorderSettings()
-        if args.rollout_every is not None:
-            settings = RecorderSettings(rollout_every=args.rollout_every)
-        make_recorder = recorder_factory(
-            args.resume, settings, args.spawn_viewer, connect=args.connect
-        )
-    population = args.seeds is not None
-    outs = [Path(args.out) / f"seed-{c.seed}" for c in configs] if population else [args.out]
     try:
-        from curious.runs.folder_lock import check_writable
-
-        if population:
-            check_writable(args.out, "--out", folder=True)  # the seeds' common folder, first
-            trainers = [
-                train(c, o, resume=args.resume, restart=args.restart, make_recorder=make_recorder)
-                for c, o in zip(configs, outs, strict=True)
-            ]
-        else:
-            check_writable(args.out, "--out")  # where its lock lands, beside it
-            if Path(args.out).is_dir():  # and the folder itself, where it is one already
-                check_writable(args.out, "--out", folder=True)
-            run = train(
-                configs[0], args.out, resume=args.resume, restart=args.restart,
-                make_recorder=make_recorder,
-            )  # fmt: skip
-            trainers = [run]
+        check_writable(args.out, "--out")  # where its lock lands, beside it
+        if Path(args.out).is_dir():  # and the folder itself, where it is one already
+            check_writable(args.out, "--out", folder=True)
+        trainer = train(
+            configs[0], args.out, resume=args.resume, restart=args.restart,
+            make_recorder=recording.factory(args.resume) if recording is not None else None,
+        )  # fmt: skip
     except TrainingDiverged as exc:
         return refuse("train", exc, status=1)
     except (ConfigError, RunFolderError, CheckpointError) as exc:
         return refuse("train", exc)
     except OSError as exc:  # a folder that cannot be written: read-only, under a file, full disk
-        where = f": {exc.filename}" if exc.filename else ""
-        return refuse("train", exc, message=f"{exc.strerror or exc}{where}")
-    for trainer, out in zip(trainers, outs, strict=True):
-        print(_summary(trainer, out))
+        return refuse("train", exc, message=_os_error(exc))
+    print(_summary(trainer, args.out))
     return 0
+
+
+@dataclass(frozen=True)
+class _Recording:
+    """How the runs are recorded (`--rollout-every`, `--spawn-viewer`, `--connect`), handed to
+    each seed's process, which makes its own recorder."""
+
+    rollout_every: int | None
+    spawn: bool
+    connect: str | None
+
+    def factory(self, resume: bool) -> Callable[[Trainer, RunFolder], Recorder]:
+        """The `make_recorder` of a run (`curious.runs.driver.train`)."""
+        from curious.watching.recording import RecorderSettings
+        from curious.watching.recording.rollout_capture import recorder_factory
+
+        settings = RecorderSettings()
+        if self.rollout_every is not None:
+            settings = RecorderSettings(rollout_every=self.rollout_every)
+        return recorder_factory(resume, settings, self.spawn, connect=self.connect)
+
+
+@dataclass(frozen=True)
+class _SeedRun:
+    """One run of `curious train --seeds`, trained in a process of its own: its summary line."""
+
+    config: Config
+    out: Path
+    resume: bool
+    restart: bool
+    recording: _Recording | None
+    position: int
+
+    def __call__(self) -> str:
+        from curious.runs.driver import train
+        from curious.runs.side_by_side import stop_requested
+
+        trainer = train(
+            self.config, self.out, resume=self.resume, restart=self.restart,
+            make_recorder=self.recording.factory(self.resume) if self.recording else None,
+            stop=stop_requested, position=self.position,
+        )  # fmt: skip
+        return _summary(trainer, self.out)
+
+
+def _train_seeds(
+    args: argparse.Namespace, configs: list[Config], recording: _Recording | None
+) -> int:
+    """`--seeds`: every seed's folder checked, then each run in a process of its own, side by
+    side (`curious.runs.side_by_side`), its summary line printed once all have ended."""
+    from curious.runs.checkpoint import CheckpointError
+    from curious.runs.folder import RunFolder
+    from curious.runs.folder_errors import RunFolderError
+    from curious.runs.folder_lock import check_writable
+    from curious.runs.side_by_side import Interrupted, run_side_by_side
+
+    outs = [Path(args.out) / f"seed-{config.seed}" for config in configs]
+    # With --resume, a seed whose run a stop kept from beginning starts (see `_config`); with
+    # no seed's run begun, each is refused as --resume refuses an empty folder.
+    begun = [RunFolder(out).has_config for out in outs]
+    resumes = [args.resume and (has or not any(begun)) for has in begun]
+    try:
+        check_writable(args.out, "--out", folder=True)  # the seeds' common folder, first
+        for config, out, resume in zip(configs, outs, resumes, strict=True):
+            RunFolder.prepare(out, config, resume, args.restart)  # writes nothing
+        workers = _workers(args.workers, configs)
+    except (ConfigError, RunFolderError, CheckpointError) as exc:
+        return refuse("train", exc)
+    except OSError as exc:
+        return refuse("train", exc, message=_os_error(exc))
+    runs = [
+        _SeedRun(config, out, resume, args.restart, recording, position)
+        for position, (config, out, resume) in enumerate(zip(configs, outs, resumes, strict=True))
+    ]
+    try:
+        results = run_side_by_side(runs, workers)
+    except Interrupted as stopped:
+        _report_failures(outs, stopped.results)
+        print(
+            "curious train: stopped; every run ended at a checkpoint: go on with --resume",
+            file=sys.stderr,
+        )
+        return 130
+    for result in results:
+        if isinstance(result, str):
+            print(result)
+    return 1 if _report_failures(outs, results) else 0
+
+
+def _workers(asked: int | None, configs: list[Config]) -> int:
+    """How many seeds train at once: `--workers`, by default the cores over each run's
+    environment processes; and no more than fit in this machine's memory together (each run
+    checks its own as it starts, and one too big alone is refused here)."""
+    from curious.runs.memory import check_each_fits, runs_that_fit
+
+    check_each_fits(configs)
+    cores = os.cpu_count() or 1
+    wanted = asked or max(1, cores // max(config.processes for config in configs))
+    fit = runs_that_fit(configs)
+    if fit < min(wanted, len(configs)):
+        print(
+            f"curious train: {fit} of the {len(configs)} runs at a time: what fits in this "
+            "machine's memory together",
+            file=sys.stderr,
+        )
+    return min(wanted, fit)
+
+
+def _report_failures(outs: list[Path], results: list[object]) -> bool:
+    """A line on stderr for each run that failed (`Failed`); whether one did."""
+    from curious.runs.side_by_side import Failed
+
+    failed = [(out, r) for out, r in zip(outs, results, strict=True) if isinstance(r, Failed)]
+    for out, result in failed:
+        print(f"curious train: error: {out}: {result.message}", file=sys.stderr)
+    return bool(failed)
+
+
+def _os_error(exc: OSError) -> str:
+    """An `OSError` as one line: what went wrong and where."""
+    where = f": {exc.filename}" if exc.filename else ""
+    return f"{exc.strerror or exc}{where}"
 
 
 def _warn_if_the_sensor_never_fails(config: Config) -> None:
@@ -300,15 +423,22 @@ def _config(args: argparse.Namespace, seed: int | None, overrides: dict[str, Any
     """The run's config: the preset's, with the condition, seed and overrides given. With
     --resume, a run folder that holds a run goes on with the settings in its config.json
     (what `--set total_episodes` or a placement setting was then included); the options given
-    replace them, and `check_resumable` refuses those a resume cannot change."""
+    replace them, and `check_resumable` refuses those a resume cannot change. A seed of
+    `--seeds` whose run a stop kept from beginning takes the settings of the first seed's run
+    that began, with its own seed."""
     identity = {"preset": args.preset, "condition": args.condition, "seed": seed}
-    out = Path(args.out) / f"seed-{seed}" if args.seeds is not None else Path(args.out)
     from curious.runs.folder import RunFolder
     from curious.runs.folder_errors import RunFolderError
 
-    if args.resume and RunFolder(out).has_config:
+    if args.seeds is None:
+        folders = [RunFolder(args.out)]
+    else:  # this seed's folder first, then the others'
+        seeds = [seed, *parse_seeds(args.seeds)]
+        folders = [RunFolder(Path(args.out) / f"seed-{s}") for s in dict.fromkeys(seeds)]
+    begun = next((folder for folder in folders if folder.has_config), None)
+    if args.resume and begun is not None:
         try:
-            stored = RunFolder(out).read_config()
+            stored = begun.read_config()
         except RunFolderError as exc:
             raise ConfigError(str(exc)) from None
         given = {k: v for k, v in identity.items() if v is not None}
