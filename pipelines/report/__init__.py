@@ -15,7 +15,7 @@ same bytes. An experiment appears once its metrics table exists, and one the bud
 output folder can be moved or shared as a whole.
 
 `document` assembles it: the opening (`overview`), then one section per experiment
-(`main_comparison`, `distracting_modules`, `sensory_failures`, `long_runs`;
+(`main_comparison`, `distracting_modules`, `sensory_failures`, `long_study`;
 `spontaneous_forgetting` for the experiments nothing perturbs), each written with the pieces of
 `blocks`.
 """

@@ -9,7 +9,7 @@ import pandas as pd
 from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import ExperimentTables
 from pipelines.report.distracting_modules import distractors
-from pipelines.report.long_runs import long_runs
+from pipelines.report.long_study import long_runs
 from pipelines.report.main_comparison import main
 from pipelines.report.overview import budgets, built_from, compute, runs_table, software
 from pipelines.report.sensory_failures import sensor_failure, sensor_failure_mastered
