@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from curious.agent.learning_progress import LP_MEASURES
+
 ALGORITHMS: tuple[str, ...] = ("ddpg", "td3")
 
 
@@ -130,7 +132,9 @@ class Config:
     # --- what is run -------------------------------------------------------------------------
     condition: str = "curious"
     """`curious` (LP task selection and replay), `m-uvfa` (uniform selection and replay),
-    `mg-te` (one expert per module, trained in turn), `her` (one holistic goal)."""
+    `mg-te` (one expert per module, trained in turn), `her` (one holistic goal); and, not in the
+    paper, `lp-select` (LP selection, uniform replay) and `lp-replay` (uniform selection, LP
+    replay)."""
     seed: int = 0
     """Seeds networks, the agent's random choices and every environment copy."""
     preset: str = "paper"
@@ -171,11 +175,12 @@ class Config:
     Authors: a rollout is a self-evaluation with probability 0.1 (rollout.py); every 10th is the
     same rate, counted exactly. The `her` condition has none (the authors' flat agent)."""
     eval_modules: str = "released"
-    """Which modules the single-policy conditions (`curious`, `m-uvfa`) self-evaluate and
-    practise. `released`: the authors' code (rollout.py), which made the paper's figures: once per
-    cycle, with probability 1 / `eval_every` (the chance that their rank-0 worker self-evaluates),
-    every module of the cycle, practised or evaluated, is drawn uniformly; otherwise every one is
-    drawn from the practice probabilities (p_LP for `curious`). Evaluations then follow about
+    """Which modules the single-policy conditions (`curious`, `m-uvfa`, `lp-select`,
+    `lp-replay`) self-evaluate and practise. `released`: the authors' code (rollout.py), which
+    made the paper's figures: once per cycle, with probability 1 / `eval_every` (the chance that
+    their rank-0 worker self-evaluates), every module of the cycle, practised or evaluated, is
+    drawn uniformly; otherwise every one is drawn from the practice probabilities (p_LP for
+    `curious` and `lp-select`, uniform for the others). Evaluations then follow about
     0.9 p_LP + 0.1 uniform: the module in focus refills its competence queue faster, a neglected
     one slower. `uniform`: the paper's text (§6.2, "evaluates itself on random tasks"):
     evaluations on modules drawn uniformly, practice from the practice probabilities. `mg-te`
@@ -269,6 +274,15 @@ class Config:
     with the `lp_window` results before. Authors: queue_length 300 (experiment/config.py)."""
     lp_eps: float = 0.4
     """p_LP = lp_eps / N + (1 - lp_eps) * LP / sum(LP). Authors: 0.4 (rollout.py)."""
+    lp_measure: str = "absolute"
+    """What a module's LP measures, from its competence now (the last `lp_window` results) and
+    before (the `lp_window` before them): `absolute`, |now - before|, so that a falling
+    competence raises LP and forgetting draws practice back (the paper's, §6.2; authors:
+    queues.py); or `signed`, now - before counted as 0 where it is negative, so that only a
+    rising competence draws practice (not in the paper). p_LP is formed from it in every
+    condition that reads LP (`curious`, `lp-select`, `lp-replay`), for practice and replay
+    alike, and the `lp/<module>` columns of metrics.parquet log it (never negative, either
+    way). It changes the run: `--resume` refuses another value."""
 
     # --- perturbation --------------------------------------------------------------------------
     sensor_failure_episode: int = -1
@@ -363,6 +377,10 @@ class Config:
             raise ConfigError(
                 f"unknown eval_modules {self.eval_modules!r}; choose one of "
                 f"{', '.join(EVAL_MODULE_RULES)}"
+            )
+        if self.lp_measure not in LP_MEASURES:
+            raise ConfigError(
+                f"unknown lp_measure {self.lp_measure!r}; choose one of {', '.join(LP_MEASURES)}"
             )
         if self.device not in DEVICES:
             raise ConfigError(f"unknown device {self.device!r}; choose one of {DEVICES}")

@@ -1,19 +1,21 @@
 """The conditions: the flat baseline's goal space and score, which modules are self-evaluated and
-practised (the paper's text or the released code's rule), mg-te's epochs, and task replay over
-the modules that have something to replay."""
+practised (the paper's text or the released code's rule), mg-te's epochs, task replay over the
+modules that have something to replay, and CURIOUS's two uses of LP apart (lp-select, lp-replay)
+with signed LP."""
 
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from toy_env import ToyGoalEnv, make_toy_envs
 
-from curious.agent.conditions import HER, MGTE, MUVFA, Curious
+from curious.agent.conditions import HER, MGTE, MUVFA, Curious, LPReplay, LPSelect
 from curious.agent.goals import HolisticGoals
-from curious.agent.learning_progress import CompetenceTracker
+from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
 from curious.config import PRESETS, ConfigError, resolve
 from curious.envs.goal_env import EnvSpec
 from curious.envs.rollout import EpisodeData
 from curious.runs.driver import train
+from curious.runs.folder_errors import RunFolderError
 from curious.runs.trainer import Trainer
 
 SPEC = ToyGoalEnv.spec
@@ -158,7 +160,7 @@ def test_a_her_run_scores_every_episode_and_test_by_the_holistic_goal(tmp_path):
 
 def _tracker_with_progress() -> CompetenceTracker:
     """Four modules; module 1 is learning (LP 0.5), the others show none."""
-    tracker = CompetenceTracker(4, window=4)
+    tracker = CompetenceTracker(4, window=4, measure="absolute")
     for success in (0, 0, 0, 0, 1, 1, 1, 1):
         tracker.add(1, bool(success))
     for m in (0, 2, 3):
@@ -232,7 +234,7 @@ def _scripted_run(rule: str, seed: int) -> tuple[np.ndarray, int]:
     window, eval_every, workers, rounds = 20, 10, 4, 2
     ramp, forget_at = (4000, 8000), 6000
     condition = Curious(FOUR, 0.4, rule, eval_every)
-    tracker = CompetenceTracker(4, window)
+    tracker = CompetenceTracker(4, window, "absolute")
     rng = np.random.default_rng(seed)
     outcome_rng = np.random.default_rng(1000 + seed)
     start, noticed = 0, None
@@ -274,11 +276,12 @@ def test_released_rule_focuses_evaluations_and_so_lp_on_a_scripted_history():
     assert noticed["released"] < noticed["uniform"]
 
 
-def test_m_uvfa_draws_uniformly_under_either_rule():
+@pytest.mark.parametrize("condition", [MUVFA, LPReplay])
+def test_m_uvfa_and_lp_replay_draw_uniformly_under_either_rule(condition):
     rng = np.random.default_rng(2)
     tracker = _tracker_with_progress()
     for rule in ("released", "uniform"):
-        modules, _, _ = _draw_cycles(MUVFA(FOUR, 0.4, rule, 10), tracker, 1000, rng)
+        modules, _, _ = _draw_cycles(condition(FOUR, 0.4, rule, 10), tracker, 1000, rng)
         np.testing.assert_allclose(
             np.bincount(modules, minlength=4) / len(modules), 0.25, atol=0.02
         )
@@ -366,9 +369,182 @@ def test_conditions_have_one_registry():
     from curious.agent.conditions import CONDITION_CLASSES
     from curious.config import condition_names
 
-    assert condition_names() == tuple(CONDITION_CLASSES) == ("curious", "m-uvfa", "mg-te", "her")
+    assert condition_names() == tuple(CONDITION_CLASSES)
+    assert condition_names()[:4] == ("curious", "m-uvfa", "mg-te", "her")  # the paper's first
+    assert {"lp-select", "lp-replay"} <= set(condition_names())
     assert all(cls.name == name for name, cls in CONDITION_CLASSES.items())
     code = "import sys; from curious.config import condition_names; condition_names(); "
     code += "print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_every_condition_has_a_label_a_colour_and_a_place_of_its_own():
+    """Figures, reports and recordings show each condition under its own label and colour, in a
+    fixed order (a condition missing from the tables would get a colour from its name, which may
+    be another's)."""
+    from curious.analysis import palette
+    from curious.analysis.figures import CONDITION_ORDER
+    from curious.config import condition_names
+
+    names = condition_names()
+    assert set(names) <= set(palette.CONDITION_STYLES) and set(names) <= set(CONDITION_ORDER)
+    assert len({palette.condition_color(c) for c in names}) == len(names)
+    assert len({palette.condition_label(c) for c in names}) == len(names)
+    assert palette.condition_label("lp-select") == "LP-select"
+
+
+# ------------------------------------------------------- LP's two uses apart, and signed LP
+
+
+def _curious_replay(lp, replayable, eps=0.4):
+    """CURIOUS's task replay (flowersteam/curious ddpg.py `sample_batch`): eps / n + (1 - eps)
+    LP / sum LP over the n replayable modules, uniform over them while their LP sums to 0."""
+    lp, mask = np.asarray(lp, np.float64), np.asarray(replayable, bool)
+    mask = mask if mask.any() else np.ones_like(mask)
+    total = lp[mask].sum()
+    share = eps / mask.sum() + (1 - eps) * lp / total if total > 0 else 1 / mask.sum()
+    return np.where(mask, share, 0.0)
+
+
+def test_lp_select_and_lp_replay_each_keep_one_use_of_lp():
+    """`lp-select` practises as `curious` and replays as `m-uvfa`; `lp-replay` the reverse."""
+    tracker = _tracker_with_progress()  # module 1 is learning
+    valid = np.array([True, True, False, True])
+    curious, muvfa, select, replay = (
+        c(FOUR, 0.4, "released", 10) for c in (Curious, MUVFA, LPSelect, LPReplay)
+    )
+    p_lp = curious.practice_probs(tracker, 0)
+    assert p_lp[1] == pytest.approx(0.7)  # LP tells the two draws apart
+    np.testing.assert_allclose(select.practice_probs(tracker, 0), p_lp)
+    np.testing.assert_allclose(select.replay_probs(tracker, 0, valid), [1 / 3, 1 / 3, 0, 1 / 3])
+    np.testing.assert_allclose(replay.practice_probs(tracker, 0), muvfa.practice_probs(tracker, 0))
+    expected = _curious_replay(tracker.learning_progress(), valid)
+    np.testing.assert_allclose(replay.replay_probs(tracker, 0, valid), expected)
+    np.testing.assert_allclose(curious.replay_probs(tracker, 0, valid), expected)
+    assert replay.self_evaluates and select.follows_lead and replay.n_experts == 1
+
+
+def test_signed_lp_reaches_practice_and_replay_of_every_condition_that_reads_lp():
+    """With `lp_measure=signed` a forgotten module (competence 1 -> 0) draws no more than the
+    eps share, where the paper's absolute LP draws practice and replay back to it."""
+    valid = np.ones(4, bool)
+    for measure, forgotten_share in (("absolute", 0.4 / 4 + 0.6 / 2), ("signed", 0.4 / 4)):
+        tracker = CompetenceTracker(4, window=4, measure=measure)
+        for success in (0, 0, 0, 0, 1, 1, 1, 1):
+            tracker.add(1, bool(success))  # learning
+        for success in (1, 1, 1, 1, 0, 0, 0, 0):
+            tracker.add(3, bool(success))  # forgotten
+        for condition in (Curious, LPSelect):
+            p = condition(FOUR, 0.4, "released", 10).practice_probs(tracker, 0)
+            assert p[3] == pytest.approx(forgotten_share), (measure, condition.name)
+        for condition in (Curious, LPReplay):
+            p = condition(FOUR, 0.4, "released", 10).replay_probs(tracker, 0, valid)
+            assert p[3] == pytest.approx(forgotten_share), (measure, condition.name)
+
+
+def _toy_envs(config):
+    return make_toy_envs(config.seed, config.n_workers)
+
+
+def _scripted_scores(monkeypatch: pytest.MonkeyPatch, condition: type) -> None:
+    """Score episodes by a seeded coin (reach 1/2, dial 1/5, beacon never) instead of by their
+    outcome: a smoke run's policy succeeds too rarely for competence and LP to move."""
+    coin = np.random.default_rng(7)
+    rates = np.array([0.5, 0.2, 0.0])
+    monkeypatch.setattr(
+        condition,
+        "success",
+        lambda self, env, data, modules, goals: coin.random(len(modules)) < rates[modules],
+    )
+
+
+class _ReplaySpy:
+    """Records what the task replay was given and drew: (LP, replayable, module probabilities)
+    of every cycle, and the module of every replayed transition."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, condition: type) -> None:
+        self.cycles: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.drawn: list[np.ndarray] = []
+        probs_of, sample = condition.replay_probs, condition.sample
+
+        def replay_probs(cond, tracker, epoch, replayable):
+            probs = probs_of(cond, tracker, epoch, replayable)
+            self.cycles.append((tracker.learning_progress(), replayable.copy(), probs))
+            return probs
+
+        def spied_sample(cond, *args):
+            batch = sample(cond, *args)
+            self.drawn.append((len(self.cycles) - 1, batch.module.copy()))
+            return batch
+
+        monkeypatch.setattr(condition, "replay_probs", replay_probs)
+        monkeypatch.setattr(condition, "sample", spied_sample)
+
+    def shares(self, n_modules: int) -> tuple[np.ndarray, np.ndarray]:
+        """The replayed modules' shares, and the shares the cycles' probabilities expect."""
+        drawn = np.zeros(n_modules)
+        expected = np.zeros(n_modules)
+        for cycle, modules in self.drawn:
+            drawn += np.bincount(modules, minlength=n_modules)
+            expected += len(modules) * self.cycles[cycle][2]
+        return drawn / drawn.sum(), expected / expected.sum()
+
+
+@pytest.mark.parametrize("condition", [LPSelect, LPReplay])
+def test_a_smoke_run_of_each_half_of_curious_trains_with_its_own_draws(
+    tmp_path, monkeypatch, condition
+):
+    """A run of `lp-select` logs CURIOUS's p_LP as its practice probabilities (p_lp columns)
+    and replays modules uniformly over the replayable ones; `lp-replay` logs uniform practice
+    and replays by CURIOUS's formula. Every transition is relabelled (her_p 1), so the replayed
+    modules are the drawn ones."""
+    spy = _ReplaySpy(monkeypatch, condition)
+    _scripted_scores(monkeypatch, condition)
+    changes = {"total_episodes": 96, "lp_window": 2, "her_p": 1.0, "progress": False}
+    config = resolve("smoke", condition.name, 0, changes)
+    out = tmp_path / condition.name
+    assert train(config, out, make_envs=_toy_envs).episodes == 96
+
+    df = pq.read_table(out / "metrics.parquet").to_pandas()
+    names = SPEC.module_names
+    lp = df[[f"lp/{n}" for n in names]].to_numpy(np.float64)
+    p_lp = df[[f"p_lp/{n}" for n in names]].to_numpy(np.float64)
+    assert (lp.sum(1) > 0).mean() > 0.25  # LP had something to choose by
+    if condition is LPSelect:
+        formula = np.array([lp_probabilities(row, config.lp_eps) for row in lp])
+        np.testing.assert_allclose(p_lp, formula, atol=1e-6)
+        assert np.abs(p_lp - 1 / 3).max() > 0.1
+    else:
+        np.testing.assert_allclose(p_lp, 1 / 3, atol=1e-6)
+
+    lp_shaped = 0
+    for cycle_lp, replayable, probs in spy.cycles:
+        uniform = _curious_replay(np.zeros(len(names)), replayable)
+        wanted = uniform if condition is LPSelect else _curious_replay(cycle_lp, replayable)
+        np.testing.assert_allclose(probs, wanted, atol=1e-12)
+        lp_shaped += not np.allclose(wanted, uniform)
+    assert lp_shaped > len(spy.cycles) // 4 if condition is LPReplay else lp_shaped == 0
+    drawn, expected = spy.shares(len(names))
+    np.testing.assert_allclose(drawn, expected, atol=0.03)
+
+
+def test_a_signed_lp_run_logs_what_p_lp_is_formed_from_and_keeps_its_measure(tmp_path, monkeypatch):
+    """A `lp_measure=signed` run trains and resumes; its lp columns are never negative and are
+    what its p_lp columns are formed from; `--resume` with the paper's measure is refused (it
+    would change the run)."""
+    changes = {"total_episodes": 96, "lp_window": 2, "lp_measure": "signed", "progress": False}
+    config = resolve("smoke", "curious", 0, changes)
+    out = tmp_path / "signed"
+    _scripted_scores(monkeypatch, Curious)
+    train(config, out, make_envs=_toy_envs, stop_after_cycles=12)
+    absolute = resolve("smoke", "curious", 0, {**changes, "lp_measure": "absolute"})
+    with pytest.raises(RunFolderError, match=r"lp_measure: 'signed' -> 'absolute'"):
+        train(absolute, out, resume=True, make_envs=_toy_envs)
+    assert train(config, out, resume=True, make_envs=_toy_envs).episodes == 96
+    df = pq.read_table(out / "metrics.parquet").to_pandas()
+    lp = df[[f"lp/{n}" for n in SPEC.module_names]].to_numpy(np.float64)
+    p_lp = df[[f"p_lp/{n}" for n in SPEC.module_names]].to_numpy(np.float64)
+    assert lp.min() >= 0 and lp.max() > 0
+    formula = np.array([lp_probabilities(row, config.lp_eps) for row in lp])
+    np.testing.assert_allclose(p_lp, formula, atol=1e-6)

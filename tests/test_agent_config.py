@@ -40,7 +40,8 @@ def test_settings_of_the_config_are_stated_once_in_it():
     from curious.watching.recording.cost import synthetic_episodes
 
     uses = [(EpisodeReplay.sample, "her_p"), (lp_probabilities, "eps")]
-    uses += [(CompetenceTracker.p_lp, "eps"), (CompetenceTracker.__init__, "window")]
+    uses += [(CompetenceTracker.p_lp, "eps")]
+    uses += [(CompetenceTracker.__init__, name) for name in ("window", "measure")]
     uses += [
         (cls.__init__, name)
         for cls in CONDITION_CLASSES.values()
@@ -66,6 +67,7 @@ def test_paper_preset_is_the_authors_protocol():
     assert c.total_episodes == 300_000
     assert (c.test_rollouts_per_worker, c.moved_threshold, c.replay_active_only) == (10, 1e-3, True)
     assert (c.norm_eps, c.algorithm) == (0.01, "ddpg")
+    assert c.lp_measure == "absolute"  # queues.py: CP = |sum(q1) - sum(q2)| / (2 window)
 
 
 def test_replay_ratio_of_each_preset_is_the_documented_one():
@@ -75,6 +77,19 @@ def test_replay_ratio_of_each_preset_is_the_documented_one():
     comments and docs/agent.md say so)."""
     ratios = {p: resolve(p).samples_per_stored_transition() for p in ("paper", "laptop", "quick")}
     assert ratios == {"paper": 256.0, "laptop": 51.2, "quick": 25.6}
+
+
+def test_every_preset_forms_p_lp_from_absolute_lp_and_signed_lp_changes_the_run():
+    """The paper's absolute LP in every preset (a preset changes the scale, never the
+    algorithm). Signed LP changes what a run computes: `curious reproduce --set` refuses it, as
+    `--resume` refuses a change of it (tests/test_agent_conditions.py)."""
+    from curious.commands.reproduce import placement_overrides
+
+    for preset in PRESETS:
+        assert resolve(preset).lp_measure == "absolute"
+    assert resolve("laptop", overrides={"lp_measure": "signed"}).lp_measure == "signed"
+    with pytest.raises(ConfigError, match="lp_measure would change the budget's runs"):
+        placement_overrides(["lp_measure=signed"])
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))
@@ -121,6 +136,10 @@ def test_overrides_are_typed():
         (lambda: parse_overrides(["condition=her"]), "choose the condition with --condition"),
         (lambda: parse_overrides(["seed=3"]), r"choose the seed with --seed \(or --seeds\)"),
         (lambda: resolve("smoke", overrides={"algorithm": "sac"}), "unknown algorithm 'sac'"),
+        (
+            lambda: resolve("smoke", overrides={"lp_measure": "relative"}),
+            "unknown lp_measure 'relative'; choose one of absolute, signed",
+        ),
         (lambda: resolve("smoke", overrides={"her_p": 1.5}), "her_p must be in"),
         (lambda: resolve("smoke", overrides={"n_workers": 0}), "n_workers must be > 0"),
         (lambda: Config.from_dict({"hidden": 3, "colour": 1}), "unknown config keys: colour"),

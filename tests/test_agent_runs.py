@@ -508,7 +508,9 @@ def test_sensory_failure_starts_when_the_perturbed_module_is_learned(tmp_path):
     assert trainer.failure.module == module
     rows = trainer.cycle().rows
     assert trainer.failure.start is None and not rows["sensor_failure"].any()
-    trainer.tracker = CompetenceTracker(trainer.spec.n_modules, trainer.config.lp_window)
+    trainer.tracker = CompetenceTracker(
+        trainer.spec.n_modules, trainer.config.lp_window, trainer.config.lp_measure
+    )
     for _ in range(trainer.config.lp_window - 1):  # competence 1.0 over less than a window
         trainer.tracker.add(module, True)
     trainer.failure.start_if_due(trainer.episodes, trainer.tracker)

@@ -50,7 +50,7 @@ def test_a_failure_at_an_episode_runs_every_episode_from_it_on():
     assert [env.failing for env in envs.envs] == [False, False]
     np.testing.assert_array_equal(failure.apply(envs, np.array([4, 5])), [False, True])
     assert [env.failing for env in envs.envs] == [False, True]  # a round straddling the onset
-    failure.start_if_due(0, CompetenceTracker(3, 4))  # a fixed episode never moves
+    failure.start_if_due(0, CompetenceTracker(3, 4, "absolute"))  # a fixed episode never moves
     assert failure.start == 5
 
 
@@ -58,7 +58,7 @@ def test_a_failure_on_competence_waits_for_a_full_window_at_the_threshold():
     envs = copies()
     failure = schedule(envs, sensor_failure_competence=0.75, lp_window=4)
     dial = failure.module
-    tracker = CompetenceTracker(envs.spec.n_modules, 4)
+    tracker = CompetenceTracker(envs.spec.n_modules, 4, "absolute")
     for _ in range(3):  # competence 1.0 over less than a window: not learned yet
         tracker.add(dial, True)
     failure.start_if_due(10, tracker)
@@ -71,7 +71,7 @@ def test_a_failure_on_competence_waits_for_a_full_window_at_the_threshold():
     np.testing.assert_array_equal(failure.on(np.array([11, 12, 13])), [False, True, True])
 
     below = schedule(envs, sensor_failure_competence=0.75, lp_window=4)
-    tracker = CompetenceTracker(envs.spec.n_modules, 4)
+    tracker = CompetenceTracker(envs.spec.n_modules, 4, "absolute")
     for success in (True, True, False, False):  # a full window at 0.5
         tracker.add(dial, success)
     below.start_if_due(10, tracker)

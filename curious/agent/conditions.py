@@ -1,7 +1,7 @@
-"""The conditions the paper compares, as small strategies the training loop asks: which modules
-the next episodes practise or evaluate and with which goals, how an episode is scored, which
-modules relabelled transitions are replayed as, and which expert acts or learns. Everything else
-(networks, learner, replay, rollouts) is shared.
+"""The conditions the paper compares, and two that split CURIOUS in halves, as small strategies
+the training loop asks: which modules the next episodes practise or evaluate and with which
+goals, how an episode is scored, which modules relabelled transitions are replayed as, and which
+expert acts or learns. Everything else (networks, learner, replay, rollouts) is shared.
 
 Self-evaluations. Every `eval_every`-th episode is a self-evaluation without exploration noise;
 its final success goes to that module's competence queue. Which module it evaluates, and which
@@ -32,6 +32,12 @@ The conditions:
   `sample_batch`: eps / n + (1 - eps) LP / sum LP over those n modules).
 * `m-uvfa`: the same policy with uniform module selection and uniform task replay over the
   modules that have an episode to replay (the later paper's ablation of learning progress).
+* `lp-select` and `lp-replay` (not in the paper): each keeps one of CURIOUS's two uses of LP and
+  takes M-UVFA's uniform draw for the other. `lp-select` practises modules drawn from p_LP and
+  replays transitions as modules drawn uniformly over those with an episode to replay;
+  `lp-replay` practises modules drawn uniformly and replays as modules drawn from p_LP over
+  those. Together with `curious` and `m-uvfa` they separate what choosing the module to practise
+  and choosing the module to replay as each contribute.
 * `mg-te`: one expert policy per module (each with the E-UVFA input, whose task part is then
   constant), sharing one replay buffer. Epoch e belongs to module e mod N: expert e mod N plays
   every episode of the epoch on its module, self-evaluations included (the authors' task-expert
@@ -201,17 +207,34 @@ def _over(replayable: np.ndarray, probs_of: Callable[[np.ndarray], np.ndarray]) 
     return out
 
 
-class Curious(Condition):
-    name = "curious"
+class LPSelect(Condition):
+    """LP's first use alone (not in the paper): modules practised from p_LP, as `curious`;
+    relabelled transitions replayed as modules drawn uniformly, as `m-uvfa`."""
+
+    name = "lp-select"
 
     def practice_probs(self, tracker: CompetenceTracker, epoch: int) -> np.ndarray:
         return tracker.p_lp(self.lp_eps)
+
+
+class LPReplay(Condition):
+    """LP's second use alone (not in the paper): modules practised uniformly, as `m-uvfa`;
+    relabelled transitions replayed as modules drawn from p_LP over the replayable ones, as
+    `curious`."""
+
+    name = "lp-replay"
 
     def replay_probs(
         self, tracker: CompetenceTracker, epoch: int, replayable: np.ndarray
     ) -> np.ndarray:
         lp = tracker.learning_progress()
         return _over(replayable, lambda mask: lp_probabilities(lp[mask], self.lp_eps))
+
+
+class Curious(LPSelect, LPReplay):
+    """The paper's agent: LP chooses both the module practised and the module replayed as."""
+
+    name = "curious"
 
 
 class MUVFA(Condition):
@@ -324,7 +347,10 @@ class HER(Condition):
         return None
 
 
-CONDITION_CLASSES: dict[str, type[Condition]] = {c.name: c for c in (Curious, MUVFA, MGTE, HER)}
+CONDITION_CLASSES: dict[str, type[Condition]] = {
+    c.name: c for c in (Curious, MUVFA, MGTE, HER, LPSelect, LPReplay)
+}
+"""Every condition by its name: the paper's, in its order, then the two halves of CURIOUS."""
 
 
 def make_condition(config: Config, spec: EnvSpec) -> Condition:

@@ -12,6 +12,9 @@ Each module keeps its self-evaluation results (1 success, 0 failure) in a queue 
 * p_LP = eps / N + (1 - eps) * LP / sum(LP), and uniform while sum(LP) = 0.
 
 (The released code divided LP by 2 and measured competence over k results; neither changes p_LP.)
+
+With `Config.lp_measure = "signed"` (not in the paper) LP is max(recent - before, 0) instead: a
+rising competence counts, a falling one counts as no progress, so forgetting draws no practice.
 """
 
 from __future__ import annotations
@@ -20,14 +23,17 @@ import numpy as np
 
 MIN_RESULTS_FOR_LP = 3
 """A module's LP is 0 until it has this many evaluation results (the authors' queue: size > 2)."""
+LP_MEASURES: tuple[str, ...] = ("absolute", "signed")
+"""What LP measures (`Config.lp_measure`): `absolute`, |recent - before| (the paper's), or
+`signed`, max(recent - before, 0)."""
 
 
 def lp_probabilities(lp: np.ndarray, eps: float) -> np.ndarray:
-    """p_LP from absolute learning progress: eps-uniform mixed with LP-proportional (eps is
-    `Config.lp_eps`)."""
+    """p_LP from learning progress (absolute, or signed counted from 0): eps-uniform mixed with
+    LP-proportional (eps is `Config.lp_eps`)."""
     lp = np.asarray(lp, dtype=np.float64)
     if np.any(lp < 0):
-        raise ValueError("absolute learning progress cannot be negative")
+        raise ValueError("learning progress cannot be negative here (signed LP counts from 0)")
     n = lp.shape[-1]
     total = lp.sum()
     if total <= 0:
@@ -39,12 +45,16 @@ def lp_probabilities(lp: np.ndarray, eps: float) -> np.ndarray:
 class CompetenceTracker:
     """Per-module queues of evaluation results and the measures computed from them."""
 
-    def __init__(self, n_modules: int, window: int) -> None:
-        """`window`: `Config.lp_window`, the results competence averages."""
+    def __init__(self, n_modules: int, window: int, measure: str) -> None:
+        """`window`: `Config.lp_window`, the results competence averages; `measure`:
+        `Config.lp_measure`, what LP measures (`LP_MEASURES`)."""
         if window <= 0:
             raise ValueError(f"window must be > 0, got {window}")
+        if measure not in LP_MEASURES:
+            raise ValueError(f"unknown LP measure {measure!r}; choose one of {LP_MEASURES}")
         self.n_modules = n_modules
         self.window = window
+        self.measure = measure
         self.results = np.zeros((n_modules, 2 * window), dtype=np.float64)
         self.counts = np.zeros(n_modules, dtype=np.int64)
         self._competence = np.zeros(n_modules)
@@ -73,14 +83,16 @@ class CompetenceTracker:
         else:
             recent = self._last(m, 0, k).mean()
             before = self._last(m, k, 2 * k).mean()
-            self._lp[m] = abs(recent - before)
+            change = recent - before
+            self._lp[m] = abs(change) if self.measure == "absolute" else max(change, 0.0)
 
     def competence(self) -> np.ndarray:
         """(N,) competence of every module."""
         return self._competence.copy()
 
     def learning_progress(self) -> np.ndarray:
-        """(N,) absolute learning progress of every module."""
+        """(N,) learning progress of every module, as `measure` says: what p_LP is formed from
+        (and the `lp/<module>` columns of metrics.parquet log)."""
         return self._lp.copy()
 
     def p_lp(self, eps: float) -> np.ndarray:

@@ -5,8 +5,9 @@ below the run's length; the presets keep the whole run, `Config.buffer_episodes`
 built at sample time, with numpy indexing only (loops run over modules, never over transitions):
 
 1. each transition gets a *replay module* drawn from the given module probabilities (p_LP for
-   `curious`, uniform for `m-uvfa`, over the modules with an episode to replay, `replayable`;
-   the trained expert's module for `mg-te`: `curious.agent.conditions`);
+   `curious` and `lp-replay`, uniform for `m-uvfa` and `lp-select`, over the modules with an
+   episode to replay, `replayable`; the trained expert's module for `mg-te`:
+   `curious.agent.conditions`);
 2. its episode is drawn among the episodes where that module's outcome changed
    (`active_only`, as the released code's per-module buffers), or among all while there is none
    (only `mg-te` replays a module that has none); its time step t is uniform in [0, T);

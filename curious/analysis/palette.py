@@ -77,6 +77,8 @@ CONDITION_STYLES: dict[str, Style] = {
     "mg-te": Style("MG-TE", "#0077BB"),
     "her": Style("HER", "#555555"),
     "m-uvfa": Style("M-UVFA", "#AA3377"),
+    "lp-select": Style("LP-select", "#EE7733"),
+    "lp-replay": Style("LP-replay", "#009988"),
 }
 
 _PUSH_CUBE = re.compile(r"push_cube(\d+)")

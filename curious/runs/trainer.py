@@ -201,7 +201,7 @@ class Trainer:
             active_only=config.replay_active_only,
             moved_threshold=config.moved_threshold,
         )
-        self.tracker = CompetenceTracker(n, config.lp_window)
+        self.tracker = CompetenceTracker(n, config.lp_window, config.lp_measure)
         rollout_seq, replay_seq, test_seq = np.random.SeedSequence([config.seed, 0xC0]).spawn(3)
         self.rng = np.random.default_rng(rollout_seq)
         self.replay_rng = np.random.default_rng(replay_seq)

@@ -29,7 +29,7 @@ from curious.analysis.style import (
     wrap_caption,
 )
 
-CONDITION_ORDER: tuple[str, ...] = ("curious", "mg-te", "her", "m-uvfa")
+CONDITION_ORDER: tuple[str, ...] = ("curious", "mg-te", "her", "m-uvfa", "lp-select", "lp-replay")
 CURVE_POINTS = 400  # at most this many points per drawn curve of one run
 CAPTION_SIZE = 7.5
 

@@ -70,7 +70,7 @@ def synthetic_episodes(
     evals = np.flatnonzero(is_eval)
     after = np.zeros((3, len(evals) + 1, n_modules))
     after[2, 0] = 1.0 / n_modules
-    tracker = CompetenceTracker(n_modules, window)
+    tracker = CompetenceTracker(n_modules, window, "absolute")
     for i, e in enumerate(evals, start=1):
         tracker.add(int(modules[e]), bool(success[e]))
         after[0, i] = tracker.competence()
