@@ -52,6 +52,13 @@ RESUMABLE_FIELDS: frozenset[str] = frozenset(
 )
 
 
+EARLIER_BEHAVIOUR: dict[str, Any] = {"lp_measure": "absolute"}
+"""Settings added after runs were made, with the value that gives what those runs computed
+without them: a config.json without the setting reads as that value, so that a run made before
+it resumes and evaluates as itself (`curious.runs.folder.config_differences`). A setting whose
+absence means another computation does not belong here."""
+
+
 PLACEMENT_FIELDS: frozenset[str] = RESUMABLE_FIELDS - {"total_episodes", "progress"}
 """Settings of where and how fast a run goes that leave what it computes as it is (float
 rounding aside): those `curious reproduce --set` may change for every run of a budget."""

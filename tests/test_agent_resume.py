@@ -236,3 +236,24 @@ def test_the_command_resumes_with_the_runs_own_settings(tmp_path, capsys):
     assert "(condition: 'mg-te' -> 'her')" in capsys.readouterr().err
     assert main([*resume, "--set", "condition=her"]) == 2  # the condition's own option only
     assert "choose the condition with --condition, not an override" in capsys.readouterr().err
+
+
+def test_a_run_made_before_a_setting_existed_resumes_as_itself(tmp_path):
+    """A run whose config.json and checkpoint predate `lp_measure` computed what `absolute`
+    computes (`curious.config.EARLIER_BEHAVIOUR`): it resumes and its checkpoint loads, while a
+    resume asking for the other measure is refused."""
+    out = tmp_path / "run"
+    run(out, stop=3)
+    config_json = out / "config.json"
+    stored = json.loads(config_json.read_text())
+    stored["config"].pop("lp_measure")
+    config_json.write_text(json.dumps(stored, indent=2))
+    for state_file in (out / "checkpoints").glob("ep-*/state.pt"):
+        state = torch.load(state_file, map_location="cpu", weights_only=False)
+        state["config"].pop("lp_measure")
+        torch.save(state, state_file)
+    done = run(out, resume=True)
+    assert episodes(out / "metrics.parquet")[-1] == SMALL["total_episodes"] - 1
+    assert done is not None
+    with pytest.raises(RunFolderError, match="lp_measure"):
+        run(out, resume=True, total_episodes=60, lp_measure="signed")

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from curious.config import (
+    EARLIER_BEHAVIOUR,
     RESUMABLE_FIELDS,
     Config,
     ConfigError,
@@ -55,8 +56,10 @@ if TYPE_CHECKING:
 
 def config_differences(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     """Keys whose values differ between two config dicts, ignoring resumable fields; a setting
-    present on one side only differs (a run saved before the setting existed is another run)."""
+    present on one side only differs (a run saved before the setting existed is another run),
+    unless its absence means the value `EARLIER_BEHAVIOUR` names (the computation it had)."""
     keys = (set(a) | set(b)) - RESUMABLE_FIELDS
+    a, b = {**EARLIER_BEHAVIOUR, **a}, {**EARLIER_BEHAVIOUR, **b}
     missing = object()
     return sorted(k for k in keys if a.get(k, missing) != b.get(k, missing))
 
@@ -229,7 +232,8 @@ class RunFolder:
 
     def check_resumable(self, config: Config) -> None:
         """A `RunFolderError` unless `config` may go on with the run in this folder: config.json
-        is there and is a run's, written by a curious that had every setting this one has, with
+        is there and is a run's, written by a curious that had every setting this one has (but
+        those `EARLIER_BEHAVIOUR` reads for a run made before them), with
         settings this curious can run, equal to `config`'s but for `RESUMABLE_FIELDS` (a
         `ConfigMismatch` naming the differences otherwise)."""
         if not self.config_path.exists():
@@ -238,7 +242,7 @@ class RunFolder:
                 f"{self._runs_below(resuming=True)}"
             )
         raw = self.read_stored()["config"]
-        lacking = sorted(set(setting_names()) - set(raw))
+        lacking = sorted(set(setting_names()) - set(raw) - set(EARLIER_BEHAVIOUR))
         if lacking:
             raise RunFolderError(
                 f"cannot resume {self.path}: it was written by another version of curious "
