@@ -209,7 +209,7 @@ def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extr
     planned.mkdir()
     shutil.copy(extra_seed.out / "reproduce.json", planned)
     rows = progress_table(planned)
-    assert len(rows) == 19 and not any(r.episodes for r in rows)
+    assert len(rows) == 20 and not any(r.episodes for r in rows)
     assert sorted(r.name for r in rows if r.seed == 2) == sorted(seed_2)
 
 

@@ -1,6 +1,6 @@
 """`curious reproduce` and the Dagster pipeline behind it, on the smoke budget.
 
-One smoke reproduction (every experiment, 16 runs of 24 episodes) is built once per session
+One smoke reproduction (every experiment, 17 runs of 24 episodes) is built once per session
 (`conftest.py`) and shared with the notebook tests.
 """
 
@@ -81,9 +81,9 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "computation, `curious.analysis.main_comparison`" in report
     assert "test success at the last epoch" in report
     # what the report was built from, counted from its tables; the whole budget beside it
-    assert "This report was built from 16 runs, 384 training episodes in all: main 6 runs" in report
+    assert "This report was built from 17 runs, 408 training episodes in all: main 6 runs" in report
     assert (
-        "The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains 16 runs"
+        "The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains 17 runs"
         in report
     )
     # the smoke failure starts at episode 12 on an unlearned module: no recovery is claimed
@@ -169,7 +169,7 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
 def test_every_partition_is_one_finished_run_folder(smoke):
     runs_root = smoke.out / "runs"
     specs = SMOKE.runs()
-    assert len(specs) == 16
+    assert len(specs) == 17
     for spec in specs:
         folder = run_folder(spec, runs_root)
         assert folder_state(spec, runs_root) == FINISHED, spec.label
@@ -254,13 +254,13 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     assert sorted(p.name for p in (beside / "figures").iterdir()) == sorted(
         p.name for p in (smoke.out / "figures").iterdir()
     )
-    assert "0 run(s) trained, 16 already finished" in stdout
-    assert "16 shipped run(s) read, none trained" in stdout
+    assert "0 run(s) trained, 17 already finished" in stdout
+    assert "17 shipped run(s) read, none trained" in stdout
     closing = stdout[stdout.index("What each output can show:") :]
     assert f"{out / 'report.md'} and {out / 'figures'}/" in closing
     assert "it cannot show the paper's claims" in closing
     assert f"{beside / 'report.md'} and {beside / 'figures'}/" in closing
-    assert f"the shipped `smoke` campaign, 16 runs read from {shipped.data}" in closing
+    assert f"the shipped `smoke` campaign, 17 runs read from {shipped.data}" in closing
     assert "C1, CURIOUS learns faster than MG-TE" in closing and "C3/C5" in closing
     assert "C4" in closing and "C5, the recovery of a mastered module's test success" in closing
 
@@ -309,7 +309,7 @@ def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smok
         logging.getLogger("caller").removeHandler(handler)
     assert not Handler.closed
     assert any(ref() is handler for ref in logging._handlerList)  # closed at exit as usual
-    assert result.trained == [] and len(result.skipped) == 16
+    assert result.trained == [] and len(result.skipped) == 17
     assert hashes(out / "runs") == runs_before  # not one byte of a run changed
     assert hashes(out / "figures") == figures_before  # figures rebuild byte-identical
 

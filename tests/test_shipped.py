@@ -106,7 +106,7 @@ def test_ship_writes_each_runs_description_and_reduced_tables_and_prints_their_s
     printed = re.search(r"([\d,]+) bytes\)", shipped.stdout)
     assert printed and int(printed.group(1).replace(",", "")) == size
     assert (
-        f"shipped 16 finished run(s) of budget smoke from {smoke.out} to {data}" in shipped.stdout
+        f"shipped 17 finished run(s) of budget smoke from {smoke.out} to {data}" in shipped.stdout
     )
     tables = sum(
         (p / name).stat().st_size
@@ -139,7 +139,7 @@ def test_shipped_tables_load_with_every_number_of_the_run_folders(smoke, shipped
             pd.testing.assert_frame_equal(reduced, original.drop(columns=gone))
     layout = OutputLayout.open(shipped.data)  # how the notebooks open their `out`
     assert layout.runs_root == shipped.data.resolve() and layout.budget_name() == "smoke"
-    assert len(analysis.load_runs(shipped.data)) == 16 * 24
+    assert len(analysis.load_runs(shipped.data)) == 17 * 24
 
 
 def test_shipping_again_replaces_the_folder_with_the_same_bytes(smoke, shipped, tmp_path):
@@ -292,7 +292,7 @@ def test_report_and_figures_from_the_shipped_data_are_those_of_the_run_folders(
             for table, root in ((ours, shipped.data), (theirs, smoke.out / "runs")):
                 table["run"] = table["run"].astype(str).str.removeprefix(str(root.resolve()))
             pd.testing.assert_frame_equal(ours, theirs.drop(columns=list(dropped)))
-    assert "Done in" in stdout and "16 shipped run(s) read, none trained" in stdout
+    assert "Done in" in stdout and "17 shipped run(s) read, none trained" in stdout
     assert "curious reproduce --budget smoke --from-data" in stderr
     assert not (out / "runs").exists()
     manifest = json.loads((out / "reproduce.json").read_text())
@@ -317,10 +317,10 @@ def test_shipped_runs_of_some_variants_rebuild_those_variants_figures_and_number
     report = (out / "report.md").read_text()
     assert "Variants left out: distractors_0, distractors_4, whose runs" in report
     assert (
-        "Not in this report (not shipped yet): sensor_failure, sensor_failure_mastered, whose "
-        "runs the data this report was built from does not hold all finished; `curious "
-        "reproduce --budget smoke --experiments sensor_failure,sensor_failure_mastered` trains "
-        "them." in report
+        "Not in this report (not shipped yet): sensor_failure, sensor_failure_mastered, long, "
+        "whose runs the data this report was built from does not hold all finished; `curious "
+        "reproduce --budget smoke --experiments sensor_failure,sensor_failure_mastered,long` "
+        "trains them." in report
     )
     row = next(line for line in report.splitlines() if line.startswith("| 7 |"))
     assert row in (smoke.out / "report.md").read_text().splitlines()
