@@ -37,7 +37,13 @@ import math
 import numpy as np
 import pandas as pd
 
-from curious.analysis.drops import MASTERED, MASTERY_HOLD, _first, _mastered_from
+from curious.analysis.drops import (
+    MASTERED,
+    MASTERY_HOLD,
+    _first,
+    _mastered_from,
+    achievable_series,
+)
 from curious.analysis.loading import AnalysisError, require_alpha, require_runs
 from curious.analysis.statistics import ALPHA, FLOAT32_SLACK, RUN_COLUMNS
 
@@ -137,14 +143,14 @@ def _read_module(
     window: int,
     depth: float,
     span: int,
-) -> tuple[int | None, list[dict]]:
-    """One module of one run: its first mastery and its dips with their responses. ``values``
+) -> list[dict]:
+    """One module of one run: its dips with their responses. ``values``
     holds competence, LP, p_LP and the practised flag per row, episodes ascending."""
     competence = np.where(np.cumsum(evaluated) >= window, values[:, 0], np.nan)
     hold = max(1, math.ceil(MASTERY_HOLD * window))
     m = _mastered_from(competence, evaluated, 0, MASTERED, hold)
     if m is None:
-        return None, []
+        return []
     mastered, end_of_run = int(episodes[m]), int(episodes[-1]) + 1
     found = _module_dips(competence, m, depth)
     # running sums of p_LP, practice and LP, for every window's mean at once
@@ -195,7 +201,7 @@ def _read_module(
                 "excess_practice": change[1] - matched_mean[1] if read else np.nan,
             }
         )
-    return mastered, rows
+    return rows
 
 
 def dip_responses(
@@ -211,29 +217,12 @@ def dip_responses(
         raise ValueError(f"depth must be in (0, 1), got {depth}")
     if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 1:
         raise ValueError(f"window must be a number of episodes >= 1, got {window!r}")
-    all_episodes = df["episode"].to_numpy()
-    practised = df["module"].astype(str).to_numpy()
-    evaluated = df["eval"].to_numpy(bool)
     rows: list[dict] = []
-    for indices in df.groupby("run", observed=True, sort=True).indices.values():
-        indices = indices[np.argsort(all_episodes[indices], kind="stable")]
-        first = indices[0]
-        lp_window = df["lp_window"].iat[first]
-        competence_window = 1 if pd.isna(lp_window) else int(lp_window)
-        identity = {c: df[c].iat[first] for c in RUN_COLUMNS}
-        for module in (m for m in str(df["achievable_modules"].iat[first]).split(",") if m):
-            names = [f"{p}{module}" for p in ("competence/", "lp/", "p_lp/")]
-            own = practised[indices] == module
-            values = np.column_stack([df[names].to_numpy(np.float64)[indices], own])
-            _, found = _read_module(
-                all_episodes[indices],
-                values,
-                evaluated[indices] & own,
-                competence_window,
-                depth,
-                int(window),
-            )
-            rows += [{**identity, "module": module, **dip} for dip in found]
+    for series in achievable_series(df):
+        found = _read_module(
+            series.episodes, series.values, series.evaluated, series.window, depth, int(window)
+        )
+        rows += [{**series.identity, "module": series.module, **dip} for dip in found]
     out = pd.DataFrame(rows, columns=list(DIP_COLUMNS))
     for c in ("mastered_episode", "detect_episode", "trough_episode", "end_episode"):
         out[c] = out[c].astype("Int64")

@@ -57,6 +57,8 @@ measures it), so callers leave those runs out or read them apart.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -222,47 +224,75 @@ def _drops(
     return {"mastered_episode": mastered, **exposure}, drops
 
 
-def _scan(
-    df: pd.DataFrame, mastered: float, hold: float, depth: float, band: float
-) -> tuple[list[dict], list[dict]]:
-    """Every (run, achievable module): its `mastery` row and its `mastery_drops` rows."""
+@dataclass(frozen=True)
+class ModuleSeries:
+    """One achievable module of one run, episodes ascending: what the drop and dip rules read."""
+
+    identity: dict
+    """The run's `RUN_COLUMNS` values."""
+    module: str
+    episodes: np.ndarray
+    values: np.ndarray
+    """(rows, 4): competence, LP, p_LP and whether the episode practised the module (1.0)."""
+    evaluated: np.ndarray
+    """Whether each episode was a self-evaluation of the module."""
+    window: int
+    """The run's competence window (`lp_window`; 1 where the table has none)."""
+
+
+def achievable_series(df: pd.DataFrame) -> Iterator[ModuleSeries]:
+    """Every (run, achievable module) of a `load_runs` table, run by run."""
     require_runs(df)
-    _check(mastered, hold, depth, band)
     all_episodes = df["episode"].to_numpy()
     practised = df["module"].astype(str).to_numpy()
     evaluated = df["eval"].to_numpy(bool)
     columns: dict[str, np.ndarray] = {}  # module -> its competence, LP and p_LP, every row
-    modules, drops = [], []
     for rows in df.groupby("run", observed=True, sort=True).indices.values():
         rows = rows[np.argsort(all_episodes[rows], kind="stable")]
         first = rows[0]
         lp_window = df["lp_window"].iat[first]
-        window = 1 if pd.isna(lp_window) else int(lp_window)
         identity = {c: df[c].iat[first] for c in RUN_COLUMNS}
         for module in (m for m in str(df["achievable_modules"].iat[first]).split(",") if m):
             if module not in columns:
                 names = [f"{p}{module}" for p in ("competence/", "lp/", "p_lp/")]
                 columns[module] = df[names].to_numpy(np.float64)
             own = practised[rows] == module
-            values = np.column_stack([columns[module][rows], own])
-            read, found = _drops(
-                all_episodes[rows],
-                values,
-                evaluated[rows] & own,
-                window,
-                (mastered, hold, depth, band),
+            yield ModuleSeries(
+                identity=identity,
+                module=module,
+                episodes=all_episodes[rows],
+                values=np.column_stack([columns[module][rows], own]),
+                evaluated=evaluated[rows] & own,
+                window=1 if pd.isna(lp_window) else int(lp_window),
             )
-            modules.append(
-                {
-                    **identity,
-                    "module": module,
-                    "evaluated": bool(np.isfinite(values[:, 0]).any()),
-                    **read,
-                    "n_drops": len(found),
-                    "n_recovered": sum(d["recovered"] for d in found),
-                }
-            )
-            drops += [{**identity, "module": module, **d} for d in found]
+
+
+def _scan(
+    df: pd.DataFrame, mastered: float, hold: float, depth: float, band: float
+) -> tuple[list[dict], list[dict]]:
+    """Every (run, achievable module): its `mastery` row and its `mastery_drops` rows."""
+    require_runs(df)
+    _check(mastered, hold, depth, band)
+    modules, drops = [], []
+    for series in achievable_series(df):
+        read, found = _drops(
+            series.episodes,
+            series.values,
+            series.evaluated,
+            series.window,
+            (mastered, hold, depth, band),
+        )
+        identity = {**series.identity, "module": series.module}
+        modules.append(
+            {
+                **identity,
+                "evaluated": bool(np.isfinite(series.values[:, 0]).any()),
+                **read,
+                "n_drops": len(found),
+                "n_recovered": sum(d["recovered"] for d in found),
+            }
+        )
+        drops += [{**identity, **d} for d in found]
     return modules, drops
 
 
