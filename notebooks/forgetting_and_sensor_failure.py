@@ -37,6 +37,8 @@
 
 # %%
 # %matplotlib inline
+from pathlib import Path
+
 import pandas as pd
 from IPython.display import display
 
@@ -167,10 +169,22 @@ if has_mastered:
         display(test["unrecovered"][["condition", "seed", "note"]])
 
 # %% [markdown]
+# The test fixed for five seeds a side (docs/results.md, C5): every run followed from its onset
+# to its end, a run not recovered censored at the episodes it had; one-sided log-rank test,
+# CURIOUS sooner, with its exact permutation p over every split of the runs
+# (`analysis.compare_censored_recoveries`), and Gehan's statistic beside it as a check.
+
+# %%
+if has_mastered:
+    censored = analysis.compare_censored_recoveries(by_tests, faster, slower)
+    display(pd.Series({k: v for k, v in censored.items() if k not in ("runs", "left_out")}))
+    display(censored["runs"][["condition", "seed", "time", "event"]])
+
+# %% [markdown]
 # ## Part 3: spontaneous forgetting
 #
-# In every run of the `main` and `distractors` experiments that has self-evaluations (HER has
-# none), each achievable module is read by the rule of `curious.analysis.drops`: mastered once
+# In every run of the `main`, `distractors` and `long` experiments that has self-evaluations (HER
+# has none), each achievable module is read by the rule of `curious.analysis.drops`: mastered once
 # its competence over a full window has stood at or above 0.9 for half a window of
 # self-evaluations; a drop is a fall of 0.2 or more below its peak since mastery. First, per run
 # and module, the deepest fall of its competence below its peak while mastered
@@ -179,12 +193,14 @@ if has_mastered:
 # result: no mastered module was forgotten.
 
 # %%
-folders = [layout.experiment_runs(e) for e in ("main", "distractors")]
+folders = [layout.experiment_runs(e) for e in ("main", "distractors", "long")]
 spontaneous = analysis.load_runs([f for f in folders if any(f.rglob(METRICS_FILE))])
 read = analysis.mastery(spontaneous)
 read = read[read["evaluated"]].astype({"condition": str, "variant": str, "module": str})
+read["experiment"] = [Path(run).parts[-3] for run in read["run"].astype(str)]  # main, long...
 modules = list(dict.fromkeys(read["module"]))  # in the runs' order
-falls = read.pivot(index=["condition", "variant", "seed"], columns="module", values="deepest_fall")
+index = ["experiment", "condition", "variant", "seed"]
+falls = read.pivot(index=index, columns="module", values="deepest_fall")
 display(falls[modules].round(2))
 
 # %%
@@ -192,3 +208,21 @@ drops = analysis.mastery_drops(spontaneous)
 columns = ["condition", "variant", "seed", "module", "drop_episode", "peak", "trough"]
 columns += ["lp_before", "lp_trough", "p_lp_before", "p_lp_after", "recovery_episodes"]
 drops[columns].round(3)
+
+# %% [markdown]
+# The mechanism at any size (`curious.analysis.dips`, its rule fixed before the runs were read):
+# every dip of a mastered module's competence of 0.1 (the depth tested) and of 0.05 below its
+# peak, the change of the module's p_LP and share of practice from the 5,000 episodes before the
+# dip to the 5,000 after, and its excess over the same module's windows without a dip; then, per
+# condition, the one-sided exact sign-flip test of the runs' mean excess (a run one unit).
+
+# %%
+for depth in analysis.DIP_DEPTHS:
+    found = analysis.dip_responses(spontaneous, depth)
+    print(f"depth {depth:g}: {len(found)} dips,", dict(found["status"].value_counts()))
+    for condition, own in found.groupby("condition", observed=True):
+        tests = {c: analysis.dip_test(own, c) for c in ("excess_p_lp", "excess_practice")}
+        summary = {
+            c: {k: t[k] for k in ("n_runs", "n_dips", "mean", "p")} for c, t in tests.items()
+        }
+        display(pd.DataFrame(summary).rename_axis(f"{condition}, depth {depth:g}"))
