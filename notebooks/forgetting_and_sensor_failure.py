@@ -78,7 +78,7 @@ else:
 
 # %%
 if has_failure:
-    fig, per_run = analysis.forgetting(df, module=module, fraction=fraction)
+    fig, per_run = analysis.sensor_failure(df, module=module, fraction=fraction)
     display(fig)
 
 # %% [markdown]
@@ -128,8 +128,8 @@ if has_mastered:
     dfm = analysis.load_runs(mastered_runs)
     tests_m = analysis.load_tests(mastered_runs)
     onsets = analysis.failure_onsets(dfm)["onset"]
-    fig, per_run_m = analysis.forgetting(
-        dfm, fraction=fraction, tests=tests_m, name="forgetting_mastered"
+    fig, per_run_m = analysis.sensor_failure(
+        dfm, fraction=fraction, tests=tests_m, name="sensor_failure_mastered"
     )
     display(fig)
 else:

@@ -14,8 +14,8 @@ For every experiment E (`curious.reproduction.experiments`), in group E:
 * one asset per figure, drawn by `curious.analysis` from those tables (Fig. 2a from the test
   rollouts, as the paper's; the others from the metrics):
   `main/fig2a`, `main/fig2b`, `main/fig2c`, `main/table1`, `distractors/distractors`,
-  `sensor_failure/forgetting`, `sensor_failure_mastered/forgetting_mastered` (the same figure
-  of its own runs, with their test success above: the primary measure of that study).
+  `sensor_failure/sensor_failure`, `sensor_failure_mastered/sensor_failure_mastered` (the same
+  figure of its own runs, with their test success above: the primary measure of that study).
 
 And `report` (group `report`): `report.md` from the figures and statistics that exist.
 """
@@ -35,8 +35,8 @@ from pipelines.training import FINISHED, run_folder
 
 RESOURCE = "reproduction"
 
-FAILURE_FIGURES: dict[str, bool] = {"forgetting": False, "forgetting_mastered": True}
-"""The sensory-failure figures (`analysis.forgetting`, one per experiment of the variant), and
+FAILURE_FIGURES: dict[str, bool] = {"sensor_failure": False, "sensor_failure_mastered": True}
+"""The sensory-failure figures (`analysis.sensor_failure`, one per experiment of the variant), and
 whether each draws the runs' test success: the primary measure of the study on a mastered module
 (docs/results.md, C5)."""
 
@@ -247,7 +247,7 @@ def _draw(
                     tests = load_tests(repro, experiment)
                 except analysis.AnalysisError:  # runs without test rollouts: no test panel
                     tests = None
-            fig, per_run = analysis.forgetting(
+            fig, per_run = analysis.sensor_failure(
                 table, note=note, out_dir=out_dir, name=name, tests=tests
             )
             csv = f"{out_dir}/{name}.csv"

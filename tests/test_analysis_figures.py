@@ -54,8 +54,8 @@ def _build(name, studies, out_dir=None, note=None):
         return analysis.fig2c(studies["main"], seed=1, **kw)
     if name == "table1":
         return analysis.table1(studies["main"], **kw)
-    if name == "forgetting":
-        return analysis.forgetting(studies["failure"], **kw)[0]
+    if name == "sensor_failure":
+        return analysis.sensor_failure(studies["failure"], **kw)[0]
     if name == "distractors":
         tests = studies["distractors_tests"]
         return analysis.distractors(studies["distractors"], tests=tests, **kw)
@@ -65,7 +65,7 @@ def _build(name, studies, out_dir=None, note=None):
     raise AssertionError(name)
 
 
-FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "forgetting", "distractors", "long_runs")
+FIGURES = ("fig2a", "fig2b", "fig2c", "table1", "sensor_failure", "distractors", "long_runs")
 
 
 def _caption(fig: Figure) -> str:
@@ -95,7 +95,7 @@ def test_every_figure_writes_png_and_svg_and_rebuilds_byte_identical(name, studi
     labels = {ax.get_xlabel() for ax in first.axes if ax.get_xlabel()}
     if name == "distractors":
         assert labels == {"distracting modules"}
-    elif name == "forgetting":
+    elif name == "sensor_failure":
         assert labels == {"episodes since the sensory failure"}
     else:
         assert labels == {"episodes"}
@@ -221,8 +221,8 @@ def test_table1_has_a_row_per_seed(studies):
     assert [ax.get_ylabel() for ax in fig.axes[::2]] == [f"seed {s}\ncompetence" for s in range(3)]
 
 
-def test_forgetting_follows_the_perturbed_module_and_states_recovery_times(studies):
-    fig, per_run = analysis.forgetting(studies["failure"], fraction=0.9)
+def test_the_sensor_failure_figure_follows_the_perturbed_module_and_states_recovery_times(studies):
+    fig, per_run = analysis.sensor_failure(studies["failure"], fraction=0.9)
     assert fig.axes[0].get_ylabel() == "competence of push cube 3"  # the variant's module
     assert set(per_run["module"]) == {"push_cube3"}
     assert (per_run["status"] == "measured").all() and per_run["recovered"].all()
@@ -245,11 +245,11 @@ def test_forgetting_follows_the_perturbed_module_and_states_recovery_times(studi
     assert line.get_xdata().min() < 0 < line.get_xdata().max()
 
 
-def test_forgetting_with_test_rollouts_draws_the_primary_measure_above(studies):
+def test_the_sensor_failure_figure_with_test_rollouts_draws_the_primary_measure_above(studies):
     """Given the runs' test rollouts (the study on a mastered module), a panel above the others
     draws push cube 3's pooled test success, aligned on the onset, with a circle where each run
     came back by `recovery_by_tests`; each run's legend entry gives that recovery first."""
-    fig, per_run = analysis.forgetting(studies["failure"], tests=studies["failure_tests"])
+    fig, per_run = analysis.sensor_failure(studies["failure"], tests=studies["failure_tests"])
     tested, top, bottom = fig.axes[:3]
     assert tested.get_ylabel() == "test success of push cube 3"
     assert top.get_ylabel() == "competence of push cube 3"
@@ -281,12 +281,12 @@ SHIPPED = Path(__file__).resolve().parents[1] / "data" / "laptop"
 
 
 @pytest.mark.skipif(not (SHIPPED / "sensor_failure").is_dir(), reason="no shipped runs")
-def test_forgetting_draws_every_run_over_its_whole_recovery():
+def test_the_sensor_failure_figure_draws_every_run_over_its_whole_recovery():
     """The shipped sensory-failure runs: one line per run, an x axis reaching past every
     recovery (5,998 and 6,918 episodes after the onset), and the run that never recovered
     (M-UVFA seed 0, which ends 5,328 episodes after its failure) shown with a cross."""
     df = analysis.load_runs(SHIPPED / "sensor_failure")
-    fig, per_run = analysis.forgetting(df)
+    fig, per_run = analysis.sensor_failure(df)
     top, bottom = fig.axes[:2]
     recovered = per_run.loc[per_run["recovered"], "recovery_episodes"]
     assert top.get_xlim()[1] > recovered.max() > 6_000

@@ -182,7 +182,7 @@ def test_the_sensory_failure_figure_refuses_test_rollouts_of_other_runs(tmp_path
     runs = write_perturbation_study(tmp_path / "a", seeds=(0, 1))
     others = write_perturbation_study(tmp_path / "b", seeds=(0, 1), tests_per_epoch=20)
     with pytest.raises(AnalysisError, match="must be those of the same runs"):
-        analysis.forgetting(
+        analysis.sensor_failure(
             analysis.load_runs(runs), tests=analysis.load_tests(others), out_dir=tmp_path
         )
 

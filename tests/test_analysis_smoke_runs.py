@@ -62,13 +62,13 @@ def test_every_figure_builds_from_smoke_runs(smoke_runs, tmp_path):
     analysis.fig2b(df, out_dir=tmp_path)
     analysis.fig2c(df, out_dir=tmp_path)
     analysis.table1(df, out_dir=tmp_path)
-    _, per_run = analysis.forgetting(
+    _, per_run = analysis.sensor_failure(
         df, module="push_cube1", perturbation_episode=n // 2, out_dir=tmp_path
     )
     assert len(per_run) == len(CONDITIONS) * len(SEEDS)
     assert set(per_run["onset_source"]) == {"given"}
     analysis.distractors(df, out_dir=tmp_path)
-    names = ("fig2a", "fig2b", "fig2c", "table1", "forgetting", "distractors")
+    names = ("fig2a", "fig2b", "fig2c", "table1", "sensor_failure", "distractors")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         f"{name}.{ext}" for name in names for ext in ("png", "svg")
     )

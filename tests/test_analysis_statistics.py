@@ -320,7 +320,7 @@ def test_two_chance_level_curves_make_no_recovery_claim(tmp_path):
     summary = recovery_summary(per_run).set_index("condition")
     assert (summary["n_started"] == 2).all() and (summary["n_measured"] == 0).all()
     assert summary["mean_recovery_episodes"].isna().all()
-    fig, _ = analysis.forgetting(df)
+    fig, _ = analysis.sensor_failure(df)
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels == [
         "CURIOUS: not learned before the failure, nothing to forget (2 of 2 seeds)",
@@ -344,7 +344,7 @@ def test_a_failure_that_never_started_is_said_so_not_measured(tmp_path):
         "evaluations included)"
     )
     assert per_run["recovery_episodes"].isna().all()
-    fig, _ = analysis.forgetting(df)
+    fig, _ = analysis.sensor_failure(df)
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels == ["CURIOUS: the failure never started (1 of 1 seeds)"]
     caption = fig.get_supxlabel().replace("\n", " ")

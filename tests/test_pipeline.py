@@ -38,8 +38,8 @@ FIGURES = (
     "fig2c",
     "table1",
     "distractors",
-    "forgetting",
-    "forgetting_mastered",
+    "sensor_failure",
+    "sensor_failure_mastered",
 )
 SMOKE = get_budget("smoke")
 
@@ -132,7 +132,7 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "Test success on each achievable module over the last 5 epochs of each run" in report
     assert "Each achievable module's own part of the goal met, over every test rollout" in report
     assert "Order of learning: the first episode at which each module's competence" in report
-    # C3/C5: the drop, the LP and p_LP before and after the failure, per run
+    # C5: the drop, the LP and p_LP before and after the failure, per run
     assert "| LP before → after | p_LP before → after | recovery (episodes) |" in report
     # two levels before the failure, named apart
     assert (
@@ -261,7 +261,8 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     assert "it cannot show the paper's claims" in closing
     assert f"{beside / 'report.md'} and {beside / 'figures'}/" in closing
     assert f"the shipped `smoke` campaign, 17 runs read from {shipped.data}" in closing
-    assert "C1, CURIOUS learns faster than MG-TE" in closing and "C3/C5" in closing
+    assert "C1, CURIOUS learns faster than MG-TE" in closing
+    assert "C5 on a module just learned" in closing
     assert "C4" in closing and "C5, the recovery of a mastered module's test success" in closing
 
     shutil.rmtree(beside)
@@ -325,7 +326,7 @@ def test_a_figure_drawn_without_its_test_panel_is_captioned_without_it(smoke, tm
     from pipelines.report.blocks import FIGURE_TEXT, UNTESTED_FIGURE_TEXT
     from pipelines.resources import OutputLayout, Reproduction
 
-    name = {"distractors": "distractors", "sensor_failure_mastered": "forgetting_mastered"}
+    name = {"distractors": "distractors", "sensor_failure_mastered": "sensor_failure_mastered"}
     out = tmp_path / "out"
     shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns("*.lock", ".dagster"))
     repro = Reproduction(SMOKE, OutputLayout.at(out), make_pool=LocalPool)
@@ -389,8 +390,8 @@ def test_a_failure_that_never_started_shows_as_such_in_the_report(tmp_path):
     table = analysis.load_runs(tmp_path / "runs")
     repro = Reproduction(laptop, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
     figures = repro.layout.figures
-    _, per_run = analysis.forgetting(table, out_dir=figures)
-    per_run.drop(columns=["run"]).to_csv(figures / "forgetting.csv", index=False)
+    _, per_run = analysis.sensor_failure(table, out_dir=figures)
+    per_run.drop(columns=["run"]).to_csv(figures / "sensor_failure.csv", index=False)
     text = "\n".join(
         sensor_failure(repro, laptop.experiments["sensor_failure"], ExperimentTables(table, None))
     )
@@ -426,7 +427,7 @@ def test_a_budget_without_the_sensory_failure_says_why_in_its_report(smoke, tmp_
     assert "sensor_failure" not in text.replace(reasons[0], "").replace(reasons[1], "")
     assert "Budget `quick` leaves out the `sensor_failure` experiment: the failure starts" in text
     assert "not reproduced yet" not in text and "Not in this report" not in text
-    assert "Sensory failure" not in text and "figures/forgetting" not in text
+    assert "Sensory failure" not in text and "figures/sensor_failure" not in text
     assert all(e.title in text for e in quick.experiments.values())
 
 
@@ -442,8 +443,8 @@ def test_a_measured_recovery_is_reported_with_its_numbers(tmp_path):
     table = analysis.load_runs(tmp_path / "runs")
     paper = get_budget("paper")
     repro = Reproduction(paper, OutputLayout.at(tmp_path / "out"), make_pool=LocalPool)
-    _, per_run = analysis.forgetting(table, out_dir=repro.layout.figures)
-    per_run.drop(columns=["run"]).to_csv(repro.layout.figures / "forgetting.csv", index=False)
+    _, per_run = analysis.sensor_failure(table, out_dir=repro.layout.figures)
+    per_run.drop(columns=["run"]).to_csv(repro.layout.figures / "sensor_failure.csv", index=False)
     lines = sensor_failure(
         repro, paper.experiments["sensor_failure"], ExperimentTables(table, None)
     )
@@ -579,7 +580,7 @@ def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
     assert config["config"]["sensor_failure_episode"] == 12
     episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
     assert episodes.to_pylist() == list(range(24))
-    assert (out / "figures" / "forgetting.png").is_file()
+    assert (out / "figures" / "sensor_failure.png").is_file()
     assert json.loads((out / "reproduce.json").read_text()) == {"version": 1, "budget": "smoke"}
 
 
@@ -1016,12 +1017,12 @@ def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke,
         assert {k for k, g in groups.items() if g == "sensor_failure"} == {
             "sensor_failure/runs",
             "sensor_failure/metrics",
-            "sensor_failure/forgetting",
+            "sensor_failure/sensor_failure",
         }
         assert {k for k, g in groups.items() if g == "sensor_failure_mastered"} == {
             "sensor_failure_mastered/runs",
             "sensor_failure_mastered/metrics",
-            "sensor_failure_mastered/forgetting_mastered",
+            "sensor_failure_mastered/sensor_failure_mastered",
         }
         status = graphql(
             '{ assetNodeOrError(assetKey: {path: ["main", "runs"]}) { ... on AssetNode {'

@@ -113,7 +113,7 @@ def test_two_partitions_train_as_ray_tasks(ray_cluster, tmp_path):
         metrics = pq.read_table(run_folder(spec, runs_root) / "metrics.parquet")
         assert metrics.num_rows == spec.total_episodes
     assert json.loads((out / "reproduce.json").read_text())["runs_dir"] == str(runs_root)
-    assert (out / "figures" / "forgetting.png").is_file() and (out / "report.md").is_file()
+    assert (out / "figures" / "sensor_failure.png").is_file() and (out / "report.md").is_file()
     assert not (out / "runs").exists()  # the run folders live on the shared path only
 
 

@@ -312,11 +312,11 @@ beside it: the quick runs cannot show the paper's claims, the shipped campaign's
 CLAIMS: dict[str, str] = {
     "main": "C1, CURIOUS learns faster than MG-TE (Fig. 2a, with its Welch test per bin); "
     "C2, the order of learning (Fig. 2b/2c, Table 1)",
-    "sensor_failure": "C3/C5, forgetting and recovery after a sensory failure (the forgetting "
-    "figure)",
+    "sensor_failure": "C5 on a module just learned, the refocus and the recovery after a "
+    "sensory failure (the sensor_failure figure)",
     "distractors": "C4, CURIOUS against M-UVFA with distracting modules (the distractors figure)",
     "sensor_failure_mastered": "C5, the recovery of a mastered module's test success after a "
-    "sensory failure, CURIOUS against M-UVFA (the forgetting_mastered figure, with its Welch "
+    "sensory failure, CURIOUS against M-UVFA (the sensor_failure_mastered figure, with its Welch "
     "test)",
     "long": "C3, spontaneous forgetting of a mastered module over the paper's 300,000 episodes "
     "(the long_runs figure, Fig. 2b-c over each whole run)",

@@ -78,12 +78,12 @@ far, last)."""
 FIGURES: dict[str, tuple[str, ...]] = {
     "main": ("fig2a", "fig2b", "fig2c", "table1"),
     "distractors": ("distractors",),
-    "sensor_failure": ("forgetting",),
-    "sensor_failure_mastered": ("forgetting_mastered",),
+    "sensor_failure": ("sensor_failure",),
+    "sensor_failure_mastered": ("sensor_failure_mastered",),
     "long": ("long_runs",),
 }
 """The figures each experiment redraws (`figures/NAME.png`), the first the one its report
-section opens with: the `curious.analysis` function of that name, or the forgetting figure of
+section opens with: the `curious.analysis` function of that name, or the sensory-failure figure of
 each sensory-failure study."""
 
 VARIANT_SEPARATOR = "@"
@@ -455,7 +455,7 @@ module, as the authors perturbed one (docs/results.md, C5, "The study as it will
 rules were fixed before its runs, this threshold among them)."""
 
 SENSOR_FAILURE_TITLES: dict[str, str] = {
-    "sensor_failure": "Sensory failure: CURIOUS against M-UVFA, forgetting and recovery",
+    "sensor_failure": "Sensory failure: CURIOUS against M-UVFA, refocus and recovery",
     "sensor_failure_mastered": "Sensory failure on a mastered module: CURIOUS against M-UVFA, "
     "recovery by test success",
 }

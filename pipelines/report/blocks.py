@@ -25,9 +25,9 @@ FIGURE_TEXT: dict[str, str] = {
     "table1": "Competence and learning progress of every CURIOUS seed (paper Table 1).",
     "distractors": "Self-evaluated competence (left) and test success (right) over the "
     "achievable modules at the end of the runs against the number of distracting modules.",
-    "forgetting": "Competence and LP of the perturbed module around the sensory failure, one "
+    "sensor_failure": "Competence and LP of the perturbed module around the sensory failure, one "
     "line per run.",
-    "forgetting_mastered": "Test success, competence and LP of the perturbed module around the "
+    "sensor_failure_mastered": "Test success, competence and LP of the perturbed module around the "
     "sensory failure, one line per run.",
     "long_runs": "Competence and absolute LP of every module over each whole long run, one row "
     "per seed, the drops of mastered modules shaded (paper Fig. 2b-c).",
@@ -37,8 +37,8 @@ UNTESTED_FIGURE_TEXT: dict[str, str] = {
     "distractors": "Self-evaluated competence over the achievable modules at the end of the runs "
     "against the number of distracting modules (the runs have no test rollouts: no test success "
     "panel).",
-    "forgetting_mastered": "Competence and LP of the perturbed module around the sensory failure, "
-    "one line per run (the runs have no test rollouts: no test success panel).",
+    "sensor_failure_mastered": "Competence and LP of the perturbed module around the sensory "
+    "failure, one line per run (the runs have no test rollouts: no test success panel).",
 }
 """The captions of the figures that draw a test success panel only where the runs have test
 rollouts (`test_rollouts_per_worker=0` trains none), for the figures drawn without it."""

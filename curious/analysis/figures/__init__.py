@@ -12,7 +12,7 @@ and, given ``out_dir``, also writes ``<out_dir>/<name>.png`` and ``.svg`` (see `
 `fig2b`       competence of every module, one run
 `fig2c`       absolute learning progress of every module, the same run
 `table1`      competence and LP of every seed of a condition, one row per seed
-`forgetting`  competence and LP of the perturbed module around the sensory failure, and the
+`sensor_failure` competence and LP of the perturbed module around the sensory failure, and the
               episodes each condition takes to regain a fraction of its earlier competence,
               where that can be measured
 `long_runs`   competence and LP of every module over each whole run of a condition, one row per
@@ -30,7 +30,7 @@ labels of modules and conditions come from `curious.analysis.palette`.
 from __future__ import annotations
 
 from curious.analysis.figures.distracting import distractors
-from curious.analysis.figures.failure_recovery import forgetting
+from curious.analysis.figures.failure_recovery import sensor_failure
 from curious.analysis.figures.fig2 import fig2a, fig2b, fig2c, table1
 from curious.analysis.figures.long_runs import long_runs
 from curious.analysis.figures.parts import CONDITION_ORDER
@@ -42,8 +42,8 @@ __all__ = [
     "fig2a",
     "fig2b",
     "fig2c",
-    "forgetting",
     "long_runs",
     "save_figure",
+    "sensor_failure",
     "table1",
 ]

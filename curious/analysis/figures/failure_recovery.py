@@ -1,4 +1,4 @@
-"""The sensory-failure figure (`forgetting`): the perturbed module around the failure, and the
+"""The sensory-failure figure (`sensor_failure`): the perturbed module around the failure, and the
 recovery where it can be measured; given the runs' test rollouts, their test success too, the
 primary measure of the study on a mastered module (`perturbation.recovery_by_tests`)."""
 
@@ -52,7 +52,7 @@ _LEGEND_HEIGHT = (0.45, 0.16)
 each run's entry (so that the panels keep their height however many runs are drawn)."""
 
 
-def forgetting(
+def sensor_failure(
     df: pd.DataFrame,
     module: str | None = None,
     perturbation_episode: int | None = None,
@@ -64,7 +64,7 @@ def forgetting(
     learned: float | None = None,
     note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
-    name: str = "forgetting",
+    name: str = "sensor_failure",
     tests: pd.DataFrame | None = None,
 ) -> tuple[Figure, pd.DataFrame]:
     """Competence and LP of the perturbed module around the sensory failure, and recovery times.
@@ -138,7 +138,7 @@ def forgetting(
             for c in conditions
         ]
         first.legend(handles, labels, loc="lower left", bbox_to_anchor=(0.0, 1.02), borderaxespad=0)
-        fig.suptitle(f"Forgetting and recovery — {shown}")
+        fig.suptitle(f"Sensory failure and recovery — {shown}")
         learned_text = _values_text(per_run["learned_threshold"])
         caption(
             fig,
