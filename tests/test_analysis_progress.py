@@ -350,3 +350,18 @@ def test_a_run_past_its_budget_owes_no_episodes_and_lends_none(campaign):
     unbudgeted = replace(done, name="main/mg-te/seed-0", episodes=20, total_episodes=0)
     (main,) = experiment_progress([over, short, unbudgeted])
     assert (main.finished, main.left) == (2, 60)
+
+
+def test_update_names_a_folder_below_home_from_home_not_by_this_machines_path(
+    campaign, tmp_path, monkeypatch
+):
+    """The block quotes the command a reader can type: a folder in the home folder as ``~/...``
+    (a page is read on other machines), another as given."""
+    monkeypatch.setenv("HOME", str(campaign.parent))
+    doc = tmp_path / "results.md"
+    doc.write_text(f"{BEGIN}\n{END}\n")
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
+    assert f"Computed by `curious progress ~/{campaign.name}` at" in doc.read_text()
+    monkeypatch.setenv("HOME", str(tmp_path / "elsewhere"))
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
+    assert f"Computed by `curious progress {campaign}` at" in doc.read_text()

@@ -133,9 +133,20 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(table)
         return 0
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    roots = " ".join(str(r) for r in args.roots)
+    roots = " ".join(_home_relative(r) for r in args.roots)
     at_once = f" --at-once {args.at_once}" if args.at_once != 1 else ""
     block = f"Computed by `curious progress {roots}{at_once}` at {now}.\n\n{table}"
     path.write_text(replace_block(_read_text(path), block, path), encoding="utf-8")
     print(f"updated {path} ({len(rows)} runs)")
     return 0
+
+
+def _home_relative(folder: Path) -> str:
+    """``folder`` as the block names it: below the home folder as ``~/...`` (a page quotes the
+    command, not one machine's home), else as given."""
+    try:
+        return (
+            "~/" + Path(folder).expanduser().resolve().relative_to(Path.home().resolve()).as_posix()
+        )
+    except ValueError:
+        return str(folder)
