@@ -240,7 +240,12 @@ def test_a_ship_stopped_at_any_step_leaves_nothing_beside_its_out(
         rmtree = _signal_at(signum, shutil.rmtree, there)
         monkeypatch.setattr(shipping.shutil, "rmtree", rmtree)
     if signum == signal.SIGINT:
-        code, _, stderr = cli(["ship", str(smoke.out), "--out", str(out)])
+        # Python's own Ctrl-C handler, as in a terminal (a pytest-xdist worker ignores SIGINT)
+        previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            code, _, stderr = cli(["ship", str(smoke.out), "--out", str(out)])
+        finally:
+            signal.signal(signal.SIGINT, previous)
         assert code == 130 and stderr == "curious ship: interrupted\n", stderr
     else:
         with pytest.raises(SystemExit) as stopped:
