@@ -28,6 +28,7 @@ import os
 import dagster as dg
 
 from curious.reproduction.experiments import DEFAULT_BUDGET, ExperimentError, get_budget
+from curious.runs.side_by_side import MAX_WORKERS
 from pipelines.assets import RESOURCE, all_assets
 from pipelines.executors import make_pool
 from pipelines.resources import OutputLayout, Reproduction
@@ -63,7 +64,7 @@ def reproduction_from_environment() -> Reproduction:
     runs_dir = os.environ.get("CURIOUS_RUNS_DIR") if data is None else data.path
     layout = OutputLayout.at(out, runs_dir)
     address = os.environ.get("CURIOUS_RAY_ADDRESS") or None
-    workers = int(os.environ["CURIOUS_WORKERS"]) if os.environ.get("CURIOUS_WORKERS") else None
+    workers = _workers_from(os.environ.get("CURIOUS_WORKERS"))
     return Reproduction(
         budget=budget,
         layout=layout,
@@ -75,3 +76,20 @@ def reproduction_from_environment() -> Reproduction:
 
 def definitions_from_environment() -> dg.Definitions:
     return build_definitions(reproduction_from_environment())
+
+
+def _workers_from(text: str | None) -> int | None:
+    """`CURIOUS_WORKERS` as a number of worker processes (None: unset, one per core), refused in
+    one line where it is not a whole number from 1 to `MAX_WORKERS`."""
+    if not text:
+        return None
+    try:
+        workers = int(text)
+    except ValueError:
+        workers = 0
+    if not 1 <= workers <= MAX_WORKERS:
+        raise ValueError(
+            f"CURIOUS_WORKERS must be a whole number of worker processes from 1 to "
+            f"{MAX_WORKERS:,}, got {text!r}"
+        )
+    return workers

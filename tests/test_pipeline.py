@@ -968,6 +968,24 @@ def test_definitions_refuse_the_old_curious_preset_variable(tmp_path, monkeypatc
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.parametrize("value", ["100000000000000000000", "4294967296", "0", "-2", "four"])
+def test_definitions_refuse_a_worker_count_no_pool_can_take(value, tmp_path, monkeypatch):
+    """`CURIOUS_WORKERS` is bounded as `curious reproduce --workers` is: a count past the pool's
+    queue ended in an OverflowError traceback when the UI first trained."""
+    from pipelines.definitions import reproduction_from_environment
+
+    monkeypatch.setenv("CURIOUS_BUDGET", "smoke")
+    monkeypatch.setenv("CURIOUS_OUT", str(tmp_path))
+    monkeypatch.setenv("CURIOUS_WORKERS", value)
+    with pytest.raises(
+        ValueError, match=f"CURIOUS_WORKERS must be .* from 1 to 4,096, got '{value}'"
+    ):
+        reproduction_from_environment()
+    monkeypatch.setenv("CURIOUS_WORKERS", "3")
+    assert reproduction_from_environment() is not None
+    assert not any(tmp_path.iterdir())
+
+
 def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke, tmp_path):
     """What `dagster-webserver -m pipelines` serves, on a copy of the smoke output."""
     import shutil

@@ -45,13 +45,11 @@ from typing import TYPE_CHECKING
 
 from curious.commands import add_set_option, refuse
 from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
+from curious.runs.side_by_side import MAX_WORKERS
 
 if TYPE_CHECKING:
     from pipelines.reproduce import ReproduceResult
 
-MAX_WORKERS = 4096
-"""The most worker processes `--workers` asks for: more cores than any one machine has, far
-below what would overflow the pool's bounded queue (Python's semaphores end at 2**31 - 1)."""
 LOOPBACK = "127.0.0.1"
 """Where the Dagster UI of the closing line listens: this machine only (an SSH tunnel reaches it
 from another)."""

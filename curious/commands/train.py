@@ -153,8 +153,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="URL",
         help="also stream the recording live to a Rerun viewer or server listening at this gRPC "
         "url, e.g. rerun+http://127.0.0.1:9876/proxy: `rerun` on this machine, `rerun "
-        "--serve-web` on a headless one (its browser viewer on port 9090), or a viewer on your "
-        "own machine through `ssh -R 9876:127.0.0.1:9876 HOST` (recording.rrd is still written)",
+        "--serve-web --bind 127.0.0.1` on a headless one (its browser viewer on port 9090), or "
+        "a viewer on your own machine through `ssh -R 9876:127.0.0.1:9876 HOST` (recording.rrd "
+        "is still written)",
     )
     parser.add_argument(
         "--rollout-every",
@@ -409,7 +410,8 @@ def _check_viewer_url(url: str) -> None:
         host, port = address
         raise ConfigError(
             f"--connect {url}: nothing answers at {host}:{port} ({exc.strerror or exc}); "
-            "start the viewer first (`rerun`, or `rerun --serve-web` on a machine without a "
+            "start the viewer first (`rerun`, or `rerun --serve-web --bind 127.0.0.1` on a machine "
+            "without a "
             "display; through ssh, `ssh -R 9876:127.0.0.1:9876 HOST` from the viewer's machine), "
             "or drop --connect"
         ) from None

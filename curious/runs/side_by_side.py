@@ -29,6 +29,11 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
+MAX_WORKERS = 4096
+"""The most worker processes a pool of runs is asked for (`curious reproduce --workers`,
+`CURIOUS_WORKERS`): more cores than any one machine has, far below what would overflow the
+pool's bounded queue (Python's semaphores end at 2**31 - 1)."""
+
 Result = TypeVar("Result")
 
 

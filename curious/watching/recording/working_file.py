@@ -76,8 +76,9 @@ class WorkingFile:
                 warnings.warn(
                     "no display (DISPLAY/WAYLAND_DISPLAY unset): not spawning a viewer; the "
                     f"recording is still written to {self.path}. Open it on a machine with a "
-                    f"display with `rerun {self.path}`, or start `rerun --serve-web` here and "
-                    "pass its gRPC url with `curious train --connect` (`connect=` in Python).",
+                    f"display with `rerun {self.path}`, or start `rerun --serve-web --bind "
+                    "127.0.0.1` here and pass its gRPC url with `curious train --connect` "
+                    "(`connect=` in Python).",
                     RuntimeWarning,
                     stacklevel=3,
                 )
