@@ -367,3 +367,24 @@ def test_a_shipped_run_says_shipped_runs_carry_no_recording_and_no_checkpoint(
     (trained / RECORDING_FILE).unlink()
     assert main(["view", str(trained)]) == 2
     assert "shipped runs carry" not in capsys.readouterr().err
+
+
+def test_a_sigterm_as_the_viewer_starts_is_already_taken(monkeypatch) -> None:
+    """The handlers that stop the viewer with `curious view` are in place before the viewer
+    starts: a SIGTERM right after its start (a service manager stopping both at once) used to
+    end `curious view` by the signal's default action, leaving the viewer serving alone."""
+    import signal
+    import subprocess
+
+    seen = []
+    real = subprocess.Popen
+
+    def popen(*args, **kwargs):
+        seen.append(signal.getsignal(signal.SIGTERM))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(view.subprocess, "Popen", popen)
+    before = signal.getsignal(signal.SIGTERM)
+    assert view.run_viewer(["true"]) == 0
+    assert seen and callable(seen[0]) and seen[0] not in (signal.SIG_DFL, signal.SIG_IGN, before)
+    assert signal.getsignal(signal.SIGTERM) == before  # put back

@@ -290,20 +290,24 @@ def run_viewer(command: list[str]) -> int:
     in a process group of its own, and the whole group is stopped: the `rerun` command is a
     Python script that runs the viewer binary as its child, which stopping the script alone
     would leave serving (and holding its ports)."""
-    proc = subprocess.Popen(command, start_new_session=True)
 
     def stop(signum: int, frame: object) -> None:
         raise SystemExit(128 + signum)
 
+    # the handlers first: a SIGTERM just after the start would otherwise end this process with
+    # the signal's default action, leaving the viewer (in its own session) serving
     previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    proc = None
     try:
+        proc = subprocess.Popen(command, start_new_session=True)
         return proc.wait()
     except KeyboardInterrupt:
         return 130
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        _stop_group(proc)
+        if proc is not None:
+            _stop_group(proc)
 
 
 def _stop_group(proc: subprocess.Popen) -> None:
