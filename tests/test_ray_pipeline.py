@@ -123,9 +123,17 @@ def test_ray_pool_refuses_runs_no_node_can_hold(ray_cluster):
 
 
 def test_a_runs_task_asks_for_whole_cpus_above_one(ray_cluster):
-    """Ray takes a share of a CPU, or whole CPUs: 0.75 is asked as it is, 1.5 as 2."""
-    assert RayPool(ray_cluster, cpus_per_run=0.75).resources() == (0.75, 0.0)
-    assert RayPool(ray_cluster, cpus_per_run=1.5).resources() == (2.0, 0.0)
+    """Ray takes a share of a CPU, or whole CPUs: 0.75 is asked as it is, 1.5 as 2. Each pool is
+    closed: a process still connected when the cluster stops is ended by Ray."""
+    import ray
+
+    for cpus, asked in ((0.75, (0.75, 0.0)), (1.5, (2.0, 0.0))):
+        pool = RayPool(ray_cluster, cpus_per_run=cpus)
+        try:
+            assert pool.resources() == asked
+        finally:
+            pool.close()
+    assert not ray.is_initialized()
 
 
 def test_a_port_that_answers_but_is_not_ray_times_out_clearly():
