@@ -10,7 +10,7 @@ from curious import analysis
 from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import ExperimentTables, figure
-from pipelines.report.spontaneous_forgetting import _dip_sentence, spontaneous_forgetting
+from pipelines.report.spontaneous_forgetting import dip_clauses, spontaneous_forgetting
 from pipelines.resources import Reproduction
 
 UNPERTURBED = ("main", "distractors", "long")
@@ -21,17 +21,15 @@ def pooled_dips(repro: Reproduction, condition: str = "curious") -> list[str]:
     """The sign-flip test of the dips' excess (at `analysis.TEST_DEPTH`, and at the other
     depths beside), a run of ``condition`` of every unperturbed experiment the report holds
     being one unit."""
-    tables = [
-        table[table["condition"] == condition]
-        for name in UNPERTURBED
-        if repro.layout.metrics(name).is_file()
-        for table in [pd.read_parquet(repro.layout.metrics(name))]
-    ]
-    pooled = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+    present = [name for name in UNPERTURBED if repro.layout.metrics(name).is_file()]
+    if not present:
+        return []
+    tables = [pd.read_parquet(repro.layout.metrics(name)) for name in present]
+    pooled = pd.concat([t[t["condition"] == condition] for t in tables], ignore_index=True)
     if pooled.empty:
         return []
     runs = pooled["run"].nunique()
-    read = ", ".join(n for n in UNPERTURBED if repro.layout.metrics(n).is_file())
+    read = ", ".join(present)
     lines = [
         f"The dips' test over every {condition_label(condition)} run that nothing perturbs in "
         f"this report ({runs} runs of {read}), a run one unit:",
@@ -39,10 +37,7 @@ def pooled_dips(repro: Reproduction, condition: str = "curious") -> list[str]:
     ]
     for depth in analysis.DIP_DEPTHS:
         found = analysis.dip_responses(pooled, depth)
-        clauses = [
-            _dip_sentence(analysis.dip_test(found, column), what)
-            for column, what in (("excess_p_lp", "p_LP"), ("excess_practice", "practice"))
-        ]
+        clauses = dip_clauses(found)
         decides = (
             f" (the test that decides, alpha = {analysis.ALPHA:g})"
             if depth == analysis.TEST_DEPTH

@@ -178,6 +178,15 @@ def _dip_sentence(test: dict, what: str) -> str:
     )
 
 
+def dip_clauses(found: pd.DataFrame) -> list[str]:
+    """The sign-flip test of a `dip_responses` table's excess in p_LP and in practice, a clause
+    each."""
+    return [
+        _dip_sentence(analysis.dip_test(found, column), what)
+        for column, what in (("excess_p_lp", "p_LP"), ("excess_practice", "practice"))
+    ]
+
+
 def dips_reading(e: Experiment, table: pd.DataFrame) -> list[str]:
     """Per depth of `analysis.DIP_DEPTHS`: the dips each rule finds, the read ones with their
     response and excess, and per condition the sign-flip test of the excess by run."""
@@ -230,10 +239,7 @@ def dips_reading(e: Experiment, table: pd.DataFrame) -> list[str]:
         lines += markdown_table(header, rows)
         for condition in dict.fromkeys(read["condition"].astype(str)):
             own = found[found["condition"] == condition]
-            clauses = [
-                _dip_sentence(analysis.dip_test(own, column), what)
-                for column, what in (("excess_p_lp", "p_LP"), ("excess_practice", "practice"))
-            ]
+            clauses = dip_clauses(own)
             lines += [f"{condition_label(condition)}, by run: {'; '.join(clauses)}.", ""]
     return lines
 
