@@ -333,3 +333,26 @@ def test_the_long_runs_are_curious_on_the_default_variant_for_the_papers_episode
         assert words in get_budget(budget).omitted["long"]
         with pytest.raises(ExperimentError, match="has no long experiment"):
             get_budget(budget).select(["long"])
+
+
+def test_an_experiments_overrides_reach_every_run_config_and_are_checked():
+    base = dict(
+        name="main",
+        title="t",
+        conditions=("curious",),
+        variants=("default",),
+        seeds=(0, 1),
+        train_preset="smoke",
+        total_episodes=10,
+    )
+    signed = Experiment(overrides=(("lp_measure", "signed"),), **base)
+    assert {run.config().lp_measure for run in signed.runs()} == {"signed"}
+    assert {run.config().lp_measure for run in Experiment(**base).runs()} == {"absolute"}
+    # A setting given on the command line (a campaign's torch_threads) still applies on top.
+    assert signed.runs()[0].config({"torch_threads": 1}).lp_measure == "signed"
+    with pytest.raises(ExperimentError, match=r"unknown setting\(s\) \['lp_sign'\]"):
+        Experiment(overrides=(("lp_sign", "signed"),), **base)
+    with pytest.raises(ExperimentError, match="the experiment's own fields set"):
+        Experiment(overrides=(("total_episodes", 20),), **base)
+    with pytest.raises(ExperimentError, match="overridden twice"):
+        Experiment(overrides=(("lp_measure", "signed"), ("lp_measure", "absolute")), **base)

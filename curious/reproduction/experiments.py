@@ -58,7 +58,7 @@ except `curious reproduce` when it runs them.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from fractions import Fraction
 from pathlib import PurePosixPath
 from typing import Any
@@ -86,6 +86,11 @@ FIGURES: dict[str, tuple[str, ...]] = {
 section opens with: the `curious.analysis` function of that name, or the sensory-failure figure of
 each sensory-failure study."""
 
+_EXPERIMENT_FIELDS = frozenset(
+    {"variant", "total_episodes", "sensor_failure_episode", "sensor_failure_competence"}
+)
+"""The `Config` fields an `Experiment` sets from its own fields, never through `overrides`."""
+
 VARIANT_SEPARATOR = "@"
 """Joins condition and variant on the condition axis of experiments with several variants."""
 
@@ -108,6 +113,8 @@ class RunSpec:
     sensor_failure_competence: float | None = None
     variant_in_key: bool = False
     """Whether the condition axis names the variant (experiments with several variants)."""
+    overrides: tuple[tuple[str, Any], ...] = ()
+    """The experiment's settings beyond the preset (`Experiment.overrides`), as (name, value)."""
 
     @property
     def condition_key(self) -> str:
@@ -146,6 +153,7 @@ class RunSpec:
             values["sensor_failure_episode"] = self.sensor_failure_episode
         if self.sensor_failure_competence is not None:
             values["sensor_failure_competence"] = self.sensor_failure_competence
+        values.update(self.overrides)
         values.update(overrides or {})
         return resolve(self.train_preset, self.condition, self.seed, values)
 
@@ -178,6 +186,11 @@ class Experiment:
     """The budget's seeds of this experiment that it lacks (`with_seeds_only`): a shipped data
     folder that holds every run finished for some seeds only (a campaign part-way through an
     experiment) stands for those alone."""
+    overrides: tuple[tuple[str, Any], ...] = ()
+    """Settings of every run beyond the preset's, as (name, value) pairs of `Config` fields, e.g.
+    `(("lp_measure", "signed"),)`: a protocol that differs from another in one setting. The
+    fields an experiment sets itself (variant, episodes, the sensory failure) are not among
+    them."""
 
     def __post_init__(self) -> None:
         if self.name not in EXPERIMENTS:
@@ -215,6 +228,15 @@ class Experiment:
             )
         if set(self.left_out_seeds) & set(self.seeds):
             raise ExperimentError(f"{self.name}: seeds both kept and left out")
+        names = [name for name, _ in self.overrides]
+        if len(set(names)) != len(names):
+            raise ExperimentError(f"{self.name}: a setting overridden twice: {names}")
+        if owned := sorted(set(names) & _EXPERIMENT_FIELDS):
+            raise ExperimentError(
+                f"{self.name}: overrides {owned}, which the experiment's own fields set"
+            )
+        if unknown := sorted(set(names) - {f.name for f in fields(Config)}):
+            raise ExperimentError(f"{self.name}: overrides unknown setting(s) {unknown}")
 
     @property
     def condition_keys(self) -> tuple[str, ...]:
@@ -243,6 +265,7 @@ class Experiment:
                 sensor_failure_episode=self.sensor_failure_episode,
                 sensor_failure_competence=self.sensor_failure_competence,
                 variant_in_key=several,
+                overrides=self.overrides,
             )
             for seed in self.seeds
             for variant in self.variants
