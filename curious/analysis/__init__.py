@@ -36,12 +36,13 @@ of the test success, the primary measure of the study on a mastered module),
 `curious.analysis.drops` the spontaneous drops of mastered modules (forgetting with nothing
 perturbed), `curious.analysis.dips` the smaller falls and the practice they draw, and
 `curious.analysis.degradation` C4's test of which condition loses less as distracting modules
-are added. Module and condition colours live in `curious.analysis.palette`,
-shared with the Rerun recordings.
+are added, and `curious.analysis.lp_ablations` the readings beyond the paper (which of LP's two
+uses does the work, and whether its sign matters). Module and condition colours live in
+`curious.analysis.palette`, shared with the Rerun recordings.
 
 The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `censored`,
-`drops`, `dips`, `degradation` and `figures` (each module's ``__all__``), imported on first use,
-so that ``import curious.analysis.palette`` (the recording code does) does not pull in pandas,
+`drops`, `dips`, `degradation`, `lp_ablations` and `figures` (each module's ``__all__``),
+imported on first use, so that ``import curious.analysis.palette`` (the recording code does) does not pull in pandas,
 scipy and matplotlib.
 """
 
@@ -66,6 +67,7 @@ _PUBLIC_MODULES = (
     "drops",
     "dips",
     "degradation",
+    "lp_ablations",
     "figures",
 )
 """The submodules whose ``__all__`` make this package's names, looked up in this order."""
