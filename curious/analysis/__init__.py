@@ -42,8 +42,8 @@ uses does the work, and whether its sign matters). Module and condition colours 
 
 The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `censored`,
 `drops`, `dips`, `degradation`, `lp_ablations` and `figures` (each module's ``__all__``),
-imported on first use, so that ``import curious.analysis.palette`` (the recording code does) does not pull in pandas,
-scipy and matplotlib.
+imported on first use, so that ``import curious.analysis.palette`` (the recording code does)
+does not pull in pandas, scipy and matplotlib.
 """
 
 from __future__ import annotations
