@@ -16,7 +16,7 @@ from curious.analysis import (
     mastery,
     mastery_drops,
 )
-from curious.analysis.drops import DESCENT_BAND, DROP_DEPTH, MASTERED
+from curious.analysis.drops import DESCENT_BAND, DROP_DEPTH, MASTERED_COMPETENCE
 
 N = 30_000
 TOP = 0.97
@@ -88,7 +88,7 @@ def test_a_drop_of_a_mastered_module_is_found_where_the_rule_puts_it(runs, drops
     assert first["start_episode"] == start
     assert first["trough_episode"] == 13_999 and first["trough"] == pytest.approx(0.5)
     assert first["depth"] == pytest.approx(TOP - 0.5, abs=1e-6)
-    recovered = _first(stored >= MASTERED - slack, 15_000)
+    recovered = _first(stored >= MASTERED_COMPETENCE - slack, 15_000)
     assert first["recovered"] and first["recovery_episode"] == recovered
     assert first["recovery_episodes"] == recovered - drop
     assert first["span_episodes"] == recovered - start

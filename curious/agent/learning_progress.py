@@ -23,6 +23,11 @@ import numpy as np
 
 MIN_RESULTS_FOR_LP = 3
 """A module's LP is 0 until it has this many evaluation results (the authors' queue: size > 2)."""
+MASTERED_COMPETENCE = 0.9
+"""Competence at which a module counts as mastered: the one threshold that the agent's conditions
+and the analysis read (`curious.analysis.drops`, the `sensor_failure_mastered` experiment's
+onset, the report). Nine evaluations in ten succeeding: the higher of the report's two test
+success milestones."""
 LP_MEASURES: tuple[str, ...] = ("absolute", "signed")
 """What LP measures (`Config.lp_measure`): `absolute`, |recent - before| (the paper's), or
 `signed`, max(recent - before, 0)."""

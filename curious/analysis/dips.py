@@ -9,7 +9,7 @@ and so its share of practice, can be read on smaller falls too. The rule, fixed 
 dips:
 
 1. **Read from mastery.** A module's competence counts once it averages a full window of its
-   self-evaluations, and is read from its first mastery (`drops.MASTERED` held for
+   self-evaluations, and is read from its first mastery (`MASTERED_COMPETENCE` held for
    `drops.MASTERY_HOLD` of a window, as `drops.mastery` finds it) to the run's end.
 2. **Dip.** The *peak* is the highest competence since mastery, or since the last dip ended. A
    dip of depth d is *detected* at the first episode whose competence is d or more below the
@@ -37,8 +37,8 @@ import math
 import numpy as np
 import pandas as pd
 
+from curious.agent.learning_progress import MASTERED_COMPETENCE
 from curious.analysis.drops import (
-    MASTERED,
     MASTERY_HOLD,
     _first,
     _mastered_from,
@@ -148,7 +148,7 @@ def _read_module(
     holds competence, LP, p_LP and the practised flag per row, episodes ascending."""
     competence = np.where(np.cumsum(evaluated) >= window, values[:, 0], np.nan)
     hold = max(1, math.ceil(MASTERY_HOLD * window))
-    m = _mastered_from(competence, evaluated, 0, MASTERED, hold)
+    m = _mastered_from(competence, evaluated, 0, MASTERED_COMPETENCE, hold)
     if m is None:
         return []
     mastered, end_of_run = int(episodes[m]), int(episodes[-1]) + 1

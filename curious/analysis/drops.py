@@ -13,8 +13,9 @@ measures at each episode) and the practised ``module`` of each episode:
 1. **Mastered.** A module's competence counts once it averages a full window of its
    self-evaluations (``lp_window`` of them, as `curious.analysis.milestones.competence_crossings`
    asks; before, one lucky evaluation reads 1.0). The module is *mastered* from the evaluation at
-   which its competence has stood at or above `MASTERED` (0.9) for `MASTERY_HOLD` (half a window,
-   rounded up) of its consecutive self-evaluations: nine in ten of its last evaluations succeed,
+   which its competence has stood at or above `MASTERED_COMPETENCE` (0.9,
+   `curious.agent.learning_progress`'s) for `MASTERY_HOLD` (half a window, rounded up) of its
+   consecutive self-evaluations: nine in ten of its last evaluations succeed,
    and have for a while, so a competence hovering at the line is not called mastered by one
    lucky reading. 0.9 is the higher of the report's two test-success milestones
    (`milestones.LEVELS`).
@@ -30,7 +31,8 @@ measures at each episode) and the practised ``module`` of each episode:
    depth) of the peak. The *trough* is the lowest competence from the drop until the module
    recovers (or the run ends); ``depth`` is the peak minus the trough.
 4. **Recovered.** At the first episode after the drop whose competence is back at or above
-   `MASTERED`; ``recovery_episodes`` counts from the drop's episode (NaN: not by the run's end).
+   `MASTERED_COMPETENCE`; ``recovery_episodes`` counts from the drop's episode (NaN: not by the
+   run's end).
    From there the module is read again from step 1 (mastered once more after `MASTERY_HOLD`
    evaluations at 0.9), so a run can show several drops of one module.
 5. **Response.** Two spans of episodes, as `perturbation.recovery` compares the episodes before
@@ -63,6 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from curious.agent.learning_progress import MASTERED_COMPETENCE
 from curious.analysis.loading import require_runs
 from curious.analysis.perturbation import _shift
 from curious.analysis.statistics import FLOAT32_SLACK, RUN_COLUMNS
@@ -71,19 +74,16 @@ __all__ = [
     "DESCENT_BAND",
     "DROP_COLUMNS",
     "DROP_DEPTH",
-    "MASTERED",
+    "MASTERED_COMPETENCE",
     "MASTERY_COLUMNS",
     "MASTERY_HOLD",
     "mastery",
     "mastery_drops",
 ]
 
-MASTERED = 0.9
-"""Competence, over a full window of the module's self-evaluations, at which it is mastered (and,
-after a drop, recovered)."""
 MASTERY_HOLD = 0.5
 """Fraction of ``lp_window`` (rounded up): the consecutive self-evaluations of the module over
-which its competence must stay at or above `MASTERED` before it counts as mastered."""
+which its competence must stay at or above `MASTERED_COMPETENCE` before it counts as mastered."""
 DROP_DEPTH = 0.2
 """How far below its peak since mastery the competence must fall for a drop."""
 DESCENT_BAND = 0.1
@@ -301,7 +301,7 @@ _INT_COLUMNS = ("mastered_episode", "start_episode", "drop_episode", "trough_epi
 
 def mastery_drops(
     df: pd.DataFrame,
-    mastered: float = MASTERED,
+    mastered: float = MASTERED_COMPETENCE,
     hold: float = MASTERY_HOLD,
     depth: float = DROP_DEPTH,
     band: float = DESCENT_BAND,
@@ -323,7 +323,7 @@ def mastery_drops(
 
 def mastery(
     df: pd.DataFrame,
-    mastered: float = MASTERED,
+    mastered: float = MASTERED_COMPETENCE,
     hold: float = MASTERY_HOLD,
     depth: float = DROP_DEPTH,
     band: float = DESCENT_BAND,

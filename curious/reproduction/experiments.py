@@ -16,8 +16,9 @@ An *experiment* is a set of training runs that one group of figures compares:
   experiment out, as the failure did not start in a measured quick reproduction
   (`ReproduceBudget.omitted` gives the reason; the report, a notebook and `select` repeat it).
 * `sensor_failure_mastered`: the same conditions and variant, the failure waiting for
-  push_cube3's competence to reach `MASTERED_COMPETENCE` (0.9), so that it perturbs a mastered
-  module, as the authors did; read by the rules docs/results.md fixed before its runs (C5,
+  push_cube3's competence to reach `MASTERED_COMPETENCE` (0.9, the threshold of mastery the
+  agent and the analysis read), so that it perturbs a mastered module, as the authors did;
+  read by the rules docs/results.md fixed before its runs (C5,
   "The study as it will be rerun"): the recovery of push_cube3's test success, CURIOUS against
   M-UVFA (`curious.analysis.recovery_by_tests`). `laptop` trains it on runs long enough for the
   module to be mastered; `smoke` starts it at a fixed episode, as `sensor_failure`'s; `quick` is
@@ -63,6 +64,7 @@ from fractions import Fraction
 from pathlib import PurePosixPath
 from typing import Any
 
+from curious.agent.learning_progress import MASTERED_COMPETENCE
 from curious.config import LEARNED_COMPETENCE, PRESETS, Config, condition_names, resolve
 
 EXPERIMENTS: tuple[str, ...] = (
@@ -471,11 +473,6 @@ PAPER_FAILURE_EPISODE = 250 * 950
 """The authors' onset: the start of epoch 250 (of 316) at 950 episodes an epoch, 237,500
 (their train.py switches the bias on when `epoch == 250` in the perturbation study)."""
 
-
-MASTERED_COMPETENCE = 0.9
-"""The competence of push_cube3 at which `sensor_failure_mastered`'s failure starts: a mastered
-module, as the authors perturbed one (docs/results.md, C5, "The study as it will be rerun": its
-rules were fixed before its runs, this threshold among them)."""
 
 SENSOR_FAILURE_TITLES: dict[str, str] = {
     "sensor_failure": "Sensory failure: CURIOUS against M-UVFA, refocus and recovery",

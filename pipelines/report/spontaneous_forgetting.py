@@ -31,9 +31,10 @@ def spontaneous_forgetting(e: Experiment, table: pd.DataFrame) -> list[str]:
         "The paper's Fig. 2b: a mastered module's competence drops, its "
         "LP rises, the agent practises it more. Rule (`curious.analysis.drops`, fixed before "
         "the runs were read): a module is mastered once its competence, over a full window of "
-        f"its self-evaluations, has stood at or above {fmt(analysis.MASTERED, 1)} for {hold}; "
+        "its self-evaluations, has stood at or above "
+        f"{fmt(analysis.MASTERED_COMPETENCE, 1)} for {hold}; "
         f"a drop is a fall of {fmt(analysis.DROP_DEPTH, 1)} or more below its peak since "
-        f"mastery; it recovers when back at {fmt(analysis.MASTERED, 1)}. Per run and "
+        f"mastery; it recovers when back at {fmt(analysis.MASTERED_COMPETENCE, 1)}. Per run and "
         "achievable module: the episode it was first mastered and the deepest fall of its "
         "competence below its peak while mastered (– : never mastered; HER has no "
         "self-evaluations, so no competence).",
