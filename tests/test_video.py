@@ -110,6 +110,8 @@ def test_gif_and_webp_loop_at_the_simulations_pace(smoke_run, tmp_path):
         assert done.returncode == 0, done.stderr
         with Image.open(out) as image:
             assert image.size == (80, 60) and image.n_frames > 1
+            # the frames the file holds (a run of alike frames is held as one)
+            assert f"wrote {image.n_frames} frames to {out}" in done.stdout, done.stdout
             image.seek(1)
             image.load()  # WebP tells a frame's duration once it is decoded
             assert image.info["loop"] == 0

@@ -278,15 +278,18 @@ def _render_run(args: argparse.Namespace, kind: str) -> int:
         f"{r.module} {round(r.success * r.episodes)}/{r.episodes}" for r in result.modules
     )
     print(
-        f"wrote {writer.frames} frames to {args.out} ({_length(kind, writer.frames, fps)}): "
-        f"{result.condition} at episode {result.episode:,} ({result.checkpoint}); success: "
-        f"{scores}"
+        f"{_wrote(writer, args.out, kind, fps)}: {result.condition} at episode "
+        f"{result.episode:,} ({result.checkpoint}); success: {scores}"
     )
     return 0
 
 
-def _length(kind: str, frames: int, fps: float) -> str:
-    return "PNG frames" if kind == "png" else f"{fps:g} fps, {frames / fps:.1f} s"
+def _wrote(writer: Any, out: str, kind: str, fps: float) -> str:
+    """The line `wrote N frames to OUT (...)`: the frames the output holds (a GIF or WebP holds
+    a run of alike frames as one: `VideoWriter.frames_in_file`), a video's frame rate and
+    length."""
+    length = f"{fps:g} fps, {writer.frames / fps:.1f} s" if kind != "png" else "PNG frames"
+    return f"wrote {writer.frames_in_file} frames to {out} ({length})"
 
 
 def _render_policy(args: argparse.Namespace, kind: str) -> int:
@@ -350,7 +353,7 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
         folder = f"{str(args.out).rstrip('/')}/"
         print(f"wrote {len(paths)} frames to {folder} ({paths[0].name} .. {paths[-1].name})")
     else:
-        print(f"wrote {writer.frames} frames to {args.out} ({_length(kind, writer.frames, fps)})")
+        print(_wrote(writer, args.out, kind, fps))
     return 0
 
 

@@ -179,6 +179,9 @@ class VideoWriter:
         self.path = Path(out)
         self.fps = float(fps)
         self.frames = 0
+        self.frames_in_file = 0
+        """Frames the file holds once closed: GIF and WebP hold a run of identical frames (a held
+        last frame) as one longer frame, so fewer than `frames`, the frames added."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._partial = self.path.with_name(f".{self.path.stem}.partial{self.path.suffix}")
         self._images: list[Any] = []
@@ -225,7 +228,17 @@ class VideoWriter:
                 options.update(optimize=True, disposal=1)
             first.save(self._partial, format=self.kind.upper(), **options)
             self._images = []
+        self.frames_in_file = self._count_frames()
         os.replace(self._partial, self.path)
+
+    def _count_frames(self) -> int:
+        """The frames in the finished (partial) file."""
+        if self._ffmpeg is not None:
+            return self.frames
+        from PIL import Image
+
+        with Image.open(self._partial) as image:
+            return int(getattr(image, "n_frames", 1))
 
     def abort(self) -> None:
         """Drops what was written (an error or an interrupt stopped the render)."""
@@ -263,6 +276,11 @@ class PngFrames:
         self.written.append(path)
         self._index += 1
         self.frames += 1
+
+    @property
+    def frames_in_file(self) -> int:
+        """The frames written: one file each."""
+        return self.frames
 
     def close(self) -> None:
         """Nothing to finish: every frame is written as it comes."""
