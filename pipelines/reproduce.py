@@ -51,17 +51,21 @@ if TYPE_CHECKING:
     from pipelines.from_data import ShippedData
 
 MANIFEST_VERSION = 1
-_DAGSTER_YAML = (
-    "telemetry:\n"
-    "  enabled: false\n"
+_COMPUTE_LOGS = (
     "compute_logs:\n"
     "  module: dagster._core.storage.noop_compute_log_manager\n"
     "  class: NoOpComputeLogManager\n"
 )
-"""The instance's settings: no telemetry, and no capture of the steps' output, which Dagster
-makes with `tail` and watcher processes that a Ctrl-C reaches too (each printing a traceback);
-the runs' own files and the materialisations keep what a step did."""
-_OLD_DAGSTER_YAML = "telemetry:\n  enabled: false\n"
+_DAGSTER_YAML = "telemetry:\n  enabled: false\nnux:\n  enabled: false\n" + _COMPUTE_LOGS
+"""The instance's settings: no telemetry, no "join the community" dialog in the Dagster UI (its
+`nux`), and no capture of the steps' output, which Dagster makes with `tail` and watcher
+processes that a Ctrl-C reaches too (each printing a traceback); the runs' own files and the
+materialisations keep what a step did. A user turns telemetry on by editing the file, which is
+then left as it is."""
+_OLD_DAGSTER_YAMLS = (
+    "telemetry:\n  enabled: false\n",
+    "telemetry:\n  enabled: false\n" + _COMPUTE_LOGS,
+)
 """What earlier versions wrote (replaced by `open_instance`)."""
 _QUIET_LOGS = {"loggers": {"console": {"config": {"log_level": "CRITICAL"}}}}
 """Dagster's console logger stays silent: a failure reaches the user as one line from
@@ -200,7 +204,7 @@ def open_instance(layout: OutputLayout):
     home = layout.dagster_home
     home.mkdir(parents=True, exist_ok=True)
     config = home / "dagster.yaml"
-    if not config.exists() or config.read_text() == _OLD_DAGSTER_YAML:
+    if not config.exists() or config.read_text() in _OLD_DAGSTER_YAMLS:
         config.write_text(_DAGSTER_YAML)
     return DagsterInstance.from_ref(InstanceRef.from_dir(str(home)))
 

@@ -230,6 +230,31 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
         instance.dispose()
 
 
+def test_the_dagster_instance_has_telemetry_and_the_community_dialog_off(tmp_path):
+    """OUT/.dagster/dagster.yaml, the DAGSTER_HOME the docs and the closing line give the Dagster
+    UI: telemetry off and no "join the community" dialog; what an earlier version wrote is
+    replaced, a file the user edited (telemetry turned on) is kept."""
+    from pipelines import reproduce as module
+
+    layout = OutputLayout.at(tmp_path / "out")
+    config = layout.dagster_home / "dagster.yaml"
+    for before in (None, *module._OLD_DAGSTER_YAMLS):
+        if before is not None:
+            config.write_text(before)
+        instance = module.open_instance(layout)
+        try:
+            assert not instance.telemetry_enabled and not instance.nux_enabled, before
+        finally:
+            instance.dispose()
+    mine = config.read_text().replace("telemetry:\n  enabled: false", "telemetry:\n  enabled: true")
+    config.write_text(mine)
+    instance = module.open_instance(layout)
+    try:
+        assert instance.telemetry_enabled and config.read_text() == mine
+    finally:
+        instance.dispose()
+
+
 def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_each_shows(
     smoke, shipped, tmp_path, monkeypatch, capsys
 ):
