@@ -388,3 +388,33 @@ def test_a_sigterm_as_the_viewer_starts_is_already_taken(monkeypatch) -> None:
     assert view.run_viewer(["true"]) == 0
     assert seen and callable(seen[0]) and seen[0] not in (signal.SIG_DFL, signal.SIG_IGN, before)
     assert signal.getsignal(signal.SIGTERM) == before  # put back
+
+
+def test_the_viewer_runs_with_rerun_analytics_off_unless_the_user_opts_in(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The viewer `curious view` starts reads a Rerun configuration of its own, analytics off
+    (the real `rerun` reads it so), removed when the viewer ends; CURIOUS_RERUN_ANALYTICS=1
+    leaves the viewer to the user's own configuration."""
+    import json
+    import shutil
+
+    from curious.watching.viewer_analytics import OPT_IN
+
+    monkeypatch.delenv(OPT_IN, raising=False)
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "users"))
+    seen = tmp_path / "seen"
+    config_file = '"$XDG_CONFIG_HOME/rerun/analytics.json"'
+    show = f'echo "$XDG_CONFIG_HOME" > {seen}; cat {config_file} >> {seen}'
+    assert view.run_viewer(["sh", "-c", show]) == 0
+    folder, *config = seen.read_text().splitlines()
+    assert json.loads("\n".join(config))["analytics_enabled"] is False
+    assert folder != str(tmp_path / "users") and not Path(folder).exists()
+    if shutil.which("rerun"):
+        out = tmp_path / "rerun.txt"
+        assert view.run_viewer(["sh", "-c", f"rerun analytics config > {out} 2>&1"]) == 0
+        assert '"analytics_enabled": false' in out.read_text() and "Welcome" not in out.read_text()
+
+    monkeypatch.setenv(OPT_IN, "1")
+    assert view.run_viewer(["sh", "-c", f'echo "$XDG_CONFIG_HOME" > {seen}']) == 0
+    assert seen.read_text().strip() == str(tmp_path / "users")

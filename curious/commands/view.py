@@ -30,6 +30,7 @@ from curious.commands import folder_name, refuse
 from curious.reproduction.shipped_folder import shipped_run_note
 from curious.runs.folder import RunFolder, folders_below, name_some
 from curious.watching.display import has_display
+from curious.watching.viewer_analytics import viewer_environment
 
 RRD_MAGIC = b"RRF"
 """How every Rerun recording file begins (`RRF2` today, with the format's version after it)."""
@@ -289,7 +290,8 @@ def run_viewer(command: list[str]) -> int:
     then the viewer is stopped too, so that no server outlives `curious view`. The viewer runs
     in a process group of its own, and the whole group is stopped: the `rerun` command is a
     Python script that runs the viewer binary as its child, which stopping the script alone
-    would leave serving (and holding its ports)."""
+    would leave serving (and holding its ports). The viewer runs with Rerun's usage analytics
+    off (`curious.watching.viewer_analytics`)."""
 
     def stop(signum: int, frame: object) -> None:
         raise SystemExit(128 + signum)
@@ -299,15 +301,18 @@ def run_viewer(command: list[str]) -> int:
     previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
     proc = None
     try:
-        proc = subprocess.Popen(command, start_new_session=True)
-        return proc.wait()
+        with viewer_environment() as env:  # Rerun's analytics off (viewer_analytics)
+            try:
+                proc = subprocess.Popen(command, start_new_session=True, env=env)
+                return proc.wait()
+            finally:
+                if proc is not None:
+                    _stop_group(proc)
     except KeyboardInterrupt:
         return 130
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        if proc is not None:
-            _stop_group(proc)
 
 
 def _stop_group(proc: subprocess.Popen) -> None:
