@@ -21,16 +21,13 @@ from __future__ import annotations
 import functools
 import logging
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import torch
 from torch import nn
 
 from curious.agent.mlp_workspace import WorkspaceUpdate, fold_parameters
 from curious.config import Config
-
-if TYPE_CHECKING:
-    from curious.agent.learner import Learner
 
 StepLosses = tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]
 """What one backend's step returns, detached: the critic loss, the actor loss (None where the
@@ -116,6 +113,36 @@ def compile_step(
     return run
 
 
+class UpdateSteps(Protocol):
+    """What a backend runs: the networks of a learner and the steps of its update
+    (`curious.agent.learner.Learner` is one). A protocol, so that this module, which the learner
+    imports, does not import it back."""
+
+    td3: bool
+    device: torch.device
+    actor: nn.Module
+    critics: nn.ModuleList
+    actor_target: nn.Module
+    critics_target: nn.ModuleList
+
+    def target_noise(self, batch_size: int) -> torch.Tensor: ...
+
+    def ddpg_step(
+        self, x: torch.Tensor, action: torch.Tensor, reward: torch.Tensor, x_next: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]: ...
+
+    def critic_step(
+        self,
+        x: torch.Tensor,
+        action: torch.Tensor,
+        reward: torch.Tensor,
+        x_next: torch.Tensor,
+        noise: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]: ...
+
+    def actor_step(self, x: torch.Tensor) -> torch.Tensor: ...
+
+
 class UpdateBackend:
     """The flat parameters, the optimisers, the generator and the step runner of one learner.
 
@@ -124,7 +151,7 @@ class UpdateBackend:
     the two Adams and TD3's generator (seeded `seed + 1`), and wires the backend
     `config.learner_backend` names."""
 
-    def __init__(self, learner: Learner, config: Config, seed: int) -> None:
+    def __init__(self, learner: UpdateSteps, config: Config, seed: int) -> None:
         self.td3 = learner.td3
         flatten = fold_parameters if config.learner_backend == "workspace" else flatten_parameters
         nets = (learner.actor, learner.critics)
