@@ -177,14 +177,22 @@ def check_runs(reproduction: Reproduction, experiments: Sequence[Experiment]) ->
 
 
 def _write_manifest(
-    layout: OutputLayout, budget: ReproduceBudget, from_data: Path | None = None
+    layout: OutputLayout,
+    budget: ReproduceBudget,
+    from_data: Path | None = None,
+    at_once: int | None = None,
 ) -> None:
+    """OUT/reproduce.json: the budget, where the runs lie, the shipped data read, and `at_once`,
+    how many runs train side by side on this machine (`curious progress` reads it for the hours
+    left; None on Ray or from shipped data, where it is left out)."""
     layout.out.mkdir(parents=True, exist_ok=True)
     data: dict[str, Any] = {"version": MANIFEST_VERSION, "budget": budget.name}
     if layout.runs_root != layout.out / "runs":
         data["runs_dir"] = str(layout.runs_root)
     if from_data is not None:
         data["from_data"] = str(from_data)
+    if at_once is not None:
+        data["at_once"] = at_once
     if layout.manifest.is_file():
         old = json.loads(layout.manifest.read_text())
         if old.get("extra_seeds") and old.get("budget") == budget.name:
@@ -427,7 +435,9 @@ def _reproduce(
         hint = gpu_sharing_hint(pool, repro.overrides.get("device"))
         if hint is not None:
             repro.say(hint)
-    _write_manifest(layout, chosen, None if data is None else data.path)
+    local = data is None and repro.pool.local
+    at_once = getattr(repro.pool, "workers", None) if local else None  # a LocalPool's
+    _write_manifest(layout, chosen, None if data is None else data.path, at_once)
     defs = build_definitions(repro)
     try:
         with warnings.catch_warnings():

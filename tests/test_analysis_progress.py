@@ -15,6 +15,8 @@ from curious.analysis.progress import (
     experiment_progress,
     progress_markdown,
     progress_table,
+    recorded_at_once,
+    runs_at_once,
     summary_markdown,
 )
 from curious.cli import main as curious_cli
@@ -274,6 +276,32 @@ def test_the_pace_is_that_of_the_runs_training_now(campaign):
     assert "| sensor_failure | 0 of 1 | 0 | 50 | 0% | 0.00 | 50 | 0.8 |" in text
     assert "| all | 1 of 3 | 130 | 250 | 52% | 2.00 | 120 | 2.0 |" in text
     assert current_pace([new]) is None and "| - |" in summary_markdown([new])
+
+
+def test_the_hours_left_count_the_runs_the_reproduction_trains_at_once(campaign, tmp_path, capsys):
+    """`curious progress` divides the hours left by the runs trained side by side: the count
+    the reproduction's reproduce.json records (`at_once`, which `curious reproduce` writes), else
+    the runs started and not finished; `--at-once N` overrides either."""
+    out = tmp_path / "out"
+    shutil.copytree(campaign / "main" / "curious-0", out / "runs" / "main" / "curious" / "seed-0")
+    manifest = {"version": 1, "budget": "smoke", "at_once": 2}
+    (out / "reproduce.json").write_text(json.dumps(manifest))
+    assert recorded_at_once(out) == 2 and recorded_at_once(campaign) is None
+    assert curious_cli(["progress", str(out)]) == 0
+    assert "episodes/s per run, 2 at a time |" in capsys.readouterr().out
+    assert curious_cli(["progress", str(out), "--at-once", "1"]) == 0
+    assert "episodes/s per run, one at a time |" in capsys.readouterr().out
+
+    rows = progress_table(campaign)  # no reproduce.json: the runs started and not finished
+    assert runs_at_once(campaign, rows) == 1  # none training: one
+    halfway = [replace(r, episodes=12) for r in rows]
+    assert runs_at_once(campaign, halfway) == 3
+
+    for damaged in (0, "2", True):
+        (out / "reproduce.json").write_text(json.dumps({**manifest, "at_once": damaged}))
+        assert curious_cli(["progress", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "reproduce.json is damaged: at_once" in err, err
 
 
 def test_at_once_below_one_is_a_one_line_error(campaign, capsys):

@@ -166,6 +166,13 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "`curious reproduce --budget smoke`" in report
 
 
+def test_reproduce_json_records_how_many_runs_train_at_once(smoke):
+    """For `curious progress`'s hours left: the worker processes of this machine's pool (one
+    per core by default); shipped data trains nothing and records none."""
+    manifest = json.loads((smoke.out / "reproduce.json").read_text())
+    assert manifest["at_once"] == max(1, os.cpu_count() or 1), manifest
+
+
 def test_every_partition_is_one_finished_run_folder(smoke):
     runs_root = smoke.out / "runs"
     specs = SMOKE.runs()

@@ -54,6 +54,8 @@ __all__ = [
     "experiment_progress",
     "progress_markdown",
     "progress_table",
+    "recorded_at_once",
+    "runs_at_once",
     "summary_markdown",
 ]
 
@@ -414,6 +416,38 @@ def current_pace(rows: list[RunProgress]) -> float | None:
     if not now:
         return None
     return sum(r.episodes for r in now) / (3600 * sum(r.run_hours for r in now))
+
+
+def recorded_at_once(root: str | PathLike[str]) -> int | None:
+    """How many runs the reproduction in `root` trains side by side, as its `reproduce.json`
+    records it (`at_once`, which `curious reproduce` writes for a pool on one machine); None
+    where the folder has no reproduce.json or it records none (Ray, or an earlier version)."""
+    manifest = Path(root) / "reproduce.json"
+    if not manifest.is_file():
+        return None
+    try:
+        value = json.loads(manifest.read_text(encoding="utf-8")).get("at_once")
+    except (json.JSONDecodeError, AttributeError) as exc:
+        raise AnalysisError(f"{manifest} is damaged: {exc}") from exc
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise AnalysisError(f"{manifest} is damaged: at_once must be a count >= 1, got {value!r}")
+    return value
+
+
+def runs_at_once(
+    roots: str | PathLike[str] | Iterable[str | PathLike[str]], rows: list[RunProgress]
+) -> int:
+    """How many runs train side by side, for the hours left: what the first of `roots` that is
+    a reproduction records (`recorded_at_once`), else the runs started and not finished (those
+    training now: a campaign queue writes no count), at least 1."""
+    paths = [roots] if isinstance(roots, (str, PathLike)) else list(roots)
+    for root in paths:
+        recorded = recorded_at_once(root)
+        if recorded is not None:
+            return recorded
+    return max(1, sum(0 < r.episodes < r.total_episodes for r in rows))
 
 
 def summary_markdown(rows: list[RunProgress], at_once: int = 1) -> str:

@@ -3,11 +3,13 @@
     curious progress ~/curious-runs/laptop
     curious progress ~/curious-runs/laptop --update docs/results.md
     curious progress ~/curious-runs/laptop data/laptop   # with the runs shipped from it
-    curious progress ~/curious-runs/laptop --at-once 2   # hours left, two runs side by side
+    curious progress ~/curious-runs/laptop --at-once 1   # hours left, one run at a time
 
 Read from the run folders alone (config.json, metrics.parquet, tests.parquet, checkpoints/), so
 it can be run while the runs train. A second table sums the runs per experiment, with the hours
-left at the pace of the runs training now. `--update FILE` replaces the block between the lines
+left at the pace of the runs training now, as many side by side as the reproduction trains
+(reproduce.json's `at_once`; else the runs started and not finished; `--at-once N` says
+otherwise). `--update FILE` replaces the block between the lines
 `<!-- progress:begin -->` and `<!-- progress:end -->` of FILE with both tables and the time they
 were computed, leaving the rest of the file as it is.
 """
@@ -52,8 +54,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the runs per experiment (the first folder of their paths): runs finished, episodes "
         "logged and left, run-hours so far, and the hours left at the pace of the runs "
         "training now (episodes per run-second of the started, unfinished runs, by their own "
-        "clocks; of every run when none is training) with --at-once runs side by side: an "
-        "estimate, which assumes the runs left cost what those cost.\n\nA folder whose "
+        "clocks; of every run when none is training), as many side by side as the "
+        "reproduction trains: the count its reproduce.json records (`at_once`, which `curious "
+        "reproduce` writes), else the runs started and not finished (a campaign queue records "
+        "none), unless --at-once says otherwise. An estimate, which assumes the runs left cost "
+        "what those cost.\n\nA folder whose "
         "config.json or tables cannot be read is left out of the tables, with its problem on "
         "stderr; the command fails only when no folder could be read.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -70,9 +75,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--at-once",
         type=int,
-        default=1,
+        default=None,
         metavar="N",
-        help="runs trained side by side, for the hours left (default 1)",
+        help="runs trained side by side, for the hours left (default: as many as the "
+        "reproduction trains: reproduce.json's at_once, else the runs started and not finished)",
     )
     parser.add_argument(
         "--update",
@@ -102,11 +108,16 @@ def _read_text(path: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from curious.analysis import AnalysisError
-    from curious.analysis.progress import progress_markdown, progress_table, summary_markdown
+    from curious.analysis.progress import (
+        progress_markdown,
+        progress_table,
+        runs_at_once,
+        summary_markdown,
+    )
 
     if args.epochs < 1:
         raise ValueError(f"--epochs must be at least 1, got {args.epochs}")
-    if args.at_once < 1:
+    if args.at_once is not None and args.at_once < 1:
         raise ValueError(f"--at-once must be at least 1, got {args.at_once}")
     if args.update is not None and not args.update.strip():
         raise ValueError("--update is empty: name the Markdown file whose block to replace")
@@ -125,17 +136,18 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         rows = progress_table(args.roots, args.epochs, on_unreadable=skip)
+        at_once = args.at_once or runs_at_once(args.roots, rows)
     except AnalysisError as exc:
         raise ValueError(str(exc)) from exc
     base = args.roots[0] if len(args.roots) == 1 else None
-    table = progress_markdown(rows, base, args.epochs) + "\n" + summary_markdown(rows, args.at_once)
+    table = progress_markdown(rows, base, args.epochs) + "\n" + summary_markdown(rows, at_once)
     if path is None:
         sys.stdout.write(table)
         return 0
     now = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     roots = " ".join(_home_relative(r) for r in args.roots)
-    at_once = f" --at-once {args.at_once}" if args.at_once != 1 else ""
-    block = f"Computed by `curious progress {roots}{at_once}` at {now}.\n\n{table}"
+    given = f" --at-once {args.at_once}" if args.at_once is not None else ""
+    block = f"Computed by `curious progress {roots}{given}` at {now}.\n\n{table}"
     path.write_text(replace_block(_read_text(path), block, path), encoding="utf-8")
     print(f"updated {path} ({len(rows)} runs)")
     return 0
