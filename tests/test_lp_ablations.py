@@ -114,3 +114,72 @@ def test_the_refocus_test_asks_whether_absolute_lp_raises_p_lp_more():
     assert not same["significant"]
     with pytest.raises(AnalysisError, match="signed table lacks p_lp_before, p_lp_after"):
         compare_refocus(_recovery([0.1]), pd.DataFrame({"status": ["measured"]}))
+
+
+@pytest.fixture(scope="module")
+def beyond(tmp_path_factory):
+    """Made-up runs of both questions: the four conditions on 7 distracting modules, and the
+    sensory failure under absolute and signed LP."""
+    from test_analysis_synthetic import (
+        distractor_modules,
+        study_curves,
+        write_perturbation_study,
+        write_run,
+    )
+
+    from curious import analysis
+
+    root = tmp_path_factory.mktemp("beyond")
+    names, achievable = distractor_modules(7)
+    for i, c in enumerate(("curious", "m-uvfa", "lp-select", "lp-replay")):
+        for s in (0, 1, 2):
+            curves = study_curves("curious", s, 300, names, achievable)
+            for m in names[:4]:
+                curves[m] = np.clip(curves[m] * (1 - 0.1 * i), 0.0, 1.0)
+            folder = root / "uses" / c / f"seed-{s}"
+            write_run(folder, condition=c, seed=s, competence=curves, achievable=achievable,
+                      variant="distractors_7", tests_per_epoch=8)  # fmt: skip
+    write_perturbation_study(
+        root / "absolute", perturbation=300, n_episodes=900, recovery_tau={"curious": 80.0},
+        tests_per_epoch=40,
+    )  # fmt: skip
+    write_perturbation_study(
+        root / "signed", perturbation=300, n_episodes=900, recovery_tau={"curious": 200.0},
+        tests_per_epoch=40,
+    )  # fmt: skip
+    return {name: (analysis.load_runs(root / name), analysis.load_tests(root / name))
+            for name in ("uses", "absolute", "signed")}  # fmt: skip
+
+
+def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_path):
+    from curious.analysis.figures.lp_ablations import LP_USE_ORDER, lp_uses
+
+    runs, tests = beyond["uses"]
+    fig = lp_uses(runs, tests, out_dir=tmp_path)
+    assert (tmp_path / "lp_uses.png").stat().st_size > 0
+    left, middle, right = fig.axes[:3]
+    assert "test success" in middle.get_ylabel()
+    assert [t.get_text() for t in left.get_xticklabels()] == [
+        "M-UVFA", "LP-replay", "LP-select", "CURIOUS"
+    ]  # fmt: skip
+    assert len(left.collections) >= len(LP_USE_ORDER)  # a dot per run, per condition
+    assert "distracting module" in right.get_ylabel()
+    text = fig.get_supxlabel()
+    assert "neither is in the paper" in text and "3 seeds (0–2)" in text
+
+
+def test_the_signed_lp_figure_draws_both_measures_as_two_conditions(beyond, tmp_path):
+    from curious.analysis.figures.lp_ablations import SIGNED_LP, signed_lp
+    from curious.analysis.palette import condition_label
+
+    (absolute, tests_a), (signed, tests_s) = beyond["absolute"], beyond["signed"]
+    fig, per_run = signed_lp(absolute, signed, tests_a, tests_s, out_dir=tmp_path)
+    assert (tmp_path / "signed_lp.png").stat().st_size > 0
+    assert set(per_run["condition"]) == {"curious", SIGNED_LP}
+    assert condition_label(SIGNED_LP) == "CURIOUS, signed LP"
+    legend = " ".join(
+        t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()
+    )
+    assert "signed LP" in legend
+    with pytest.raises(AnalysisError, match="of both measures' runs, or of neither"):
+        signed_lp(absolute, signed, tests_a, None)

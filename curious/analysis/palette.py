@@ -79,6 +79,8 @@ CONDITION_STYLES: dict[str, Style] = {
     "m-uvfa": Style("M-UVFA", "#AA3377"),
     "lp-select": Style("LP-select", "#EE7733"),
     "lp-replay": Style("LP-replay", "#009988"),
+    # not a condition: CURIOUS with `lp_measure=signed`, as the `signed_lp` figure names it
+    "curious-signed": Style("CURIOUS, signed LP", "#33BBEE"),
 }
 
 _PUSH_CUBE = re.compile(r"push_cube(\d+)")

@@ -1,0 +1,178 @@
+"""The figures beyond the paper: LP's two uses apart (`lp_uses`) and its sign (`signed_lp`).
+
+`lp_uses` sets the four conditions side by side on `distractors_7`: each run's competence (and
+test success) at the end, and the share of its practice spent on distracting modules over the
+run. `signed_lp` is the sensory-failure figure with CURIOUS's runs under each LP measure, the
+signed ones drawn as a condition of their own (`SIGNED_LP`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from os import PathLike
+
+import numpy as np
+import pandas as pd
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from curious.analysis import palette
+from curious.analysis.figures.failure_recovery import sensor_failure
+from curious.analysis.figures.parts import (
+    caption,
+    conditions_text,
+    draw_mean_std,
+    finish,
+    legend_right,
+    restrict,
+    runs_of,
+    setting_text,
+)
+from curious.analysis.loading import AnalysisError
+from curious.analysis.statistics import (
+    across_seeds,
+    distractor_share,
+    final_competence,
+    final_test_success,
+)
+from curious.analysis.style import budget_text, episodes_axis, figure_style, new_figure
+
+LP_USE_ORDER: tuple[str, ...] = ("m-uvfa", "lp-replay", "lp-select", "curious")
+"""The conditions of `lp_uses`, from no use of LP to both."""
+
+SIGNED_LP = "curious-signed"
+"""The condition name `signed_lp` gives CURIOUS's runs with `lp_measure=signed`."""
+
+
+def lp_uses(
+    df: pd.DataFrame,
+    tests: pd.DataFrame | None = None,
+    at_episode: int | None = None,
+    note: str | None = None,
+    out_dir: str | PathLike[str] | None = None,
+    name: str = "lp_uses",
+) -> Figure:
+    """Each condition's competence over the achievable modules at the end of its runs (and,
+    with ``tests``, their test success over the last bin), one dot a run and its mean ± std, and
+    the share of training episodes spent on a distracting module over the runs, mean ± std
+    across seeds: M-UVFA, `lp-replay`, `lp-select` and CURIOUS (those of them ``df`` holds)."""
+    present = set(df["condition"].astype(str))
+    conditions = [c for c in LP_USE_ORDER if c in present]
+    if not conditions:
+        raise AnalysisError(
+            f"no runs of {', '.join(LP_USE_ORDER)} (have: {', '.join(sorted(present))})"
+        )
+    rows = restrict(df, conditions, None)
+    final = final_competence(rows, at_episode)
+    panels = [(final, "competence over the\nachievable modules at the end")]
+    if tests is not None:
+        tested = final_test_success(restrict(tests, conditions, None))
+        panels.append((tested, "test success over the\nachievable modules, last bin"))
+    share = distractor_share(rows)
+    runs = runs_of(rows)
+    with figure_style():
+        fig = new_figure(4.2 * len(panels) + 5.4, 4.4)
+        axes = fig.subplots(1, len(panels) + 1, squeeze=False)[0]
+        for ax, (values, label) in zip(axes[:-1], panels, strict=True):
+            _per_run_panel(ax, values, conditions)
+            ax.set_ylabel(label)
+        _share_panel(axes[-1], share, conditions)
+        legend_right(axes[-1])
+        fig.suptitle("LP's two uses apart — module selection and task replay")
+        episodes = int(final["episodes"].iat[0])
+        text = (
+            f"{conditions_text(runs, conditions)}. Budget {budget_text(runs['n_episodes'])} "
+            f"({setting_text(runs)}). Left: each run's competence (the success rate of its recent "
+            f"self-evaluations) averaged over the achievable modules after {episodes:,} "
+            "episodes, a dot a run, the bar its condition's mean ± std"
+        )
+        if tests is not None:
+            end, width = int(tested["episodes"].iat[0]), int(tested.attrs["bin_size"])
+            text += (
+                f"; middle: the noise-free test rollouts on the achievable modules, pooled per "
+                f"run over episodes {max(end - width, 0) + 1:,}–{end:,}"
+            )
+        text += (
+            f". Right: the share of training episodes that practised a distracting module, per "
+            f"{int(share.attrs['bin_size']):,} episodes, mean ± std across seeds. LP-select "
+            "chooses modules by LP and replays uniformly; LP-replay chooses uniformly and "
+            "replays by LP; neither is in the paper."
+        )
+        caption(fig, text, note)
+    return finish(fig, out_dir, name)
+
+
+def _per_run_panel(ax: Axes, values: pd.DataFrame, conditions: Sequence[str]) -> None:
+    """One value per run at each condition's place: the runs as dots, mean ± std as a bar."""
+    for x, c in enumerate(conditions):
+        mine = values.loc[values["condition"].astype(str) == c, "value"].to_numpy(np.float64)
+        color = palette.condition_color(c)
+        ax.scatter(np.full(len(mine), x, dtype=np.float64), mine, color=color, s=18, zorder=3)
+        std = float(np.std(mine, ddof=1)) if len(mine) > 1 else 0.0
+        ax.errorbar(x + 0.18, float(np.mean(mine)), yerr=std, color=color, marker="_",
+                    markersize=14, capsize=4)  # fmt: skip
+    ax.set_xticks(range(len(conditions)))
+    ax.set_xticklabels([palette.condition_label(c) for c in conditions])
+    ax.set_xlim(-0.6, len(conditions) - 0.4)
+    ax.set_ylim(-0.03, 1.03)
+
+
+def _share_panel(ax: Axes, share: pd.DataFrame, conditions: Sequence[str]) -> None:
+    """The distracting modules' share of practice over the runs, a curve per condition."""
+    table = across_seeds(share)
+    for c in conditions:
+        s = table[table["condition"].astype(str) == c].sort_values("episodes")
+        draw_mean_std(ax, s, palette.condition_color(c), 2.0, palette.condition_label(c))
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_ylabel("share of episodes on a distracting module")
+    episodes_axis(ax)
+
+
+def signed_lp(
+    absolute: pd.DataFrame,
+    signed: pd.DataFrame,
+    tests_absolute: pd.DataFrame | None = None,
+    tests_signed: pd.DataFrame | None = None,
+    note: str | None = None,
+    out_dir: str | PathLike[str] | None = None,
+    name: str = "signed_lp",
+) -> tuple[Figure, pd.DataFrame]:
+    """The sensory-failure figure (`sensor_failure`) of CURIOUS's runs under absolute LP
+    (``absolute``, e.g. `sensor_failure_mastered`'s) and signed LP (``signed``, drawn as
+    `SIGNED_LP`), each table with its test rollouts where given (both or neither). Returns the
+    figure and the `recovery` table of every run."""
+    if (tests_absolute is None) != (tests_signed is None):
+        raise AnalysisError("give the test rollouts of both measures' runs, or of neither")
+    tables = [_curious_only(absolute, "absolute"), _as_signed(_curious_only(signed, "signed"))]
+    tests = None
+    if tests_absolute is not None and tests_signed is not None:
+        tests = pd.concat(
+            [
+                _curious_only(tests_absolute, "absolute"),
+                _as_signed(_curious_only(tests_signed, "signed")),
+            ],
+            ignore_index=True,
+        )
+    fig, per_run = sensor_failure(
+        pd.concat(tables, ignore_index=True),
+        conditions=["curious", SIGNED_LP],
+        note=note,
+        tests=tests,
+        name=name,
+    )
+    fig.axes[-1].set_ylabel("LP (absolute; signed: its rise only)")
+    fig.suptitle("Absolute against signed LP — sensory failure on a mastered module")
+    return finish(fig, out_dir, name), per_run
+
+
+def _curious_only(table: pd.DataFrame, measure: str) -> pd.DataFrame:
+    """``table``'s CURIOUS runs, with a clear error where it has none."""
+    mine = table[table["condition"].astype(str) == "curious"]
+    if mine.empty:
+        raise AnalysisError(f"the {measure} LP table has no CURIOUS runs")
+    return mine
+
+
+def _as_signed(table: pd.DataFrame) -> pd.DataFrame:
+    """``table`` with its runs' condition named `SIGNED_LP`."""
+    return table.assign(condition=SIGNED_LP)
