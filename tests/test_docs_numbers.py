@@ -3,8 +3,9 @@
 Each headline number of the README's results table (and the C1 bins table of docs/results.md) is
 computed here with `curious.analysis` from `data/laptop`, from the runs the report reads there
 (the budget's seeds, and a seed beyond them once all its runs of an experiment are shipped:
-`_whole_seeds`), formatted as the pages print it, and looked for in the page's text. A number
-that changes with the shipped data (a seed shipped whole, as the campaign goes on), or a page
+`_whole_seeds`), formatted as the pages print it (p-values by
+`curious.analysis.formatting.format_p`, as the report), and looked for in the page's text. A
+number that changes with the shipped data (a seed shipped whole, as the campaign goes on), or a page
 edited by hand away from the data, fails here.
 """
 
@@ -19,6 +20,7 @@ import numpy as np
 import pytest
 
 from curious import analysis
+from curious.analysis.formatting import format_p
 from curious.analysis.progress import progress_table
 from curious.reproduction.experiments import get_budget
 
@@ -178,7 +180,7 @@ def test_c1_the_bins_not_significant_are_named_with_their_means(main_bins):
     text = _text(RESULTS)
     for r in welch[~welch["significant"]].itertuples():
         named = f"ending at {int(r.episodes):,}"
-        means = f"({r.mean_better:.2f} against {r.mean_worse:.2f}, p = {r.p:.2g})"
+        means = f"({r.mean_better:.2f} against {r.mean_worse:.2f}, p = {format_p(r.p)})"
         assert named in text and means in text, (named, means)
 
 
@@ -204,7 +206,7 @@ def test_c1_bins_table_of_results_md(main_bins):
     text = RESULTS.read_text()
     for end in range(10_000, 100_001, 10_000):
         cells = [_mean_std(means.loc[(c, end)]) for c in ("curious", "mg-te", "her")]
-        row = f"| {end:,} | {' | '.join(cells)} | {p[end]:.2g} |"
+        row = f"| {end:,} | {' | '.join(cells)} | {format_p(p[end])} |"
         assert row in text, row
 
 
@@ -344,14 +346,14 @@ def test_c4_competence_per_number_of_distractors(n_distractors):
     p = float(analysis.welch_per_bin(final, "curious", "m-uvfa")["p"].iloc[0])
     curious, m_uvfa = means.loc["curious"], means.loc["m-uvfa"]
     results = f"| {n_distractors} | {_seeds_cell(curious)} | {_seeds_cell(m_uvfa)} |"
-    cell = f"| {p:.4f} |" if np.isfinite(p) else "| – | – |"
+    cell = f"| {format_p(p)} |"
     assert results in RESULTS.read_text() and cell in RESULTS.read_text(), results
     if int(curious["n"]) == 1 and int(m_uvfa["n"]) == 1:
         readme = (
             f"at {n_distractors}, {curious['mean']:.2f} and {m_uvfa['mean']:.2f} (1 seed so far)"
         )
     else:
-        tested = f"p = {p:.3f}" if np.isfinite(p) else "no spread to test"
+        tested = f"p = {format_p(p)}" if np.isfinite(p) else "no spread to test"
         c, m = _mean_std(curious), _mean_std(m_uvfa)
         readme = {
             0: f"at 0, {c} against {m} ({tested})",
@@ -369,7 +371,7 @@ def test_c4_test_success_per_number_of_distractors(n_distractors):
     welch = analysis.welch_per_bin(final, "curious", "m-uvfa").iloc[0]
     curious, m_uvfa = _seeds_cell(means.loc["curious"]), _seeds_cell(means.loc["m-uvfa"])
     row = f"| {n_distractors} | {curious} | {m_uvfa} | "
-    row += f"{welch['t']:.2f} | {welch['p']:.4f} |" if np.isfinite(welch["p"]) else "– | – |"
+    row += f"{welch['t']:.2f} | {format_p(welch['p'])} |" if np.isfinite(welch["p"]) else "– | – |"
     assert row in RESULTS.read_text(), row
 
 
@@ -399,10 +401,18 @@ def test_c4_degradation_between_the_settings_shipped():
     text = _text(RESULTS)
     reading = (
         f"from {d['fewest']} to {d['most']}, a difference of {d['difference']:+.2f} "
-        f"(t = {d['t']:.2f}, {d['df']:.1f} degrees of freedom, p = {d['p']:.3f} that CURIOUS "
+        f"(t = {d['t']:.2f}, {d['df']:.1f} degrees of freedom, p = {format_p(d['p'])} that CURIOUS "
         "loses less)"
     )
     assert reading in text, reading
+    # the same p where the pages sum C4 up, beside the comparison at 7 it repeats
+    p = format_p(d["p"])
+    at_7 = final[final["variant"] == f"distractors_{d['most']}"]
+    p_7 = format_p(float(analysis.welch_per_bin(at_7, "curious", "m-uvfa")["p"].iloc[0]))
+    assert f"CURIOUS degrades less (p = {p})" in _text(README), p
+    assert f"one-tailed that CURIOUS loses less, p = {p});" in text, p
+    assert f"significant at {d['most']} (p = {p_7})" in text, p_7
+    assert f"both are significant, at p = {p} and {p_7}." in text, (p, p_7)
 
 
 def test_c3_no_drop_of_a_mastered_module():
@@ -518,6 +528,26 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
         assert f"p = {fmt_p(test['p'])}" in readme, welch
 
 
+P_QUOTED = re.compile(r"\bp(?: =| is)? (\d[\d.e-]*\d|\d)(?: (?:to|and) (\d[\d.e-]*\d|\d))?\b")
+"""A p-value as the pages quote it: "p = 0.0018", "p 0.0017 to 0.0021", "exact p is 0.05",
+"at p = 0.0011 and 0.0018"."""
+
+
+def test_every_p_value_the_pages_quote_is_rounded_as_the_report_rounds_it():
+    """One rounding everywhere: every p the README and docs/results.md quote reads as
+    `format_p` writes it, which the report formats with (C1's unbinned p was 1e-05, 9.7e-06 and
+    9.68e-06 on three pages)."""
+    from pipelines.report.blocks import fmt_p
+
+    assert fmt_p(9.68e-06) == format_p(9.68e-06) == "9.7e-06"
+    assert fmt_p(float("nan")) == format_p(None) == "–"
+    quoted = [(page.name, x) for page in (README, RESULTS) for m in P_QUOTED.finditer(_text(page))
+              for x in m.groups() if x]  # fmt: skip
+    assert len(quoted) > 30, quoted
+    other = [(page, x, format_p(float(x))) for page, x in quoted if format_p(float(x)) != x]
+    assert not other, f"p-values not rounded as format_p rounds them: {other}"
+
+
 def test_c1_area_under_success_per_seed_and_its_welch_test():
     """C1's reading without bins: each seed's success over every epoch, and the Welch test."""
     area = analysis.area_under_success(analysis.load_tests(_whole_seeds("main")))
@@ -530,13 +560,15 @@ def test_c1_area_under_success_per_seed_and_its_welch_test():
             seeds = f"{labels[condition]} {_listed([f'{v:.2f}' for v in values])}"
             assert f"{seeds} ({_mean_std(means)})" in text, seeds
     test = analysis.welch_per_bin(area, "curious", "mg-te").iloc[0]
-    assert f"t = {test['t']:.2f}, p = {test['p']:.2g}" in text
-    assert f"without bins (p = {test['p']:.1g})" in _text(README)
-    assert f"without bins (p = {test['p']:.2g})" in text
+    assert f"t = {test['t']:.2f}, p = {format_p(test['p'])}" in text
+    assert f"without bins (p = {format_p(test['p'])})" in _text(README)
+    assert f"without bins (p = {format_p(test['p'])})" in text
     ours = {int(r.seed) for r in get_budget("laptop").experiments["main"].runs()}
     if set(area["seed"]) != ours:
         three = analysis.welch_per_bin(area[area["seed"].isin(ours)], "curious", "mg-te").iloc[0]
-        assert f"(with the budget's three: t = {three['t']:.2f}, p = {three['p']:.2g})" in text
+        assert (
+            f"(with the budget's three: t = {three['t']:.2f}, p = {format_p(three['p'])})" in text
+        )
 
 
 def test_the_protocols_compute_is_the_runs_own_clocks():
@@ -609,7 +641,7 @@ def test_c1_the_bins_significant_after_holms_correction(main_bins):
     _, welch = main_bins
     holm = f"in {int(welch['significant_holm'].sum())} of {len(welch)} after Holm's correction"
     lost = welch[welch["significant"] & ~welch["significant_holm"]]
-    p = f"p {lost['p'].min():.2g} to {lost['p'].max():.2g}"
+    p = f"p {format_p(lost['p'].min())} to {format_p(lost['p'].max())}"
     text = _text(RESULTS)
     assert holm in text and f"{holm} for the {len(welch)} tests" in text
     assert p in text and "20,000 and 45,000 to 55,000 episodes" in text
@@ -648,13 +680,15 @@ def test_c3_the_dips_in_the_shipped_runs():
     assert f"in {n} runs. Their p_LP rose by {p_lp['mean']:.2f} more" in text
     assert f"(in {p_lp['n_positive']} runs of {n} above 0)" in text
     assert f"by {practice['mean']:.2f} more ({practice['n_positive']} of {n})" in text
-    assert f"exact sign-flip p = {p_lp['p']:.2g} for both" in text and p_lp["p"] == practice["p"]
-    assert f"{n} runs allowing {1 / 2**n:.2g} at the least" in text
+    assert (
+        f"exact sign-flip p = {format_p(p_lp['p'])} for both" in text and p_lp["p"] == practice["p"]
+    )
+    assert f"{n} runs allowing {format_p(1 / 2**n)} at the least" in text
     rose = shallow.loc[shallow["status"] == "read", "p_lp_change"]
     assert f"after {int((rose > 0).sum())} of the {len(rose)} read dips it rose" in text
     assert f"(by up to {rose.max():.2f})" in text
     # the summary table's row
-    assert f"in {p_lp['n_positive']} of {n} CURIOUS runs (p = {p_lp['p']:.2g}" in text
+    assert f"in {p_lp['n_positive']} of {n} CURIOUS runs (p = {format_p(p_lp['p'])}" in text
 
 
 def test_c5_the_censored_reading_at_three_seeds_a_side():
@@ -671,13 +705,14 @@ def test_c5_the_censored_reading_at_three_seeds_a_side():
     test = analysis.compare_censored_recoveries(by_tests, "curious", "m-uvfa")
     text = _text(RESULTS)
     assert (
-        f"Z = {test['z']:.2f}, exact permutation p = {test['p']:.2g} over the {test['splits']} "
-        "splits" in text
+        f"Z = {test['z']:.2f}, exact permutation p = {format_p(test['p'])} over the "
+        f"{test['splits']} splits" in text
     )
-    assert f"(normal approximation {test['p_normal']:.2g})" in text
-    assert f"Gehan's check {test['gehan']:.0f}, exact p = {test['p_gehan']:.2g}" in text
-    assert f"exact p = {test['p']:.2g}, the smallest three a side allow being" in text
-    assert f"the smallest exact p is {1 / test['splits']:.2g}" in text
-    assert f"censored, exact p = {test['p']:.2g}); seeds 3 and 4 a side are training" in _text(
-        README
+    assert f"(normal approximation {format_p(test['p_normal'])})" in text
+    assert f"Gehan's check {test['gehan']:.0f}, exact p = {format_p(test['p_gehan'])}" in text
+    assert f"exact p = {format_p(test['p'])}, the smallest three a side allow being" in text
+    assert f"the smallest exact p is {format_p(1 / test['splits'])}" in text
+    assert (
+        f"censored, exact p = {format_p(test['p'])}); seeds 3 and 4 a side are training"
+        in _text(README)
     )

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from curious import analysis
+from curious.analysis.formatting import format_p, format_value
 from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
 from pipelines.resources import Reproduction
@@ -69,8 +70,8 @@ class ExperimentTables:
 
 
 def fmt(value: float, digits: int = 2) -> str:
-    """A number to `digits` decimals, or – where there is none (None, NaN, inf)."""
-    return "–" if value is None or not math.isfinite(float(value)) else f"{value:.{digits}f}"
+    """A number to `digits` decimals, or – where there is none (`analysis.formatting`)."""
+    return format_value(value, digits)
 
 
 def mean_std(values: Sequence[float]) -> str:
@@ -110,8 +111,8 @@ def fmt_episodes(value: object) -> str:
 
 
 def fmt_p(value: float) -> str:
-    """A p-value to three significant digits, or – where untested (NaN)."""
-    return "–" if not math.isfinite(value) else f"{value:.3g}"
+    """A p-value as every page prints it, or – where untested (`analysis.formatting`)."""
+    return format_p(value)
 
 
 def in_order(frame: pd.DataFrame, e: Experiment) -> pd.DataFrame:
