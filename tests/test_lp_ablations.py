@@ -152,7 +152,7 @@ def beyond(tmp_path_factory):
 
 
 def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_path):
-    from curious.analysis.figures.lp_ablations import LP_USE_ORDER, lp_uses
+    from curious.analysis.figures.beyond_paper import LP_USE_ORDER, lp_uses
 
     runs, tests = beyond["uses"]
     fig = lp_uses(runs, tests, out_dir=tmp_path)
@@ -169,7 +169,7 @@ def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_pa
 
 
 def test_the_signed_lp_figure_draws_both_measures_as_two_conditions(beyond, tmp_path):
-    from curious.analysis.figures.lp_ablations import SIGNED_LP, signed_lp
+    from curious.analysis.figures.beyond_paper import SIGNED_LP, signed_lp
     from curious.analysis.palette import condition_label
 
     (absolute, tests_a), (signed, tests_s) = beyond["absolute"], beyond["signed"]
