@@ -87,6 +87,8 @@ class ReproduceResult:
     seconds: float = 0.0
     from_data: Path | None = None
     """The shipped data folder the runs were read from (None: trained)."""
+    retried: dict[str, list[str]] = field(default_factory=dict)
+    """Run label -> why and from where it was submitted again after its worker was lost."""
 
     @property
     def trained(self) -> list[PartitionResult]:
@@ -278,13 +280,16 @@ def reproduce(
     progress: bool = True,
     say: Callable[[str], None] | None = None,
     from_data: str | os.PathLike | None = None,
+    before_training: Callable[[], None] | None = None,
 ) -> ReproduceResult:
     """Train and draw everything `budget` asks for (see the module docstring).
 
     `make_pool` builds the training pool (`pipelines.executors.make_pool`); it is called before
     anything is written, so that a Ray cluster that does not answer fails first. `overrides`
     change single training settings of every run (`--device`); `say` prints progress lines.
-    While it runs, OUT is locked against a second reproduction (`ReproduceError`).
+    `before_training` is called once every check has passed, before anything is trained (the
+    README's job builds the shipped campaign's report there). While it runs, OUT is locked
+    against a second reproduction (`ReproduceError`).
 
     With `from_data`, a shipped data folder (`curious ship`), nothing is trained: the runs are
     read from it (`pipelines.from_data`), by default every experiment it holds complete, into
@@ -311,7 +316,8 @@ def reproduce(
     _check_writable(layout)
     with _reproduction_lock(layout):
         return _reproduce(
-            chosen, selected, layout, make_pool, overrides, record, progress, say, tic, data
+            chosen, selected, layout, make_pool, overrides, record, progress, say, tic, data,
+            before_training,
         )  # fmt: skip
 
 
@@ -396,6 +402,7 @@ def _reproduce(
     say: Callable[[str], None] | None,
     tic: float,
     data: ShippedData | None = None,
+    before_training: Callable[[], None] | None = None,
 ) -> ReproduceResult:
     import dagster as dg
 
@@ -425,6 +432,8 @@ def _reproduce(
         )
     else:
         pool = repro.pool  # connects to Ray (or fails) before anything is written
+        if before_training is not None:
+            before_training()
         to_train = counts.get("partial", 0) + counts.get("new", 0)
         repro.say(
             f"curious reproduce --budget {chosen.name}: {names}; "
@@ -474,6 +483,7 @@ def _reproduce(
             finally:
                 instance.dispose()
     finally:
+        repro.say_retried()
         repro.close()
     return ReproduceResult(
         budget=chosen.name,
@@ -482,6 +492,7 @@ def _reproduce(
         results=list(repro.results),
         seconds=time.perf_counter() - tic,
         from_data=None if data is None else data.path,
+        retried=dict(repro.retried),
     )
 
 

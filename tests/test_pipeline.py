@@ -266,10 +266,11 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     smoke, shipped, tmp_path, monkeypatch, capsys
 ):
     """`curious reproduce` on a budget with a shipped campaign beside it (the README's quick
-    job and data/laptop; here the smoke budget and its shipped smoke runs): after its own
-    training it builds the shipped campaign's report and figures into <campaign>-shipped beside
-    OUT, from the shipped runs alone, and ends by saying where each output is and what each
-    can show. --no-shipped leaves the campaign out."""
+    job and data/laptop; here the smoke budget and its shipped smoke runs): the claims first,
+    once its input is checked and before it trains, it builds the shipped campaign's report and
+    figures into <campaign>-shipped beside OUT, from the shipped runs alone, and says where they
+    and the claims' results table are; then what its own budget can show, its training, and at
+    the end where each output is and what each can show. --no-shipped leaves the campaign out."""
     import shutil
 
     from curious.commands import reproduce as command
@@ -288,6 +289,16 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     )
     assert "0 run(s) trained, 17 already finished" in stdout
     assert "17 shipped run(s) read, none trained" in stdout
+    order = [
+        "The paper's claims first: the shipped `smoke` campaign's report",
+        "17 shipped run(s) read, none trained",
+        f"results table: {command.results_page()} (each claim's verdict",
+        "Now the budget `smoke`, trained here",
+        "0 run(s) trained, 17 already finished",
+    ]
+    found = [stdout.find(line) for line in order]
+    assert -1 not in found and found == sorted(found), stdout
+    assert "at_once" not in json.loads((beside / "reproduce.json").read_text())  # trains none
     closing = stdout[stdout.index("What each output can show:") :]
     assert f"{out / 'report.md'} and {out / 'figures'}/" in closing
     assert "it cannot show the paper's claims" in closing

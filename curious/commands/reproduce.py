@@ -13,11 +13,13 @@ OUT/.dagster: no server to start. Training runs go to worker processes (one per 
 A second call with the same budget and --out retrains nothing that is finished and resumes what
 was interrupted.
 
-The README's job, `curious reproduce` (budget quick), ends by also building the report and
-figures of the shipped `laptop` campaign (data/laptop, committed with the repository) into
-runs/laptop-shipped beside its own output, in seconds, and says what each can show: the quick
-runs check the pipeline on this machine, the shipped campaign's report shows the paper's claims
-as far as its runs go (`SHIPPED_BESIDE`; --no-shipped leaves it out).
+The README's job, `curious reproduce` (budget quick), shows the paper's claims first: once its
+input is checked, it builds the report and figures of the shipped `laptop` campaign
+(data/laptop, committed with the repository) into runs/laptop-shipped beside its own output, in
+seconds, and prints where they and the claims' results table are; then it trains the quick
+budget, saying what that can and cannot show (the pipeline working on this machine, not the
+claims), and ends by saying what each output shows (`SHIPPED_BESIDE`; --no-shipped leaves the
+campaign out).
 
 --from-data DATA trains nothing: it reads the runs from a shipped data folder (`curious ship`;
 the repository's data/<budget>), every experiment it holds complete unless --experiments says
@@ -272,6 +274,18 @@ def run(args: argparse.Namespace) -> int:
     def pool():
         return make_pool(args.ray_address, args.workers, args.cpus_per_run, args.gpus_per_run)
 
+    shipped: list[ReproduceResult] = []
+
+    def claims_first() -> None:
+        """Between the checks and the training: the shipped campaign's report, then what the
+        budget about to train can show."""
+        if args.budget not in SHIPPED_BESIDE:
+            return
+        if not args.no_shipped:
+            built = _build_shipped_beside(args.budget, args.out, not args.no_progress)
+            shipped.extend([built] if built is not None else [])
+        _about_to_train(args.budget)
+
     try:
         result = reproduce(
             args.budget,
@@ -282,6 +296,7 @@ def run(args: argparse.Namespace) -> int:
             overrides=overrides or None,
             record=not args.no_record,
             progress=not args.no_progress,
+            before_training=claims_first,
         )
     except (ExperimentError, ConfigError, ReproduceError, RunFolderMismatch, RayUnavailable) as exc:
         return refuse("reproduce", exc)
@@ -296,10 +311,10 @@ def run(args: argparse.Namespace) -> int:
         )
         return 130
 
+    result.seconds -= sum(s.seconds for s in shipped)  # its own time, said by its own line
     _done(result)
     if result.budget in SHIPPED_BESIDE:
-        shipped = None if args.no_shipped else _build_shipped_beside(result, not args.no_progress)
-        _what_each_shows(result, shipped)
+        _what_each_shows(result, shipped[0] if shipped else None)
     return 0
 
 
@@ -335,54 +350,81 @@ def shipped_data_folder(name: str) -> Path | None:
     return None
 
 
-def _build_shipped_beside(result: ReproduceResult, progress: bool) -> ReproduceResult | None:
-    """The shipped campaign's report and figures, into <campaign>-shipped beside OUT; None (with
+def results_page() -> Path | None:
+    """docs/results.md of the clone this package lies in (the claims' results table, each
+    verdict with its numbers), or None where there is none (an install without the docs)."""
+    page = Path(__file__).resolve().parents[2] / "docs" / "results.md"
+    return page if page.is_file() else None
+
+
+def _build_shipped_beside(budget: str, out: str | None, progress: bool) -> ReproduceResult | None:
+    """The shipped campaign's report and figures, into <campaign>-shipped beside OUT (`out`,
+    else the budget's default), then where they and the claims' results table are; None (with
     a line saying why) where the budget has none or it cannot be built."""
-    from curious.reproduction.experiments import ExperimentError
+    from curious.reproduction.experiments import ExperimentError, get_budget
     from pipelines.reproduce import ReproduceError, reproduce
 
-    name = SHIPPED_BESIDE.get(result.budget)
+    name = SHIPPED_BESIDE.get(budget)
     if name is None:
         return None
     data = shipped_data_folder(name)
     if data is None:
         print(
-            f"\nNo shipped data/{name} here (it comes with a clone of the repository): the "
-            f"shipped campaign's report was not built.",
+            f"No shipped data/{name} here (it comes with a clone of the repository): the "
+            f"shipped campaign's report was not built.\n",
             file=sys.stderr,
         )
         return None
-    out = result.layout.out.parent / f"{name}-shipped"
-    print(f"\nThe shipped `{name}` campaign's report and figures, from {data}:")
+    beside = Path(out or get_budget(budget).default_out).parent / f"{name}-shipped"
+    print(f"The paper's claims first: the shipped `{name}` campaign's report, from {data}:")
     try:
-        shipped = reproduce(name, out=out, progress=progress, from_data=data)
+        shipped = reproduce(name, out=beside, progress=progress, from_data=data)
     except (ExperimentError, ReproduceError) as exc:
-        print(f"curious reproduce: the shipped campaign's report was not built: {exc}")
+        print(f"curious reproduce: the shipped campaign's report was not built: {exc}\n")
         return None
     _done(shipped)
+    page = results_page()
+    table = f"\n  results table: {page} (each claim's verdict, with its numbers)" if page else ""
+    print(f"  It shows {_claims(shipped)}.{table}\n")
     return shipped
+
+
+def _claims(shipped: ReproduceResult) -> str:
+    """The claims the shipped experiments' figures and numbers test (`CLAIMS`), in order."""
+    return "; ".join(text for e, text in CLAIMS.items() if e in shipped.experiments)
+
+
+def _what_it_can_show(budget: str) -> str:
+    """What a budget with a shipped campaign beside it can show, trained here."""
+    from curious.reproduction.experiments import get_budget
+
+    chosen = get_budget(budget)
+    return (
+        f"budget `{budget}`, trained here ({chosen.description}). It checks that training, the "
+        "analysis and the figures run on this machine; it cannot show the paper's claims. "
+        f"{chosen.caption_note}"
+    )
+
+
+def _about_to_train(budget: str) -> None:
+    """The line before a budget with a shipped campaign beside it trains: what it can show."""
+    print(f"Now the {_what_it_can_show(budget)}")
 
 
 def _what_each_shows(result: ReproduceResult, shipped: ReproduceResult | None) -> None:
     """The closing lines of a budget with a shipped campaign beside it: where each output is
     and what it can show."""
-    from curious.reproduction.experiments import get_budget
-
-    budget = get_budget(result.budget)
     print("\nWhat each output can show:")
     print(
         f"  {result.layout.report} and {result.layout.figures}/\n"
-        f"    budget `{result.budget}`, trained here ({budget.description}). It checks that "
-        "training, the analysis and the figures run on this machine; it cannot show the "
-        f"paper's claims. {budget.caption_note}"
+        f"    {_what_it_can_show(result.budget)}"
     )
     if shipped is not None:
-        claims = "; ".join(text for e, text in CLAIMS.items() if e in shipped.experiments)
         print(
             f"  {shipped.layout.report} and {shipped.layout.figures}/\n"
             f"    the shipped `{shipped.budget}` campaign, {len(shipped.results)} runs read from "
             f"{shipped.from_data}: the paper's claims as far as its runs go, each figure with "
-            f"its statistics: {claims}."
+            f"its statistics: {_claims(shipped)}."
         )
 
 
