@@ -11,34 +11,30 @@ For every experiment E (`curious.reproduction.experiments`), in group E:
 * `E/metrics`: the combined metrics table of the experiment's runs
   (`curious.analysis.load_runs`), written to `metrics/E.parquet`, and their test rollouts
   (`curious.analysis.load_tests`) to `metrics/E.tests.parquet` where every run has them.
-* one asset per figure, drawn by `curious.analysis` from those tables (Fig. 2a from the test
-  rollouts, as the paper's; the others from the metrics):
-  `main/fig2a`, `main/fig2b`, `main/fig2c`, `main/table1`, `distractors/distractors`,
-  `sensor_failure/sensor_failure`, `sensor_failure_mastered/sensor_failure_mastered` (the same
-  figure of its own runs, with their test success above: the primary measure of that study).
+* `E/NAME`: one asset per figure registered for E (`curious.reproduction.figures`, a plugin's
+  among them), drawn from those tables and saved as `figures/NAME.png` and `.svg`: the built-in
+  ones `main/fig2a` (from the test rollouts, as the paper's), `main/fig2b`, `main/fig2c`,
+  `main/table1`, `distractors/distractors`, `sensor_failure/sensor_failure`,
+  `sensor_failure_mastered/sensor_failure_mastered` (the same figure of its own runs, with their
+  test success above: the primary measure of that study) and `long/long_runs`.
 
 And `report` (group `report`): `report.md` from the figures and statistics that exist.
 """
 
 import base64
 import warnings
-from collections.abc import Callable
 from pathlib import Path
 
 import dagster as dg
 import pandas as pd
 from dagster import AssetExecutionContext
 
-from curious.reproduction.experiments import FIGURES, Experiment
+from curious.reproduction.experiments import Experiment, experiment_names
+from curious.reproduction.figures import FigureInputs, FigureSpec, check_figures, figures_of
 from pipelines.resources import Reproduction
 from pipelines.training import FINISHED, run_folder
 
 RESOURCE = "reproduction"
-
-FAILURE_FIGURES: dict[str, bool] = {"sensor_failure": False, "sensor_failure_mastered": True}
-"""The sensory-failure figures (`analysis.sensor_failure`, one per experiment of the variant), and
-whether each draws the runs' test success: the primary measure of the study on a mastered module
-(docs/results.md, C5)."""
 
 
 def _path(repro: Reproduction, path: Path) -> dg.MetadataValue:
@@ -212,79 +208,52 @@ def _metrics_asset(experiment: Experiment) -> dg.AssetsDefinition:
     return metrics
 
 
-def _draw(
-    name: str, experiment: Experiment
-) -> Callable[[Reproduction, pd.DataFrame, str, str], dict]:
-    """The analysis call of one figure, with the budget's caption note; returns the figure's
-    metadata: its caption, and extras such as a statistics CSV."""
-    from curious import analysis
-
-    def draw(repro: Reproduction, table: pd.DataFrame, out_dir: str, note: str) -> dict:
-        extra = {}
-        if name == "fig2a":
-            tests = load_tests(repro, experiment)
-            fig = analysis.fig2a(tests, compare=experiment.compare, note=note, out_dir=out_dir)
-        elif name in ("fig2b", "fig2c", "table1"):
-            fig = getattr(analysis, name)(table, condition="curious", note=note, out_dir=out_dir)
-        elif name == "distractors":
-            # the settings shipped with too few runs for the statistics are drawn beside them
-            extra_runs = repro.left_out_runs(experiment)
-            folders = run_folders(repro, experiment) + extra_runs if extra_runs else None
-            if folders:
-                table = analysis.load_runs(folders)
-            try:  # runs without test rollouts: the competence panel alone
-                tests = analysis.load_tests(folders) if folders else load_tests(repro, experiment)
-            except analysis.AnalysisError:
-                tests = None
-            fig = analysis.distractors(table, note=note, out_dir=out_dir, tests=tests)
-        elif name == "long_runs":
-            dips = analysis.mastery_dips(table, analysis.TEST_DEPTH)
-            fig = analysis.long_runs(table, dips=dips, note=note, out_dir=out_dir)
-        elif name in FAILURE_FIGURES:
-            tests = None
-            if FAILURE_FIGURES[name]:
-                try:
-                    tests = load_tests(repro, experiment)
-                except analysis.AnalysisError:  # runs without test rollouts: no test panel
-                    tests = None
-            fig, per_run = analysis.sensor_failure(
-                table, note=note, out_dir=out_dir, name=name, tests=tests
-            )
-            csv = f"{out_dir}/{name}.csv"
-            per_run.drop(columns=["run"]).to_csv(csv, index=False, float_format="%.6g")
-            extra["recovery_csv"] = _path(repro, Path(csv))
-        else:  # pragma: no cover - FIGURES and this function are kept in step
-            raise KeyError(name)
-        caption = " ".join(fig.get_supxlabel().split())  # unwrapped
-        return {"caption": dg.MetadataValue.text(caption), **extra}
-
-    return draw
+def figure_inputs(
+    repro: Reproduction, experiment: Experiment, spec: FigureSpec, table: pd.DataFrame
+) -> FigureInputs:
+    """What a figure of `experiment` is drawn from, with the budget's caption note."""
+    return FigureInputs(
+        experiment=experiment,
+        metrics=table,
+        folders=tuple(run_folders(repro, experiment)),
+        shown_anyway=tuple(repro.left_out_runs(experiment)),
+        note=repro.budget.caption_note_for(experiment),
+        out_dir=repro.layout.figures,
+        stem=spec.stem(experiment.name),
+        load_tests=lambda: load_tests(repro, experiment),
+    )
 
 
-def _figure_asset(experiment: Experiment, name: str) -> dg.AssetsDefinition:
-    draw = _draw(name, experiment)
+def _figure_asset(experiment: Experiment, spec: FigureSpec) -> dg.AssetsDefinition:
+    stem = spec.stem(experiment.name)
 
     @dg.asset(
-        key=figure_key(experiment.name, name),
+        key=figure_key(experiment.name, spec.name),
         group_name=experiment.name,
         deps=[metrics_key(experiment.name)],
         required_resource_keys={RESOURCE},
-        description=f"figures/{name}.png and .svg, drawn by curious.analysis.{name}.",
+        description=f"figures/{stem}.png and .svg, drawn by {spec.draw.__module__}.",
         kinds={"matplotlib"},
     )
     def figure(context: AssetExecutionContext) -> dg.MaterializeResult:
+        from curious.analysis.style import save_figure
+
         repro: Reproduction = getattr(context.resources, RESOURCE)
         table = load_metrics(repro, experiment.name)
         out_dir = repro.layout.figures
         out_dir.mkdir(parents=True, exist_ok=True)
-        extra = draw(repro, table, str(out_dir), repro.budget.caption_note_for(experiment))
-        repro.say(f"  figure: {out_dir / name}.png")
+        inputs = figure_inputs(repro, experiment, spec, table)
+        fig = spec.draw(inputs)
+        save_figure(fig, out_dir, stem)
+        caption = " ".join(fig.get_supxlabel().split())  # unwrapped
+        repro.say(f"  figure: {out_dir / stem}.png")
         return dg.MaterializeResult(
             metadata={
-                "figure": _inline_png(out_dir / f"{name}.png"),
-                "png": _path(repro, out_dir / f"{name}.png"),
-                "svg": _path(repro, out_dir / f"{name}.svg"),
-                **extra,
+                "figure": _inline_png(out_dir / f"{stem}.png"),
+                "png": _path(repro, out_dir / f"{stem}.png"),
+                "svg": _path(repro, out_dir / f"{stem}.svg"),
+                "caption": dg.MetadataValue.text(caption),
+                **{suffix: _path(repro, path) for suffix, path in inputs.written.items()},
             }
         )
 
@@ -295,7 +264,7 @@ def _report_asset(experiments: list[Experiment]) -> dg.AssetsDefinition:
     @dg.asset(
         key="report",
         group_name="report",
-        deps=[figure_key(e.name, f) for e in experiments for f in FIGURES[e.name]],
+        deps=[figure_key(e.name, f.name) for e in experiments for f in figures_of(e.name)],
         required_resource_keys={RESOURCE},
         description="report.md: the figures, seeds, budgets and statistics (Welch tests).",
         kinds={"markdown"},
@@ -320,12 +289,14 @@ def experiment_assets(experiment: Experiment) -> list[dg.AssetsDefinition]:
     return [
         _runs_asset(experiment),
         _metrics_asset(experiment),
-        *(_figure_asset(experiment, name) for name in FIGURES[experiment.name]),
+        *(_figure_asset(experiment, spec) for spec in figures_of(experiment.name)),
     ]
 
 
 def all_assets(experiments: list[Experiment]) -> list[dg.AssetsDefinition]:
-    """Every experiment's assets and the report."""
+    """Every experiment's assets and the report; a `ValueError` where a registered figure names
+    an experiment that does not exist."""
+    check_figures(experiment_names())
     with warnings.catch_warnings():
         # `backfill_policy` is marked beta in Dagster 1.13; single-run backfills are what lets
         # one run train many partitions side by side.

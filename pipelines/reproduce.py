@@ -37,12 +37,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from curious.reproduction.experiments import (
-    FIGURES,
     Experiment,
     ExperimentError,
     ReproduceBudget,
     get_budget,
 )
+from curious.reproduction.figures import figures_of
 from curious.reproduction.shipped_folder import shipped_root
 from pipelines.resources import OutputLayout, Reproduction
 from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy
@@ -471,7 +471,7 @@ def _reproduce(
                     for e in selected
                     for key in (
                         metrics_key(e.name),
-                        *(figure_key(e.name, f) for f in FIGURES[e.name]),
+                        *(figure_key(e.name, f.name) for f in figures_of(e.name)),
                     )
                 ]
                 _materialize(

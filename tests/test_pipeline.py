@@ -23,8 +23,8 @@ import pytest
 from pipeline_pools import InterruptingPool, OrderPool
 
 from curious.cli import main as curious_cli
-from curious.reproduction.experiments import FIGURES as FIGURES_OF
 from curious.reproduction.experiments import get_budget
+from curious.reproduction.figures import figures_of
 from curious.runs.provenance import machine, machine_text
 from curious.watching.recording.reader import summarize
 from pipelines.executors import LocalPool
@@ -221,7 +221,7 @@ def test_dagster_instance_in_the_output_folder_records_every_partition(smoke):
         for name, experiment in SMOKE.experiments.items():
             note = SMOKE.caption_note_for(experiment)
             assert note.startswith(SMOKE.caption_note)
-            for figure in FIGURES_OF[name]:
+            for figure in (f.name for f in figures_of(name)):
                 event = instance.get_latest_materialization_event(dg.AssetKey([name, figure]))
                 metadata = event.asset_materialization.metadata
                 assert metadata["caption"].value.endswith(note), (name, figure)
@@ -365,8 +365,8 @@ def test_a_figure_drawn_without_its_test_panel_is_captioned_without_it(smoke, tm
     caption does not name one."""
     import shutil
 
+    from curious.reproduction.figures import get_figure
     from pipelines.report import write_report
-    from pipelines.report.blocks import FIGURE_TEXT, UNTESTED_FIGURE_TEXT
     from pipelines.resources import OutputLayout, Reproduction
 
     name = {"distractors": "distractors", "sensor_failure_mastered": "sensor_failure_mastered"}
@@ -374,15 +374,17 @@ def test_a_figure_drawn_without_its_test_panel_is_captioned_without_it(smoke, tm
     shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns("*.lock", ".dagster"))
     repro = Reproduction(SMOKE, OutputLayout.at(out), make_pool=LocalPool)
     report, _ = write_report(repro)
-    assert FIGURE_TEXT[name[experiment]] in report.read_text()  # with test rollouts
+    spec = get_figure(name[experiment])
+    assert spec.untested_text and spec.text != spec.untested_text
+    assert spec.text in report.read_text()  # with test rollouts
 
     for path in (out / "runs" / experiment).rglob("tests.parquet"):
         path.unlink()
     repro.layout.tests(experiment).unlink()
     report, _ = write_report(repro)
     text = report.read_text()
-    assert FIGURE_TEXT[name[experiment]] not in text
-    assert UNTESTED_FIGURE_TEXT[name[experiment]] in text
+    assert spec.text not in text
+    assert spec.untested_text in text
 
 
 def test_runs_without_test_rollouts_get_no_fig2a_and_the_report_says_why(smoke, tmp_path):

@@ -46,7 +46,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from curious.commands import add_set_option, refuse
-from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, EXPERIMENTS
+from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, experiment_names
 from curious.runs.side_by_side import MAX_WORKERS
 
 if TYPE_CHECKING:
@@ -104,7 +104,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--experiments",
         default=None,
         metavar="LIST",
-        help=f"comma-separated subset of {','.join(EXPERIMENTS)} (default: all the budget's)",
+        help=f"comma-separated subset of {','.join(experiment_names())} (default: all the "
+        "budget's)",
     )
     parser.add_argument(
         "--out",

@@ -31,6 +31,10 @@ An *experiment* is a set of training runs that one group of figures compares:
   before its runs. `laptop` trains it; `paper`'s `main` already trains CURIOUS that long, and
   `quick` is three hundred times too short, so both leave it out.
 
+A plugin (`curious.plugins`) adds an experiment of its own with `register_experiment`: its runs
+at the budgets it names, its figures registered for it (`curious.reproduction.figures`), its
+section of the report those figures.
+
 A *run* (`RunSpec`) is one condition, one variant and one seed: one run folder, and one Dagster
 partition. Partitions are two-dimensional (Dagster's multi-partitions take exactly two axes):
 `condition` x `seed`. Where an experiment trains several variants its condition axis carries the
@@ -74,19 +78,18 @@ EXPERIMENTS: tuple[str, ...] = (
     "sensor_failure_mastered",
     "long",
 )
-"""Experiment names, in the order they are trained and reported (`long`, the longest runs by
-far, last)."""
+"""The built-in experiments' names, in the order they are trained and reported (`long`, the
+longest runs by far, last); `experiment_names` adds the registered ones."""
 
-FIGURES: dict[str, tuple[str, ...]] = {
-    "main": ("fig2a", "fig2b", "fig2c", "table1"),
-    "distractors": ("distractors",),
-    "sensor_failure": ("sensor_failure",),
-    "sensor_failure_mastered": ("sensor_failure_mastered",),
-    "long": ("long_runs",),
-}
-"""The figures each experiment redraws (`figures/NAME.png`), the first the one its report
-section opens with: the `curious.analysis` function of that name, or the sensory-failure figure of
-each sensory-failure study."""
+REGISTERED_EXPERIMENTS: list[str] = []
+"""Experiments added by `register_experiment` (a plugin's), after the built-in ones."""
+
+
+def experiment_names() -> tuple[str, ...]:
+    """Every experiment's name, in the order they are trained and reported: the built-in ones
+    (`EXPERIMENTS`), then the registered ones."""
+    return (*EXPERIMENTS, *REGISTERED_EXPERIMENTS)
+
 
 _EXPERIMENT_FIELDS = frozenset(
     {"variant", "total_episodes", "sensor_failure_episode", "sensor_failure_competence"}
@@ -195,8 +198,8 @@ class Experiment:
     them."""
 
     def __post_init__(self) -> None:
-        if self.name not in EXPERIMENTS:
-            raise ExperimentError(f"unknown experiment {self.name!r}; choose from {EXPERIMENTS}")
+        if not isinstance(self.name, str) or not self.name or any(c in self.name for c in "@|/,"):
+            raise ExperimentError(f"an experiment's name is one word, got {self.name!r}")
         unknown = [c for c in self.conditions if c not in condition_names()]
         if unknown or not self.conditions:
             raise ExperimentError(f"{self.name}: unknown or no conditions {unknown}")
@@ -389,21 +392,22 @@ class ReproduceBudget:
         return f"{note} {n} seed{'s' if n != 1 else ''} where the `paper` budget trains {trains}."
 
     def __post_init__(self) -> None:
-        if tuple(self.experiments) != tuple(e for e in EXPERIMENTS if e in self.experiments):
+        names = experiment_names()
+        if tuple(self.experiments) != tuple(e for e in names if e in self.experiments):
             raise ExperimentError(
                 f"{self.name}: experiments out of order: {tuple(self.experiments)}"
             )
         for key, experiment in self.experiments.items():
             if key != experiment.name:
                 raise ExperimentError(f"{self.name}: experiment {key!r} is named {experiment.name}")
-        for name in EXPERIMENTS:
+        for name in names:
             trained, reason = name in self.experiments, self.omitted.get(name)
             if trained == (reason is not None) or reason == "":
                 raise ExperimentError(
                     f"{self.name}: experiment {name!r} must be either trained or omitted with a "
                     "reason"
                 )
-        if strangers := sorted(set(self.omitted) - set(EXPERIMENTS)):
+        if strangers := sorted(set(self.omitted) - set(names)):
             raise ExperimentError(f"{self.name}: omits unknown experiment(s) {strangers}")
         if not self.default_out:
             object.__setattr__(self, "default_out", f"runs/{self.name}")
@@ -539,7 +543,7 @@ _FRACTIONS = {(1, 2): "half", (1, 3): "a third", (2, 3): "two thirds", (1, 4): "
 
 def _length_note(prefix: str, experiment: Experiment) -> str:
     """``prefix``'s sentence on the experiment's episodes per run against the paper's."""
-    n, paper = experiment.total_episodes, PAPER_EPISODES[experiment.name]
+    n, paper = experiment.total_episodes, PAPER_EPISODES.get(experiment.name)
     if paper is None:
         return (
             f"{prefix}: {n:,} episodes per run; the paper gives no episode count for this "
@@ -710,6 +714,43 @@ def budgets_with(experiment: str) -> list[str]:
     return [name for name, budget in BUDGETS.items() if experiment in budget.experiments]
 
 
+def register_experiment(
+    by_budget: Mapping[str, Experiment], paper_episodes: int | None = None
+) -> None:
+    """Add an experiment (a plugin's, `curious.plugins`) to the budgets `by_budget` names: budget
+    name -> the `Experiment` it trains there, all of one new name. Every other budget leaves it
+    out, saying which budgets train it. From then on `curious reproduce --budget B` trains it
+    with the rest (`--experiments NAME` alone), draws the figures registered for it
+    (`curious.reproduction.figures`) and reports them; `paper_episodes`: the episodes of the
+    paper's runs it stands for, for the captions (None: the paper gives none)."""
+    wanted = dict(by_budget)
+    if not wanted or not all(isinstance(e, Experiment) for e in wanted.values()):
+        raise ExperimentError("register_experiment takes budget names -> Experiment, got none")
+    names = {e.name for e in wanted.values()}
+    if len(names) != 1:
+        raise ExperimentError(f"register_experiment: one experiment a call, got {sorted(names)}")
+    name = names.pop()
+    if name in experiment_names():
+        raise ExperimentError(f"an experiment named {name!r} is already registered")
+    if unknown := sorted(set(wanted) - set(BUDGETS)):
+        raise ExperimentError(f"{name}: unknown budget(s) {unknown}; budgets: {', '.join(BUDGETS)}")
+    trained = ", ".join(f"`{b}`" for b in wanted)
+    reason = f"it is trained at budget{'s' if len(wanted) > 1 else ''} {trained} only"
+    REGISTERED_EXPERIMENTS.append(name)
+    try:
+        extended = {
+            b: replace(budget, experiments={**budget.experiments, name: wanted[b]})
+            if b in wanted
+            else replace(budget, omitted={**budget.omitted, name: reason})
+            for b, budget in BUDGETS.items()
+        }
+    except ExperimentError:
+        REGISTERED_EXPERIMENTS.remove(name)
+        raise
+    BUDGETS.update(extended)
+    PAPER_EPISODES[name] = paper_episodes
+
+
 def get_budget(name: str) -> ReproduceBudget:
     """The budget called `name` (a clear error naming the known ones otherwise)."""
     if name not in BUDGETS:
@@ -726,5 +767,7 @@ __all__ = [
     "ReproduceBudget",
     "RunSpec",
     "budgets_with",
+    "experiment_names",
     "get_budget",
+    "register_experiment",
 ]

@@ -16,33 +16,8 @@ from curious import analysis
 from curious.analysis.formatting import format_p, format_value
 from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
+from curious.reproduction.figures import FigureSpec, figures_of
 from pipelines.resources import Reproduction
-
-FIGURE_TEXT: dict[str, str] = {
-    "fig2a": "Average test success over the achievable modules per condition, in the episode "
-    "bins of the statistics below (paper Fig. 2a).",
-    "fig2b": "Competence of every module over one CURIOUS run (paper Fig. 2b).",
-    "fig2c": "Absolute learning progress of every module over the same run (paper Fig. 2c).",
-    "table1": "Competence and learning progress of every CURIOUS seed (paper Table 1).",
-    "distractors": "Self-evaluated competence (left) and test success (right) over the "
-    "achievable modules at the end of the runs against the number of distracting modules.",
-    "sensor_failure": "Competence and LP of the perturbed module around the sensory failure, one "
-    "line per run.",
-    "sensor_failure_mastered": "Test success, competence and LP of the perturbed module around the "
-    "sensory failure, one line per run.",
-    "long_runs": "Competence and absolute LP of every module over each whole long run, one row "
-    "per seed, the drops of mastered modules shaded (paper Fig. 2b-c).",
-}
-
-UNTESTED_FIGURE_TEXT: dict[str, str] = {
-    "distractors": "Self-evaluated competence over the achievable modules at the end of the runs "
-    "against the number of distracting modules (the runs have no test rollouts: no test success "
-    "panel).",
-    "sensor_failure_mastered": "Competence and LP of the perturbed module around the sensory "
-    "failure, one line per run (the runs have no test rollouts: no test success panel).",
-}
-"""The captions of the figures that draw a test success panel only where the runs have test
-rollouts (`test_rollouts_per_worker=0` trains none), for the figures drawn without it."""
 
 
 @dataclass
@@ -92,17 +67,34 @@ def markdown_table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> l
     return [*lines, ""]
 
 
-def figure(repro: Reproduction, name: str, tested: bool = True) -> list[str]:
-    """A figure's image linked relatively (the output folder moves whole) with its caption and
-    SVG, or a line saying it has not been drawn; `tested=False`: the runs have no test
-    rollouts, so a figure with a test success panel was drawn without it."""
-    png = repro.layout.figures / f"{name}.png"
+def figure(repro: Reproduction, e: Experiment, spec: FigureSpec, tested: bool = True) -> list[str]:
+    """A figure of `e`'s image linked relatively (the output folder moves whole) with its
+    caption and SVG, or a line saying it has not been drawn; `tested=False`: the runs have no
+    test rollouts, so a figure with a test success panel was drawn without it."""
+    stem = spec.stem(e.name)
+    png = repro.layout.figures / f"{stem}.png"
     if not png.is_file():
-        return [f"*Figure `{name}` has not been drawn yet.*", ""]
+        return [f"*Figure `{stem}` has not been drawn yet.*", ""]
     rel = png.relative_to(repro.layout.out).as_posix()
     svg = Path(rel).with_suffix(".svg").as_posix()
-    text = FIGURE_TEXT[name] if tested else UNTESTED_FIGURE_TEXT.get(name, FIGURE_TEXT[name])
-    return [f"![{name}]({rel})", "", f"{text} ([SVG]({svg}))", ""]
+    return [f"![{stem}]({rel})", "", f"{spec.caption(tested)} ([SVG]({svg}))", ""]
+
+
+def lead_figure(repro: Reproduction, e: Experiment, tested: bool = True) -> list[str]:
+    """The first figure of `e` the report shows (`curious.reproduction.figures`), which opens
+    its section."""
+    shown = figures_of(e.name, in_report=True)
+    return figure(repro, e, shown[0], tested) if shown else []
+
+
+def other_figures(repro: Reproduction, e: Experiment, tested: bool = True) -> list[str]:
+    """The figures of `e` the report shows after its first, in registration order (a plugin's
+    figure of a built-in experiment among them)."""
+    return [
+        line
+        for spec in figures_of(e.name, in_report=True)[1:]
+        for line in figure(repro, e, spec, tested)
+    ]
 
 
 def fmt_episodes(value: object) -> str:

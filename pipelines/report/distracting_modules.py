@@ -12,12 +12,13 @@ from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import (
     ExperimentTables,
-    figure,
     fmt,
     fmt_p,
     in_order,
+    lead_figure,
     markdown_table,
     mean_std,
+    other_figures,
     welch_summary,
 )
 from pipelines.report.spontaneous_forgetting import spontaneous_forgetting
@@ -27,7 +28,8 @@ from pipelines.resources import Reproduction
 def distractors(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
     """The distractors' section: the figure, competence and test success per number of
     distracting modules with their tests, then spontaneous forgetting."""
-    lines = [*figure(repro, "distractors", tested=tables.tests is not None)]
+    tested = tables.tests is not None
+    lines = [*lead_figure(repro, e, tested), *other_figures(repro, e, tested)]
     extra = repro.left_out_runs(e)  # settings shipped with too few runs: shown, not tested
     final = shown = tables.final
     if extra:

@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from curious.reproduction.experiments import Experiment
-from pipelines.report.blocks import ExperimentTables
+from pipelines.report.blocks import ExperimentTables, lead_figure, other_figures
 from pipelines.report.distracting_modules import distractors
 from pipelines.report.long_study import long_runs
 from pipelines.report.main_comparison import main
@@ -22,6 +22,14 @@ SECTIONS = {
     "sensor_failure_mastered": sensor_failure_mastered,
     "long": long_runs,
 }
+"""The section of each built-in experiment; another (a plugin's) shows its figures
+(`figures_only`)."""
+
+
+def figures_only(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
+    """The section of an experiment without one of its own: its figures the report shows."""
+    tested = tables.tests is not None
+    return [*lead_figure(repro, e, tested), *other_figures(repro, e, tested)]
 
 
 def _shown_anyway(repro: Reproduction, e: Experiment) -> str:
@@ -108,7 +116,7 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
                 f"still to ship: {', '.join(repro.data.awaited_runs(e))}.",
                 "",
             ]
-        lines += SECTIONS[e.name](repro, e, by_experiment[e.name])
+        lines += SECTIONS.get(e.name, figures_only)(repro, e, by_experiment[e.name])
         lines += ["### Runs", "", *runs_table(by_experiment[e.name])]
     missing = [name for name in budget.experiments if name not in tables]
     command = f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`"

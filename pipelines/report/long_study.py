@@ -9,7 +9,7 @@ import pandas as pd
 from curious import analysis
 from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
-from pipelines.report.blocks import ExperimentTables, figure
+from pipelines.report.blocks import ExperimentTables, lead_figure, other_figures
 from pipelines.report.spontaneous_forgetting import dip_clauses, spontaneous_forgetting
 from pipelines.resources import Reproduction
 
@@ -51,7 +51,8 @@ def long_runs(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> l
     """The figure of every long run whole, each module's mastery, deepest fall, drops and dips,
     then the dips' test pooled over the unperturbed experiments."""
     return [
-        *figure(repro, "long_runs"),
+        *lead_figure(repro, e),
+        *other_figures(repro, e),
         *spontaneous_forgetting(e, tables.metrics),
         *pooled_dips(repro),
     ]

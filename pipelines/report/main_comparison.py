@@ -17,13 +17,14 @@ from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import (
     NO_TESTS,
     ExperimentTables,
-    figure,
     fmt,
     fmt_episodes,
     fmt_p,
     in_order,
+    lead_figure,
     markdown_table,
     mean_std,
+    other_figures,
     welch_summary,
 )
 from pipelines.report.spontaneous_forgetting import spontaneous_forgetting
@@ -216,7 +217,8 @@ def learning_order_table(e: Experiment, table: pd.DataFrame) -> list[str]:
 def main(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
     """The main comparison's section: Fig. 2a and its statistics from the test rollouts, Fig.
     2b, 2c and Table 1, the order of learning, then spontaneous forgetting."""
-    lines = [*figure(repro, "fig2a")]
+    tested = tables.tests is not None
+    lines = [*lead_figure(repro, e, tested)]
     points = tables.points
     if tables.tests is None or points is None:  # both or neither
         lines += [NO_TESTS, ""]
@@ -231,8 +233,7 @@ def main(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[s
         lines += _area_under_success(e, tables.tests)
         lines += episodes_to_success_table(e, tables.tests)
         lines += module_success_tables(e, tables.tests)
-    for name in ("fig2b", "fig2c", "table1"):
-        lines += figure(repro, name)
+    lines += other_figures(repro, e, tested)
     lines += learning_order_table(e, tables.metrics)
     lines += spontaneous_forgetting(e, tables.metrics)
     return lines

@@ -10,16 +10,17 @@ import pandas as pd
 
 from curious import analysis
 from curious.analysis.palette import condition_label
-from curious.reproduction.experiments import FIGURES, Experiment
+from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import (
     NO_TESTS,
     ExperimentTables,
-    figure,
     fmt,
     fmt_episodes,
     fmt_p,
     in_order,
+    lead_figure,
     markdown_table,
+    other_figures,
 )
 from pipelines.resources import Reproduction
 
@@ -58,11 +59,12 @@ def _recovery_rows(summary: pd.DataFrame) -> list[tuple[str, ...]]:
 def _failure_runs(
     repro: Reproduction, e: Experiment, tables: ExperimentTables
 ) -> tuple[list[str], pd.DataFrame | None]:
-    """A sensory-failure experiment's figure and the opening of its section, with the per-run
-    recovery of competence its figure asset wrote beside it (None before it is drawn)."""
-    name = FIGURES[e.name][0]
-    lines = [*figure(repro, name, tested=tables.tests is not None)]
-    csv = repro.layout.figures / f"{name}.csv"
+    """A sensory-failure experiment's figures and the opening of its section, with the per-run
+    recovery of competence its figure (named as the experiment) wrote beside it (None before it
+    is drawn)."""
+    tested = tables.tests is not None
+    lines = [*lead_figure(repro, e, tested), *other_figures(repro, e, tested)]
+    csv = repro.layout.figures / f"{e.name}.csv"
     if not csv.is_file():
         return lines, None
     per_run = pd.read_csv(csv)
