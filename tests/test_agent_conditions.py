@@ -366,12 +366,13 @@ def test_conditions_have_one_registry():
     import subprocess
     import sys
 
-    from curious.agent.conditions import CONDITION_CLASSES
+    from curious.agent.conditions import BUILT_IN_CONDITIONS, CONDITION_CLASSES
     from curious.config import condition_names
 
-    assert condition_names() == tuple(CONDITION_CLASSES)
+    assert condition_names() == tuple(CONDITION_CLASSES)  # a plugin's after the built-in ones
     assert condition_names()[:4] == ("curious", "m-uvfa", "mg-te", "her")  # the paper's first
-    assert {"lp-select", "lp-replay"} <= set(condition_names())
+    assert condition_names()[: len(BUILT_IN_CONDITIONS)] == BUILT_IN_CONDITIONS
+    assert {"lp-select", "lp-replay"} <= set(BUILT_IN_CONDITIONS)
     assert all(cls.name == name for name, cls in CONDITION_CLASSES.items())
     code = "import sys; from curious.config import condition_names; condition_names(); "
     code += "print('torch' in sys.modules)"
@@ -382,12 +383,12 @@ def test_conditions_have_one_registry():
 def test_every_condition_has_a_label_a_colour_and_a_place_of_its_own():
     """Figures, reports and recordings show each condition under its own label and colour, in a
     fixed order (a condition missing from the tables would get a colour from its name, which may
-    be another's)."""
+    be another's); a plugin's condition gets a colour from its name."""
+    from curious.agent.conditions import BUILT_IN_CONDITIONS
     from curious.analysis import palette
     from curious.analysis.figures import CONDITION_ORDER
-    from curious.config import condition_names
 
-    names = condition_names()
+    names = BUILT_IN_CONDITIONS
     assert set(names) <= set(palette.CONDITION_STYLES) and set(names) <= set(CONDITION_ORDER)
     assert len({palette.condition_color(c) for c in names}) == len(names)
     assert len({palette.condition_label(c) for c in names}) == len(names)

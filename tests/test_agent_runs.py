@@ -18,10 +18,11 @@ import pytest
 import torch
 from toy_env import make_toy_envs
 
+from curious.agent.conditions import CONDITION_CLASSES
 from curious.agent.goals import GoalInput
 from curious.agent.learning_progress import CompetenceTracker
 from curious.cli import main
-from curious.config import ConfigError, resolve
+from curious.config import ConfigError, condition_names, resolve
 from curious.runs import checkpoint
 from curious.runs.checkpoint import CheckpointError
 from curious.runs.driver import train
@@ -82,7 +83,7 @@ def snapshot(folder: Path) -> dict[str, str]:
     }
 
 
-@pytest.mark.parametrize("condition", ["curious", "m-uvfa", "mg-te", "her"])
+@pytest.mark.parametrize("condition", condition_names())  # a plugin's among them
 def test_run_folder_holds_config_metrics_and_checkpoint(tmp_path, condition):
     trainer = run(tmp_path / "run", condition)
     folder = tmp_path / "run"
@@ -109,7 +110,7 @@ def test_run_folder_holds_config_metrics_and_checkpoint(tmp_path, condition):
     # episodes counted exactly (39 is not a multiple of the 4 episodes per cycle)
     assert trainer.episodes == 39
     np.testing.assert_array_equal(df["episode"], np.arange(39))
-    if condition == "her":  # the authors' flat agent never self-evaluates: no competence
+    if not CONDITION_CLASSES[condition].self_evaluates:  # HER: no competence
         assert not df["eval"].any()
         assert df[[f"competence/{n}" for n in names]].isna().all().all()
     else:

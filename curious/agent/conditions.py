@@ -350,7 +350,32 @@ class HER(Condition):
 CONDITION_CLASSES: dict[str, type[Condition]] = {
     c.name: c for c in (Curious, MUVFA, MGTE, HER, LPSelect, LPReplay)
 }
-"""Every condition by its name: the paper's, in its order, then the two halves of CURIOUS."""
+"""Every condition by its name: the paper's, in its order, then the two halves of CURIOUS, then
+those registered (`register_condition`)."""
+BUILT_IN_CONDITIONS: tuple[str, ...] = tuple(CONDITION_CLASSES)
+"""The conditions curious itself defines (README's table lists them)."""
+
+_RESERVED = "@|/,<> \t\n"
+"""Characters a condition's name may not hold: it names run folders and partition keys
+(`curious@distractors_4`, `condition|seed`)."""
+
+
+def register_condition(cls: type[Condition]) -> type[Condition]:
+    """Add a condition under its class's `name` (a class decorator): from then on configs,
+    `curious train --condition`, experiments and the tables take it as they take a built-in one.
+    A plugin's module calls it when it is loaded (`curious.plugins`)."""
+    if not isinstance(cls, type) or not issubclass(cls, Condition):
+        raise TypeError(f"register_condition takes a subclass of Condition, got {cls!r}")
+    name = cls.__dict__.get("name")
+    if not isinstance(name, str) or not name or any(c in name for c in _RESERVED):
+        raise ValueError(
+            f"{cls.__name__} needs a `name` of its own: one word without @, |, /, commas or "
+            f"spaces, got {name!r}"
+        )
+    if CONDITION_CLASSES.get(name, cls) is not cls:
+        raise ValueError(f"a condition named {name!r} is already registered")
+    CONDITION_CLASSES[name] = cls
+    return cls
 
 
 def make_condition(config: Config, spec: EnvSpec) -> Condition:

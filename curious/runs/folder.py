@@ -35,6 +35,7 @@ from curious.config import (
     format_seeds,
     setting_names,
 )
+from curious.plugins import missing, sources
 from curious.runs.folder_errors import ConfigMismatch, RunFolderError
 from curious.runs.folder_layout import (
     CHECKPOINTS_DIR,
@@ -214,8 +215,13 @@ class RunFolder:
 
     def read_config(self) -> Config:
         """The config stored in config.json; a `RunFolderError` naming the file when it is not
-        one this curious can run (a damaged file, a setting of the wrong type or value)."""
-        raw = self.read_stored()["config"]
+        one this curious can run (a damaged file, a setting of the wrong type or value, a
+        condition or variant of a plugin that is not here)."""
+        stored = self.read_stored()
+        raw = stored["config"]
+        absent = missing(stored.get("plugins"), raw.get("condition", ""), raw.get("variant", ""))
+        if absent:
+            raise RunFolderError(f"{self.path} was trained with the {absent}")
         try:
             return Config.from_dict(raw)
         except ConfigError as exc:
@@ -364,8 +370,9 @@ class RunFolder:
             )
 
     def describe(self, config: Config, spec: EnvSpec) -> dict[str, Any]:
-        """The content of config.json."""
-        return {
+        """The content of config.json (with `plugins` where the condition or the variant came
+        from a plugin: its distribution, version and module, `curious.plugins.sources`)."""
+        described = {
             "condition": config.condition,
             "seed": config.seed,
             "preset": config.preset,
@@ -379,6 +386,9 @@ class RunFolder:
             "machine": machine(config.device),
             "created": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         }
+        if plugins := sources(config.condition, config.variant):
+            described["plugins"] = plugins
+        return described
 
     def write_config(self, config: Config, spec: EnvSpec) -> None:
         """Create the folder and write config.json (a resumed run records its new settings)."""
@@ -393,8 +403,11 @@ class RunFolder:
                 "machine": data["machine"],
                 "config": data["config"],
             }
-            for key in ("created", "versions", "git"):
-                data[key] = old.get(key, data[key])
+            if "plugins" in data:
+                resumed["plugins"] = data["plugins"]
+            for key in ("created", "versions", "git", "plugins"):
+                if key in old or key in data:
+                    data[key] = old.get(key, data.get(key))
             data["machine"] = old.get("machine")  # None: the first start predates the record
             data["resumed"] = [*old.get("resumed", []), resumed]
         write_json_atomic(self.config_path, data)

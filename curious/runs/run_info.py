@@ -13,7 +13,10 @@ file curious has written: one written before a key existed lacks it, and reads a
                                       processor, cores, system, and the GPU where it trains on
                                       one; absent or null where the first start predates it
     resumed                           one entry per resume: its time, libraries, commit, machine,
-                                      settings
+                                      settings (and plugins)
+    plugins                           where the condition or the variant came from a plugin, its
+                                      distribution, version and module (`curious.plugins`);
+                                      absent for curious's own
 
 A config.json that is not a run's (a missing key, a value of the wrong type) is a
 `RunFolderError` naming the file; a hand-edited provenance entry reads as empty.
