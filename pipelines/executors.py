@@ -13,8 +13,11 @@ folders:
 
 `run_all` submits jobs, shows one progress bar over every run's episodes (read from the run
 folders' metrics, which the runs flush at each checkpoint) and returns one result per run, in
-order. The first failing job stops the others' submission and raises `PartitionFailed` naming
-the run that failed; a Ctrl-C stops every run at once, where it is (`Pool.stop`).
+order. A run whose Ray worker process or node was lost (`lost_worker`) is submitted again, at
+most `LOST_RUN_RETRIES` times, and resumes from its last checkpoint on a node that is alive while
+the other runs go on; any other failure is the run's own (a bad config, a full disk, an error
+in training), is not retried, stops the others' submission and raises `PartitionFailed` naming
+the run. A Ctrl-C stops every run at once, where it is (`Pool.stop`).
 """
 
 from __future__ import annotations
@@ -26,10 +29,12 @@ import logging
 import math
 import multiprocessing
 import os
+import re
 import signal
 import socket
 import subprocess
 import sys
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -37,9 +42,24 @@ from typing import Any, Protocol
 
 from curious.reproduction.experiments import RunSpec
 from curious.runs.side_by_side import die_with_parent, interrupts_ignored
-from pipelines.training import PartitionResult, episodes_logged, run_folder, run_partition
+from pipelines.training import (
+    PartitionResult,
+    RunFolderBusy,
+    episodes_logged,
+    run_folder,
+    run_partition,
+)
 
 RAY_CONNECT_TIMEOUT_S = 30.0
+LOST_RUN_RETRIES = 3
+"""How many times `run_all` submits a run again after its Ray worker or node was lost: enough
+for a few lost nodes in a reproduction of days, few enough that a run whose own process
+crashes every time (a segfault in the physics) soon fails instead of training the same
+checkpoint interval again and again."""
+LOST_LOCK_WAIT_S = 180.0
+"""How long a run submitted again waits for its folder's lock, held by the process on the node
+that was lost: a local file system drops it with the process, NFS when the lost client's lease
+ends (90 s by default)."""
 
 
 class PartitionFailed(RuntimeError):
@@ -58,6 +78,8 @@ class Job:
     runs_root: str
     overrides: dict[str, Any] = field(default_factory=dict)
     record: bool = True
+    attempt: int = 0
+    """0 for the first submission, n for the n-th after a lost worker (`run_all`)."""
 
 
 class _WorkerState:
@@ -83,9 +105,38 @@ def run_job(job: Job) -> PartitionResult:
         raise KeyboardInterrupt
     _WorkerState.running = True
     try:
-        return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
+        deadline = time.monotonic() + (LOST_LOCK_WAIT_S if job.attempt else 0.0)
+        while True:
+            try:
+                return run_partition(job.spec, job.runs_root, job.overrides, record=job.record)
+            except RunFolderBusy:  # resubmitted: the lost process's lock may outlive it a while
+                if time.monotonic() >= deadline:
+                    raise
+                time.sleep(5.0)
     finally:
         _WorkerState.running = False
+
+
+def lost_worker(exc: BaseException) -> str | None:
+    """Why a run's job failed where the machine under it was lost rather than the run failing
+    (its Ray node died or left the cluster, or its worker process died), in words; None for
+    any other failure, the run's own.
+
+    Ray's own task retries (`max_retries` with `retry_exceptions=False`) retry these same
+    failures, but out of the driver's sight, which could then not say which run was retried or
+    why: `run_all` submits the run again itself."""
+    ray = sys.modules.get("ray")
+    if ray is None:  # no Ray in this process: no Ray task ran
+        return None
+    if isinstance(exc, ray.exceptions.NodeDiedError):
+        node = re.search(r"node ID: ([0-9a-f]{12})", str(exc))
+        ip = re.search(r"Node IP: ([^,\s]+)", str(exc))
+        where = f" {node[1]}" if node else ""
+        where += f" ({ip[1]})" if ip else ""
+        return f"its Ray node{where} died (NodeDiedError)"
+    if isinstance(exc, ray.exceptions.WorkerCrashedError):
+        return "its Ray worker process died (WorkerCrashedError)"
+    return None
 
 
 class Pool(Protocol):
@@ -364,6 +415,7 @@ class RayPool:
                 f"{self.gpus_per_run:g} GPU for one run (nodes: {have or 'none'}): lower "
                 "--cpus-per-run / --gpus-per-run"
             )
+        # Ray retries nothing: `run_all` submits a run whose node was lost again (`lost_worker`).
         self._remote = ray.remote(num_cpus=cpus, num_gpus=gpus, max_retries=0)(run_job)
         gpu = f", {self.gpus_per_run:g} GPU" if self.gpus_per_run else ""
         self.description = f"Ray tasks at {self.address} ({self.cpus_per_run:g} CPU{gpu} per run)"
@@ -420,17 +472,23 @@ def run_all(
     on_done: Callable[[Job, PartitionResult], None] | None = None,
     poll_seconds: float = 1.0,
     at_once: int | None = None,
+    on_retry: Callable[[Job, str], None] | None = None,
+    retries: int = LOST_RUN_RETRIES,
 ) -> list[PartitionResult]:
     """Train every job on `pool`; one result per job, in the order of `jobs`.
 
     `on_progress(episodes_done, episodes_total)` is called about every `poll_seconds` with the
     episodes found in every run's folder; `on_done(job, result)` after each job has ended.
     `at_once`: at most that many jobs handed to the pool at a time, the next as one ends (None:
-    all at once, the pool queueing them).
+    all at once, the pool queueing them). A job whose worker was lost (`lost_worker`) is
+    submitted again, first in line, up to `retries` times, its folder's state deciding where it
+    goes on (`pipelines.training.run_partition`: from its last checkpoint);
+    `on_retry(job, note)` says each time why and from which episode.
     """
+    current = list(jobs)  # a job submitted again takes its place
     results: dict[int, PartitionResult] = {}
     handles: dict[Any, int] = {}
-    waiting = list(enumerate(jobs))
+    waiting = list(enumerate(current))
     total = sum(job.spec.total_episodes for job in jobs)
     pending: list[Any] = []
     folders = [run_folder(job.spec, job.runs_root) for job in jobs]
@@ -444,15 +502,15 @@ def run_all(
                 pending.append(handle)
             done, pending = pool.wait(pending, poll_seconds)
             for handle in done:
-                i = handles[handle]
+                i = handles.pop(handle)
                 try:
                     results[i] = pool.result(handle)
                 except Exception as exc:
-                    raise PartitionFailed(
-                        f"{jobs[i].spec.label} failed: {type(exc).__name__}: {exc}"
-                    ) from exc
+                    current[i] = _again(current[i], exc, folders[i], retries, on_retry)
+                    waiting.insert(0, (i, current[i]))
+                    continue
                 if on_done is not None:
-                    on_done(jobs[i], results[i])
+                    on_done(current[i], results[i])
             if on_progress is not None:
                 seen = sum(
                     results[i].episodes if i in results else episodes_logged(folders[i])
@@ -465,6 +523,33 @@ def run_all(
             pool.stop()
         raise
     return [results[i] for i in range(len(jobs))]
+
+
+def _again(
+    job: Job,
+    exc: Exception,
+    folder: Path,
+    retries: int,
+    on_retry: Callable[[Job, str], None] | None,
+) -> Job:
+    """The job to submit again after `exc` ended it, its worker having been lost; else
+    `PartitionFailed` naming the run (its own failure, or a lost worker once too often)."""
+    why = lost_worker(exc)
+    failed = f"{job.spec.label} failed: {type(exc).__name__}: {exc}"
+    if why is None:
+        raise PartitionFailed(failed) from exc
+    if job.attempt >= retries:
+        raise PartitionFailed(
+            f"{job.spec.label} failed: {why}, after it was submitted again {retries} "
+            f"time{'s' if retries != 1 else ''}"
+        ) from exc
+    from curious.runs.folder import RunFolder
+
+    start = RunFolder(folder).newest_checkpoint()
+    where = f"its checkpoint at episode {start:,}" if start else "episode 0 (no checkpoint yet)"
+    if on_retry is not None:
+        on_retry(job, f"{why}; submitted again ({job.attempt + 1} of {retries}), from {where}")
+    return replace(job, attempt=job.attempt + 1)
 
 
 def make_pool(

@@ -183,6 +183,9 @@ class Reproduction:
     data: ShippedData | None = None
     """The shipped data folder read instead of training (`curious reproduce --from-data`); its
     path is the layout's runs root."""
+    retried: dict[str, list[str]] = field(default_factory=dict)
+    """Run label -> why and from where it was submitted again, each time its worker was lost
+    (`pipelines.executors.run_all`), in order."""
     _pool: Pool | None = None
 
     @property
@@ -195,6 +198,16 @@ class Reproduction:
         if self._pool is not None:
             self._pool.close()
             self._pool = None
+
+    def say_retried(self) -> None:
+        """A line for each run submitted again after its worker was lost: how often, and each
+        time why and from where (said at the end of a reproduction, whatever ended it)."""
+        if not self.retried:
+            return
+        self.say(f"{len(self.retried)} run(s) submitted again after their worker was lost:")
+        for label, notes in self.retried.items():
+            times = "once" if len(notes) == 1 else f"{len(notes)} times"
+            self.say(f"  {label}: {times}: {' | '.join(notes)}")
 
     def experiment(self, name: str) -> Experiment:
         return self.budget.experiments[name]
@@ -308,9 +321,15 @@ class Reproduction:
                 f"  {job.spec.label}: {how}{result.episodes:,} episodes in {result.seconds:.0f} s"
             )
 
+        def on_retry(job: Job, note: str) -> None:
+            self.retried.setdefault(job.spec.label, []).append(note)
+            self.say(f"  {job.spec.label}: {note}")
+
         at_once = self.at_once(jobs)
         try:
-            results = run_all(self.pool, jobs, on_progress, on_done, at_once=at_once)
+            results = run_all(
+                self.pool, jobs, on_progress, on_done, at_once=at_once, on_retry=on_retry
+            )
         finally:
             bar.close()
         busy = busy_description(self.pool, min(len(jobs), at_once or len(jobs)))
