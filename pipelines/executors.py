@@ -375,7 +375,8 @@ def connect_ray(
     try:
         import ray
     except ModuleNotFoundError:
-        raise RayUnavailable("--ray-address needs Ray: pip install 'curious[ray]'") from None
+        hint = 'in the clone, pip install -e ".[ray]"'
+        raise RayUnavailable(f"--ray-address needs Ray: {hint}") from None
     resolved = resolve_ray_address(address)
     _use_token_if_available()
     nodes = check_cluster(resolved, timeout)

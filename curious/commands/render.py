@@ -11,10 +11,10 @@ in the module's goal space (MG-TE: the module's expert; HER: its holistic goal, 
 --modules ... --seed S` plays and scores with the same N and seed. Without --run, the arm acts
 at random or holds still (--policy).
 
-The format follows the suffix of --out: .mp4 (H.264 through imageio-ffmpeg: pip install
-'curious[video]'), .gif or .webp (looping, through Pillow), or a folder for PNG frames. Videos
-play at the simulation's pace by default (one frame per control step, 25 fps), carry a caption
-per episode (module, goal and, for the trained agent, whether it succeeded) and hold each
+The format follows the suffix of --out: .mp4 (H.264 through imageio-ffmpeg: in the clone,
+pip install -e ".[video]"), .gif or .webp (looping, through Pillow), or a folder for PNG frames.
+Videos play at the simulation's pace by default (one frame per control step, 25 fps), carry a
+caption per episode (module, goal and, for the trained agent, whether it succeeded) and hold each
 episode's last frame for --hold seconds; PNG frames are the bare pictures. The goal is drawn as a
 translucent sphere of the success radius.
 

@@ -7,8 +7,8 @@ same seed) and the random or still arm (`suite.render.render_episode`).
 
 * `output_kind(out)` tells the format by the suffix of `--out` (a folder: PNG frames);
 * `open_writer(kind, out, fps)` streams MP4 through imageio's ffmpeg plugin (`imageio-ffmpeg`,
-  a wheel with its own ffmpeg: `pip install 'curious[video]'`), and keeps GIF and WebP frames
-  in memory until Pillow writes them at `close()`; a writer writes beside the target and
+  a wheel with its own ffmpeg: `pip install -e ".[video]"` in the clone), and keeps GIF and
+  WebP frames in memory until Pillow writes them at `close()`; a writer writes beside the target and
   renames when done, so an interrupted render never leaves half a file under the name asked;
 * `burn_caption(frame, lines)` draws a few lines of text on a dark band at the top of a frame;
 * `real_time_fps(control_timestep, every, speed)`: the frame rate at which a video plays at the
@@ -47,7 +47,10 @@ WebP keep the same range."""
 MAX_HOLD = 10.0
 """Longest --hold, in seconds: long enough to read how an episode ended; the last frame is
 repeated hold x fps times in the video (and kept in memory that often for GIF and WebP)."""
-MP4_HINT = "writing MP4 needs imageio-ffmpeg: pip install 'curious[video]' (or write .gif/.webp)"
+MP4_HINT = (
+    'writing MP4 needs imageio-ffmpeg: in the clone, pip install -e ".[video]" (or write .gif or '
+    ".webp, which need nothing more)"
+)
 
 Caption = list[tuple[str, tuple[int, int, int]]]
 """Lines of a caption, each with its colour."""
