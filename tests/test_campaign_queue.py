@@ -189,6 +189,7 @@ def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extr
     is trained, shipped beside the runs held, and recorded in reproduce.json, whose plan
     `curious progress` lists before the runs start."""
     from curious.analysis.progress import progress_table
+    from curious.reproduction.experiments import get_budget
     from curious.reproduction.shipped_folder import ShippedFolder
 
     seed_2 = [f"main/{c}/seed-2" for c in ("curious", "mg-te", "her")]
@@ -197,11 +198,12 @@ def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extr
     manifest = json.loads((extra_seed.out / "reproduce.json").read_text())
     assert manifest["budget"] == "smoke" and manifest["extra_seeds"] == {"main": [2]}
     shipped = ShippedFolder(extra_seed.data).read_manifest()
-    assert len(shipped.runs) == 17 + 3
+    assert len(shipped.runs) == len(get_budget("smoke").runs()) + 3
     assert all(shipped.get(run).finished for run in seed_2)
 
     rows = progress_table([extra_seed.out, extra_seed.data])
-    assert len(rows) == 20 and all(r.shipped and r.done == 1 for r in rows)
+    n = len(get_budget("smoke").runs()) + 3
+    assert len(rows) == n and all(r.shipped and r.done == 1 for r in rows)
     assert [(r.name, r.checkpoint) for r in rows if r.seed == 2] == [
         (run, 24) for run in sorted(seed_2)
     ]
@@ -209,7 +211,7 @@ def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extr
     planned.mkdir()
     shutil.copy(extra_seed.out / "reproduce.json", planned)
     rows = progress_table(planned)
-    assert len(rows) == 20 and not any(r.episodes for r in rows)
+    assert len(rows) == n and not any(r.episodes for r in rows)
     assert sorted(r.name for r in rows if r.seed == 2) == sorted(seed_2)
 
 

@@ -83,7 +83,7 @@ def _whole_seeds(experiment: str, variant: str | None = None) -> list[Path]:
 
 
 WORDS = {0: "none", 1: "one", 2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven",
-         8: "eight"}  # fmt: skip
+         8: "eight", 9: "nine"}  # fmt: skip
 """Small counts as the pages write them in words."""
 
 

@@ -1,6 +1,6 @@
 """`curious reproduce` and the Dagster pipeline behind it, on the smoke budget.
 
-One smoke reproduction (every experiment, 17 runs of 24 episodes) is built once per session
+One smoke reproduction (every experiment, each run 24 episodes) is built once per session
 (`conftest.py`) and shared with the notebook tests.
 """
 
@@ -42,6 +42,8 @@ FIGURES = (
     "sensor_failure_mastered",
 )
 SMOKE = get_budget("smoke")
+N_SMOKE = len(SMOKE.runs())
+"""Runs of a whole smoke reproduction."""
 
 
 def hashes(folder: Path) -> dict[str, str]:
@@ -81,9 +83,10 @@ def test_smoke_reproduce_builds_every_figure_and_the_report(smoke):
     assert "computation, `curious.analysis.main_comparison`" in report
     assert "test success at the last epoch" in report
     # what the report was built from, counted from its tables; the whole budget beside it
-    assert "This report was built from 17 runs, 408 training episodes in all: main 6 runs" in report
+    built = f"This report was built from {N_SMOKE} runs, {N_SMOKE * 24} training episodes in all"
+    assert f"{built}: main 6 runs" in report
     assert (
-        "The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains 17 runs"
+        f"The budget `smoke` as a whole (`curious reproduce --budget smoke`) trains {N_SMOKE} runs"
         in report
     )
     # the smoke failure starts at episode 12 on an unlearned module: no recovery is claimed
@@ -176,7 +179,7 @@ def test_reproduce_json_records_how_many_runs_train_at_once(smoke):
 def test_every_partition_is_one_finished_run_folder(smoke):
     runs_root = smoke.out / "runs"
     specs = SMOKE.runs()
-    assert len(specs) == 17
+    assert len(specs) == N_SMOKE
     for spec in specs:
         folder = run_folder(spec, runs_root)
         assert folder_state(spec, runs_root) == FINISHED, spec.label
@@ -287,14 +290,14 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     assert sorted(p.name for p in (beside / "figures").iterdir()) == sorted(
         p.name for p in (smoke.out / "figures").iterdir()
     )
-    assert "0 run(s) trained, 17 already finished" in stdout
-    assert "17 shipped run(s) read, none trained" in stdout
+    assert f"0 run(s) trained, {N_SMOKE} already finished" in stdout
+    assert f"{N_SMOKE} shipped run(s) read, none trained" in stdout
     order = [
         "The paper's claims first: the shipped `smoke` campaign's report",
-        "17 shipped run(s) read, none trained",
+        f"{N_SMOKE} shipped run(s) read, none trained",
         f"results table: {command.results_page()} (each claim's verdict",
         "Now the budget `smoke`, trained here",
-        "0 run(s) trained, 17 already finished",
+        f"0 run(s) trained, {N_SMOKE} already finished",
     ]
     found = [stdout.find(line) for line in order]
     assert -1 not in found and found == sorted(found), stdout
@@ -303,7 +306,7 @@ def test_the_main_job_also_builds_the_shipped_campaigns_report_and_says_what_eac
     assert f"{out / 'report.md'} and {out / 'figures'}/" in closing
     assert "it cannot show the paper's claims" in closing
     assert f"{beside / 'report.md'} and {beside / 'figures'}/" in closing
-    assert f"the shipped `smoke` campaign, 17 runs read from {shipped.data}" in closing
+    assert f"the shipped `smoke` campaign, {N_SMOKE} runs read from {shipped.data}" in closing
     assert "C1, CURIOUS learns faster than MG-TE" in closing
     assert "C5 on a module just learned" in closing
     assert "C4" in closing and "C5, the recovery of a mastered module's test success" in closing
@@ -353,7 +356,7 @@ def test_second_reproduce_retrains_nothing_and_leaves_logging_handlers_open(smok
         logging.getLogger("caller").removeHandler(handler)
     assert not Handler.closed
     assert any(ref() is handler for ref in logging._handlerList)  # closed at exit as usual
-    assert result.trained == [] and len(result.skipped) == 17
+    assert result.trained == [] and len(result.skipped) == N_SMOKE
     assert hashes(out / "runs") == runs_before  # not one byte of a run changed
     assert hashes(out / "figures") == figures_before  # figures rebuild byte-identical
 
@@ -626,7 +629,9 @@ def test_interrupted_partition_resumes_and_finished_ones_are_kept(tmp_path):
     episodes = pq.read_table(folder / "metrics.parquet", columns=["episode"])["episode"]
     assert episodes.to_pylist() == list(range(24))
     assert (out / "figures" / "sensor_failure.png").is_file()
-    assert json.loads((out / "reproduce.json").read_text()) == {"version": 1, "budget": "smoke"}
+    # rewritten in today's form: the budget by its name, and how many runs train at once
+    manifest = json.loads((out / "reproduce.json").read_text())
+    assert manifest == {"version": 1, "budget": "smoke", "at_once": 1}
 
 
 def group_ends(pgid: int, within: float) -> bool:

@@ -8,6 +8,7 @@ from dataclasses import replace
 import pytest
 
 from curious.reproduction.experiments import (
+    BEYOND_PAPER,
     BUDGETS,
     DEFAULT_BUDGET,
     EXPERIMENTS,
@@ -100,7 +101,32 @@ def test_the_study_on_a_mastered_module_follows_the_rules_fixed_before_its_runs(
     assert budgets_with("sensor_failure_mastered") == ["smoke", "laptop"]
     assert EXPERIMENTS.index("sensor_failure_mastered") == EXPERIMENTS.index("sensor_failure") + 1
     smoke_experiments = BUDGETS["smoke"].experiments.values()
-    assert all(e.perturbed == e.name.startswith("sensor_failure") for e in smoke_experiments)
+    perturbed = {"sensor_failure", "sensor_failure_mastered", "signed_lp"}
+    assert all(e.perturbed == (e.name in perturbed) for e in smoke_experiments)
+
+
+def test_the_studies_beyond_the_paper_follow_the_rules_fixed_before_their_runs():
+    """`lp_uses` and `signed_lp` at `laptop`: the numbers docs/results.md fixed before any of
+    their runs trained ("Beyond the paper"): each a single change to a shipped protocol, so that
+    the shipped runs are what it is read against."""
+    laptop = get_budget("laptop")
+    uses, signed = laptop.experiments["lp_uses"], laptop.experiments["signed_lp"]
+    assert uses.conditions == ("lp-select", "lp-replay") and uses.variants == ("distractors_7",)
+    assert uses.seeds == (0, 1, 2) and uses.total_episodes == 50_000
+    distractors = laptop.experiments["distractors"]
+    # the same runs as the distractors' CURIOUS runs of distractors_7 but for the condition
+    theirs = next(r for r in distractors.runs() if r.condition_key == "curious@distractors_7")
+    ours = next(r for r in uses.runs() if r.condition == "lp-select" and r.seed == theirs.seed)
+    assert replace(ours.config(), condition="curious") == theirs.config()
+    assert signed.conditions == ("curious",) and signed.seeds == (0, 1, 2)
+    assert signed.overrides == (("lp_measure", "signed"),)
+    mastered = laptop.experiments["sensor_failure_mastered"]
+    absolute = next(r for r in mastered.runs() if r.condition == "curious" and r.seed == 0)
+    assert replace(signed.runs()[0].config(), lp_measure="absolute") == absolute.config()
+    # after the paper's experiments, in every budget that trains them; the others say why
+    assert EXPERIMENTS[-2:] == ("lp_uses", "signed_lp")
+    assert budgets_with("lp_uses") == budgets_with("signed_lp") == ["smoke", "laptop"]
+    assert "beyond the paper" in get_budget("paper").omitted["lp_uses"]
 
 
 @pytest.mark.parametrize(
@@ -328,7 +354,9 @@ def test_the_long_runs_are_curious_on_the_default_variant_for_the_papers_episode
     assert [str(r.relative_path) for r in long.runs()] == [
         f"long/curious/seed-{s}" for s in range(5)
     ]
-    assert EXPERIMENTS[-1] == "long" and budgets_with("long") == ["smoke", "laptop"]
+    # the last of the paper's experiments, those beyond the paper after it
+    assert EXPERIMENTS[EXPERIMENTS.index("long") + 1 :] == BEYOND_PAPER
+    assert budgets_with("long") == ["smoke", "laptop"]
     assert "as many as the paper's runs" in laptop.caption_note_for(long)
     for budget, words in (("quick", "three hundred times a quick run"), ("paper", "already")):
         assert words in get_budget(budget).omitted["long"]

@@ -27,11 +27,15 @@ from shipped_check import check_shipped_folder, files_of
 
 from curious import analysis
 from curious.cli import main as curious_cli
+from curious.reproduction.experiments import get_budget
 from curious.reproduction.shipped_folder import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
 from curious.reproduction.shipping import clean_leftovers
 from curious.runs.folder import RunFolder
 from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
 from pipelines.resources import OutputLayout
+
+N_SMOKE = len(get_budget("smoke").runs())
+"""Runs of a whole smoke reproduction (the shipped campaign of these tests)."""
 
 EXPERIMENTS = ("main", "distractors", "sensor_failure", "sensor_failure_mastered")
 
@@ -106,7 +110,8 @@ def test_ship_writes_each_runs_description_and_reduced_tables_and_prints_their_s
     printed = re.search(r"([\d,]+) bytes\)", shipped.stdout)
     assert printed and int(printed.group(1).replace(",", "")) == size
     assert (
-        f"shipped 17 finished run(s) of budget smoke from {smoke.out} to {data}" in shipped.stdout
+        f"shipped {N_SMOKE} finished run(s) of budget smoke from {smoke.out} to {data}"
+        in shipped.stdout
     )
     tables = sum(
         (p / name).stat().st_size
@@ -139,7 +144,7 @@ def test_shipped_tables_load_with_every_number_of_the_run_folders(smoke, shipped
             pd.testing.assert_frame_equal(reduced, original.drop(columns=gone))
     layout = OutputLayout.open(shipped.data)  # how the notebooks open their `out`
     assert layout.runs_root == shipped.data.resolve() and layout.budget_name() == "smoke"
-    assert len(analysis.load_runs(shipped.data)) == 17 * 24
+    assert len(analysis.load_runs(shipped.data)) == N_SMOKE * 24
 
 
 def test_shipping_again_replaces_the_folder_with_the_same_bytes(smoke, shipped, tmp_path):
@@ -297,7 +302,7 @@ def test_report_and_figures_from_the_shipped_data_are_those_of_the_run_folders(
             for table, root in ((ours, shipped.data), (theirs, smoke.out / "runs")):
                 table["run"] = table["run"].astype(str).str.removeprefix(str(root.resolve()))
             pd.testing.assert_frame_equal(ours, theirs.drop(columns=list(dropped)))
-    assert "Done in" in stdout and "17 shipped run(s) read, none trained" in stdout
+    assert "Done in" in stdout and f"{N_SMOKE} shipped run(s) read, none trained" in stdout
     assert "curious reproduce --budget smoke --from-data" in stderr
     assert not (out / "runs").exists()
     manifest = json.loads((out / "reproduce.json").read_text())
@@ -323,9 +328,9 @@ def test_shipped_runs_of_some_variants_rebuild_those_variants_figures_and_number
     assert "Variants left out: distractors_0, distractors_4, whose runs" in report
     assert (
         "Not in this report (not shipped yet): sensor_failure, sensor_failure_mastered, long, "
-        "whose runs the data this report was built from does not hold all finished; `curious "
-        "reproduce --budget smoke --experiments sensor_failure,sensor_failure_mastered,long` "
-        "trains them." in report
+        "lp_uses, signed_lp, whose runs the data this report was built from does not hold all "
+        "finished; `curious reproduce --budget smoke --experiments "
+        "sensor_failure,sensor_failure_mastered,long,lp_uses,signed_lp` trains them." in report
     )
     row = next(line for line in report.splitlines() if line.startswith("| 7 |"))
     assert row in (smoke.out / "report.md").read_text().splitlines()

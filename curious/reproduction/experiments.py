@@ -47,7 +47,7 @@ run of every experiment:
 =========  ===============================================================================
 `smoke`    seconds per run, for the tests: every figure and the report built from tiny runs
 `quick`    the README's job: `main` and `distractors`, short runs (README)
-`laptop`   three to eight days on 2 cores (hours on a workstation or a Ray cluster)
+`laptop`   four to nine days on 2 cores (hours on a workstation or a Ray cluster)
 `paper`    the authors' protocol, 5 seeds: for a cluster (`--ray-address`) or GPUs
 =========  ===============================================================================
 
@@ -77,9 +77,16 @@ EXPERIMENTS: tuple[str, ...] = (
     "sensor_failure",
     "sensor_failure_mastered",
     "long",
+    "lp_uses",
+    "signed_lp",
 )
-"""The built-in experiments' names, in the order they are trained and reported (`long`, the
-longest runs by far, last); `experiment_names` adds the registered ones."""
+"""The built-in experiments' names, in the order they are trained and reported: the paper's
+(`long`, the longest runs by far, last of them), then those beyond the paper (`BEYOND_PAPER`);
+`experiment_names` adds the registered ones."""
+
+BEYOND_PAPER: tuple[str, ...] = ("lp_uses", "signed_lp")
+"""The experiments that ask what the paper does not (docs/results.md, "Beyond the paper"):
+trained after the paper's, and captioned as not the paper's."""
 
 REGISTERED_EXPERIMENTS: list[str] = []
 """Experiments added by `register_experiment` (a plugin's), after the built-in ones."""
@@ -525,16 +532,59 @@ def _long(train_preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
     )
 
 
+LP_USES_VARIANT = "distractors_7"
+"""Where `lp_uses` reads LP's two uses apart: the `distractors` experiment's setting with the
+widest gap between CURIOUS and M-UVFA, whose runs there it compares with."""
+
+
+def _lp_uses(train_preset: str, seeds: Sequence[int], episodes: int) -> Experiment:
+    return Experiment(
+        name="lp_uses",
+        title="Beyond the paper: LP's two uses apart, module selection and task replay, with 7 "
+        "distracting modules",
+        conditions=("lp-select", "lp-replay"),
+        variants=(LP_USES_VARIANT,),
+        seeds=tuple(seeds),
+        total_episodes=episodes,
+        train_preset=train_preset,
+    )
+
+
+def _signed_lp(
+    train_preset: str,
+    seeds: Sequence[int],
+    episodes: int,
+    at: int | None = None,
+    competence: float | None = None,
+) -> Experiment:
+    return Experiment(
+        name="signed_lp",
+        title="Beyond the paper: signed LP against the paper's absolute LP, sensory failure on a "
+        "mastered module",
+        conditions=("curious",),
+        variants=("sensor_failure",),
+        seeds=tuple(seeds),
+        total_episodes=episodes,
+        train_preset=train_preset,
+        sensor_failure_episode=at,
+        sensor_failure_competence=competence,
+        overrides=(("lp_measure", "signed"),),
+    )
+
+
 PAPER_EPISODES: dict[str, int | None] = {
     "main": 300_000,
     "distractors": None,
     "sensor_failure": 300_000,
     "sensor_failure_mastered": 300_000,
     "long": 300_000,
+    "lp_uses": None,
+    "signed_lp": None,
 }
 """Episodes per run in the authors' experiment each one reproduces, for the captions: Fig. 2's
 runs (about 300,000, 316 epochs of 950 in their release), the sensory failure's (the same runs,
-the failure switched on at epoch 250); the paper gives no budget for its distractors study."""
+the failure switched on at epoch 250); the paper gives no budget for its distractors study, and
+has no experiment of those beyond it (`BEYOND_PAPER`)."""
 
 _FRACTIONS = {(1, 2): "half", (1, 3): "a third", (2, 3): "two thirds", (1, 4): "a quarter",
               (1, 5): "a fifth", (2, 5): "two fifths", (3, 5): "three fifths",
@@ -544,6 +594,8 @@ _FRACTIONS = {(1, 2): "half", (1, 3): "a third", (2, 3): "two thirds", (1, 4): "
 def _length_note(prefix: str, experiment: Experiment) -> str:
     """``prefix``'s sentence on the experiment's episodes per run against the paper's."""
     n, paper = experiment.total_episodes, PAPER_EPISODES.get(experiment.name)
+    if experiment.name in BEYOND_PAPER:
+        return f"{prefix}: {n:,} episodes per run; an experiment beyond the paper's."
     if paper is None:
         return (
             f"{prefix}: {n:,} episodes per run; the paper gives no episode count for this "
@@ -620,6 +672,30 @@ PAPER_WITHOUT_LONG = (
 """Why the `paper` budget has no `long` experiment."""
 
 
+QUICK_WITHOUT_LP_USES = (
+    "it reads LP's two uses apart where the `laptop` budget's runs of CURIOUS and M-UVFA part "
+    "(with 7 distracting modules, push cube 1 learned after 30,000 episodes or more), far "
+    "beyond a quick run's 1,000 episodes; `curious reproduce --budget laptop --experiments "
+    "lp_uses` trains it"
+)
+"""Why the `quick` budget has no `lp_uses` experiment (docs/results.md, C4, has the episodes)."""
+
+QUICK_WITHOUT_SIGNED_LP = (
+    f"as in the study on a mastered module, its failure waits for push_cube3's competence to reach "
+    f"{MASTERED_COMPETENCE:g}, which 1,000 episodes a run are far too short for; `curious "
+    "reproduce --budget laptop --experiments signed_lp` trains it"
+)
+"""Why the `quick` budget has no `signed_lp` experiment."""
+
+
+def _paper_without(name: str) -> str:
+    """Why the `paper` budget has no experiment `name` of those beyond the paper."""
+    return (
+        "an experiment beyond the paper's, and the `paper` budget trains the authors' protocol "
+        f"alone; `curious reproduce --budget laptop --experiments {name}` trains it"
+    )
+
+
 BUDGETS: dict[str, ReproduceBudget] = {
     b.name: b
     for b in (
@@ -637,6 +713,8 @@ BUDGETS: dict[str, ReproduceBudget] = {
             _sensor_failure("smoke", (0,), 24, at=12),
             _sensor_failure("smoke", (0,), 24, at=12, name="sensor_failure_mastered"),
             _long("smoke", (0,), 24),
+            _lp_uses("smoke", (0,), 24),
+            _signed_lp("smoke", (0,), 24, at=12),
         ),
         _budget(
             "quick",
@@ -656,17 +734,19 @@ BUDGETS: dict[str, ReproduceBudget] = {
                 "sensor_failure": QUICK_WITHOUT_FAILURE,
                 "sensor_failure_mastered": QUICK_WITHOUT_MASTERY,
                 "long": QUICK_WITHOUT_LONG,
+                "lp_uses": QUICK_WITHOUT_LP_USES,
+                "signed_lp": QUICK_WITHOUT_SIGNED_LP,
             },
         ),
         _budget(
             "laptop",
-            "three to eight days on 2 cores (hours on more, or with --ray-address)",
+            "four to nine days on 2 cores (hours on more, or with --ray-address)",
             "Training preset `laptop` (4 workers x 2 episodes and 40 updates of 512 per cycle). "
             "The 25 runs of data/laptop's main comparison, distractors and first sensory "
             "failure trained two at a time on 2-core machines, test rollouts included, at 6.8 "
             "to 8.6 episodes/s each on some and 1.9 to 4.1 on others (the slowest while other "
-            "work shared the cores), so the budget's 3.96 M episodes take about 70 h on 2 cores "
-            "at the faster pace and 180 h at the slower, a quarter of that on 8; the five long "
+            "work shared the cores), so the budget's 4.62 M episodes take about 85 h on 2 cores "
+            "at the faster pace and 210 h at the slower, a quarter of that on 8; the five long "
             "runs, 1.5 M of them, take most of it. The runs are "
             "independent: `--workers` runs them side by side, `--ray-address` across a cluster; "
             "an interrupted reproduction resumes.",
@@ -683,6 +763,8 @@ BUDGETS: dict[str, ReproduceBudget] = {
                 name="sensor_failure_mastered",
             ),
             _long("laptop", (0, 1, 2, 3, 4), LONG_EPISODES),
+            _lp_uses("laptop", (0, 1, 2), 50_000),
+            _signed_lp("laptop", (0, 1, 2), 120_000, competence=MASTERED_COMPETENCE),
             per_experiment_note="Budget laptop",
         ),
         _budget(
@@ -701,6 +783,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             omitted={
                 "sensor_failure_mastered": PAPER_WITHOUT_MASTERY,
                 "long": PAPER_WITHOUT_LONG,
+                **{name: _paper_without(name) for name in BEYOND_PAPER},
             },
         ),
     )

@@ -47,6 +47,16 @@ class FigureInputs:
     load_tests: Callable[[], pd.DataFrame]
     written: dict[str, Path] = field(default_factory=dict)
     """Files the draw function wrote beside the figure (`side_file`), by suffix."""
+    load_other: Callable[[str], tuple[pd.DataFrame | None, pd.DataFrame | None]] = lambda _name: (
+        None,
+        None,
+    )
+    """Another experiment's tables in the same reproduction, (metrics, tests), each None where
+    it has none: what a figure that `FigureSpec.reads` it draws beside its own runs."""
+
+    def other(self, name: str) -> tuple[pd.DataFrame | None, pd.DataFrame | None]:
+        """Experiment `name`'s (metrics, tests) in this reproduction (None where absent)."""
+        return self.load_other(name)
 
     def tests(self) -> pd.DataFrame:
         """The experiment's test rollouts (`curious.analysis.load_tests`); an `AnalysisError`
@@ -88,6 +98,9 @@ class FigureSpec:
     test panel (None: `text` holds either way)."""
     in_report: bool = True
     """Whether report.md shows it (it is drawn either way)."""
+    reads: tuple[str, ...] = ()
+    """Other experiments whose runs it draws beside its own (`FigureInputs.other`), e.g. the
+    shipped runs a study compares its new conditions with; drawn after their tables."""
 
     def stem(self, experiment: str) -> str:
         """Its file name without suffix: the name, or ``<name>_<experiment>`` for a figure of
@@ -112,10 +125,12 @@ def register_figure(
     text: str,
     untested_text: str | None = None,
     in_report: bool = True,
+    reads: tuple[str, ...] | list[str] = (),
 ) -> Callable[[DrawFn], DrawFn]:
     """Register the decorated function as the draw function of figure `name`, drawn for each
     of `experiments` (`curious.reproduction.experiments`) and shown in report.md with `text`
-    under it unless `in_report` is False."""
+    under it unless `in_report` is False; `reads`: other experiments whose tables it draws
+    beside (`FigureInputs.other`)."""
     if not isinstance(name, str) or not name or any(c in name for c in _RESERVED):
         raise ValueError(f"a figure's name is one word without @, |, /, commas, got {name!r}")
     if isinstance(experiments, str):
@@ -129,7 +144,7 @@ def register_figure(
     def add(draw: DrawFn) -> DrawFn:
         if not callable(draw):
             raise TypeError(f"figure {name!r}: register_figure decorates a function, got {draw!r}")
-        spec = FigureSpec(name, experiments, draw, text, untested_text, in_report)
+        spec = FigureSpec(name, experiments, draw, text, untested_text, in_report, tuple(reads))
         if FIGURES.get(name, spec) != spec:
             raise ValueError(f"a figure named {name!r} is already registered")
         FIGURES[name] = spec
@@ -160,7 +175,7 @@ def check_figures(experiments: Iterable[str]) -> None:
     `experiments` (a misspelt name would leave the figure never drawn)."""
     known = tuple(experiments)
     for spec in FIGURES.values():
-        if strangers := [e for e in spec.experiments if e not in known]:
+        if strangers := [e for e in (*spec.experiments, *spec.reads) if e not in known]:
             raise ValueError(
                 f"figure {spec.name!r} is drawn for unknown experiment(s) {', '.join(strangers)}; "
                 f"experiments: {', '.join(known)}"
@@ -277,6 +292,68 @@ def _long_runs(inputs: FigureInputs) -> Figure:
 
     dips = analysis.mastery_dips(inputs.metrics, analysis.TEST_DEPTH)
     return analysis.long_runs(inputs.metrics, dips=dips, note=inputs.note)
+
+
+@register_figure(
+    "lp_uses",
+    ("lp_uses",),
+    "Competence (left) and test success (middle) over the achievable modules at the end of each "
+    "run, and the share of practice on distracting modules over the runs (right): LP-select and "
+    "LP-replay beside the `distractors` experiment's CURIOUS and M-UVFA runs of the same variant.",
+    untested_text="Competence over the achievable modules at the end of each run (left), and the "
+    "share of practice on distracting modules over the runs (right): LP-select and LP-replay "
+    "beside the `distractors` experiment's CURIOUS and M-UVFA runs of the same variant (the runs "
+    "have no test rollouts: no test success panel).",
+    reads=("distractors",),
+)
+def _lp_uses(inputs: FigureInputs) -> Figure:
+    import pandas as pd
+
+    from curious import analysis
+
+    variant = inputs.experiment.variants[0]
+    metrics, tests = inputs.metrics, inputs.tests_if_any()
+    theirs, their_tests = inputs.other("distractors")
+    if theirs is not None:
+        metrics = pd.concat([metrics, _paper_pair(theirs, variant)], ignore_index=True)
+    if tests is not None and their_tests is not None:
+        tests = pd.concat([tests, _paper_pair(their_tests, variant)], ignore_index=True)
+    elif theirs is not None:
+        tests = None  # the test panel compares all four conditions, or none
+    return analysis.lp_uses(metrics, tests, note=inputs.note)
+
+
+def _paper_pair(table: pd.DataFrame, variant: str) -> pd.DataFrame:
+    """The CURIOUS and M-UVFA rows of `variant` in a `distractors` table."""
+    keep = table["variant"].astype(str).eq(variant) & table["condition"].astype(str).isin(
+        ("curious", "m-uvfa")
+    )
+    return table[keep]
+
+
+@register_figure(
+    "signed_lp",
+    ("signed_lp",),
+    "Test success, competence and LP of the perturbed module around the sensory failure, one line "
+    "per run: CURIOUS with signed LP beside the `sensor_failure_mastered` experiment's CURIOUS "
+    "runs (absolute LP, the paper's).",
+    untested_text="Competence and LP of the perturbed module around the sensory failure, one "
+    "line per run: CURIOUS with signed LP beside the `sensor_failure_mastered` experiment's "
+    "CURIOUS runs (the runs have no test rollouts: no test success panel).",
+    reads=("sensor_failure_mastered",),
+)
+def _signed_lp(inputs: FigureInputs) -> Figure:
+    from curious import analysis
+
+    absolute, absolute_tests = inputs.other("sensor_failure_mastered")
+    signed, signed_tests = inputs.metrics, inputs.tests_if_any()
+    if absolute is not None and (absolute_tests is None or signed_tests is None):
+        absolute_tests = signed_tests = None  # the test panel draws both measures, or neither
+    fig, per_run = analysis.signed_lp(
+        absolute, signed, absolute_tests, signed_tests, note=inputs.note, name=inputs.stem
+    )
+    per_run.drop(columns=["run"]).to_csv(inputs.side_file(".csv"), index=False, float_format="%.6g")
+    return fig
 
 
 BUILT_IN_FIGURES: tuple[str, ...] = tuple(FIGURES)

@@ -7,6 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from curious.reproduction.experiments import Experiment
+from pipelines.report.lp_studies import lp_uses, signed_lp
 from pipelines.report.blocks import ExperimentTables, lead_figure, other_figures
 from pipelines.report.distracting_modules import distractors
 from pipelines.report.long_study import long_runs
@@ -21,6 +22,8 @@ SECTIONS = {
     "sensor_failure": sensor_failure,
     "sensor_failure_mastered": sensor_failure_mastered,
     "long": long_runs,
+    "lp_uses": lp_uses,
+    "signed_lp": signed_lp,
 }
 """The section of each built-in experiment; another (a plugin's) shows its figures
 (`figures_only`)."""

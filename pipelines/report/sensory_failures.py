@@ -181,7 +181,7 @@ def secondary_cell(r: object) -> str:
     return "not by its end"
 
 
-def _share(before: float, after: float) -> str:
+def practice_share(before: float, after: float) -> str:
     """``"25% → 56%"``: the share of episodes that practised the module, before and after."""
     if not (math.isfinite(before) and math.isfinite(after)):
         return "–"
@@ -234,7 +234,7 @@ def _recovery_welch(e: Experiment, by_tests: pd.DataFrame, faster: str, slower: 
     return lines
 
 
-def _recovery_censored(by_tests: pd.DataFrame, faster: str, slower: str) -> list[str]:
+def recovery_censored(by_tests: pd.DataFrame, faster: str, slower: str) -> list[str]:
     """The log-rank test on the recoveries by test success, the runs not recovered censored at
     the episodes they had after their onset (`analysis.compare_censored_recoveries`)."""
     test = analysis.compare_censored_recoveries(by_tests, faster, slower)
@@ -306,7 +306,7 @@ def sensor_failure_mastered(
                 "–" if pd.isna(t.trough) else f"{t.trough:.2f} at {int(t.trough_episode):,}",
                 f"{fmt(r.lp_before)} → {fmt(r.lp_after)}",
                 f"{fmt(r.p_lp_before)} → {fmt(r.p_lp_after)}",
-                _share(r.practice_before, r.practice_after),
+                practice_share(r.practice_before, r.practice_after),
                 primary_cell(t),
                 secondary_cell(r),
             )
@@ -327,5 +327,5 @@ def sensor_failure_mastered(
     lines += _primary_summary(e, by_tests)
     if e.compare is not None:
         lines += _recovery_welch(e, by_tests, *e.compare)
-        lines += _recovery_censored(by_tests, *e.compare)
+        lines += recovery_censored(by_tests, *e.compare)
     return lines

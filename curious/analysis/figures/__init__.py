@@ -19,16 +19,23 @@ and, given ``out_dir``, also writes ``<out_dir>/<name>.png`` and ``.svg`` (see `
               seed, the drops of mastered modules shaded (paper Fig. 2b-c over the long runs)
 `distractors` self-evaluated competence over achievable modules at the end of the runs against
               the number of distracting modules
+`lp_uses`     beyond the paper: CURIOUS, M-UVFA, `lp-select` and `lp-replay` side by side, each
+              run's competence (and test success) at the end and the share of practice spent
+              on distracting modules over the runs
+`signed_lp`   beyond the paper: the sensory-failure figure of CURIOUS under absolute and
+              signed LP
 ============  ===========================================================================
 
-Every x axis counts episodes (bar the distractors figure's), and every caption names the seeds,
-the budget in episodes, the preset and the variant of the runs drawn; ``note`` adds a sentence
-at its end (the reproduction says there when a budget is far below the paper's). Colours and
-labels of modules and conditions come from `curious.analysis.palette`.
+Every x axis counts episodes (bar the distractors figure's and `lp_uses`' first panels), and
+every caption names the seeds, the budget in episodes, the preset and the variant of the runs
+drawn; ``note`` adds a sentence at its end (the reproduction says there when a budget is far
+below the paper's). Colours and labels of modules and conditions come from
+`curious.analysis.palette`.
 """
 
 from __future__ import annotations
 
+from curious.analysis.figures.beyond_paper import lp_uses, signed_lp
 from curious.analysis.figures.distracting import distractors
 from curious.analysis.figures.failure_recovery import sensor_failure
 from curious.analysis.figures.fig2 import fig2a, fig2b, fig2c, table1
@@ -43,7 +50,9 @@ __all__ = [
     "fig2b",
     "fig2c",
     "long_runs",
+    "lp_uses",
     "save_figure",
     "sensor_failure",
+    "signed_lp",
     "table1",
 ]

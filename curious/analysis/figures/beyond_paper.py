@@ -129,7 +129,7 @@ def _share_panel(ax: Axes, share: pd.DataFrame, conditions: Sequence[str]) -> No
 
 
 def signed_lp(
-    absolute: pd.DataFrame,
+    absolute: pd.DataFrame | None,
     signed: pd.DataFrame,
     tests_absolute: pd.DataFrame | None = None,
     tests_signed: pd.DataFrame | None = None,
@@ -139,29 +139,27 @@ def signed_lp(
 ) -> tuple[Figure, pd.DataFrame]:
     """The sensory-failure figure (`sensor_failure`) of CURIOUS's runs under absolute LP
     (``absolute``, e.g. `sensor_failure_mastered`'s) and signed LP (``signed``, drawn as
-    `SIGNED_LP`), each table with its test rollouts where given (both or neither). Returns the
-    figure and the `recovery` table of every run."""
-    if (tests_absolute is None) != (tests_signed is None):
+    `SIGNED_LP`), each table with its test rollouts where given (both or neither; where
+    ``absolute`` is None, the signed runs alone with ``tests_signed``). Returns the figure and the
+    `recovery` table of every run."""
+    if absolute is not None and (tests_absolute is None) != (tests_signed is None):
         raise AnalysisError("give the test rollouts of both measures' runs, or of neither")
-    tables = [_curious_only(absolute, "absolute"), _as_signed(_curious_only(signed, "signed"))]
-    tests = None
-    if tests_absolute is not None and tests_signed is not None:
-        tests = pd.concat(
-            [
-                _curious_only(tests_absolute, "absolute"),
-                _as_signed(_curious_only(tests_signed, "signed")),
-            ],
-            ignore_index=True,
-        )
+    tables = [_as_signed(_curious_only(signed, "signed"))]
+    tests = None if tests_signed is None else [_as_signed(_curious_only(tests_signed, "signed"))]
+    if absolute is not None:
+        tables.insert(0, _curious_only(absolute, "absolute"))
+        if tests is not None and tests_absolute is not None:
+            tests.insert(0, _curious_only(tests_absolute, "absolute"))
     fig, per_run = sensor_failure(
         pd.concat(tables, ignore_index=True),
-        conditions=["curious", SIGNED_LP],
+        conditions=(["curious"] if absolute is not None else []) + [SIGNED_LP],
         note=note,
-        tests=tests,
+        tests=None if tests is None else pd.concat(tests, ignore_index=True),
         name=name,
     )
     fig.axes[-1].set_ylabel("LP (absolute; signed: its rise only)")
-    fig.suptitle("Absolute against signed LP — sensory failure on a mastered module")
+    measures = "Absolute against signed LP" if absolute is not None else "Signed LP"
+    fig.suptitle(f"{measures} — sensory failure on a mastered module")
     return finish(fig, out_dir, name), per_run
 
 
