@@ -550,24 +550,16 @@ def _lp_uses(train_preset: str, seeds: Sequence[int], episodes: int) -> Experime
     )
 
 
-def _signed_lp(
-    train_preset: str,
-    seeds: Sequence[int],
-    episodes: int,
-    at: int | None = None,
-    competence: float | None = None,
-) -> Experiment:
-    return Experiment(
+def _signed_lp(mastered: Experiment) -> Experiment:
+    """The study on a mastered module (`mastered`, a budget's `sensor_failure_mastered`) with
+    CURIOUS alone and one setting changed: LP signed instead of the paper's absolute."""
+    return replace(
+        mastered,
         name="signed_lp",
         title="Beyond the paper: signed LP against the paper's absolute LP, sensory failure on a "
         "mastered module",
         conditions=("curious",),
-        variants=("sensor_failure",),
-        seeds=tuple(seeds),
-        total_episodes=episodes,
-        train_preset=train_preset,
-        sensor_failure_episode=at,
-        sensor_failure_competence=competence,
+        compare=None,
         overrides=(("lp_measure", "signed"),),
     )
 
@@ -696,6 +688,10 @@ def _paper_without(name: str) -> str:
     )
 
 
+_laptop_mastered = _sensor_failure(
+    "laptop", (0, 1, 2), 120_000, competence=MASTERED_COMPETENCE, name="sensor_failure_mastered"
+)
+
 BUDGETS: dict[str, ReproduceBudget] = {
     b.name: b
     for b in (
@@ -714,7 +710,7 @@ BUDGETS: dict[str, ReproduceBudget] = {
             _sensor_failure("smoke", (0,), 24, at=12, name="sensor_failure_mastered"),
             _long("smoke", (0,), 24),
             _lp_uses("smoke", (0,), 24),
-            _signed_lp("smoke", (0,), 24, at=12),
+            _signed_lp(_sensor_failure("smoke", (0,), 24, at=12, name="sensor_failure_mastered")),
         ),
         _budget(
             "quick",
@@ -755,16 +751,10 @@ BUDGETS: dict[str, ReproduceBudget] = {
             _main("laptop", (0, 1, 2), 100_000),
             _distractors("laptop", (0, 1), 50_000),
             _sensor_failure("laptop", (0, 1), 60_000, competence=LEARNED_COMPETENCE),
-            _sensor_failure(
-                "laptop",
-                (0, 1, 2),
-                120_000,
-                competence=MASTERED_COMPETENCE,
-                name="sensor_failure_mastered",
-            ),
+            _laptop_mastered,
             _long("laptop", (0, 1, 2, 3, 4), LONG_EPISODES),
             _lp_uses("laptop", (0, 1, 2), 50_000),
-            _signed_lp("laptop", (0, 1, 2), 120_000, competence=MASTERED_COMPETENCE),
+            _signed_lp(_laptop_mastered),
             per_experiment_note="Budget laptop",
         ),
         _budget(
