@@ -440,10 +440,10 @@ class ListRecorder:
     def log_episodes(self, **columns):
         self.calls.append(("episodes", columns))
 
-    def log_replay(self, episode, counts):
+    def log_replay(self, episode, counts, wall_time):
         self.calls.append(("replay", episode, counts))
 
-    def log_learner(self, episode, losses, q):
+    def log_learner(self, episode, losses, q, wall_time):
         self.calls.append(("learner", episode, losses, q))
 
     def log_tests(self, episode, module, success, wall_time):

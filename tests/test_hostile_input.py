@@ -784,7 +784,7 @@ def test_reproduce_refuses_a_runs_folder_no_search_would_find_before_writing(tmp
         assert line.startswith(f"curious reproduce: error: {option} ") and words in line, line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other", "run"]
     assert sorted(p.name for p in run.iterdir()) == sorted(
-        ["checkpoints", "config.json", "metrics.parquet", "tests.parquet"]
+        ["checkpoints", "config.json", "learner.parquet", "metrics.parquet", "tests.parquet"]
     )
 
 

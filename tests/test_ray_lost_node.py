@@ -143,7 +143,7 @@ def test_a_run_whose_node_dies_resumes_on_the_node_alive_as_if_undisturbed(tmp_p
 
     specs = get_budget("smoke").experiments["sensor_failure"].runs()
     for spec in specs:
-        for table in ("metrics.parquet", "tests.parquet"):
+        for table in ("metrics.parquet", "tests.parquet", "learner.parquet"):
             mine = without_clock(run_folder(spec, runs) / table)
             want = without_clock(run_folder(spec, tmp_path / "ref-runs") / table)
             assert mine.num_rows == want.num_rows and mine.equals(want), (spec.label, table)

@@ -206,12 +206,10 @@ def test_a_resume_rebuilds_a_missing_or_damaged_recording_from_the_tables(
 ) -> None:
     """Killed after its checkpoint at 24 with its recording then deleted, cut short or
     overwritten, a run resumed holds every series its tables hold as an uninterrupted run does
-    (the statistics at float32), and says what it could not rebuild, each series with the
-    episode of its first point: the replay shares and learner statistics after the resumed
-    episode's cycle (28, where the warning once said 24), the 3-D rollouts at the first
-    evaluation from it on."""
+    (the module statistics at float32), the replay shares and learner statistics among them
+    (`learner.parquet`), and says what it could not rebuild, with the episode of its first
+    point: the 3-D rollouts, at the first evaluation from 24 on."""
     from curious.cli import main
-    from curious.watching.recording.resume import NOT_IN_TABLES
 
     out = tmp_path / "killed"
     shutil.copytree(killed_at_24, out)
@@ -223,29 +221,62 @@ def test_a_resume_rebuilds_a_missing_or_damaged_recording_from_the_tables(
     else:
         recording.write_bytes(b"not a recording at all")
     unreadable = "could not be read" if damage != "deleted" else None  # a file kept aside
-    rebuilt = "rebuilt from metrics.parquet and tests.parquet"
+    rebuilt = "rebuilt from metrics.parquet, tests.parquet and learner.parquet"
     with (
         pytest.warns(RuntimeWarning, match=unreadable) if unreadable else contextlib.nullcontext(),
         pytest.warns(RuntimeWarning, match=rebuilt) as warned,
     ):
         assert main([*TRAIN, "--out", str(out), "--resume"]) == 0
     (said,) = [str(w.message) for w in warned if rebuilt in str(w.message)]
-    named = {
-        series: int(re.search(rf"{series} \(.*?\) at episode ([\d,]+)", said)[1])
-        for series in ("learner statistics", "3-D rollouts")
-    }
-    (got, got_static), (want, want_static) = read_points(recording), read_points(uninterrupted_run)
+    assert "learner statistics" not in said and "replay" not in said, said
+    rollouts = int(re.search(r"3-D rollouts \(.*?\) at episode ([\d,]+)", said)[1])
+    assert_rebuilt(recording, uninterrupted_run, rollouts, said)
+
+
+def assert_rebuilt(
+    recording: Path, reference: Path, rollouts: int | None, said: str, learner_from: int = 0
+) -> None:
+    """`recording` holds every entity and point of `reference`, the statistics at float32, but
+    the 3-D rollouts before episode `rollouts` (None: none at all) and the replay shares and
+    learner statistics before `learner_from`."""
+    from curious.watching.recording.resume import IN_LEARNER_TABLE
+
+    (got, got_static), (want, want_static) = read_points(recording), read_points(reference)
+    if rollouts is None:
+        want = {k: rows for k, rows in want.items() if k[0].split("/")[0] != "scene"}
+        want_static = {k: v for k, v in want_static.items() if k[0].split("/")[0] != "scene"}
     assert sorted(got) == sorted(want) and sorted(got_static) == sorted(want_static)
     for (entity, component), rows in want.items():
         mine = got[(entity, component)]
         if entity.startswith("scene/"):  # the rest pose, then rollouts from episode 24 on
-            rollouts = [e for e, frame, _ in mine if frame != 0 and e is not None]
-            assert rollouts and min(rollouts) == named["3-D rollouts"] >= 24, (entity, said)
-        elif entity.startswith(NOT_IN_TABLES):  # logged after each cycle: from 24's next on
-            assert mine == [r for r in rows if r[0] > 24], entity
-            assert mine[0][0] == named["learner statistics"], (entity, said)
+            shown = [e for e, frame, _ in mine if frame != 0 and e is not None]
+            assert shown and min(shown) == rollouts and rollouts >= 24, (entity, said)
+        elif entity.startswith(IN_LEARNER_TABLE):  # float64 in the table: as they were
+            assert mine == [r for r in rows if r[0] >= learner_from], entity
         else:
             assert float32_points(mine) == float32_points(rows), entity
+
+
+def test_a_run_from_before_the_learner_table_rebuilds_its_series_from_where_it_begins(
+    tmp_path: Path, uninterrupted_run: Path, killed_at_24: Path
+) -> None:
+    """A run trained before `learner.parquet` existed (here: the table deleted) begins one where
+    it resumes (24: rows from the next cycle's end, 28, on); its recording, lost after the next
+    checkpoint (36), is rebuilt with those series from 28, which the warning names."""
+    from curious.cli import main
+
+    out = tmp_path / "killed"
+    shutil.copytree(killed_at_24, out)
+    (out / "learner.parquet").unlink()
+    train_killed_at(36, [*TRAIN, "--out", str(out), "--resume"])
+    (out / RECORDING_FILE).unlink()
+    with pytest.warns(RuntimeWarning, match="rebuilt from") as warned:
+        assert main([*TRAIN, "--out", str(out), "--resume"]) == 0
+    (said,) = [str(w.message) for w in warned if "rebuilt from" in str(w.message)]
+    named = re.search(r"learner statistics \(.*?\) at episode ([\d,]+)", said)
+    assert named and int(named[1]) == 28, said
+    assert "3-D rollouts (scene/...) not again: the run has ended" in said, said
+    assert_rebuilt(out / RECORDING_FILE, uninterrupted_run, None, said, learner_from=28)
 
 
 # ------------------------------------------------------------------------------ a full disk

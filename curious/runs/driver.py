@@ -2,11 +2,11 @@
 cycle.
 
 It prepares the folder (`curious.runs.folder`), builds the environment copies (the training
-ones and the test rollouts' own), appends each cycle's rows to `metrics.parquet` and
-`tests.parquet`, writes a checkpoint every `checkpoint_every_cycles` cycles (with no rounds in
-flight) and at the end, resumes from the newest one (`resume=True`, after `resume_checks`),
-shows a progress bar and hands every cycle to an optional recorder (`curious.runs.hooks.Recorder`).
-`curious train` and the reproduction pipeline call it.
+ones and the test rollouts' own), appends each cycle's rows to `metrics.parquet`,
+`tests.parquet` and `learner.parquet`, writes a checkpoint every `checkpoint_every_cycles`
+cycles (with no rounds in flight) and at the end, resumes from the newest one (`resume=True`,
+after `resume_checks`), shows a progress bar and hands every cycle to an optional recorder
+(`curious.runs.hooks.Recorder`). `curious train` and the reproduction pipeline call it.
 """
 
 from __future__ import annotations
@@ -26,9 +26,9 @@ from curious.runs import checkpoint
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_lock import folder_lock
-from curious.runs.hooks import Recorder
+from curious.runs.hooks import Recorder, log_learner_rows
 from curious.runs.memory import SUITE_COPY_BYTES, check_memory
-from curious.runs.metrics import MetricsLog, TableLog, TestsLog
+from curious.runs.metrics import LearnerLog, MetricsLog, TableLog, TestsLog
 from curious.runs.trainer import CycleResult, Trainer
 
 
@@ -190,7 +190,8 @@ def _run(
         tables = [MetricsLog(folder.metrics_path, trainer.spec.module_names)]
         tables.append(TestsLog(folder.tests_path))
     metrics, tests = tables
-    for table in tables:
+    learner = LearnerLog(folder.learner_path, trainer.spec.module_names, trainer.episodes)
+    for table in (*tables, learner):
         if table.n_rows:
             rows_before = table.n_rows
             table.truncate(trainer.episodes)  # rows logged after the checkpoint are redone
@@ -222,8 +223,11 @@ def _run(
             metrics.append(result.rows)
             if result.tests is not None:
                 tests.append(result.tests)
+            row = learner.append_cycle(
+                trainer.episodes, result.replay_counts, result.losses, trainer.wall_time()
+            )
             if recorder is not None and len(result.module_index):
-                _log_cycle(recorder, trainer, result)
+                _log_cycle(recorder, result, row)
             bar.update(len(result.rows.get("episode", ())))
             bar.set_postfix(_progress_text(trainer), refresh=False)
             stop_now = stopping or (
@@ -234,6 +238,7 @@ def _run(
                 metrics.flush()
                 if config.test_rollouts_per_worker:
                     tests.flush()
+                learner.flush()
                 if recorder is not None:
                     recorder.checkpoint()
                 trainer.save_checkpoint(folder.checkpoints)
@@ -250,8 +255,9 @@ def _run(
     return trainer
 
 
-def _log_cycle(recorder: Recorder, trainer: Trainer, result: CycleResult) -> None:
-    """Hand one cycle to a recorder (the calls: `curious.runs.hooks`)."""
+def _log_cycle(recorder: Recorder, result: CycleResult, learner: dict | None) -> None:
+    """Hand one cycle to a recorder (the calls: `curious.runs.hooks`); `learner`: the cycle's
+    row of `learner.parquet` (None: no updates)."""
     rows = result.rows
     recorder.log_episodes(
         episode=rows["episode"],
@@ -263,20 +269,13 @@ def _log_cycle(recorder: Recorder, trainer: Trainer, result: CycleResult) -> Non
         p_lp=result.p_lp,
         wall_time=rows["wall_time"],
     )
-    losses = result.losses
     if result.tests is not None:
         tests = result.tests
         recorder.log_tests(
             int(tests["episode"][0]), tests["module"], tests["success"], tests["wall_time"][0]
         )
-    if result.replay_counts.sum() > 0:
-        recorder.log_replay(trainer.episodes, result.replay_counts)
-    if "critic_loss" in losses:
-        recorder.log_learner(
-            trainer.episodes,
-            losses={"critic": losses["critic_loss"], "actor": losses["actor_loss"]},
-            q={"target_mean": losses["q_target_mean"]},
-        )
+    if learner is not None:
+        log_learner_rows(recorder, learner)
 
 
 def _progress_text(trainer: Trainer) -> dict[str, str]:

@@ -40,6 +40,7 @@ from curious.runs.folder_errors import ConfigMismatch, RunFolderError
 from curious.runs.folder_layout import (
     CHECKPOINTS_DIR,
     CONFIG_FILE,
+    LEARNER_FILE,
     METRICS_FILE,
     RECORDING_FILE,
     RUN_ENTRIES,
@@ -111,6 +112,10 @@ class RunFolder:
     @property
     def tests_path(self) -> Path:
         return self.path / TESTS_FILE
+
+    @property
+    def learner_path(self) -> Path:
+        return self.path / LEARNER_FILE
 
     @property
     def recording_path(self) -> Path:

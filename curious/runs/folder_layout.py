@@ -4,6 +4,7 @@ agrees on the layout:
     config.json       the run's description (`curious.runs.folder.RunFolder.describe`)
     metrics.parquet   one row per training episode (`curious.runs.metrics`)
     tests.parquet     one row per test rollout (`curious.runs.metrics`)
+    learner.parquet   one row per cycle: replay counts, losses, Q (`curious.runs.metrics`)
     recording.rrd     the Rerun recording (written by `curious.watching.recording`)
     checkpoints/      resumable checkpoints, `ep-<episodes, 12 digits>/` (`curious.runs.checkpoint`)
 
@@ -23,12 +24,14 @@ from curious.runs.folder_errors import RunFolderError
 CONFIG_FILE = "config.json"
 METRICS_FILE = "metrics.parquet"
 TESTS_FILE = "tests.parquet"
+LEARNER_FILE = "learner.parquet"
 RECORDING_FILE = "recording.rrd"
 CHECKPOINTS_DIR = "checkpoints"
 RUN_ENTRIES: tuple[str, ...] = (
     CONFIG_FILE,
     METRICS_FILE,
     TESTS_FILE,
+    LEARNER_FILE,
     RECORDING_FILE,
     CHECKPOINTS_DIR,
 )

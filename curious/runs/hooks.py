@@ -6,12 +6,15 @@ A `Recorder` (e.g. `curious.watching.recording.RunRecorder`) is called by
 
     recorder.log_episodes(episode=(B,), module=(B,) slot indices, success=(B,), eval=(B,),
                           competence=(B, N), lp=(B, N), p_lp=(B, N), wall_time=(B,))
-    recorder.log_replay(episode, counts)     # (N,) modules of the cycle's replayed transitions
     recorder.log_tests(episode, module=(K,), success=(K,), wall_time)   # an epoch's K tests
-    recorder.log_learner(episode, losses={"critic", "actor"}, q={"target_mean"})
+    recorder.log_replay(episode, counts, wall_time)   # (N,) modules of the replayed transitions
+    recorder.log_learner(episode, losses={"critic", "actor"}, q={"target_mean"}, wall_time)
     recorder.checkpoint()                    # before every checkpoint: make it durable
     recorder.close()                         # once, when training stops
     recorder.close_after_error()             # instead, when an error stops it
+
+The replay counts and learner statistics come from the cycle's row of `learner.parquet`
+(`log_learner_rows`), which a recording rebuilt from the run's tables hands over the same way.
 
 A `RoundObserver` set as `Trainer.observer` (e.g. one that captures MuJoCo body poses for 3-D
 rollouts) is called by the `Trainer` around every round of parallel training episodes:
@@ -24,7 +27,8 @@ rollouts) is called by the `Trainer` around every round of parallel training epi
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -32,6 +36,7 @@ import numpy as np
 
 from curious.envs.goal_env import GoalEnv
 from curious.envs.rollout import EpisodeData
+from curious.runs.metrics import LEARNER_STATS
 
 
 class Recorder(Protocol):
@@ -54,9 +59,11 @@ class Recorder(Protocol):
         self, episode: int, module: np.ndarray, success: np.ndarray, wall_time: float
     ) -> None: ...
 
-    def log_replay(self, episode: int, counts: np.ndarray) -> None: ...
+    def log_replay(self, episode: int, counts: np.ndarray, wall_time: float) -> None: ...
 
-    def log_learner(self, episode: int, losses: dict[str, float], q: dict[str, float]) -> None: ...
+    def log_learner(
+        self, episode: int, losses: dict[str, float], q: dict[str, float], wall_time: float
+    ) -> None: ...
 
     def checkpoint(self) -> None:
         """Make what was logged so far durable (called before every training checkpoint)."""
@@ -65,6 +72,25 @@ class Recorder(Protocol):
 
     def close_after_error(self) -> None:
         """Close when an error stopped training, never raising over that error."""
+
+
+def log_learner_rows(recorder: Recorder, rows: Mapping[str, np.ndarray]) -> None:
+    """Hand rows of `learner.parquet` (`curious.runs.metrics.LearnerLog`, as columns) to a
+    recorder, each at its episode: the replay counts where any transition was replayed, the
+    learner statistics where the cycle had updates."""
+    replay = [np.asarray(values) for name, values in rows.items() if name.startswith("replay/")]
+    counts = np.column_stack(replay) if replay else np.zeros((len(rows["episode"]), 0), np.int64)
+    for i, episode in enumerate(np.asarray(rows["episode"]).tolist()):
+        wall = float(rows["wall_time"][i])
+        if counts[i].sum() > 0:
+            recorder.log_replay(episode, counts[i], wall)
+        groups: dict[str, dict[str, float]] = {"losses": {}, "q": {}}
+        for column, (group, name) in LEARNER_STATS.items():
+            value = float(rows[column][i])
+            if not math.isnan(value):
+                groups[group][name] = value
+        if groups["losses"] or groups["q"]:
+            recorder.log_learner(episode, groups["losses"], groups["q"], wall)
 
 
 class RoundObserver(Protocol):

@@ -1,5 +1,6 @@
-"""The run's tables: `metrics.parquet` (one row per training episode) and `tests.parquet` (one row
-per test rollout), columns as in docs/architecture.md.
+"""The run's tables: `metrics.parquet` (one row per training episode), `tests.parquet` (one row
+per test rollout) and `learner.parquet` (one row per cycle with updates: what the recording shows
+of the replay and the learner), columns as in docs/architecture.md.
 
 Rows accumulate in memory and the file is rewritten atomically at every flush (write a temporary
 file beside it, then rename over it), so a run killed at any moment, SIGKILL included, leaves the
@@ -10,6 +11,7 @@ count are dropped, so rows and checkpoint always agree.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -157,3 +159,84 @@ class TestsLog(TableLog):
         """Keep the tests run at or before `n_episodes` training episodes (a checkpoint at
         n episodes was written after the test of its last cycle)."""
         super().truncate(n_episodes, inclusive)
+
+
+LEARNER_STATS: dict[str, tuple[str, str]] = {
+    "critic_loss": ("losses", "critic"),
+    "actor_loss": ("losses", "actor"),
+    "q_target_mean": ("q", "target_mean"),
+}
+"""The learner statistics a run records, each a column of `learner.parquet` named as the trainer
+names it (`CycleResult.losses`), with its group and name in the recording (`losses/critic`)."""
+
+_FROM_EPISODE = b"from_episode"
+
+
+def learner_schema(module_names: Sequence[str], from_episode: int = 0) -> pa.Schema:
+    """The columns of `learner.parquet`, in order: `episode` (the episodes done after the cycle,
+    where the recording logs it), `replay/<module>` (the cycle's replayed transitions of each
+    module, counted), the `LEARNER_STATS` (means over the cycle's updates; NaN in a cycle
+    without them) and `wall_time`; `from_episode` in the file's metadata (`LearnerLog`)."""
+    columns = [("episode", pa.int64())]
+    columns += [(f"replay/{name}", pa.int64()) for name in module_names]
+    columns += [(name, pa.float64()) for name in LEARNER_STATS]
+    columns.append(("wall_time", pa.float64()))
+    return pa.schema(columns, metadata={_FROM_EPISODE: str(from_episode).encode()})
+
+
+def learner_begins(schema: pa.Schema) -> int:
+    """The episode a `learner.parquet` of this schema begins at (`LearnerLog.from_episode`)."""
+    return int((schema.metadata or {}).get(_FROM_EPISODE, b"0"))
+
+
+class LearnerLog(TableLog):
+    """`learner.parquet`: the replay counts and learner statistics of each cycle with updates,
+    the series a recording shows under `replay/`, `losses/` and `q/`, so that a recording rebuilt
+    from the tables holds them too (`curious.watching.recording.resume.rebuild_from_tables`).
+
+    `from_episode` is where the table begins: 0 for a run that wrote it from its start; a run
+    from before the table, or whose table was lost, begins it where it resumes, so that a
+    rebuilt recording can say from which episode these series are there. These statistics are
+    for looking, never a reason a run cannot resume: a table that cannot be read is set aside
+    as `learner.parquet.unreadable`, with a warning, and a new one begins.
+    """
+
+    def __init__(self, path: str | os.PathLike, module_names: Sequence[str], episodes: int) -> None:
+        path = Path(path)
+        try:
+            begins = learner_begins(pq.read_schema(path)) if path.exists() else episodes
+            super().__init__(path, learner_schema(module_names, begins))
+        except (OSError, ValueError, RunFolderError) as exc:  # pyarrow's are among them
+            aside = path.with_name(f"{path.name}.unreadable")
+            os.replace(path, aside)
+            warnings.warn(
+                f"{path} could not be read ({exc}); it is kept as {aside.name}, and the replay "
+                f"and learner statistics are kept again from episode {episodes:,}",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            begins = episodes
+            super().__init__(path, learner_schema(module_names, begins))
+        self.from_episode = begins
+
+    def truncate(self, n_episodes: int, inclusive: bool = True) -> None:
+        """Keep the rows of the cycles up to a checkpoint at `n_episodes` (the last of them at
+        `n_episodes` itself)."""
+        super().truncate(n_episodes, inclusive)
+
+    def append_cycle(
+        self, episode: int, replay_counts: np.ndarray, losses: dict[str, float], wall: float
+    ) -> dict[str, np.ndarray] | None:
+        """The row of a cycle that ended at `episode` episodes, appended and returned; None (no
+        row) for a cycle without updates, which the recording shows nothing of either."""
+        if not (replay_counts.sum() > 0 or any(k in losses for k in LEARNER_STATS)):
+            return None
+        names = [n.removeprefix("replay/") for n in self.schema.names if n.startswith("replay/")]
+        row: dict[str, np.ndarray] = {"episode": np.array([episode], np.int64)}
+        for name, count in zip(names, replay_counts, strict=True):
+            row[f"replay/{name}"] = np.array([count], np.int64)
+        for stat in LEARNER_STATS:
+            row[stat] = np.array([losses.get(stat, np.nan)], np.float64)
+        row["wall_time"] = np.array([wall], np.float64)
+        self.append(row)
+        return row

@@ -17,11 +17,13 @@ what an uninterrupted run had logged at the checkpoint, and picks up the state i
 
 A recording that cannot be read (`read_previous`) is set aside with a warning, never a reason a
 run cannot resume. A recording that is missing, or that was set aside, is rebuilt from the run's
-tables instead (`rebuild_from_tables`): every series `metrics.parquet` and `tests.parquet` hold
-(competence, LP and p_LP, success, module, test success), logged cycle by cycle as the run logged
-them, so that they come out as an uninterrupted run's (the statistics at the float32 precision
-of the tables). The tables do not hold the 3-D rollouts, the replay shares and the learner
-statistics: those start at the resumed episode, and a warning says so.
+tables instead (`rebuild_from_tables`): every series `metrics.parquet`, `tests.parquet` and
+`learner.parquet` hold (competence, LP and p_LP, success, module, test success; the replay
+shares and the learner statistics), logged cycle by cycle as the run logged them, so that they
+come out as an uninterrupted run's (the module statistics at the float32 precision of the
+tables). No table holds the 3-D rollouts: they start again after the resumed episode, and so do
+the replay shares and learner statistics of a run whose `learner.parquet` does not reach back to
+its start (a run from before that table); a warning says where each starts.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from rerun.chunk import Chunk
 from curious.watching.recording.rrd_files import PreviousRecording, load_previous
 
 __all__ = [
+    "IN_LEARNER_TABLE",
     "NOT_IN_TABLES",
     "PER_CYCLE",
     "last_episode_kept",
@@ -49,9 +52,13 @@ __all__ = [
     "take_held_values",
 ]
 
-NOT_IN_TABLES = ("scene/", "replay/", "losses/", "q/")
+NOT_IN_TABLES = ("scene/",)
 """Entity prefixes a recording rebuilt from the run's tables lacks before the resumed episode:
-the 3-D rollouts, the replay shares and the learner statistics, which no table keeps."""
+the 3-D rollouts, which no table keeps."""
+
+IN_LEARNER_TABLE = ("replay/", "losses/", "q/")
+"""Entity prefixes of the series `learner.parquet` keeps (from the episode it begins at,
+`curious.runs.metrics.LearnerLog.from_episode`): the replay shares, the losses, the Q values."""
 
 PER_CYCLE = ("losses/", "q/", "replay/", "test/")
 """Entity prefixes logged once a cycle, at the episode count after it."""
@@ -158,15 +165,26 @@ def take_held_values(
 
 
 def rebuild_from_tables(
-    recorder: Any, metrics: pa.Table, tests: pa.Table, episodes_done: int, episodes_per_cycle: int
+    recorder: Any,
+    metrics: pa.Table,
+    tests: pa.Table,
+    episodes_done: int,
+    episodes_per_cycle: int,
+    learner: pa.Table | None = None,
 ) -> int:
     """Log into `recorder` (a `RunRecorder` that starts a new recording) the rows of the run's
     tables up to `episodes_done`, the checkpoint's episode count, as the run logged them: the
     episodes cycle by cycle (`episodes_per_cycle` a cycle: written-where-it-changes statistics
-    and their keyframes depend on it), each epoch's test rollouts at its episode count. Returns
-    the episodes logged."""
+    and their keyframes depend on it), after each its test rollouts (at an epoch's end) and its
+    row of `learner` (`learner.parquet`, where there is one). Returns the episodes logged."""
+    from curious.runs.hooks import log_learner_rows
+
     metrics = metrics.filter(pc.less(metrics["episode"], episodes_done)).sort_by("episode")
     tests = tests.filter(pc.less_equal(tests["episode"], episodes_done)).sort_by("episode")
+    if learner is not None:
+        learner = learner.filter(pc.less_equal(learner["episode"], episodes_done))
+        learner = learner.sort_by("episode")
+        learner_episode = learner["episode"].to_numpy()
     names = recorder.module_names
     stats = {
         kind: np.column_stack(
@@ -204,6 +222,11 @@ def rebuild_from_tables(
         lo, hi = np.searchsorted(test_episode, [end, end + 1])  # tests run after this cycle
         if hi > lo:
             recorder.log_tests(end, test_module[lo:hi], test_success[lo:hi], test_wall[lo])
+        if learner is not None:  # this cycle's row, and any before it the loop has not met
+            upto = int(np.searchsorted(learner_episode, end, side="right"))
+            log_learner_rows(recorder, learner.slice(0, upto).to_pydict())
+            learner = learner.slice(upto)
+            learner_episode = learner_episode[upto:]
     if episode.size:
         recorder.continue_clock(float(wall[-1]))
     return int(episode.size)

@@ -231,8 +231,8 @@ def recorder_factory(
 
 def _rebuild(recorder: Any, trainer: Any, folder: Any) -> None:
     """A resumed run's recording that was missing or unreadable, rebuilt from its tables
-    (`curious.watching.recording.resume.rebuild_from_tables`), with a warning saying what could
-    not be."""
+    (`curious.watching.recording.resume.rebuild_from_tables`), with a warning naming each series
+    the tables do not hold from the run's start, and the episode of its first point."""
     import warnings
 
     import pyarrow.parquet as pq
@@ -246,48 +246,76 @@ def _rebuild(recorder: Any, trainer: Any, folder: Any) -> None:
     metrics = read(folder.metrics_path, metrics_schema(trainer.spec.module_names))
     tests = read(folder.tests_path, tests_schema())
     episodes = trainer.episodes
+    learner, learner_from = _learner_table(folder.learner_path, episodes)
     logged = rebuild_from_tables(
-        recorder, metrics, tests, episodes, trainer.config.episodes_per_cycle
+        recorder, metrics, tests, episodes, trainer.config.episodes_per_cycle, learner
     )
-    restarts = restart_episodes(trainer.config, recorder.settings.rollout_every, episodes)
+    restarts = restart_episodes(
+        trainer.config, recorder.settings.rollout_every, episodes, learner_from
+    )
     lacking = "; ".join(
         f"{what} ({', '.join(f'{p}...' for p in prefixes)}) "
         + (f"at episode {first:,}" if first is not None else "not again: the run has ended")
         for what, prefixes, first in restarts
     )
+    names = [folder.metrics_path.name, folder.tests_path.name]
+    names += [folder.learner_path.name] if learner is not None else []
     warnings.warn(
         f"{recorder.path} had no readable recording to resume: its series of episodes 0 to "
-        f"{episodes - 1:,} were rebuilt from {folder.metrics_path.name} and "
-        f"{folder.tests_path.name} ({logged:,} episodes)"
-        + (f"; what those tables do not hold starts after them: {lacking}" if lacking else ""),
+        f"{episodes - 1:,} were rebuilt from {', '.join(names[:-1])} and {names[-1]} "
+        f"({logged:,} episodes)"
+        + (f"; what those tables do not hold from the run's start begins later: {lacking}"
+           if lacking else ""),
         RuntimeWarning,
         stacklevel=3,
-    )
+    )  # fmt: skip
+
+
+def _learner_table(path: Any, episodes: int) -> tuple[Any, int | None]:
+    """`learner.parquet` at `path` (None where there is none or it cannot be read), and where
+    its series begin in a recording rebuilt at `episodes` (`restart_episodes`' `learner_from`):
+    None where the table reaches back to the run's start, else its first row up to `episodes`,
+    or -1 where it has none."""
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    from curious.runs.metrics import learner_begins
+
+    try:
+        table = pq.read_table(path) if path.exists() else None
+    except (OSError, ValueError):  # the run sets it aside as it starts (`LearnerLog`)
+        table = None
+    if table is None:
+        return None, -1
+    if learner_begins(table.schema) == 0:
+        return table, None
+    kept = table.filter(pc.less_equal(table["episode"], episodes))
+    return table, (int(pc.min(kept["episode"]).as_py()) if kept.num_rows else -1)
 
 
 def restart_episodes(
-    config: Any, rollout_every: int, episodes: int
+    config: Any, rollout_every: int, episodes: int, learner_from: int | None = -1
 ) -> list[tuple[str, tuple[str, ...], int | None]]:
-    """The series no table holds (`curious.watching.recording.resume.NOT_IN_TABLES`) that a run
-    resumed at `episodes` records, each as (what, its entity prefixes, the episode of its first
-    point after the resume, None where the run has no episode left to record it at): the
-    replay shares and learner statistics at the end of the first cycle resumed (they are
-    logged once a cycle, at the count after it), the 3-D rollouts at the first evaluation
-    episode due for one from `episodes` on (every `rollout_every`-th evaluation). A series the
-    run never records (no updates, `rollout_every` 0) is left out."""
+    """The series that a recording rebuilt from the tables at `episodes` lacks from the run's
+    start, each as (what, its entity prefixes, the episode of its first point, None where the
+    run has no episode left to record it at): the 3-D rollouts (no table holds them) at the
+    first evaluation episode due for one from `episodes` on (every `rollout_every`-th
+    evaluation); the replay shares and learner statistics unless `learner.parquet` holds them
+    from the run's start (`learner_from` None), at `learner_from` where its rows begin later,
+    else (-1: no rows) at the end of the first cycle resumed (they are logged once a cycle, at
+    the count after it). A series the run never records (no updates, `rollout_every` 0) is
+    left out."""
+    from curious.watching.recording.resume import IN_LEARNER_TABLE
+
     total, every = config.total_episodes, config.eval_every
     restarts: list[tuple[str, tuple[str, ...], int | None]] = []
-    if config.n_updates > 0:
+    if config.n_updates > 0 and learner_from is not None:
         cycle_end = min(episodes + config.episodes_per_cycle, total)
-        first = cycle_end if episodes < total else None
-        restarts.append(("the replay shares and learner statistics", PER_CYCLE_LOST, first))
+        resumed = cycle_end if episodes < total else None
+        first = learner_from if learner_from >= 0 else resumed
+        restarts.append(("the replay shares and learner statistics", IN_LEARNER_TABLE, first))
     if rollout_every > 0:
         evaluation = -(-(episodes // every) // rollout_every) * rollout_every  # the first due
         rollout = evaluation * every + every - 1
         restarts.append(("the 3-D rollouts", ("scene/",), rollout if rollout < total else None))
     return restarts
-
-
-PER_CYCLE_LOST = ("replay/", "losses/", "q/")
-"""The entity prefixes of the per-cycle series that no table holds: the replay shares, the
-losses and the Q values."""
