@@ -77,7 +77,11 @@ def wait_listening(node: subprocess.Popen, port: int, log: Path) -> None:
         except OSError:
             exited = node.poll()
             if exited is not None or time.monotonic() > deadline:
-                why = f"exited with code {exited}" if exited is not None else "did not start"
+                why = (
+                    f"exited with code {exited}"
+                    if exited is not None
+                    else f"did not listen on port {port} within {START_SECONDS} s"
+                )
                 tail = log.read_text(errors="replace")[-2000:]
                 raise RuntimeError(f"the test's Ray node {why}; its output:\n{tail}") from None
             time.sleep(0.2)

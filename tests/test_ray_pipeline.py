@@ -17,6 +17,7 @@ import time
 
 import pyarrow.parquet as pq
 import pytest
+from ray_nodes import free_port, wait_listening
 
 from curious.reproduction.experiments import get_budget
 from pipelines.executors import RayPool, RayUnavailable, check_cluster, resolve_ray_address
@@ -24,14 +25,6 @@ from pipelines.reproduce import reproduce
 from pipelines.training import FINISHED, folder_state, run_folder
 
 pytest.importorskip("ray")
-
-HEAD_START_SECONDS = 180
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -61,25 +54,7 @@ def ray_cluster(tmp_path_factory):
             command, stdout=output, stderr=subprocess.STDOUT, start_new_session=True
         )
     try:
-        # A loaded 2-core machine (CI beside other jobs) has taken over a minute to start Ray.
-        deadline = time.monotonic() + HEAD_START_SECONDS
-        while True:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=1).close()
-                break
-            except OSError:
-                exited = process.poll()
-                if exited is not None or time.monotonic() > deadline:
-                    why = (
-                        f"exited with code {exited}"
-                        if exited is not None
-                        else f"did not listen on port {port} within {HEAD_START_SECONDS} s"
-                    )
-                    tail = log.read_text(errors="replace")[-2000:]
-                    raise RuntimeError(
-                        f"the test's Ray head node {why}; its output:\n{tail}"
-                    ) from None
-                time.sleep(0.2)
+        wait_listening(process, port, log)
         yield f"127.0.0.1:{port}"
     finally:
         process.send_signal(signal.SIGTERM)
