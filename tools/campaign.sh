@@ -15,26 +15,32 @@
 #
 #   lane a: the long runs (C3 at the paper's 300,000 episodes), seeds 0, 1 and 2, from
 #     LONG_COMMIT in CAMPAIGN_LONG_WORKTREE (~/campaign-long); then the distractors' seed 3
-#     (C4 to five seeds a side), from MAIN_COMMIT in CAMPAIGN_WORKTREE (~/campaign).
+#     (C4 to five seeds a side), from MAIN_COMMIT in CAMPAIGN_WORKTREE (~/campaign); then
+#     signed LP on the mastered sensory failure (signed_lp, beyond the paper), from
+#     BEYOND_COMMIT in CAMPAIGN_BEYOND_WORKTREE (~/campaign-beyond).
 #   lane b: the study on a mastered module's seeds 3 and 4 (C5 to five seeds a side), from
 #     C5_COMMIT in CAMPAIGN_C5_WORKTREE (~/campaign-c5); then the long runs' seeds 3 and 4,
-#     from LONG_COMMIT; then the distractors' seed 4, from MAIN_COMMIT.
+#     from LONG_COMMIT; then the distractors' seed 4, from MAIN_COMMIT; then LP's two uses
+#     apart (lp_uses, beyond the paper), from BEYOND_COMMIT.
 # The long runs come first (the claim no run has tested); C5's runs share the first stretch of
 # lane b because they are shorter (120,000 episodes against 300,000), so a machine lost mid-run
-# loses less of them, and C5 needs them for its test; C4's seeds come after both (docs/results.md,
-# "The campaign's runs"). The earlier phases of the campaign (the budget's runs, the study on a
+# loses less of them, and C5 needs them for its test; C4's seeds come after both, and the
+# experiments beyond the paper after every run of the paper's claims (docs/results.md, "The
+# campaign's runs"). The earlier phases of the campaign (the budget's runs, the study on a
 # mastered module's seeds 0-2, the distractors' seed 2 and main's seeds 3 and 4) are all shipped.
 #
 # Settings (environment): CAMPAIGN_RUNS (~/curious-runs), CAMPAIGN_WORKTREE,
-# CAMPAIGN_C5_WORKTREE, CAMPAIGN_LONG_WORKTREE. Logs: $CAMPAIGN_RUNS/laptop-lane-{a,b}.log. The
+# CAMPAIGN_C5_WORKTREE, CAMPAIGN_LONG_WORKTREE, CAMPAIGN_BEYOND_WORKTREE. Logs: $CAMPAIGN_RUNS/laptop-lane-{a,b}.log. The
 # background jobs are `campaign.sh --lane a` and `campaign.sh --lane b`.
 set -euo pipefail
 
 # The commits the experiments train from: main, distractors and sensor_failure; the study on a
-# mastered module (sensor_failure_mastered); the long runs (long).
+# mastered module (sensor_failure_mastered); the long runs (long); the experiments beyond the
+# paper (lp_uses, signed_lp).
 MAIN_COMMIT=9972821
 C5_COMMIT=8d18b17
 LONG_COMMIT=24d01ae
+BEYOND_COMMIT=ab4c202
 
 main() {
     local mode=${1:-}
@@ -43,6 +49,7 @@ main() {
     main_tree=${CAMPAIGN_WORKTREE:-$HOME/campaign}
     c5_tree=${CAMPAIGN_C5_WORKTREE:-$HOME/campaign-c5}
     long_tree=${CAMPAIGN_LONG_WORKTREE:-$HOME/campaign-long}
+    beyond_tree=${CAMPAIGN_BEYOND_WORKTREE:-$HOME/campaign-beyond}
     queue=(python "$repo/tools/campaign.py" --out "$runs/laptop" --shipped "$repo/data/laptop"
            --ship --set torch_threads=1 --workers 1)
 
@@ -63,6 +70,7 @@ main() {
     checkout "$main_tree" "$MAIN_COMMIT"
     checkout "$c5_tree" "$C5_COMMIT"
     checkout "$long_tree" "$LONG_COMMIT"
+    checkout "$beyond_tree" "$BEYOND_COMMIT"
 
     case "$mode" in
         --dry-run)
@@ -106,6 +114,7 @@ lane_steps() {
                 --only 'long/curious/seed-2'
             in_worktree "$main_tree" "${queue[@]}" --seeds distractors=0-3 "$@" \
                 --only 'distractors/*/seed-3'
+            in_worktree "$beyond_tree" "${queue[@]}" "${step[@]}" "$@" --only 'signed_lp/*'
             ;;
         b)
             in_worktree "$c5_tree" "${queue[@]}" --seeds sensor_failure_mastered=0-4 "$@" \
@@ -114,6 +123,7 @@ lane_steps() {
                 --only 'long/curious/seed-3' --only 'long/curious/seed-4'
             in_worktree "$main_tree" "${queue[@]}" --seeds distractors=0-4 "$@" \
                 --only 'distractors/*/seed-4'
+            in_worktree "$beyond_tree" "${queue[@]}" "${step[@]}" "$@" --only 'lp_uses/*'
             ;;
     esac
 }
