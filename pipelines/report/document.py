@@ -7,10 +7,10 @@ from pathlib import Path
 import pandas as pd
 
 from curious.reproduction.experiments import Experiment
-from pipelines.report.lp_studies import lp_uses, signed_lp
 from pipelines.report.blocks import ExperimentTables, lead_figure, other_figures
 from pipelines.report.distracting_modules import distractors
 from pipelines.report.long_study import long_runs
+from pipelines.report.lp_studies import lp_uses, signed_lp
 from pipelines.report.main_comparison import main
 from pipelines.report.overview import budgets, built_from, compute, runs_table, software
 from pipelines.report.sensory_failures import sensor_failure, sensor_failure_mastered
