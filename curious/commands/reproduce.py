@@ -104,8 +104,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--experiments",
         default=None,
         metavar="LIST",
-        help=f"comma-separated subset of {','.join(experiment_names())} (default: all the "
-        "budget's)",
+        help="the experiments to reproduce, comma-separated, e.g. main,long (default: all the "
+        f"budget's), of: {', '.join(experiment_names())}",
     )
     parser.add_argument(
         "--out",
