@@ -147,17 +147,6 @@ def load_tests(repro: Reproduction, experiment: Experiment) -> pd.DataFrame:
     return analysis.load_tests(run_folders(repro, experiment))
 
 
-def other_tables(
-    repro: Reproduction, experiment: str
-) -> tuple[pd.DataFrame | None, pd.DataFrame | None]:
-    """(metrics, tests) another experiment's `metrics` asset wrote in this reproduction, each
-    None where it wrote none (not trained here, or not finished): what a figure that reads it
-    draws beside its own runs (`FigureSpec.reads`)."""
-    paths = (repro.layout.metrics(experiment), repro.layout.tests(experiment))
-    metrics, tests = (pd.read_parquet(p) if p.is_file() else None for p in paths)
-    return metrics, tests if metrics is not None else None
-
-
 def _write_table(table: pd.DataFrame, path: Path) -> None:
     """Write a parquet table atomically (a temporary file renamed over it)."""
     tmp = path.with_name(f".{path.name}.tmp")
@@ -232,7 +221,7 @@ def figure_inputs(
         out_dir=repro.layout.figures,
         stem=spec.stem(experiment.name),
         load_tests=lambda: load_tests(repro, experiment),
-        load_other=lambda name: other_tables(repro, name),
+        load_other=repro.layout.read_tables,
     )
 
 

@@ -46,6 +46,8 @@ from pipelines.training import (
 )
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from pipelines.from_data import ShippedData
 
 
@@ -160,6 +162,17 @@ class OutputLayout:
 
     def experiment_runs(self, experiment: str) -> Path:
         return self.runs_root / experiment
+
+    def read_tables(self, experiment: str) -> tuple[pd.DataFrame | None, pd.DataFrame | None]:
+        """(metrics, tests) an experiment's `metrics` asset wrote here, each None where it wrote
+        none (not trained here, or not finished): what a figure or a report section that reads
+        another experiment draws beside its own runs (`FigureSpec.reads`)."""
+        import pandas as pd
+
+        metrics, tests = self.metrics(experiment), self.tests(experiment)
+        if not metrics.is_file():
+            return None, None
+        return pd.read_parquet(metrics), pd.read_parquet(tests) if tests.is_file() else None
 
 
 def _print(message: str) -> None:

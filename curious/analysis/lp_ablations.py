@@ -20,15 +20,50 @@ from curious.analysis.statistics import ALPHA, holm, welch_greater
 
 __all__ = [
     "LP_USES",
+    "SIGNED_LP",
     "compare_lp_uses",
     "compare_refocus",
     "lp_use_readings",
+    "signed_beside_absolute",
+    "with_paper_pair",
 ]
 
 LP_USES: dict[str, str] = {"lp-select": "module selection", "lp-replay": "task replay"}
 """The conditions that keep one of LP's two uses, and the use each keeps."""
 
 _BOTH, _NEITHER = "curious", "m-uvfa"
+
+SIGNED_LP = "curious-signed"
+"""The condition name CURIOUS's runs with `lp_measure=signed` are read under beside the
+absolute ones (`signed_beside_absolute`)."""
+
+
+def with_paper_pair(own: pd.DataFrame, theirs: pd.DataFrame | None, variant: str) -> pd.DataFrame:
+    """``own`` (the `lp_uses` runs' table) with the CURIOUS and M-UVFA rows of ``variant`` in
+    ``theirs`` (a `distractors` table of the same kind; None: ``own`` alone)."""
+    if theirs is None:
+        return own
+    keep = theirs["variant"].astype(str).eq(variant) & theirs["condition"].astype(str).isin(
+        (_BOTH, _NEITHER)
+    )
+    return pd.concat([own, theirs[keep]], ignore_index=True)
+
+
+def signed_beside_absolute(signed: pd.DataFrame, absolute: pd.DataFrame | None) -> pd.DataFrame:
+    """The CURIOUS rows of ``absolute`` (a `sensor_failure_mastered` table; None: none) and
+    those of ``signed`` (a `signed_lp` table of the same kind) named `SIGNED_LP`, one table."""
+    tables = [_curious_only(signed, "signed").assign(condition=SIGNED_LP)]
+    if absolute is not None:
+        tables.insert(0, _curious_only(absolute, "absolute"))
+    return pd.concat(tables, ignore_index=True)
+
+
+def _curious_only(table: pd.DataFrame, measure: str) -> pd.DataFrame:
+    """``table``'s CURIOUS rows, with a clear error where it has none."""
+    mine = table[table["condition"].astype(str) == _BOTH]
+    if mine.empty:
+        raise AnalysisError(f"the {measure} LP table has no CURIOUS runs")
+    return mine
 
 
 def _pairs() -> list[tuple[str, str]]:

@@ -307,28 +307,17 @@ def _long_runs(inputs: FigureInputs) -> Figure:
     reads=("distractors",),
 )
 def _lp_uses(inputs: FigureInputs) -> Figure:
-    import pandas as pd
-
     from curious import analysis
 
     variant = inputs.experiment.variants[0]
     metrics, tests = inputs.metrics, inputs.tests_if_any()
     theirs, their_tests = inputs.other("distractors")
-    if theirs is not None:
-        metrics = pd.concat([metrics, _paper_pair(theirs, variant)], ignore_index=True)
+    metrics = analysis.with_paper_pair(metrics, theirs, variant)
     if tests is not None and their_tests is not None:
-        tests = pd.concat([tests, _paper_pair(their_tests, variant)], ignore_index=True)
+        tests = analysis.with_paper_pair(tests, their_tests, variant)
     elif theirs is not None:
         tests = None  # the test panel compares all four conditions, or none
     return analysis.lp_uses(metrics, tests, note=inputs.note)
-
-
-def _paper_pair(table: pd.DataFrame, variant: str) -> pd.DataFrame:
-    """The CURIOUS and M-UVFA rows of `variant` in a `distractors` table."""
-    keep = table["variant"].astype(str).eq(variant) & table["condition"].astype(str).isin(
-        ("curious", "m-uvfa")
-    )
-    return table[keep]
 
 
 @register_figure(

@@ -11,7 +11,8 @@ import numpy as np
 import pandas as pd
 
 from curious import analysis
-from curious.analysis.figures.beyond_paper import LP_USE_ORDER, SIGNED_LP
+from curious.analysis.figures.beyond_paper import LP_USE_ORDER
+from curious.analysis.lp_ablations import SIGNED_LP
 from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
 from pipelines.report.blocks import (
@@ -33,12 +34,8 @@ from pipelines.resources import Reproduction
 
 def _other(repro: Reproduction, name: str) -> ExperimentTables | None:
     """Experiment `name`'s combined tables in this reproduction (None before its metrics)."""
-    metrics, tests = repro.layout.metrics(name), repro.layout.tests(name)
-    if not metrics.is_file():
-        return None
-    return ExperimentTables(
-        pd.read_parquet(metrics), pd.read_parquet(tests) if tests.is_file() else None
-    )
+    metrics, tests = repro.layout.read_tables(name)
+    return None if metrics is None else ExperimentTables(metrics, tests)
 
 
 def _figures(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
@@ -47,16 +44,6 @@ def _figures(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> li
 
 
 # ----------------------------------------------------------------------------- LP's two uses
-
-
-def _with_paper_pair(own: pd.DataFrame, theirs: pd.DataFrame | None, variant: str) -> pd.DataFrame:
-    """``own`` with the CURIOUS and M-UVFA rows of ``variant`` of the `distractors` table."""
-    if theirs is None:
-        return own
-    keep = theirs["variant"].astype(str).eq(variant) & theirs["condition"].astype(str).isin(
-        ("curious", "m-uvfa")
-    )
-    return pd.concat([own, theirs[keep]], ignore_index=True)
 
 
 def _ordered(frame: pd.DataFrame) -> pd.DataFrame:
@@ -89,10 +76,11 @@ def lp_uses(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> lis
     variant = e.variants[0]
     theirs = _other(repro, "distractors")
     their_metrics = None if theirs is None else theirs.metrics
-    metrics = _with_paper_pair(tables.metrics, their_metrics, variant)
+    metrics = analysis.with_paper_pair(tables.metrics, their_metrics, variant)
     tests = None
     if tables.tests is not None and (theirs is None or theirs.tests is not None):
-        tests = _with_paper_pair(tables.tests, None if theirs is None else theirs.tests, variant)
+        their_tests = None if theirs is None else theirs.tests
+        tests = analysis.with_paper_pair(tables.tests, their_tests, variant)
     if theirs is None:
         lines += [
             "The `distractors` experiment's CURIOUS and M-UVFA runs, which this one is read "
@@ -148,14 +136,6 @@ def lp_uses(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> lis
 # ----------------------------------------------------------------------------- signed LP
 
 
-def _as_signed(table: pd.DataFrame) -> pd.DataFrame:
-    return table.assign(condition=SIGNED_LP)
-
-
-def _curious(table: pd.DataFrame) -> pd.DataFrame:
-    return table[table["condition"].astype(str) == "curious"]
-
-
 def signed_lp(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
     """Per run of both measures: the onset, the refocus (p_LP and practice) and the recovery by
     test success; the refocus test and the log-rank test on the recoveries."""
@@ -173,16 +153,13 @@ def signed_lp(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> l
         ]
     by_tests = None
     if tables.tests is not None and (absolute is None or absolute.tests is not None):
-        metrics = [_as_signed(tables.metrics)]
-        tests = [_as_signed(tables.tests)]
-        if absolute is not None:
-            metrics.insert(0, _curious(absolute.metrics))
-            tests.insert(0, _curious(absolute.tests))
-        onsets = analysis.failure_onsets(pd.concat(metrics, ignore_index=True))["onset"]
+        absolute_metrics = None if absolute is None else absolute.metrics
+        absolute_tests = None if absolute is None else absolute.tests
+        metrics = analysis.signed_beside_absolute(tables.metrics, absolute_metrics)
+        tests = analysis.signed_beside_absolute(tables.tests, absolute_tests)
+        onsets = analysis.failure_onsets(metrics)["onset"]
         module = str(per_run["module"].iat[0])
-        by_tests = analysis.recovery_by_tests(
-            pd.concat(tests, ignore_index=True), onsets, module, RECOVERED_FRACTION
-        )
+        by_tests = analysis.recovery_by_tests(tests, onsets, module, RECOVERED_FRACTION)
     primary = None if by_tests is None else by_tests.set_index(["condition", "seed"])
     rows = []
     for r in per_run.sort_values(["condition", "seed"], kind="stable").itertuples():

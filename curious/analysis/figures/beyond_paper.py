@@ -29,6 +29,7 @@ from curious.analysis.figures.parts import (
     setting_text,
 )
 from curious.analysis.loading import AnalysisError
+from curious.analysis.lp_ablations import SIGNED_LP, signed_beside_absolute
 from curious.analysis.statistics import (
     across_seeds,
     distractor_share,
@@ -39,9 +40,6 @@ from curious.analysis.style import budget_text, episodes_axis, figure_style, new
 
 LP_USE_ORDER: tuple[str, ...] = ("m-uvfa", "lp-replay", "lp-select", "curious")
 """The conditions of `lp_uses`, from no use of LP to both."""
-
-SIGNED_LP = "curious-signed"
-"""The condition name `signed_lp` gives CURIOUS's runs with `lp_measure=signed`."""
 
 
 def lp_uses(
@@ -144,33 +142,17 @@ def signed_lp(
     `recovery` table of every run."""
     if absolute is not None and (tests_absolute is None) != (tests_signed is None):
         raise AnalysisError("give the test rollouts of both measures' runs, or of neither")
-    tables = [_as_signed(_curious_only(signed, "signed"))]
-    tests = None if tests_signed is None else [_as_signed(_curious_only(tests_signed, "signed"))]
-    if absolute is not None:
-        tables.insert(0, _curious_only(absolute, "absolute"))
-        if tests is not None and tests_absolute is not None:
-            tests.insert(0, _curious_only(tests_absolute, "absolute"))
+    tests = None
+    if tests_signed is not None:
+        tests = signed_beside_absolute(tests_signed, None if absolute is None else tests_absolute)
     fig, per_run = sensor_failure(
-        pd.concat(tables, ignore_index=True),
+        signed_beside_absolute(signed, absolute),
         conditions=(["curious"] if absolute is not None else []) + [SIGNED_LP],
         note=note,
-        tests=None if tests is None else pd.concat(tests, ignore_index=True),
+        tests=tests,
         name=name,
     )
     fig.axes[-1].set_ylabel("LP (absolute; signed: its rise only)")
     measures = "Absolute against signed LP" if absolute is not None else "Signed LP"
     fig.suptitle(f"{measures} — sensory failure on a mastered module")
     return finish(fig, out_dir, name), per_run
-
-
-def _curious_only(table: pd.DataFrame, measure: str) -> pd.DataFrame:
-    """``table``'s CURIOUS runs, with a clear error where it has none."""
-    mine = table[table["condition"].astype(str) == "curious"]
-    if mine.empty:
-        raise AnalysisError(f"the {measure} LP table has no CURIOUS runs")
-    return mine
-
-
-def _as_signed(table: pd.DataFrame) -> pd.DataFrame:
-    """``table`` with its runs' condition named `SIGNED_LP`."""
-    return table.assign(condition=SIGNED_LP)
