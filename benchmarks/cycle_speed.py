@@ -105,14 +105,14 @@ DEFAULT_CONTENDERS = (
 
 
 def _trainer(config: Any) -> Any:
-    from curious.envs.batch import ProcessEnvs
+    from curious.envs.batch import LocalEnvs, ProcessEnvs
     from curious.envs.goal_env import suite_env_fns
     from curious.runs.trainer import Trainer
 
     fns = suite_env_fns(config.variant, config.seed, config.n_workers)
     if config.processes > 1:
         return Trainer(config, ProcessEnvs(fns, config.processes))
-    return Trainer(config, [fn() for fn in fns])
+    return Trainer(config, LocalEnvs([fn() for fn in fns]))
 
 
 def physics_episodes_per_second(variant: str, episodes: int = 5) -> float:

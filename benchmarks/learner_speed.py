@@ -303,6 +303,7 @@ def measure_cycles(args: argparse.Namespace) -> dict[str, Any]:
         from curious.envs.goal_env import make_suite_envs
     except ImportError as exc:  # pragma: no cover - the suite is part of the package
         return {"cycle_note": f"suite not importable: {exc}"}
+    from curious.envs.batch import LocalEnvs
     from curious.runs.trainer import Trainer
 
     out: dict[str, Any] = {}
@@ -310,7 +311,8 @@ def measure_cycles(args: argparse.Namespace) -> dict[str, Any]:
         config = resolve(
             preset, overrides=dict(device=args.device, torch_threads=args.threads, progress=False)
         )
-        trainer = Trainer(config, make_suite_envs(config.variant, 0, config.n_workers))
+        envs = LocalEnvs(make_suite_envs(config.variant, 0, config.n_workers))
+        trainer = Trainer(config, envs)
         trainer.cycle()  # warm-up: first allocations, normaliser, replay
         tic = time.perf_counter()
         result = trainer.cycle()

@@ -12,6 +12,7 @@ from curious.agent.conditions import HER, MGTE, MUVFA, Curious, LPReplay, LPSele
 from curious.agent.goals import HolisticGoals
 from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
 from curious.config import PRESETS, ConfigError, resolve
+from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import EnvSpec
 from curious.envs.rollout import EpisodeData
 from curious.runs.driver import train
@@ -127,7 +128,8 @@ def test_a_her_run_scores_every_episode_and_test_by_the_holistic_goal(tmp_path):
     `task_experts` draw `self.exploit`), so every training episode explores; the evaluator's
     success is the env's flat `is_success`."""
     config = resolve("smoke", "her", 0, {"total_episodes": 40, "progress": False})
-    trainer = Trainer(config, make_toy_envs(0, config.n_workers), make_toy_envs(1, 2))
+    envs = LocalEnvs(make_toy_envs(0, config.n_workers))
+    trainer = Trainer(config, envs, LocalEnvs(make_toy_envs(1, 2)))
     capture = _Capture()
     trainer.observer = capture
     space = HolisticGoals(SPEC)

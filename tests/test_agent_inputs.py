@@ -11,6 +11,7 @@ from toy_env import ToyGoalEnv
 import suite
 from curious.agent.goals import GoalBox, GoalInput
 from curious.config import ConfigError, resolve
+from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import SuiteEnv
 from curious.runs.driver import train
 from curious.runs.trainer import Trainer
@@ -48,7 +49,8 @@ def test_every_suite_modules_goals_reach_the_networks_distinct_over_a_run(tmp_pa
     # In a run of the real suite, cubes mostly rest: statistics of hindsight outcomes had no
     # spread and mapped every cube1_above_cube2 height to the clip value.
     config = resolve("smoke", overrides={"total_episodes": 48, "progress": False})
-    trainer = Trainer(config, [SuiteEnv("default", seed=s) for s in range(config.n_workers)])
+    envs = LocalEnvs([SuiteEnv("default", seed=s) for s in range(config.n_workers)])
+    trainer = Trainer(config, envs)
     assert_goals_distinct_and_unclipped(trainer)
     while not trainer.done:
         trainer.cycle()
@@ -122,7 +124,7 @@ def test_the_policy_sees_each_episodes_goal_where_it_is_at_every_step():
     cube 2: the goals our policy is given are `env.goal` of the episode's slot and the step's
     outcomes."""
     config = resolve("smoke", overrides={"total_episodes": 2, "progress": False})
-    envs = [SuiteEnv("default", seed=s) for s in range(config.n_workers)]
+    envs = LocalEnvs([SuiteEnv("default", seed=s) for s in range(config.n_workers)])
     trainer = Trainer(config, envs)
     k = trainer.spec.module_names.index("cube1_above_cube2")
     trainer.condition.practice_probs = lambda tracker, epoch: np.eye(trainer.spec.n_modules)[k]
@@ -139,7 +141,7 @@ def test_the_policy_sees_each_episodes_goal_where_it_is_at_every_step():
     assert replay.size == 2 and np.all(replay.modules[:2] == k)
     T = trainer.spec.episode_length
     for t in range(T):
-        expected = envs[0].goal(k, replay.goals[:2, k], replay.achieved[:2, t])
+        expected = envs.reference.goal(k, replay.goals[:2, k], replay.achieved[:2, t])
         np.testing.assert_array_equal(seen[t][:, k], expected)
         others = np.delete(seen[t], k, axis=1)
         np.testing.assert_array_equal(others, 0.0)

@@ -9,6 +9,7 @@ import torch
 from toy_env import make_toy_envs
 
 from curious.config import resolve
+from curious.envs.batch import LocalEnvs
 from curious.runs.trainer import Trainer
 
 TOY = dict(
@@ -30,7 +31,7 @@ TOY = dict(
 def run_toy(condition: str, seed: int = 0) -> tuple[Trainer, dict[str, np.ndarray]]:
     torch.set_num_threads(1)
     config = resolve("smoke", condition, seed, TOY)
-    trainer = Trainer(config, make_toy_envs(seed, config.n_workers))
+    trainer = Trainer(config, LocalEnvs(make_toy_envs(seed, config.n_workers)))
     rows: list[dict[str, np.ndarray]] = []
     while not trainer.done:
         rows.append(trainer.cycle().rows)

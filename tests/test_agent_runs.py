@@ -494,12 +494,13 @@ def test_a_run_written_before_a_setting_existed_is_refused_clearly(tmp_path):
 
 
 def sensor_failure_trainer(**changes):
+    from curious.envs.batch import LocalEnvs
     from curious.envs.goal_env import make_suite_envs
     from curious.runs.trainer import Trainer
 
     config = resolve("smoke", "curious", 0, {"variant": "sensor_failure", **changes})
-    envs = make_suite_envs(config.variant, 0, config.n_workers)
-    tests = make_suite_envs(config.variant, 0, config.n_workers, stream=1)
+    envs = LocalEnvs(make_suite_envs(config.variant, 0, config.n_workers))
+    tests = LocalEnvs(make_suite_envs(config.variant, 0, config.n_workers, stream=1))
     return Trainer(config, envs, tests)
 
 
@@ -723,6 +724,7 @@ def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_pat
     """With overlap_rollouts, the next cycle's episodes are collected during this cycle's
     updates by a copy of the policy taken before them: acting lags learning by one cycle."""
     from curious.agent.agent import Agent
+    from curious.envs.batch import LocalEnvs
     from curious.runs.trainer import Trainer
 
     copies = []
@@ -734,7 +736,7 @@ def test_overlapped_rollouts_act_with_the_policy_from_before_the_updates(tmp_pat
 
     monkeypatch.setattr(Agent, "acting_copy", recorded)
     config = resolve("smoke", "curious", 0, {**SMALL, "overlap_rollouts": True})
-    trainer = Trainer(config, toy_envs(config))
+    trainer = Trainer(config, LocalEnvs(toy_envs(config)))
     try:
         before = [p.detach().clone() for p in trainer.agent.experts[0].actor.parameters()]
         trainer.cycle()  # collects its own rounds, then the next cycle's beside the updates
@@ -829,10 +831,11 @@ def test_an_acting_copy_on_another_device_acts_as_the_agent(tmp_path):
     """`act_on_cpu` hands the rollouts a CPU copy of the actors: it picks the same actions
     (here from a CPU agent; on CUDA, float rounding aside) and stays put while the agent
     learns. A run with the setting on a CPU is the same run (the setting is for CUDA)."""
+    from curious.envs.batch import LocalEnvs
     from curious.runs.trainer import Trainer
 
     config = resolve("smoke", "curious", 0, SMALL)
-    trainer = Trainer(config, toy_envs(config))
+    trainer = Trainer(config, LocalEnvs(toy_envs(config)))
     try:
         trainer.cycle()
         agent = trainer.agent
@@ -856,3 +859,16 @@ def test_an_acting_copy_on_another_device_acts_as_the_agent(tmp_path):
         strict=True,
     ):
         assert torch.equal(p, q)
+
+
+def test_a_trainer_given_a_list_of_copies_says_to_wrap_it_in_local_envs():
+    """`Trainer` takes its copies as an `EnvBatch`, the test rollouts' too."""
+    from curious.envs.batch import LocalEnvs
+    from curious.runs.trainer import Trainer
+
+    config = resolve("smoke", "curious", 0, SMALL)
+    wrap = "got list: wrap a list of copies in curious.envs.batch.LocalEnvs"
+    with pytest.raises(TypeError, match=wrap):
+        Trainer(config, toy_envs(config))
+    with pytest.raises(TypeError, match=wrap):
+        Trainer(config, LocalEnvs(toy_envs(config)), toy_envs(config))

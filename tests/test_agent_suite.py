@@ -9,6 +9,7 @@ import pytest
 from curious.agent.replay import EpisodeReplay
 from curious.cli import main
 from curious.config import resolve
+from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import SuiteEnv, make_suite_envs
 from curious.runs.trainer import Trainer
 
@@ -116,7 +117,7 @@ def test_sensor_failure_follows_each_episode_index():
     configured episode, also when one round straddles it."""
     overrides = {"variant": "sensor_failure", "sensor_failure_episode": 5}
     config = resolve("smoke", "curious", 0, overrides)
-    trainer = Trainer(config, make_suite_envs("sensor_failure", 0, config.n_workers))
+    trainer = Trainer(config, LocalEnvs(make_suite_envs("sensor_failure", 0, config.n_workers)))
     seen: list[tuple[int, bool]] = []
 
     class Watch:

@@ -52,9 +52,9 @@ def test_the_test_rollouts_copies_step_where_the_training_copies_do(processes: i
     (at `paper` size, stepped in the training process, they took a third of an epoch)."""
     config = resolve("smoke", overrides=dict(n_workers=3, env_processes=processes))
     train, tests, condition = _environments(config, None)
-    assert condition is not None and condition.name == config.condition  # built once, here
+    assert condition.name == config.condition  # built once, here
     try:
-        kind = ProcessEnvs if processes > 1 else list
+        kind = ProcessEnvs if processes > 1 else LocalEnvs
         assert isinstance(train, kind) and isinstance(tests, kind)
         assert len(train) == len(tests) == 3 and train is not tests
     finally:

@@ -89,7 +89,7 @@ def test_an_env_without_the_failure_is_refused():
 
 def test_the_onset_survives_a_checkpoint_and_the_resumed_run_keeps_the_failure(tmp_path):
     config = resolve("smoke", "curious", 0, {**SMALL, "sensor_failure_competence": 0.75})
-    trainer = Trainer(config, copies().envs)
+    trainer = Trainer(config, copies())
     try:
         assert not trainer.cycle().rows["sensor_failure"].any()
         for _ in range(config.lp_window):
@@ -102,7 +102,7 @@ def test_the_onset_survives_a_checkpoint_and_the_resumed_run_keeps_the_failure(t
         path = trainer.save_checkpoint(tmp_path / "checkpoints")
     finally:
         trainer.close()
-    again = Trainer(config, copies().envs)
+    again = Trainer(config, copies())
     try:
         again.load_checkpoint(path)
         assert again.failure.start == started_at

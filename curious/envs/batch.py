@@ -25,7 +25,7 @@ import multiprocessing as mp
 import traceback
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -37,8 +37,10 @@ EnvFn = Callable[[], GoalEnv]
 _PHYSICS_FIELDS = ("qpos", "qvel", "act", "mocap_pos", "mocap_quat")
 
 
+@runtime_checkable
 class EnvBatch(Protocol):
-    """n environment copies stepped together (see the module docstring)."""
+    """n environment copies stepped together (see the module docstring); `isinstance` tells
+    one from a list of copies."""
 
     spec: EnvSpec
     reference: GoalEnv

@@ -18,16 +18,16 @@ from pathlib import Path
 import numpy as np
 import pyarrow.compute as pc
 
-from curious.agent.conditions import Condition, make_condition
+from curious.agent.conditions import Condition
 from curious.config import Config, ConfigError
-from curious.envs.batch import EnvBatch, ProcessEnvs
-from curious.envs.goal_env import GoalEnv
+from curious.envs.batch import EnvBatch, LocalEnvs, ProcessEnvs
+from curious.envs.goal_env import GoalEnv, suite_env_fns
 from curious.runs import checkpoint
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_lock import folder_lock
 from curious.runs.hooks import Recorder, log_learner_rows
-from curious.runs.memory import SUITE_COPY_BYTES, check_memory
+from curious.runs.memory import SUITE_COPY_BYTES, checked_condition
 from curious.runs.metrics import LearnerLog, MetricsLog, TableLog, TestsLog
 from curious.runs.trainer import CycleResult, Trainer
 
@@ -71,10 +71,10 @@ def train(
 
 def _environments(
     config: Config, make_envs: Callable[[Config], Sequence[GoalEnv]] | None
-) -> tuple[Sequence[GoalEnv] | EnvBatch, Sequence[GoalEnv] | EnvBatch | None, Condition | None]:
+) -> tuple[EnvBatch, EnvBatch | None, Condition]:
     """The training copies and the test rollouts' copies of a run (see `train`), and the run's
-    condition where it was built here to check the memory before the copies (the suite's
-    copies; with `make_envs`, the trainer builds and checks it)."""
+    condition from `checked_condition`: with the suite's copies, on one copy's spec before the
+    others are built or their workers started, so that the memory check counts them."""
     tests_wanted = config.test_rollouts_per_worker > 0
     if config.processes > 1 and make_envs is not None:
         raise ConfigError(
@@ -82,15 +82,15 @@ def _environments(
             "make_envs runs in this process (env_processes=1)"
         )
     if make_envs is not None:
-        return make_envs(config), make_envs(config) if tests_wanted else None, None
-    from curious.envs.goal_env import suite_env_fns
+        envs = LocalEnvs(make_envs(config))
+        tests = LocalEnvs(make_envs(config)) if tests_wanted else None
+        return envs, tests, checked_condition(config, envs.spec)
 
     train_fns = suite_env_fns(config.variant, config.seed, config.n_workers)
     test_fns = suite_env_fns(config.variant, config.seed, config.n_workers, stream=1)
     # One copy first: its spec sizes the run, checked before the others are built.
     first = (test_fns if tests_wanted else train_fns)[0]()
-    condition = make_condition(config, first.spec)
-    check_memory(config, first.spec, condition.n_experts, SUITE_COPY_BYTES)
+    condition = checked_condition(config, first.spec, SUITE_COPY_BYTES)
     if config.processes > 1:
         # The test copies step in worker processes too: stepped in this process, a `paper`
         # epoch's 190 test rollouts took about 8 s, a third of its 950 training episodes'
@@ -103,10 +103,10 @@ def _environments(
         except BaseException:
             train.close()
             raise
-    tests = [first, *(fn() for fn in test_fns[1:])] if tests_wanted else None  # once an epoch
     if tests_wanted:
-        return [fn() for fn in train_fns], tests, condition
-    return [first, *(fn() for fn in train_fns[1:])], None, condition
+        tests = LocalEnvs([first, *(fn() for fn in test_fns[1:])])  # stepped once an epoch
+        return LocalEnvs([fn() for fn in train_fns]), tests, condition
+    return LocalEnvs([first, *(fn() for fn in train_fns[1:])]), None, condition
 
 
 def resume_checks(

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from curious.agent.conditions import make_condition
+from curious.agent.conditions import Condition, make_condition
 from curious.agent.replay import EpisodeReplay
 from curious.config import Config, ConfigError
 from curious.envs.goal_env import EnvSpec, SuiteEnv
@@ -118,6 +118,15 @@ def check_memory(config: Config, spec: EnvSpec, n_experts: int, copy_bytes: int 
     """A `ConfigError` naming the settings to lower when a run of `config` would not fit in the
     memory available (see the module docstring)."""
     _check(memory_parts(config, spec, n_experts, copy_bytes), "this run needs")
+
+
+def checked_condition(config: Config, spec: EnvSpec, copy_bytes: int = 0) -> Condition:
+    """The condition of a run of `config` on `spec`, once `check_memory` with its experts has
+    passed: a run's one place for both, called before its big allocations (`copy_bytes` as in
+    `memory_parts`: called before the copies are built, it counts them too)."""
+    condition = make_condition(config, spec)
+    check_memory(config, spec, condition.n_experts, copy_bytes)
+    return condition
 
 
 def _check(parts: list[Part], needs: str) -> None:

@@ -36,7 +36,7 @@ import contextlib
 import functools
 import math
 import time
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,17 +45,16 @@ import numpy as np
 import torch
 
 from curious.agent.agent import Agent
-from curious.agent.conditions import Condition, make_condition
+from curious.agent.conditions import Condition
 from curious.agent.goals import GoalBox, GoalInput
 from curious.agent.learning_progress import CompetenceTracker
 from curious.agent.replay import EpisodeReplay
 from curious.config import Config, ConfigError
-from curious.envs.batch import EnvBatch, LocalEnvs
-from curious.envs.goal_env import GoalEnv
+from curious.envs.batch import EnvBatch
 from curious.runs import checkpoint
 from curious.runs.folder import config_differences
 from curious.runs.hooks import RolloutInfo, RoundObserver
-from curious.runs.memory import check_memory
+from curious.runs.memory import checked_condition
 from curious.runs.overlap import Minibatches, RoundsAhead
 from curious.runs.play import Act, goal_policy, play_round
 from curious.runs.sensor_failure import FailureSchedule
@@ -111,11 +110,6 @@ class _Timings:
         self.add(part, time.perf_counter() - tic)
 
 
-def _as_batch(envs: Sequence[GoalEnv] | EnvBatch) -> EnvBatch:
-    """A list of copies becomes a `LocalEnvs`; an `EnvBatch` stays as it is."""
-    return LocalEnvs(envs) if isinstance(envs, Sequence) else envs
-
-
 class TrainingDiverged(RuntimeError):
     """The networks stopped giving finite numbers (a loss, an action or a weight): the learning
     rates are too high for this run, or a setting of `DIVERGENCE_SETTINGS` is far from the
@@ -162,37 +156,42 @@ class Trainer:
     def __init__(
         self,
         config: Config,
-        envs: Sequence[GoalEnv] | EnvBatch,
-        test_envs: Sequence[GoalEnv] | EnvBatch | None = None,
+        envs: EnvBatch,
+        test_envs: EnvBatch | None = None,
         condition: Condition | None = None,
     ) -> None:
-        """`envs`: the `n_workers` training copies (a list, stepped in this process, or an
-        `EnvBatch`); `test_envs`: as many copies for the test rollouts (default: the training
-        copies, whose random streams the tests then advance; `curious.runs.driver.train` gives
-        copies of their own). `condition`: the run's, where the caller built it and checked the
-        run's memory with it before building the copies (`curious.runs.driver.train` does);
-        else it is built, and the memory checked, here."""
+        """`envs`: the `n_workers` training copies (`curious.envs.batch`: a list of copies
+        stepped in this process is a `LocalEnvs` of them); `test_envs`: as many copies for the
+        test rollouts (default: the training copies, whose random streams the tests then
+        advance; `curious.runs.driver.train` gives copies of their own). `condition`: the run's
+        from `curious.runs.memory.checked_condition`, where the caller checked the memory before
+        building the copies (`curious.runs.driver.train` does); else that is called here."""
         self.config = config
-        self.envs = _as_batch(envs)
-        self.test_envs = _as_batch(test_envs) if test_envs is not None else self.envs
-        self.env = self.envs.reference
-        """A copy in this process for goal slots and rewards (what does not step)."""
-        self.spec = self.envs.spec
+        self.envs = envs
+        self.test_envs = test_envs if test_envs is not None else envs
         for copies in (self.envs, self.test_envs):
+            if not isinstance(copies, EnvBatch):
+                raise TypeError(
+                    "Trainer takes an EnvBatch of environment copies, got "
+                    f"{type(copies).__name__}: wrap a list of copies in "
+                    "curious.envs.batch.LocalEnvs"
+                )
             if len(copies) != config.n_workers:
                 raise ValueError(
                     f"{len(copies)} environments given, config asks for {config.n_workers}"
                 )
-            if copies.spec != self.spec:
+            if copies.spec != envs.spec:
                 raise ValueError("all environment copies must share one EnvSpec")
+        self.env = self.envs.reference
+        """A copy in this process for goal slots and rewards (what does not step)."""
+        self.spec = self.envs.spec
         if config.torch_threads:
             torch.set_num_threads(config.torch_threads)
         if config.device == "cuda" and not torch.cuda.is_available():
             raise ConfigError("device 'cuda' was asked for but torch sees no CUDA device")
         n = self.spec.n_modules
         if condition is None:
-            condition = make_condition(config, self.spec)
-            check_memory(config, self.spec, condition.n_experts)  # before the big allocations
+            condition = checked_condition(config, self.spec)  # before the big allocations
         self.condition = condition
         self.agent = Agent(self.spec, config, GoalBox.of(self.env), self.condition.n_experts)
         self.replay = EpisodeReplay(
