@@ -133,7 +133,7 @@ def physics_episodes_per_second(variant: str, episodes: int = 5) -> float:
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """ours, bound, peer (episodes/s) and each contender's per-part milliseconds per cycle."""
-    from curious.config import resolve
+    from curious.presets import resolve
 
     base = resolve(
         args.preset,

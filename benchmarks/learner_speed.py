@@ -31,8 +31,9 @@ import numpy as np
 import torch
 
 from benchmarks import AtLeast, check_device, positive_seconds
-from curious.config import Config, resolve
+from curious.config import Config
 from curious.envs.goal_env import EnvSpec, RowsByModule
+from curious.presets import resolve
 
 STATE, GOAL, TASKS, ACTIONS = 49, 21, 7, 4
 

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks import AtLeast
-from curious.config import resolve
+from curious.presets import resolve
 from curious.runs.folder import RunFolder
 
 
@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _settings(args: argparse.Namespace) -> Any:
-    from curious.watching.recording import RecorderSettings
+    from curious.watching.recording.settings import RecorderSettings
 
     if args.rollout_every is None:
         return RecorderSettings()
@@ -59,7 +59,7 @@ def _settings(args: argparse.Namespace) -> Any:
 def _timed_run(config: Any, out: Path, record: bool, settings: Any) -> float:
     """Seconds of one `train()` call (environments built inside, as in `curious train`)."""
     from curious.runs.driver import train
-    from curious.watching.recording import RunRecorder
+    from curious.watching.recording.recorder import RunRecorder
     from curious.watching.recording.rollout_capture import attach_rollout_recording
 
     def make_recorder(trainer: Any, folder: Any) -> RunRecorder:
@@ -76,7 +76,8 @@ def _timed_run(config: Any, out: Path, record: bool, settings: Any) -> float:
 def _fixed_bytes(variant: str, settings: Any, folder: Path) -> int:
     """Size of a recording that holds only the scene's geometry and the layout."""
     from curious.envs.goal_env import SuiteEnv
-    from curious.watching.recording import RolloutCapture, RunRecorder
+    from curious.watching.recording.recorder import RunRecorder
+    from curious.watching.recording.scene import RolloutCapture
 
     env = SuiteEnv(variant)
     capture = RolloutCapture(env.dm_env.physics.model.ptr, 1)

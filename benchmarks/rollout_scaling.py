@@ -55,9 +55,9 @@ def _rounds_per_second(envs: Any, rounds: int, episode_length: int, seed: int) -
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """ours, bound, peer (episodes/s) and the rate of every process count."""
     from benchmarks.cycle_speed import physics_episodes_per_second
-    from curious.config import resolve
     from curious.envs.batch import LocalEnvs, ProcessEnvs
     from curious.envs.goal_env import suite_env_fns
+    from curious.presets import resolve
 
     config = resolve(args.preset, overrides=dict(progress=False))
     cores = os.cpu_count() or 1

@@ -83,7 +83,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _config(args: argparse.Namespace) -> Config:
     """The runs' config (seed 0): the preset, the condition and `--set`, checked before any run
     starts."""
-    from curious.config import ConfigError, parse_overrides, resolve
+    from curious.config import ConfigError
+    from curious.overrides import parse_overrides
+    from curious.presets import resolve
 
     overrides = parse_overrides(args.settings)
     taken = sorted(set(overrides) & set(BENCH_SETTINGS))

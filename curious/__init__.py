@@ -2,6 +2,10 @@
 
 __version__ = "0.1.0"
 
-from curious import plugins as _plugins  # after the version, which a plugin may read
+# After the version, which a plugin may read: the built-in conditions registered
+# (`curious.registry`), then the installed plugins' variants, conditions and figures
+# (`curious.plugins`), before any config is made.
+from curious import plugins as _plugins
+from curious.agent import conditions as _conditions  # noqa: F401
 
-_plugins.load()  # the installed plugins' variants, conditions and figures (`curious.plugins`)
+_plugins.load()

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from curious.commands import CommandParser, refuse
+from curious.gl import gl_for_command, rendering_problem, renders
 
 COMMAND_MODULES: tuple[str, ...] = (
     "curious.commands.train",
@@ -99,7 +100,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, words: list[str]) -> int:
-    from curious.gl import gl_for_command, rendering_problem, renders
 
     gl_for_command(words)  # before anything imports MuJoCo (the parser does)
     if renders(words):

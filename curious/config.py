@@ -1,15 +1,14 @@
-"""The run configuration: one dataclass, four presets, and `key=value` overrides.
+"""The run configuration: the `Config` dataclass, the bounds and names of its settings, and its
+validation (every `Config` that exists can run).
 
 Defaults are the authors' settings (paper §6.2 and their release, flowersteam/curious: the files
-named in the field docs are under its baselines/her/), each field saying the authors' value. A
-preset changes the scale of a run, never the algorithm; overrides from the command line
-(`--set key=value`) change single fields and are checked against the field's type, so a typo is
-an error instead of a silently ignored setting.
+named in the field docs are under its baselines/her/), each field saying the authors' value. The
+presets that change a run's scale are `curious.presets`; the `key=value` overrides of the
+command line are parsed by `curious.overrides`.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Mapping
@@ -18,19 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from curious.agent.learning_progress import LP_MEASURES
+from curious.registry import condition_names
 
 ALGORITHMS: tuple[str, ...] = ("ddpg", "td3")
-
-
-def condition_names() -> tuple[str, ...]:
-    """The conditions a config may name, in the paper's order: the keys of the one registry,
-    `curious.agent.conditions.CONDITION_CLASSES` (imported here, not at the top, because the
-    conditions read `Config`; that module needs numpy only, not torch)."""
-    from curious.agent.conditions import CONDITION_CLASSES
-
-    return tuple(CONDITION_CLASSES)
-
+LP_MEASURES: tuple[str, ...] = ("absolute", "signed")
+"""What LP measures (`Config.lp_measure`, `curious.agent.learning_progress`): `absolute`,
+|recent - before| (the paper's), or `signed`, max(recent - before, 0)."""
 
 LEARNER_BACKENDS: tuple[str, ...] = ("autograd", "compiled", "workspace")
 DEVICES: tuple[str, ...] = ("cpu", "cuda")
@@ -120,6 +112,11 @@ analysis asks it of the perturbed module just before the failure, in runs that s
 `sensor_failure_competence` of their own, before it counts a fall as forgetting. Half the
 evaluations succeeding: well above the floor of chance successes of push modules (a goal can lie
 within reach of where the cube already is), so that a fall means something was lost."""
+
+DEFAULT_TEST_EPOCHS = 5
+"""How many of a run's last epochs its current test success pools (`curious progress`, the
+milestones, the recovery by test success): a `laptop` epoch tests each module about 40 / N
+times, too few alone to read."""
 
 
 class ConfigError(ValueError):
@@ -517,112 +514,6 @@ def setting_names() -> tuple[str, ...]:
     return tuple(f.name for f in fields(Config))
 
 
-PRESETS: dict[str, dict[str, Any]] = {
-    # Every preset keeps the algorithm and its settings (networks, learning rates, discount,
-    # noise, HER, replay rules, p_LP) unless it says otherwise below; it changes the scale: the
-    # number of workers, the updates per cycle and their minibatch (hence the replay ratio,
-    # `Config.samples_per_stored_transition`: the authors' is 256), and the competence window.
-    # Seconds: for tests and CI. Tiny networks, a handful of episodes, every code path touched
-    # (evaluations, updates, target updates, a checkpoint, an epoch boundary).
-    "smoke": dict(
-        total_episodes=24,
-        n_workers=2,
-        episodes_per_worker=2,
-        n_cycles=2,
-        hidden=32,
-        layers=2,
-        batch_per_worker=32,
-        n_updates=4,
-        lp_window=4,
-        checkpoint_every_cycles=3,
-        eval_every=5,
-        test_rollouts_per_worker=1,
-    ),
-    # A few minutes on a 2-core laptop: enough for reach. Keeps the authors' networks and
-    # learner settings. Changes: 2 workers (authors 19), 128 transitions per worker per update
-    # (256) and 20 updates per cycle (100), i.e. 25.6 replayed transitions per stored one (256),
-    # a competence window of 20 (300), a self-evaluation every 5th episode (10th).
-    "quick": dict(
-        total_episodes=1_200,
-        n_workers=2,
-        episodes_per_worker=2,
-        n_cycles=25,
-        batch_per_worker=128,
-        n_updates=20,
-        lp_window=20,
-        checkpoint_every_cycles=50,
-        eval_every=5,
-    ),
-    # Hours on 2 cores: enough episodes for the developmental phases (reach, then push).
-    # Keeps the authors' networks, learner settings and evaluation rate. Changes: 4 workers
-    # (authors 19), 128 transitions per worker per update (256) and 40 updates per cycle (100),
-    # i.e. 51.2 replayed transitions per stored one (256), a competence window of 100 (300),
-    # 100,000 episodes (~300,000).
-    "laptop": dict(
-        total_episodes=100_000,
-        n_workers=4,
-        episodes_per_worker=2,
-        n_cycles=25,
-        batch_per_worker=128,
-        n_updates=40,
-        lp_window=100,
-        checkpoint_every_cycles=100,
-    ),
-    # The authors' protocol: 19 workers x 2 episodes x 25 cycles per epoch, 100 updates of
-    # 256 per worker per cycle (256 replayed transitions per stored one), a window of 300,
-    # ~300k episodes. For a cluster node or a GPU.
-    "paper": dict(),
-}
-
-
-def _coerce(name: str, annotation: str, text: str) -> Any:
-    """Parse an override's text into the field's type (bool, int, float or str)."""
-    kind = {"int": int, "float": float, "bool": bool, "str": str}[annotation]
-    try:
-        if kind is bool:
-            lowered = text.strip().lower()
-            if lowered in ("1", "true", "yes", "on"):
-                return True
-            if lowered in ("0", "false", "no", "off"):
-                return False
-            raise ValueError(text)
-        if kind is int:
-            return int(text.replace("_", ""))
-        if kind is float:
-            return float(text)
-        return text
-    except ValueError:
-        wanted = {"int": "an integer", "float": "a number", "bool": "true or false"}[annotation]
-        raise ConfigError(f"{name}={text!r}: expected {wanted}") from None
-
-
-def parse_seeds(text: str) -> tuple[int, ...]:
-    """`0-4` -> (0, 1, 2, 3, 4); `0,2,5` -> (0, 2, 5); ranges and single seeds mix, each seed
-    once, in the order written. A `ConfigError` for anything else."""
-    seeds: list[int] = []
-    for part in text.split(","):
-        first, dash, last = part.strip().partition("-")
-        if not first.isdigit() or (dash and not last.isdigit()):
-            raise ConfigError(f"seeds {text!r}: write them as 0-4 or 0,2,5")
-        if dash and int(last) < int(first):
-            raise ConfigError(f"seeds {text!r}: a range runs upwards ({last}-{first})")
-        if int(last if dash else first) > MAX_SEED:
-            raise ConfigError(f"seeds {text!r}: each must be from 0 to {MAX_SEED:,}")
-        seeds += range(int(first), int(last) + 1) if dash else [int(first)]
-    return tuple(dict.fromkeys(seeds))
-
-
-def format_seeds(seeds: list[int] | tuple[int, ...]) -> str:
-    """(0, 1, 2, 5) -> `0-2,5`: seeds as `--seeds` takes them (`parse_seeds`' inverse)."""
-    parts: list[str] = []
-    for seed in sorted(set(seeds)):
-        if parts and parts[-1].rpartition("-")[2] == str(seed - 1):
-            parts[-1] = f"{parts[-1].partition('-')[0]}-{seed}"
-        else:
-            parts.append(str(seed))
-    return ",".join(parts)
-
-
 OWN_OPTIONS: dict[str, str] = {
     "preset": "--preset",
     "condition": "--condition",
@@ -633,58 +524,7 @@ one would silently win over that option (`--condition curious --set condition=he
 and `--set seed=3` would give every run of `--seeds 0-4` the same seed."""
 
 
-def parse_overrides(items: list[str] | tuple[str, ...]) -> dict[str, Any]:
-    """Turn `["key=value", ...]` into typed values; unknown keys and bad values are errors."""
-    if isinstance(items, str):
-        raise ConfigError(f"overrides are a list of 'key=value' strings, got one: [{items!r}]")
-    types_by_name = {f.name: str(f.type) for f in fields(Config)}
-    out: dict[str, Any] = {}
-    for item in items:
-        if "=" not in item:
-            raise ConfigError(f"override {item!r} is not of the form key=value")
-        key, text = item.split("=", 1)
-        key, text = key.strip().replace("-", "_"), text.strip()
-        if key not in types_by_name:
-            raise ConfigError(
-                f"unknown config key {key!r}; known keys: {', '.join(sorted(types_by_name))}"
-            )
-        if key in OWN_OPTIONS:
-            raise ConfigError(f"choose the {key} with {OWN_OPTIONS[key]}, not an override")
-        out[key] = _coerce(key, types_by_name[key], text)
-    return out
-
-
 def _check_condition(condition: str) -> None:
     names = condition_names()
     if condition not in names:
         raise ConfigError(f"unknown condition {condition!r}; choose one of {', '.join(names)}")
-
-
-def resolve(
-    preset: str,
-    condition: str = "curious",
-    seed: int = 0,
-    overrides: dict[str, Any] | None = None,
-) -> Config:
-    """The config of a preset with a condition, a seed and overrides applied, validated.
-
-    `overrides` maps setting names to values (`parse_overrides` turns `["key=value", ...]`
-    into one); the preset, condition and seed are this function's own arguments, never
-    overrides: one there would label the run with one and train it with another."""
-    if preset not in PRESETS:
-        raise ConfigError(f"unknown preset {preset!r}; choose one of {', '.join(PRESETS)}")
-    _check_condition(condition)
-    if overrides is not None and not isinstance(overrides, Mapping):
-        raise ConfigError(
-            f"overrides maps setting names to values, got a {type(overrides).__name__}: "
-            "parse_overrides turns ['key=value', ...] into one"
-        )
-    values: dict[str, Any] = dict(PRESETS[preset])
-    values.update(condition=condition, seed=seed, preset=preset)
-    for key, value in (overrides or {}).items():
-        if key not in setting_names():
-            raise ConfigError(f"unknown config key {key!r}")
-        if key in OWN_OPTIONS:
-            raise ConfigError(f"{key} is resolve's own argument, not an override")
-        values[key] = value
-    return dataclasses.replace(Config(), **values)

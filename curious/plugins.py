@@ -26,6 +26,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import suite
+import suite.catalog
+from curious.registry import CONDITIONS
+
 GROUP = "curious.plugins"
 """The entry-point group a plugin declares its module in."""
 
@@ -115,12 +119,9 @@ def origin(obj: object) -> Plugin | None:
 def sources(condition: str, variant: str) -> dict[str, dict[str, str]]:
     """The plugins a run's condition and variant come from, for its config.json: ``{"condition":
     {"plugin", "version", "module"}, "variant": {...}}``, each only where a plugin gave it."""
-    import suite.catalog
-    from curious.agent.conditions import CONDITION_CLASSES
-
     out: dict[str, dict[str, str]] = {}
     for what, obj in (
-        ("condition", CONDITION_CLASSES.get(condition)),
+        ("condition", CONDITIONS.get(condition)),
         ("variant", suite.catalog.REGISTERED.get(variant)),
     ):
         plugin = origin(obj) if obj is not None else None
@@ -147,12 +148,9 @@ def missing(recorded: Any, condition: object, variant: object) -> str | None:
     where nothing is."""
     if not isinstance(recorded, Mapping):
         return None
-    import suite
-    from curious.agent.conditions import CONDITION_CLASSES
-
     names = {"condition": str(condition), "variant": str(variant)}  # a hand-edited file's too
     known = {
-        "condition": names["condition"] in CONDITION_CLASSES,
+        "condition": names["condition"] in CONDITIONS,
         "variant": names["variant"] in suite.ALL_VARIANTS,
     }
     for what in ("condition", "variant"):

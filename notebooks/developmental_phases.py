@@ -29,7 +29,7 @@ from IPython.display import display
 from matplotlib.figure import Figure
 
 from curious import analysis
-from curious.analysis import palette
+from curious.watching import palette
 from pipelines.resources import OutputLayout
 
 # %% tags=["parameters"]

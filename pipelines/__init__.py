@@ -1,26 +1,9 @@
 """Dagster assets that train every condition and seed and rebuild the figures of the paper.
 
-    dagster-webserver -h 127.0.0.1 -m pipelines   # the asset graph in the UI (needs curious[ui])
-    curious reproduce --budget quick              # the same assets, materialised in process
+    curious reproduce --budget quick                            # the assets, materialised
+    dagster-webserver -h 127.0.0.1 -m pipelines.code_location   # their graph in the UI
 
-`defs` (the `Definitions` Dagster loads) is built on first access from environment variables
-(`pipelines.definitions`), so importing this package, as every training worker does, stays cheap.
+`pipelines.definitions` builds the `Definitions` of a budget; `pipelines.code_location` is the
+module Dagster's tools load, whose `defs` are built from environment variables when it is
+imported; importing this package, as every training worker does, imports neither.
 """
-
-from __future__ import annotations
-
-from typing import Any
-
-
-def __getattr__(name: str) -> Any:
-    if name == "defs":
-        from pipelines.definitions import definitions_from_environment
-
-        value = definitions_from_environment()
-        globals()["defs"] = value
-        return value
-    raise AttributeError(f"module 'pipelines' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), "defs"})

@@ -2,7 +2,7 @@
 
 `build_definitions(reproduction)` holds every experiment's assets (see `pipelines.assets`) and
 the `reproduction` resource. `definitions_from_environment()` builds them from environment
-variables, which is what `dagster-webserver -m pipelines` (or `dagster dev`) loads:
+variables, which is what `dagster-webserver -m pipelines.code_location` (or `dagster dev`) loads:
 
     CURIOUS_BUDGET       budget: smoke, quick, laptop or paper (default: quick)
     CURIOUS_OUT          output folder (default: the budget's, e.g. runs/quick)
@@ -13,8 +13,9 @@ variables, which is what `dagster-webserver -m pipelines` (or `dagster dev`) loa
                          (as `curious reproduce --from-data`; CURIOUS_RUNS_DIR is then unused)
 
 To see the runs `curious reproduce` made in the UI, point Dagster at its instance:
-`DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster-webserver -h 127.0.0.1 -m pipelines`
-(on the loopback address, this machine only; another machine reaches it through an SSH tunnel).
+`DAGSTER_HOME=runs/quick/.dagster CURIOUS_BUDGET=quick dagster-webserver -h 127.0.0.1
+-m pipelines.code_location` (on the loopback address, this machine only; another machine
+reaches it through an SSH tunnel).
 
 `CURIOUS_PRESET`, the variable's name before budgets were named apart from training presets,
 is refused with an error naming `CURIOUS_BUDGET` rather than ignored (ignored, the default
@@ -31,6 +32,7 @@ from curious.reproduction.experiments import DEFAULT_BUDGET, ExperimentError, ge
 from curious.runs.side_by_side import MAX_WORKERS
 from pipelines.assets import RESOURCE, all_assets
 from pipelines.executors import make_pool
+from pipelines.from_data import ShippedData
 from pipelines.resources import OutputLayout, Reproduction
 
 
@@ -53,8 +55,6 @@ def reproduction_from_environment() -> Reproduction:
     budget = get_budget(os.environ.get("CURIOUS_BUDGET") or DEFAULT_BUDGET)
     data = None
     if os.environ.get("CURIOUS_FROM_DATA"):
-        from pipelines.from_data import ShippedData
-
         data = ShippedData.open(os.environ["CURIOUS_FROM_DATA"])
         data.check_budget(budget)
         budget = data.stands_for(budget)

@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from curious.reproduction.experiments import RunSpec
+from curious.runs.folder import RunFolder
 from curious.runs.side_by_side import die_with_parent, interrupts_ignored
 from pipelines.training import (
     PartitionResult,
@@ -544,7 +545,6 @@ def _again(
             f"{job.spec.label} failed: {why}, after it was submitted again {retries} "
             f"time{'s' if retries != 1 else ''}"
         ) from exc
-    from curious.runs.folder import RunFolder
 
     start = RunFolder(folder).newest_checkpoint()
     where = f"its checkpoint at episode {start:,}" if start else "episode 0 (no checkpoint yet)"

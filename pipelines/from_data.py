@@ -1,6 +1,6 @@
 """Shipped runs in place of trained ones: `curious reproduce --from-data DATA`.
 
-A shipped data folder (`curious.reproduction.shipped_folder`, written by `curious ship`) is laid
+A shipped data folder (`curious.runs.shipped_folder`, written by `curious ship`) is laid
 out as a
 reproduction's runs root, so the pipeline reads it as one (`OutputLayout.runs_root`): the `runs`
 asset checks that every partition's run is there and finished instead of training it, and the
@@ -34,7 +34,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path, PurePosixPath
 
 from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
-from curious.reproduction.shipped_folder import ShippedError, ShippedFolder, ShippedManifest
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderError
+from curious.runs.shipped_folder import ShippedError, ShippedFolder, ShippedManifest
 from pipelines.training import FINISHED, NEW, PARTIAL, RunFolderMismatch
 
 
@@ -71,8 +73,6 @@ class ShippedData:
         """A `ShippedDataError`, before anything is written, where a run shipped.json lists is
         gone or has a file that cannot be read (a truncated copy, a bad merge): named with the
         way out, where later steps would fail on it in their own words."""
-        from curious.runs.folder import RunFolder
-        from curious.runs.folder_errors import RunFolderError
 
         for entry in self.manifest.runs:
             folder = RunFolder(ShippedFolder(self.path).run_path(entry.run))
@@ -98,8 +98,6 @@ class ShippedData:
 
     def state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished` (see the module docstring)."""
-        from curious.runs.folder import RunFolder
-        from curious.runs.folder_errors import RunFolderError
 
         entry = self.manifest.get(spec.relative_path)
         if entry is None:

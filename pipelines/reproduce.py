@@ -20,7 +20,7 @@ holds either trained runs' results or shipped data's, never both.
 
 The Dagster instance lives in `OUT/.dagster` (sqlite storage, no server, no daemon), so the
 history of materialisations is kept with the results and the Dagster UI
-(`dagster-webserver -h 127.0.0.1 -m pipelines`, this machine only) can show it.
+(`dagster-webserver -h 127.0.0.1 -m pipelines.code_location`, this machine only) can show it.
 """
 
 from __future__ import annotations
@@ -43,7 +43,13 @@ from curious.reproduction.experiments import (
     get_budget,
 )
 from curious.reproduction.figures import figures_of
-from curious.reproduction.shipped_folder import shipped_root
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderBusy, RunFolderError
+from curious.runs.folder_lock import check_writable, folder_lock
+from curious.runs.shipped_folder import shipped_root
+from pipelines.executors import busy_description, gpu_sharing_hint
+from pipelines.executors import make_pool as default_pool
+from pipelines.from_data import ShippedData, ShippedDataError
 from pipelines.resources import OutputLayout, Reproduction
 from pipelines.training import PartitionResult, RunFolderMismatch, check_not_busy
 
@@ -327,7 +333,6 @@ def _shipped_data(
     """The shipped data folder at `path`, checked against `budget`, the budget as it can stand
     for it (`ShippedData.stands_for`) and the experiments to build from it; `ReproduceError`
     where it cannot stand for them."""
-    from pipelines.from_data import ShippedData, ShippedDataError
 
     try:
         data = ShippedData.open(path)
@@ -343,7 +348,6 @@ def _check_places(layout: OutputLayout) -> None:
     run folder (the search for runs stops at one, so nothing trained there would be found), or
     where the runs folder is another reproduction's output (its runs lie in its own runs folder:
     naming the output instead would train every run anew beside them)."""
-    from curious.runs.folder import RunFolder
 
     for option, path in (("--out", layout.out), ("--runs-dir", layout.runs_root)):
         for folder in (path, *path.parents):
@@ -364,8 +368,6 @@ def _check_places(layout: OutputLayout) -> None:
 def _check_writable(layout: OutputLayout) -> None:
     """A `ReproduceError` naming `--out` where OUT (its lock beside it, its report and figures
     in it) cannot be written, before anything is locked or trained."""
-    from curious.runs.folder_errors import RunFolderError
-    from curious.runs.folder_lock import check_writable
 
     try:
         check_writable(layout.out, "--out", folder=True)
@@ -378,8 +380,6 @@ def _reproduction_lock(layout: OutputLayout) -> Iterator[None]:
     """Hold OUT's lock for the whole reproduction: a second `curious reproduce` of the same
     folder is refused at once (`ReproduceError`) while the first goes on; nothing is left
     behind (`curious.runs.folder_lock.folder_lock`)."""
-    from curious.runs.folder_errors import RunFolderBusy, RunFolderError
-    from curious.runs.folder_lock import folder_lock
 
     with contextlib.ExitStack() as stack:
         try:
@@ -408,8 +408,6 @@ def _reproduce(
 
     from pipelines.assets import figure_key, metrics_key, partitions_of, runs_key
     from pipelines.definitions import build_definitions
-    from pipelines.executors import busy_description, gpu_sharing_hint
-    from pipelines.executors import make_pool as default_pool
 
     check_output_folder(layout, chosen, None if data is None else data.path)
     repro = Reproduction(

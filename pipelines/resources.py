@@ -34,8 +34,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
-from curious.reproduction.shipped_folder import ShippedFolder
+from curious.runs.memory import runs_that_fit
+from curious.runs.shipped_folder import ShippedFolder
 from pipelines.executors import Job, Pool, busy_description, run_all
+from pipelines.from_data import ShippedDataError
 from pipelines.training import (
     FINISHED,
     PARTIAL,
@@ -66,7 +68,7 @@ class OutputLayout:
     @classmethod
     def open(cls, out: str | Path) -> OutputLayout:
         """The layout of an existing output folder; its runs_dir comes from reproduce.json. A
-        shipped data folder (`curious.reproduction.shipped_folder`) opens too, as its own runs
+        shipped data folder (`curious.runs.shipped_folder`) opens too, as its own runs
         root: the notebooks take either as their `out`.
 
         A relative `out` that does not exist here is also looked for from the parent folders
@@ -275,7 +277,6 @@ class Reproduction:
         self, experiment: Experiment, specs: Sequence[RunSpec]
     ) -> list[PartitionResult]:
         """The shipped runs of `specs`, checked to be there and finished; nothing is trained."""
-        from pipelines.from_data import ShippedDataError
 
         assert self.data is not None
         lacking = [s for s in specs if self.data.state(s) != FINISHED]
@@ -305,7 +306,6 @@ class Reproduction:
         5 GB; None on Ray, whose tasks hold their nodes' memory."""
         if not self.pool.local:
             return None
-        from curious.runs.memory import runs_that_fit
 
         return runs_that_fit([job.spec.config(self.overrides) for job in jobs])
 

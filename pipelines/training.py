@@ -36,7 +36,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from curious.config import ConfigError
 from curious.reproduction.experiments import RunSpec
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import ConfigMismatch, RunFolderError
+from curious.runs.folder_errors import RunFolderBusy as Busy
+from curious.runs.folder_lock import folder_lock
+from curious.runs.folder_lock import lock_path as folder_lock_path
 
 FINISHED, PARTIAL, NEW = "finished", "partial", "new"
 
@@ -76,7 +82,6 @@ def run_folder(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
 
 def episodes_logged(folder: Path) -> int:
     """Episodes in a run folder's metrics.parquet (0 when there is none yet)."""
-    from curious.runs.folder import RunFolder
 
     return RunFolder(folder).episodes_logged()
 
@@ -86,9 +91,6 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
 
     Whether the folder holds (a part of) the run is the check a resume makes
     (`curious.runs.folder.RunFolder.check_resumable`)."""
-    from curious.config import ConfigError
-    from curious.runs.folder import RunFolder
-    from curious.runs.folder_errors import ConfigMismatch, RunFolderError
 
     folder = RunFolder(run_folder(spec, runs_root))
     if folder.path.exists() and not folder.path.is_dir():
@@ -137,7 +139,6 @@ def _make_recorder(spec: RunSpec, record: bool, resume: bool):
 
 def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
     """The lock file beside a run folder (`curious.runs.folder_lock.lock_path`)."""
-    from curious.runs.folder_lock import lock_path as folder_lock_path
 
     return folder_lock_path(run_folder(spec, runs_root))
 
@@ -148,8 +149,6 @@ def training_lock(
 ) -> Iterator[None]:
     """Hold the run's lock (`curious.runs.folder_lock.folder_lock`, the one `train` takes while it
     trains); raise `RunFolderBusy` if another process holds it."""
-    from curious.runs.folder_errors import RunFolderBusy as Busy
-    from curious.runs.folder_lock import folder_lock
 
     with contextlib.ExitStack() as stack:
         try:
@@ -177,7 +176,6 @@ def run_partition(
     run is left as it is, a partial one resumes, a new one starts, as `curious train` trains
     it, with its own recorder."""
     from curious.runs.driver import train
-    from curious.runs.folder_errors import RunFolderBusy as Busy
 
     os.environ.setdefault("MUJOCO_GL", "disable")
     tic = time.perf_counter()

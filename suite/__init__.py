@@ -3,7 +3,7 @@
 ```python
 import suite
 
-env = suite.load("default", seed=0)          # a composer.Environment (suite.SuiteEnvironment)
+env = suite.load("default", seed=0)          # a suite.environment.SuiteEnvironment
 suite.ALL_VARIANTS                            # the registered variant names
 env.task.set_next_episode(module="reach", goal=[0.1, -0.3, 0.5])
 ts = env.reset()
@@ -15,10 +15,9 @@ See docs/architecture.md for the contract and docs/suite.md for the observation 
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from suite.catalog import all_variants, register
+from suite.catalog import ALL_VARIANTS, all_variants, register
 from suite.modules import (
     TaskModule,
     affine_slot,
@@ -32,23 +31,29 @@ from suite.modules import (
     standard_modules,
 )
 
-_BUILDING: dict[str, str] = {
-    "SuiteEnvironment": "suite.environment",
-    "StateLayout": "suite.features",
-    "OBSERVATION_KEYS": "suite.task",
-    "MultiTaskFetch": "suite.task",
-    "build": "suite.variants",
-    "load": "suite.variants",
-}
-"""Names whose modules import dm_control and MuJoCo, imported on first use: `import suite` and
-its variant names and modules (`ALL_VARIANTS`, `suite.catalog`) stay light."""
+if TYPE_CHECKING:
+    from dm_control import composer
+
+
+def load(name: str, seed: int | None = None, **kwargs: Any) -> composer.Environment:
+    """Build the variant `name` with the given seed (kwargs go to the variant): `suite.variants`,
+    which imports dm_control and MuJoCo, imported here at the first call, so that `import suite`
+    and the variants' names and modules stay light."""
+    from suite.variants import load as load_variant
+
+    return load_variant(name, seed, **kwargs)
+
+
+def build(n_distractors: int, *, seed: int | None = None, **kwargs: Any) -> composer.Environment:
+    """The paper's modules with `n_distractors` distractor cubes, as an environment
+    (`suite.variants.build`, imported at the first call as `load` imports it)."""
+    from suite.variants import build as build_variant
+
+    return build_variant(n_distractors, seed=seed, **kwargs)
+
 
 __all__ = [
     "ALL_VARIANTS",
-    "OBSERVATION_KEYS",
-    "MultiTaskFetch",
-    "StateLayout",
-    "SuiteEnvironment",
     "TaskModule",
     "affine_slot",
     "all_variants",
@@ -64,14 +69,3 @@ __all__ = [
     "stack",
     "standard_modules",
 ]
-
-
-def __getattr__(name: str) -> Any:
-    # ALL_VARIANTS is computed on access so that variants registered later are listed too.
-    if name == "ALL_VARIANTS":
-        return all_variants()
-    if name in _BUILDING:
-        value = getattr(importlib.import_module(_BUILDING[name]), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'suite' has no attribute {name!r}")

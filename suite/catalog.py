@@ -9,7 +9,7 @@ where nothing heavier than numpy is imported.
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +26,7 @@ class VariantSpec:
     modules: Callable[[], tuple[TaskModule, ...]]
     """The task's modules, in slot order."""
     task_options: Mapping[str, int]
-    """`suite.MultiTaskFetch`'s keyword arguments: `n_cubes`, and where they differ from its
+    """`suite.task.MultiTaskFetch`'s keyword arguments: `n_cubes`, and where they differ from its
     defaults `n_reachable` and `failing_cube`."""
 
     @property
@@ -80,6 +80,30 @@ REGISTERED: dict[str, VariantFn] = {}
 def all_variants() -> tuple[str, ...]:
     """Names of the built-in variants, then of the registered ones, in registration order."""
     return (*BUILT_IN, *REGISTERED)
+
+
+class VariantNames(Sequence[str]):
+    """The names of the variants, read at each use: the built-in ones, then those registered so
+    far (`ALL_VARIANTS`, a live view, so that a variant registered later is listed too)."""
+
+    def __getitem__(self, index):  # type: ignore[override]
+        return all_variants()[index]
+
+    def __len__(self) -> int:
+        return len(BUILT_IN) + len(REGISTERED)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(all_variants())
+
+    def __contains__(self, name: object) -> bool:
+        return name in BUILT_IN or name in REGISTERED
+
+    def __repr__(self) -> str:
+        return repr(all_variants())
+
+
+ALL_VARIANTS = VariantNames()
+"""The variants' names, built-in then registered (`suite.ALL_VARIANTS`)."""
 
 
 def find(name: str) -> VariantSpec | VariantFn:

@@ -37,7 +37,7 @@ def load(name: str, seed: int | None = None, **kwargs) -> composer.Environment:
     if not isinstance(env, composer.Environment):
         raise TypeError(
             f"variant {name!r} built a {type(env).__name__}, not a composer.Environment: its "
-            "function returns the environment (suite.build or suite.make give one)"
+            "function returns the environment (suite.build or suite.variants.make give one)"
         )
     return env
 

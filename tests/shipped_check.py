@@ -29,8 +29,8 @@ from curious import analysis
 from curious.agent.conditions import CONDITION_CLASSES
 from curious.cli import main as curious_cli
 from curious.reproduction.experiments import BEYOND_PAPER, get_budget
-from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
 from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.shipped_folder import MANIFEST_FILE, ShippedFolder
 from pipelines.from_data import ShippedData, ShippedDataError
 
 

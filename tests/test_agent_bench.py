@@ -14,7 +14,7 @@ from benchmarks import AtLeast, CountList
 from benchmarks.learner_speed import add_arguments, measure, update_gemms
 from curious.agent.learner import Learner
 from curious.commands.bench import BENCHMARKS
-from curious.config import resolve
+from curious.presets import resolve
 
 
 @pytest.mark.parametrize("algorithm_sizes", [(256, 77, 4, 256, 3), (32, 10, 2, 16, 2)])

@@ -11,10 +11,11 @@ from toy_env import ToyGoalEnv, make_toy_envs
 from curious.agent.conditions import HER, MGTE, MUVFA, Curious, LPReplay, LPSelect
 from curious.agent.goals import HolisticGoals
 from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
-from curious.config import PRESETS, ConfigError, resolve
+from curious.config import ConfigError
 from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import EnvSpec
 from curious.envs.rollout import EpisodeData
+from curious.presets import PRESETS, resolve
 from curious.runs.driver import train
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.trainer import Trainer
@@ -369,14 +370,14 @@ def test_conditions_have_one_registry():
     import sys
 
     from curious.agent.conditions import BUILT_IN_CONDITIONS, CONDITION_CLASSES
-    from curious.config import condition_names
+    from curious.registry import condition_names
 
     assert condition_names() == tuple(CONDITION_CLASSES)  # a plugin's after the built-in ones
     assert condition_names()[:4] == ("curious", "m-uvfa", "mg-te", "her")  # the paper's first
     assert condition_names()[: len(BUILT_IN_CONDITIONS)] == BUILT_IN_CONDITIONS
     assert {"lp-select", "lp-replay"} <= set(BUILT_IN_CONDITIONS)
     assert all(cls.name == name for name, cls in CONDITION_CLASSES.items())
-    code = "import sys; from curious.config import condition_names; condition_names(); "
+    code = "import sys; from curious.registry import condition_names; condition_names(); "
     code += "print('torch' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
@@ -387,8 +388,8 @@ def test_every_condition_has_a_label_a_colour_and_a_place_of_its_own():
     fixed order (a condition missing from the tables would get a colour from its name, which may
     be another's); a plugin's condition gets a colour from its name."""
     from curious.agent.conditions import BUILT_IN_CONDITIONS
-    from curious.analysis import palette
     from curious.analysis.figures import CONDITION_ORDER
+    from curious.watching import palette
 
     names = BUILT_IN_CONDITIONS
     assert set(names) <= set(palette.CONDITION_STYLES) and set(names) <= set(CONDITION_ORDER)

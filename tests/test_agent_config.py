@@ -6,16 +6,10 @@ import json
 import numpy as np
 import pytest
 
-from curious.config import (
-    PRESETS,
-    Config,
-    ConfigError,
-    condition_names,
-    format_seeds,
-    parse_overrides,
-    parse_seeds,
-    resolve,
-)
+from curious.config import Config, ConfigError
+from curious.overrides import format_seeds, parse_overrides, parse_seeds
+from curious.presets import PRESETS, resolve
+from curious.registry import condition_names
 
 
 @pytest.mark.parametrize("preset", list(PRESETS))

@@ -10,9 +10,10 @@ from toy_env import ToyGoalEnv
 
 import suite
 from curious.agent.goals import GoalBox, GoalInput
-from curious.config import ConfigError, resolve
+from curious.config import ConfigError
 from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import SuiteEnv
+from curious.presets import resolve
 from curious.runs.driver import train
 from curious.runs.trainer import Trainer
 from suite import layout

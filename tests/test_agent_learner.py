@@ -15,7 +15,7 @@ from curious.agent.inputs import InputEncoder
 from curious.agent.learner import Learner
 from curious.agent.networks import Actor, Critic
 from curious.agent.normalizer import RunningNormalizer
-from curious.config import resolve
+from curious.presets import resolve
 
 torch.set_num_threads(1)
 
@@ -302,7 +302,7 @@ def test_the_compiled_learner_beside_the_suite_prints_none_of_torchs_own_notices
         "import dataclasses, torch, suite\n"
         "suite.load('default', seed=0).reset()\n"
         "from curious.agent.learner import Learner\n"
-        "from curious.config import resolve\n"
+        "from curious.presets import resolve\n"
         "config = dataclasses.replace(resolve('smoke'), hidden=32, layers=2,"
         " learner_backend='compiled')\n"
         "learner = Learner(10, 4, config, seed=5)\n"

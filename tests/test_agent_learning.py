@@ -8,8 +8,8 @@ import numpy as np
 import torch
 from toy_env import make_toy_envs
 
-from curious.config import resolve
 from curious.envs.batch import LocalEnvs
+from curious.presets import resolve
 from curious.runs.trainer import Trainer
 
 TOY = dict(

@@ -16,7 +16,7 @@ from toy_env import make_toy_envs
 
 from curious.agent.agent import Agent
 from curious.cli import main
-from curious.config import resolve
+from curious.presets import resolve
 from curious.runs.driver import train
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_layout import list_checkpoints

@@ -22,7 +22,9 @@ from curious.agent.conditions import CONDITION_CLASSES
 from curious.agent.goals import GoalInput
 from curious.agent.learning_progress import CompetenceTracker
 from curious.cli import main
-from curious.config import ConfigError, condition_names, resolve
+from curious.config import ConfigError
+from curious.presets import resolve
+from curious.registry import condition_names
 from curious.runs import checkpoint
 from curious.runs.checkpoint import CheckpointError
 from curious.runs.driver import train
@@ -236,7 +238,7 @@ KILL_SCRIPT = textwrap.dedent(
     import sys
     sys.path.insert(0, {tests!r})
     from toy_env import make_toy_envs
-    from curious.config import resolve
+    from curious.presets import resolve
     from curious.runs.driver import train
     config = resolve("smoke", "curious", 0, dict(
         total_episodes=10**7, n_workers=2, checkpoint_every_cycles=1, progress=False,
@@ -646,8 +648,8 @@ RECORDED_KILL_SCRIPT = textwrap.dedent(
     import sys
     sys.path.insert(0, {tests!r})
     from toy_env import make_toy_envs
-    from curious.config import resolve
-    from curious.watching.recording import RecorderSettings
+    from curious.presets import resolve
+    from curious.watching.recording.settings import RecorderSettings
     from curious.watching.recording.rollout_capture import recorder_factory
     from curious.runs.driver import train
     config = resolve("smoke", "curious", 0, dict(
@@ -670,8 +672,8 @@ def recorded_episodes(path: Path) -> np.ndarray:
 
 
 def test_sigkill_leaves_a_whole_recording_that_a_resume_continues_without_a_gap(tmp_path):
-    from curious.watching.recording import RecorderSettings
     from curious.watching.recording.rollout_capture import recorder_factory
+    from curious.watching.recording.settings import RecorderSettings
 
     out = tmp_path / "killed"
     saved = kill_after_a_checkpoint(
@@ -693,8 +695,8 @@ def test_sigkill_leaves_a_whole_recording_that_a_resume_continues_without_a_gap(
 
 
 def test_a_damaged_recording_does_not_stop_a_resume(tmp_path):
-    from curious.watching.recording import RecorderSettings
     from curious.watching.recording.rollout_capture import recorder_factory
+    from curious.watching.recording.settings import RecorderSettings
 
     settings = RecorderSettings(rollout_every=0)
     config = resolve("smoke", "curious", 0, {**SMALL, "total_episodes": 16})
@@ -761,8 +763,9 @@ def test_a_full_disk_under_the_recording_is_a_clear_error_and_the_run_resumes(
     import errno
     import shutil
 
-    from curious.watching.recording import RecorderSettings, rrd_files
+    from curious.watching.recording import rrd_files
     from curious.watching.recording.rollout_capture import recorder_factory
+    from curious.watching.recording.settings import RecorderSettings
 
     settings = RecorderSettings(rollout_every=0)
     config = resolve(

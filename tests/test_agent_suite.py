@@ -8,9 +8,9 @@ import pytest
 
 from curious.agent.replay import EpisodeReplay
 from curious.cli import main
-from curious.config import resolve
 from curious.envs.batch import LocalEnvs
 from curious.envs.goal_env import SuiteEnv, make_suite_envs
+from curious.presets import resolve
 from curious.runs.trainer import Trainer
 
 

@@ -19,8 +19,8 @@ from test_analysis_synthetic import (
 )
 
 from curious import analysis
-from curious.analysis import palette
 from curious.analysis.style import format_episodes
+from curious.watching import palette
 
 
 @pytest.fixture(scope="module")
@@ -399,7 +399,7 @@ def test_public_names_resolve_and_the_palette_imports_alone():
         _ = analysis.no_such_name
     # The recording code imports the palette; that must not pull in the plotting stack.
     code = (
-        "import sys, curious.analysis.palette as p; p.module_rgb('reach'); "
+        "import sys, curious.watching.palette as p; p.module_rgb('reach'); "
         "print(sorted(m for m in ('matplotlib', 'pandas', 'scipy') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -188,9 +188,9 @@ def test_a_seed_beyond_the_budgets_is_trained_shipped_and_its_plan_recorded(extr
     """`--seeds main=2` on the smoke budget, whose main has seeds 0 and 1 shipped: main's seed 2
     is trained, shipped beside the runs held, and recorded in reproduce.json, whose plan
     `curious progress` lists before the runs start."""
-    from curious.analysis.progress import progress_table
+    from curious.reproduction.campaign_progress import progress_table
     from curious.reproduction.experiments import get_budget
-    from curious.reproduction.shipped_folder import ShippedFolder
+    from curious.runs.shipped_folder import ShippedFolder
 
     seed_2 = [f"main/{c}/seed-2" for c in ("curious", "mg-te", "her")]
     assert "3 runs queued (beyond the budget's: main seed 2)" in extra_seed.stdout

@@ -21,7 +21,7 @@ import pytest
 
 from curious import analysis
 from curious.analysis.formatting import format_p
-from curious.analysis.progress import progress_table
+from curious.reproduction.campaign_progress import progress_table
 from curious.reproduction.experiments import get_budget
 
 if TYPE_CHECKING:
@@ -492,7 +492,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     before, trough, the primary and secondary recoveries), the README's recoveries by test
     success, the episodes a run not recovered by its end had left, and the Welch test on the
     recovered runs once it can be computed."""
-    from curious.analysis.palette import condition_label
+    from curious.watching.palette import condition_label
     from pipelines.report.blocks import fmt, fmt_p
     from pipelines.report.sensory_failures import primary_cell, secondary_cell
 

@@ -11,9 +11,9 @@ import pyarrow.parquet as pq
 import pytest
 
 from curious.cli import main
-from curious.config import resolve
 from curious.envs.batch import LocalEnvs, ProcessEnvs
 from curious.envs.goal_env import suite_env_fns
+from curious.presets import resolve
 from curious.runs.driver import _environments
 from curious.runs.folder_layout import RECORDING_FILE
 from curious.watching.recording.reader import read_component

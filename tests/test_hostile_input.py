@@ -20,7 +20,8 @@ from pathlib import Path
 import pytest
 
 from curious.cli import main
-from curious.config import MAX_SEED, ConfigError, resolve
+from curious.config import MAX_SEED, ConfigError
+from curious.presets import resolve
 from curious.reproduction.experiments import ExperimentError
 
 ROOT = Path(__file__).resolve().parent.parent

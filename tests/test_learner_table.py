@@ -9,7 +9,7 @@ import pyarrow.parquet as pq
 import pytest
 from toy_env import make_toy_envs
 
-from curious.config import resolve
+from curious.presets import resolve
 from curious.runs.driver import train
 from curious.runs.metrics import LEARNER_STATS, learner_begins
 

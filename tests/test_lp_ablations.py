@@ -170,7 +170,7 @@ def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_pa
 
 def test_the_signed_lp_figure_draws_both_measures_as_two_conditions(beyond, tmp_path):
     from curious.analysis.figures.beyond_paper import SIGNED_LP, signed_lp
-    from curious.analysis.palette import condition_label
+    from curious.watching.palette import condition_label
 
     (absolute, tests_a), (signed, tests_s) = beyond["absolute"], beyond["signed"]
     fig, per_run = signed_lp(absolute, signed, tests_a, tests_s, out_dir=tmp_path)

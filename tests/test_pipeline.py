@@ -512,8 +512,8 @@ def test_the_report_names_each_commit_its_experiments_were_trained_from(tmp_path
 
     import pandas as pd
 
-    from curious.config import resolve
     from curious.envs.goal_env import SuiteEnv
+    from curious.presets import resolve
     from curious.runs.folder import RunFolder
     from pipelines.report.overview import software
 
@@ -791,6 +791,7 @@ def test_an_experiment_the_budget_leaves_out_is_a_one_line_error_saying_where_it
 def test_reproduce_set_takes_where_and_how_fast_runs_go_only(tmp_path, capsys, monkeypatch):
     """`--set` reaches every run for settings that leave what a run computes as it is; one that
     would change the budget's runs is a one-line error, and nothing is written."""
+    import curious.commands.reproduce
     import pipelines.reproduce
 
     code, err = run_cli(
@@ -805,7 +806,7 @@ def test_reproduce_set_takes_where_and_how_fast_runs_go_only(tmp_path, capsys, m
         seen.update(kwargs)
         raise pipelines.reproduce.ReproduceError("stop here")
 
-    monkeypatch.setattr(pipelines.reproduce, "reproduce", fake)
+    monkeypatch.setattr(curious.commands.reproduce, "reproduce", fake)
     args = ["--set", "env_processes=2", "--set", "prefetch_minibatches=true", "--device", "cpu"]
     code, err = run_cli(["--budget", "smoke", *args], capsys)
     assert code == 2 and "stop here" in err
@@ -991,10 +992,19 @@ def test_definitions_load_with_dagster_and_group_the_experiments(tmp_path, monke
         s.partition_key for s in SMOKE.experiments["distractors"].runs()
     }
     assert "curious@distractors_7|0" in distractors.get_partition_keys()
-    # `dagster-webserver -m pipelines` finds the same definitions (without a server: validate)
+    # `dagster-webserver -m pipelines.code_location` finds the same definitions (validated, no
+    # server)
     env = {**os.environ, "CURIOUS_BUDGET": "smoke", "CURIOUS_OUT": str(tmp_path)}
     done = subprocess.run(
-        [sys.executable, "-m", "dagster", "definitions", "validate", "-m", "pipelines"],
+        [
+            sys.executable,
+            "-m",
+            "dagster",
+            "definitions",
+            "validate",
+            "-m",
+            "pipelines.code_location",
+        ],
         capture_output=True,
         text=True,
         env=env,
@@ -1037,7 +1047,7 @@ def test_definitions_refuse_a_worker_count_no_pool_can_take(value, tmp_path, mon
 
 
 def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke, tmp_path):
-    """What `dagster-webserver -m pipelines` serves, on a copy of the smoke output."""
+    """What `dagster-webserver -m pipelines.code_location` serves, on a copy of the smoke output."""
     import shutil
     import urllib.request
 
@@ -1051,7 +1061,15 @@ def test_dagster_webserver_shows_the_asset_graph_and_the_materialisations(smoke,
         "CURIOUS_OUT": str(out),
     }
     port = free_port()
-    command = [sys.executable, "-m", "dagster_webserver", "-m", "pipelines", "-h", "127.0.0.1"]
+    command = [
+        sys.executable,
+        "-m",
+        "dagster_webserver",
+        "-m",
+        "pipelines.code_location",
+        "-h",
+        "127.0.0.1",
+    ]
     server = subprocess.Popen(
         [*command, "-p", str(port)],
         env=env,

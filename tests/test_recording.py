@@ -25,20 +25,16 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from curious.analysis.palette import module_entity, module_label, module_rgb
 from curious.commands.view import viewer_command
 from curious.runs.folder_layout import RECORDING_FILE
-from curious.watching.recording import (
-    APPLICATION_ID,
-    RecorderSettings,
-    RolloutCapture,
-    RunRecorder,
-    SceneLayout,
-    wxyz_to_xyzw,
-)
+from curious.watching.palette import module_entity, module_label, module_rgb
 from curious.watching.recording.cost import fetch_model, measure_logging_cost, synthetic_episodes
 from curious.watching.recording.reader import read_component, read_scalars, summarize
+from curious.watching.recording.recorder import RunRecorder
 from curious.watching.recording.rrd_files import RecordingWriteError
+from curious.watching.recording.scene import RolloutCapture, SceneLayout, wxyz_to_xyzw
+from curious.watching.recording.settings import RecorderSettings
+from curious.watching.recording.working_file import APPLICATION_ID
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 

@@ -14,8 +14,8 @@ import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
 from curious.runs.folder_layout import RECORDING_FILE
-from curious.watching.recording import RunRecorder, default_blueprint
-from curious.watching.recording.blueprint import LEGEND_CORNER, UNIT_RANGE
+from curious.watching.recording.blueprint import LEGEND_CORNER, UNIT_RANGE, default_blueprint
+from curious.watching.recording.recorder import RunRecorder
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 WITH_LEGEND = ("/competence", "/test", "/success/eval", "/success/train", "/module")
@@ -100,7 +100,7 @@ def test_the_compacted_recording_keeps_the_runs_module_range(tmp_path: Path) -> 
 
 def test_module_entity_paths_sort_in_the_papers_order():
     """The viewer lists a legend in entity-path order: T1..T7, then the distractors by cube."""
-    from curious.analysis.palette import module_entity, module_sort_key
+    from curious.watching.palette import module_entity, module_sort_key
 
     names = ["stack", "push_cube7", "reach", "push_cube3", "cube1_above_cube2", "push_cube1"]
     names += ["push_cube5", "push_cube4", "push_cube6", "push_cube9", "push_cube8"]

@@ -20,9 +20,10 @@ import pytest
 import rerun as rr
 
 from curious.runs.folder_layout import RECORDING_FILE, list_checkpoints
-from curious.watching.recording import RecorderSettings, RunRecorder
 from curious.watching.recording.cost import synthetic_episodes
 from curious.watching.recording.reader import read_points
+from curious.watching.recording.recorder import RunRecorder
+from curious.watching.recording.settings import RecorderSettings
 
 MODULES = ("reach", "push_cube1", "cube1_above_cube2", "stack", "push_cube3")
 SETTINGS = RecorderSettings(rollout_every=0, stats_keyframe_every=50)
@@ -288,7 +289,7 @@ def test_a_full_disk_never_replaces_the_last_good_recording(
     `recording.rrd`). The recording stays whole, and the resume continues it without a gap."""
     from toy_env import make_toy_envs
 
-    from curious.config import resolve
+    from curious.presets import resolve
     from curious.runs import checkpoint
     from curious.runs.driver import train
     from curious.watching.recording.rollout_capture import recorder_factory
@@ -413,7 +414,7 @@ def test_a_resume_removes_the_checkpoint_a_kill_left_over(tmp_path: Path) -> Non
     checkpoints; the resumed run keeps the two newest (even with nothing left to train)."""
     from toy_env import make_toy_envs
 
-    from curious.config import resolve
+    from curious.presets import resolve
     from curious.runs.driver import train
 
     config = resolve("smoke", "curious", 0, dict(total_episodes=24, progress=False))

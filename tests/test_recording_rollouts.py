@@ -14,14 +14,15 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from curious.analysis.palette import module_entity, module_label
 from curious.cli import main
-from curious.config import resolve
+from curious.presets import resolve
 from curious.runs.driver import train
 from curious.runs.folder_layout import RECORDING_FILE
-from curious.watching.recording import RecorderSettings, RunRecorder
+from curious.watching.palette import module_entity, module_label
 from curious.watching.recording.reader import read_component, summarize
+from curious.watching.recording.recorder import RunRecorder
 from curious.watching.recording.rollout_capture import RolloutObserver, attach_rollout_recording
+from curious.watching.recording.settings import RecorderSettings
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 

@@ -31,7 +31,7 @@ def no_display(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_the_view_command_opens_the_file_the_recorder_writes(tmp_path: Path) -> None:
     from curious.runs.folder import RunFolder
-    from curious.watching.recording import RunRecorder
+    from curious.watching.recording.recorder import RunRecorder
 
     RunRecorder(tmp_path / "run", ("reach",)).close()
     assert view.recording_paths([str(tmp_path / "run")]) == [
@@ -310,7 +310,7 @@ def test_the_served_viewer_listens_on_the_loopback_address_alone(
     import subprocess
     import time
 
-    from curious.watching.recording import RunRecorder
+    from curious.watching.recording.recorder import RunRecorder
 
     RunRecorder(tmp_path / "run", ("reach",)).close()
     ports = []

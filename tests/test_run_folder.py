@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from toy_env import ToyGoalEnv
 
-from curious.config import resolve
 from curious.envs.goal_env import SuiteEnv
+from curious.presets import resolve
 from curious.reproduction.experiments import get_budget
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import ConfigMismatch, RunFolderError

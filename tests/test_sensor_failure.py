@@ -8,8 +8,9 @@ import pytest
 from toy_env import ToyGoalEnv
 
 from curious.agent.learning_progress import CompetenceTracker
-from curious.config import ConfigError, resolve
+from curious.config import ConfigError
 from curious.envs.batch import LocalEnvs
+from curious.presets import resolve
 from curious.runs.sensor_failure import FailureSchedule
 from curious.runs.trainer import Trainer
 

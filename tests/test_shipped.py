@@ -28,10 +28,10 @@ from shipped_check import check_shipped_folder, files_of
 from curious import analysis
 from curious.cli import main as curious_cli
 from curious.reproduction.experiments import get_budget
-from curious.reproduction.shipped_folder import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
 from curious.reproduction.shipping import clean_leftovers
 from curious.runs.folder import RunFolder
 from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.shipped_folder import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
 from pipelines.resources import OutputLayout
 
 N_SMOKE = len(get_budget("smoke").runs())

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from shipped_check import check_shipped_folder
 
-from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
+from curious.runs.shipped_folder import MANIFEST_FILE, ShippedFolder
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 DOCS_IMAGES = Path(__file__).resolve().parents[1] / "docs" / "images"

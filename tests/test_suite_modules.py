@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 import suite
+import suite.environment
+import suite.task
 from suite import layout
 from suite.modules import TaskModule, affine_slot, within_distance
 from suite.outcomes import ModuleEvaluator
@@ -272,7 +274,9 @@ def lift_cube1() -> TaskModule:
 
 def test_a_new_module_plugs_in_without_touching_the_env():
     modules = (*suite.standard_modules(0), lift_cube1())
-    env = suite.SuiteEnvironment(suite.MultiTaskFetch(modules, n_cubes=2), random_state=0)
+    env = suite.environment.SuiteEnvironment(
+        suite.task.MultiTaskFetch(modules, n_cubes=2), random_state=0
+    )
     env.task.set_next_episode(module="lift_cube1", goal=[0.0, 0.0, -1.0])  # 0.45 m
     ts = env.reset()
     assert ts.observation["achieved"].shape == (20,)
@@ -295,8 +299,8 @@ def test_within_distance_does_not_depend_on_batch_layout():
 
 def test_module_list_must_be_valid():
     with pytest.raises(ValueError, match="unique"):
-        suite.MultiTaskFetch((MODULES[0], MODULES[0]), n_cubes=5)
+        suite.task.MultiTaskFetch((MODULES[0], MODULES[0]), n_cubes=5)
     with pytest.raises(ValueError, match="watches cube 5"):
-        suite.MultiTaskFetch(MODULES, n_cubes=4)
+        suite.task.MultiTaskFetch(MODULES, n_cubes=4)
     with pytest.raises(ValueError, match="at least one module"):
-        suite.MultiTaskFetch((), n_cubes=2)
+        suite.task.MultiTaskFetch((), n_cubes=2)

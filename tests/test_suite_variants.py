@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 import suite
+import suite.environment
+import suite.task
 from suite import catalog, layout
 
 EXPECTED = {
@@ -30,7 +32,7 @@ def test_the_paper_variants_are_registered():
 def test_variant_resets_and_steps_with_documented_specs(name):
     env = suite.load(name, seed=0)
     task = env.task
-    assert isinstance(task, suite.MultiTaskFetch)
+    assert isinstance(task, suite.task.MultiTaskFetch)
     n_mod = len(task.modules)
     n_cubes, n_reachable = task.n_cubes, task.n_reachable
     state_size = 10 + 3 * n_cubes + 12 * n_reachable  # docs/suite.md, the `state` layout
@@ -52,7 +54,7 @@ def test_variant_resets_and_steps_with_documented_specs(name):
     np.testing.assert_array_equal(action_spec.minimum, -1.0)
     np.testing.assert_array_equal(action_spec.maximum, 1.0)
     obs_spec = env.observation_spec()
-    assert tuple(obs_spec) == suite.OBSERVATION_KEYS
+    assert tuple(obs_spec) == suite.task.OBSERVATION_KEYS
     for key, shape in shapes.items():
         assert obs_spec[key].shape == shape, key
         assert obs_spec[key].dtype == np.float32, key
@@ -145,7 +147,7 @@ def test_fast_step_matches_stock_composer_step_for_step(variant):
 
     fast = suite.load(variant, seed=7)
     stock = suite.load(variant, seed=7, stock=True)
-    assert type(fast) is suite.SuiteEnvironment and fast.single_call_stepping
+    assert type(fast) is suite.environment.SuiteEnvironment and fast.single_call_stepping
     assert type(stock) is composer.Environment
     actions = np.random.default_rng(0).uniform(-1, 1, (2, 50, 4))
     for episode in range(2):
@@ -169,10 +171,10 @@ def test_the_fast_step_is_used_only_with_the_dm_control_it_was_checked_against(m
     monkeypatch.setattr(environment, "FAST_PATH_DM_CONTROL", "0.0.1")
     with pytest.warns(UserWarning, match="composer's own step"):
         env = suite.load("default", seed=0)
-    assert type(env) is not suite.SuiteEnvironment
+    assert type(env) is not suite.environment.SuiteEnvironment
     monkeypatch.undo()
     monkeypatch.setenv("SUITE_STOCK_COMPOSER", "1")
-    assert type(suite.load("default", seed=0)) is not suite.SuiteEnvironment
+    assert type(suite.load("default", seed=0)) is not suite.environment.SuiteEnvironment
 
 
 # -- the sensory failure: the authors' perturbation study ---------------------------------------
@@ -333,13 +335,13 @@ def test_sensor_failure_is_refused_where_the_variant_has_none():
 def test_reachable_cubes_and_failing_cube_are_checked():
     modules = suite.standard_modules(0)
     with pytest.raises(ValueError, match="n_reachable must be between 1 and 3"):
-        suite.MultiTaskFetch(modules, n_cubes=4, n_reachable=4)
+        suite.task.MultiTaskFetch(modules, n_cubes=4, n_reachable=4)
     with pytest.raises(ValueError, match="n_cubes must be between 3 and 10"):
-        suite.MultiTaskFetch(modules, n_cubes=11, n_reachable=3)
+        suite.task.MultiTaskFetch(modules, n_cubes=11, n_reachable=3)
     with pytest.raises(ValueError, match="failing_cube must be a cube from 1 to 2"):
-        suite.MultiTaskFetch(modules, n_cubes=2, failing_cube=3)
+        suite.task.MultiTaskFetch(modules, n_cubes=2, failing_cube=3)
     # Cube 2 is read by two modules: both are perturbed, and no single one can be named.
-    task = suite.MultiTaskFetch(modules, n_cubes=2, failing_cube=2)
+    task = suite.task.MultiTaskFetch(modules, n_cubes=2, failing_cube=2)
     assert task.sensor_failure_modules == ("cube1_above_cube2", "stack")
     with pytest.raises(ValueError, match="several modules"):
         _ = task.sensor_failure_module

@@ -20,7 +20,7 @@ import torch
 from test_agent_runs import assert_same_state
 
 from curious.cli import main
-from curious.config import resolve
+from curious.presets import resolve
 from curious.runs import checkpoint
 from curious.runs.driver import train
 from curious.runs.side_by_side import Failed, run_side_by_side

@@ -79,10 +79,15 @@ from curious.commands.reproduce import placement_overrides
 
 try:
     from curious.reproduction.experiments import RunSpec, get_budget
-    from curious.reproduction.shipped_folder import ShippedFolder
 except ModuleNotFoundError:  # a campaign commit from before the sub-packages (9972821)
     from curious.experiments import RunSpec, get_budget
-    from curious.shipped import ShippedFolder
+try:
+    from curious.runs.shipped_folder import ShippedFolder
+except ModuleNotFoundError:  # the campaign's commits from before it moved to `curious.runs`
+    try:
+        from curious.reproduction.shipped_folder import ShippedFolder
+    except ModuleNotFoundError:  # and from before the sub-packages (9972821)
+        from curious.shipped import ShippedFolder
 from pipelines.executors import Job, LocalPool, run_all
 from pipelines.reproduce import ReproduceError, _write_manifest, check_output_folder
 from pipelines.resources import OutputLayout

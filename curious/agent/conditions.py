@@ -67,6 +67,7 @@ import numpy as np
 from curious.agent.goals import GoalInput, HolisticGoals
 from curious.agent.learning_progress import CompetenceTracker, lp_probabilities
 from curious.envs.goal_env import EnvSpec, GoalEnv
+from curious.registry import CONDITIONS
 
 if TYPE_CHECKING:
     from curious.agent.replay import EpisodeReplay, Transitions
@@ -347,12 +348,13 @@ class HER(Condition):
         return None
 
 
-CONDITION_CLASSES: dict[str, type[Condition]] = {
-    c.name: c for c in (Curious, MUVFA, MGTE, HER, LPSelect, LPReplay)
-}
+_BUILT_IN: tuple[type[Condition], ...] = (Curious, MUVFA, MGTE, HER, LPSelect, LPReplay)
+CONDITION_CLASSES: dict[str, type[Condition]] = CONDITIONS
 """Every condition by its name: the paper's, in its order, then the two halves of CURIOUS, then
-those registered (`register_condition`)."""
-BUILT_IN_CONDITIONS: tuple[str, ...] = tuple(CONDITION_CLASSES)
+those registered (`register_condition`). The one registry, `curious.registry.CONDITIONS`, which
+the settings read without importing the agent."""
+CONDITION_CLASSES.update({c.name: c for c in _BUILT_IN})
+BUILT_IN_CONDITIONS: tuple[str, ...] = tuple(c.name for c in _BUILT_IN)
 """The conditions curious itself defines (README's table lists them)."""
 
 _RESERVED = "@|/,<> \t\n"

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from curious.config import LP_MEASURES
+
 MIN_RESULTS_FOR_LP = 3
 """A module's LP is 0 until it has this many evaluation results (the authors' queue: size > 2)."""
 MASTERED_COMPETENCE = 0.9
@@ -28,9 +30,6 @@ MASTERED_COMPETENCE = 0.9
 and the analysis read (`curious.analysis.drops`, the `sensor_failure_mastered` experiment's
 onset, the report). Nine evaluations in ten succeeding: the higher of the report's two test
 success milestones."""
-LP_MEASURES: tuple[str, ...] = ("absolute", "signed")
-"""What LP measures (`Config.lp_measure`): `absolute`, |recent - before| (the paper's), or
-`signed`, max(recent - before, 0)."""
 
 
 def lp_probabilities(lp: np.ndarray, eps: float) -> np.ndarray:

@@ -38,61 +38,221 @@ perturbed), `curious.analysis.dips` the smaller falls and the practice they draw
 `curious.analysis.degradation` C4's test of which condition loses less as distracting modules
 are added, and `curious.analysis.lp_ablations` the readings beyond the paper (which of LP's two
 uses does the work, and whether its sign matters). Module and condition colours live in
-`curious.analysis.palette`, shared with the Rerun recordings.
+`curious.watching.palette`, shared with the Rerun recordings.
 
 The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `censored`,
-`drops`, `dips`, `degradation`, `lp_ablations` and `figures` (each module's ``__all__``),
-imported on first use, so that ``import curious.analysis.palette`` (the recording code does)
-does not pull in pandas, scipy and matplotlib.
+`drops`, `dips`, `degradation`, `lp_ablations` and `figures` (each module's ``__all__``); this
+package imports pandas, scipy and matplotlib.
 """
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
-from typing import Any
-
-DEFAULT_TEST_EPOCHS = 5
-"""How many of a run's last epochs its current test success pools (`curious progress`, the
-milestones); defined here, where nothing heavy is imported, so that `curious progress --help`
-shows it without loading pandas. A `laptop` epoch tests each module about 40 / N times, too
-few alone to read."""
-
-_PUBLIC_MODULES = (
-    "loading",
-    "statistics",
-    "milestones",
-    "perturbation",
-    "censored",
-    "drops",
-    "dips",
-    "degradation",
-    "lp_ablations",
-    "figures",
+from curious.analysis.censored import MAX_SPLITS, compare_censored_recoveries, logrank_z
+from curious.analysis.degradation import compare_degradation
+from curious.analysis.dips import (
+    DIP_COLUMNS,
+    DIP_DEPTHS,
+    DIP_WINDOW,
+    TEST_DEPTH,
+    dip_responses,
+    dip_test,
+    mastery_dips,
 )
-"""The submodules whose ``__all__`` make this package's names, looked up in this order."""
+from curious.analysis.drops import (
+    DESCENT_BAND,
+    DROP_COLUMNS,
+    DROP_DEPTH,
+    MASTERED_COMPETENCE,
+    MASTERY_COLUMNS,
+    MASTERY_HOLD,
+    mastery,
+    mastery_drops,
+)
+from curious.analysis.figures import (
+    CONDITION_ORDER,
+    distractors,
+    fig2a,
+    fig2b,
+    fig2c,
+    long_runs,
+    lp_uses,
+    save_figure,
+    sensor_failure,
+    signed_lp,
+    table1,
+)
+from curious.analysis.loading import (
+    IDENTITY_COLUMNS,
+    PER_MODULE_PREFIXES,
+    AnalysisError,
+    RunInfo,
+    find_run_folders,
+    is_integer,
+    load_run,
+    load_runs,
+    load_tests,
+    name_list,
+    read_run_info,
+    require_count,
+    require_identity,
+    require_runs,
+    require_tests,
+    require_values,
+    run_modules,
+    run_path_below,
+    runs_table,
+    search_run_folders,
+)
+from curious.analysis.lp_ablations import (
+    LP_USES,
+    SIGNED_LP,
+    compare_lp_uses,
+    compare_refocus,
+    lp_use_readings,
+    signed_beside_absolute,
+    with_paper_pair,
+)
+from curious.analysis.milestones import (
+    LEVELS,
+    PAPER_ORDER,
+    competence_crossings,
+    episodes_to_test_success,
+    learning_order,
+    module_success_rates,
+    module_test_success,
+)
+from curious.analysis.perturbation import (
+    LEARNED_COMPETENCE,
+    RECOVERY_BY_TESTS_COLUMNS,
+    RECOVERY_COLUMNS,
+    compare_recoveries,
+    failure_onsets,
+    perturbed_module,
+    recovery,
+    recovery_by_tests,
+    recovery_summary,
+)
+from curious.analysis.statistics import (
+    ALPHA,
+    COMPARISON_BINS,
+    FLOAT32_SLACK,
+    RUN_COLUMNS,
+    achievable_competence,
+    across_seeds,
+    area_under_success,
+    bin_runs,
+    binned_success,
+    check_comparable,
+    comparison_bin_size,
+    distractor_share,
+    epoch_success,
+    final_competence,
+    final_success,
+    final_test_success,
+    holm,
+    main_comparison,
+    nice_bin_size,
+    on_achievable,
+    run_arrays,
+    welch_greater,
+    welch_per_bin,
+)
 
-
-def _public_names() -> list[str]:
-    return sorted(
-        {n for m in _PUBLIC_MODULES for n in importlib.import_module(f"{__name__}.{m}").__all__}
-    )
-
-
-def __getattr__(name: str) -> Any:
-    if name == "__all__":
-        return _public_names()
-    if name.startswith("__") or importlib.util.find_spec(f"{__name__}.{name}") is not None:
-        # a submodule not imported yet (`from curious.analysis import palette` imports it then)
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    for sub in _PUBLIC_MODULES:
-        module = importlib.import_module(f"{__name__}.{sub}")
-        if name in module.__all__:
-            value = getattr(module, name)
-            globals()[name] = value
-            return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_public_names()))
+__all__ = [
+    "ALPHA",
+    "COMPARISON_BINS",
+    "CONDITION_ORDER",
+    "DESCENT_BAND",
+    "DIP_COLUMNS",
+    "DIP_DEPTHS",
+    "DIP_WINDOW",
+    "DROP_COLUMNS",
+    "DROP_DEPTH",
+    "FLOAT32_SLACK",
+    "IDENTITY_COLUMNS",
+    "LEARNED_COMPETENCE",
+    "LEVELS",
+    "LP_USES",
+    "MASTERED_COMPETENCE",
+    "MASTERY_COLUMNS",
+    "MASTERY_HOLD",
+    "MAX_SPLITS",
+    "PAPER_ORDER",
+    "PER_MODULE_PREFIXES",
+    "RECOVERY_BY_TESTS_COLUMNS",
+    "RECOVERY_COLUMNS",
+    "RUN_COLUMNS",
+    "SIGNED_LP",
+    "TEST_DEPTH",
+    "AnalysisError",
+    "RunInfo",
+    "achievable_competence",
+    "across_seeds",
+    "area_under_success",
+    "bin_runs",
+    "binned_success",
+    "check_comparable",
+    "compare_censored_recoveries",
+    "compare_degradation",
+    "compare_lp_uses",
+    "compare_recoveries",
+    "compare_refocus",
+    "comparison_bin_size",
+    "competence_crossings",
+    "dip_responses",
+    "dip_test",
+    "distractor_share",
+    "distractors",
+    "episodes_to_test_success",
+    "epoch_success",
+    "failure_onsets",
+    "fig2a",
+    "fig2b",
+    "fig2c",
+    "final_competence",
+    "final_success",
+    "final_test_success",
+    "find_run_folders",
+    "holm",
+    "is_integer",
+    "learning_order",
+    "load_run",
+    "load_runs",
+    "load_tests",
+    "logrank_z",
+    "long_runs",
+    "lp_use_readings",
+    "lp_uses",
+    "main_comparison",
+    "mastery",
+    "mastery_dips",
+    "mastery_drops",
+    "module_success_rates",
+    "module_test_success",
+    "name_list",
+    "nice_bin_size",
+    "on_achievable",
+    "perturbed_module",
+    "read_run_info",
+    "recovery",
+    "recovery_by_tests",
+    "recovery_summary",
+    "require_count",
+    "require_identity",
+    "require_runs",
+    "require_tests",
+    "require_values",
+    "run_arrays",
+    "run_modules",
+    "run_path_below",
+    "runs_table",
+    "save_figure",
+    "search_run_folders",
+    "sensor_failure",
+    "signed_beside_absolute",
+    "signed_lp",
+    "table1",
+    "welch_greater",
+    "welch_per_bin",
+    "with_paper_pair",
+]

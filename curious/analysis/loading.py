@@ -8,7 +8,7 @@ every column of ``metrics.parquet``. `load_tests` reads the same folders' ``test
 one row per (run, test rollout), with the same identity columns; a run without test rollouts (one
 trained before they were logged, or with ``test_rollouts_per_worker=0``) is an `AnalysisError`.
 
-A shipped data folder (`curious.reproduction.shipped_folder`, written by ``curious ship``: a
+A shipped data folder (`curious.runs.shipped_folder`, written by ``curious ship``: a
 reproduction's runs
 reduced to what the analysis reads, e.g. the repository's ``data/laptop``) is a folder of run
 folders too, and loads wherever run folders do: ``load_runs("data/laptop/main")``. Its tables
@@ -46,12 +46,12 @@ import pandas as pd
 import pyarrow.parquet as pq
 from pandas.api.types import union_categoricals
 
-from curious.reproduction.shipped_folder import ShippedError, shipped_drops
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
 from curious.runs.metrics import tests_schema
 from curious.runs.run_info import RunInfo
+from curious.runs.shipped_folder import ShippedError, shipped_drops
 
 __all__ = [
     "IDENTITY_COLUMNS",
@@ -222,7 +222,7 @@ def read_run_info(path: str | PathLike[str]) -> RunInfo:
 
 
 def _shipped_drops(path: Path) -> tuple[str, ...]:
-    """The columns a shipped run's table leaves out (`curious.reproduction.shipped_folder`); none
+    """The columns a shipped run's table leaves out (`curious.runs.shipped_folder`); none
     for a run's own."""
     try:
         return shipped_drops(pq.read_schema(path).metadata)

@@ -32,8 +32,8 @@ import numpy as np
 import pandas as pd
 
 from curious.analysis.loading import AnalysisError, require_count, require_runs, require_tests
-from curious.analysis.progress import DEFAULT_TEST_EPOCHS
 from curious.analysis.statistics import FLOAT32_SLACK, RUN_COLUMNS, on_achievable
+from curious.config import DEFAULT_TEST_EPOCHS
 
 __all__ = [
     "LEVELS",

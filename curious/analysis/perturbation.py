@@ -27,7 +27,6 @@ from collections.abc import Mapping
 import numpy as np
 import pandas as pd
 
-from curious.analysis import DEFAULT_TEST_EPOCHS
 from curious.analysis.loading import (
     AnalysisError,
     first_clash,
@@ -46,7 +45,7 @@ from curious.analysis.statistics import (
     run_arrays,
     welch_greater,
 )
-from curious.config import LEARNED_COMPETENCE
+from curious.config import DEFAULT_TEST_EPOCHS, LEARNED_COMPETENCE
 
 __all__ = [
     "LEARNED_COMPETENCE",

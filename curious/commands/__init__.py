@@ -10,6 +10,10 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+import suite
+from curious.watching.recording.settings import RecorderSettings
+from suite.catalog import BUILT_IN
+
 
 def refuse(command: str, exc: BaseException, status: int = 2, message: str | None = None) -> int:
     """Print `exc` (or `message`, where it says it better) as `curious COMMAND`'s one-line error
@@ -46,20 +50,19 @@ def folder_name(text: str) -> str:
 
 
 def add_set_option(parser: argparse.ArgumentParser, help_text: str) -> None:
-    """`--set KEY=VALUE` (repeatable) into `args.overrides` (`curious.config.parse_overrides`)."""
+    """`--set KEY=VALUE` (repeatable) into `args.overrides`
+    (`curious.overrides.parse_overrides`)."""
     parser.add_argument(
         "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE", help=help_text
     )
 
 
 def _suite_variants() -> str:
-    import suite
 
     return ", ".join(suite.ALL_VARIANTS)
 
 
 def _suite_modules() -> str:
-    from suite.catalog import BUILT_IN
 
     names: dict[str, None] = {}
     for spec in BUILT_IN.values():  # described, not built
@@ -68,7 +71,6 @@ def _suite_modules() -> str:
 
 
 def _rollout_every() -> str:
-    from curious.watching.recording import RecorderSettings
 
     return str(RecorderSettings().rollout_every)
 

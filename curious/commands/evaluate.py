@@ -29,7 +29,10 @@ import argparse
 import json
 import sys
 
+from curious.commands import HelpFormatter, folder_name
+from curious.config import MAX_SEED
 from curious.runs.folder_layout import EVALUATION_RECORDING_FILE as DEFAULT_FILE
+from curious.watching.evaluation import MAX_EPISODES, evaluate, evaluation_table, open_run
 
 RECORD_EPISODES = 2
 """`--record-episodes` unless given: each module's first episodes kept in 3-D."""
@@ -37,9 +40,6 @@ RECORD_EPISODES = 2
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious evaluate`."""
-    from curious.commands import HelpFormatter, folder_name
-    from curious.config import MAX_SEED
-    from curious.watching.evaluation import MAX_EPISODES
 
     parser = sub.add_parser(
         "evaluate",
@@ -101,7 +101,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from curious.watching.evaluation import evaluate, evaluation_table
 
     if args.record is None:
         if args.record_episodes is not None:
@@ -129,7 +128,6 @@ def run(args: argparse.Namespace) -> int:
 def _evaluate_and_record(args: argparse.Namespace):
     """`evaluate` with its episodes recorded in 3-D
     (`curious.watching.recording.evaluation_rrd`)."""
-    from curious.watching.evaluation import open_run
     from curious.watching.recording.evaluation_rrd import EvaluationRecording, check_target
 
     target = check_target(args.record, args.run)

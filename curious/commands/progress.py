@@ -23,6 +23,7 @@ import sys
 from pathlib import Path
 
 from curious.commands import folder_name
+from curious.config import DEFAULT_TEST_EPOCHS
 
 BEGIN = "<!-- progress:begin -->"
 END = "<!-- progress:end -->"
@@ -30,7 +31,6 @@ END = "<!-- progress:end -->"
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious progress`."""
-    from curious.analysis import DEFAULT_TEST_EPOCHS
 
     parser = sub.add_parser(
         "progress",
@@ -108,7 +108,7 @@ def _read_text(path: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from curious.analysis import AnalysisError
-    from curious.analysis.progress import (
+    from curious.reproduction.campaign_progress import (
         progress_markdown,
         progress_table,
         runs_at_once,

@@ -30,7 +30,32 @@ import argparse
 import math
 from typing import Any
 
+import suite
 from curious.commands import HelpFormatter, folder_name
+from curious.config import MAX_SEED
+from curious.runs.folder_lock import check_writable
+from curious.watching.evaluation import MAX_EPISODES, check_episodes, check_seed, open_run
+from curious.watching.palette import module_label
+from curious.watching.video import (
+    GREEN,
+    MAX_FPS,
+    MAX_FRAME_SIDE,
+    MAX_HOLD,
+    MIN_FPS,
+    MIN_FRAME_SIDE,
+    RED,
+    WHITE,
+    EpisodeFilm,
+    burn_caption,
+    check_timing,
+    check_writer,
+    goal_text,
+    open_writer,
+    output_kind,
+    real_time_fps,
+)
+from suite.layout import CONTROL_TIMESTEP, EPISODE_STEPS
+from suite.render import check_gl_backend, render_episode
 
 DEFAULT_SPEED = 1.0
 """`--speed` unless given: real time."""
@@ -40,9 +65,6 @@ PNG_EVERY = 10
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious render`."""
-    from curious.config import MAX_SEED
-    from curious.watching.evaluation import MAX_EPISODES
-    from curious.watching.video import MAX_FPS, MAX_FRAME_SIDE, MAX_HOLD, MIN_FPS, MIN_FRAME_SIDE
 
     parser = sub.add_parser(
         "render",
@@ -147,10 +169,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> str:
     """Refuses bad arguments before anything loads; returns the output format."""
-    from curious.runs.folder_lock import check_writable
-    from curious.watching.evaluation import check_episodes, check_seed
-    from curious.watching.video import check_timing, check_writer, output_kind, real_time_fps
-    from suite.layout import CONTROL_TIMESTEP, EPISODE_STEPS
 
     kind = output_kind(args.out)
     check_writer(kind, args.width, args.height)
@@ -206,7 +224,6 @@ def _timing_options(args: argparse.Namespace) -> str:
 
 def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tuple[int, float, int]:
     """(every, fps, hold frames) of the output."""
-    from curious.watching.video import real_time_fps
 
     every, speed = _every_and_speed(args, kind)
     fps = args.fps if args.fps is not None else real_time_fps(control_timestep, every, speed)
@@ -231,9 +248,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _render_run(args: argparse.Namespace, kind: str) -> int:
     """The run's trained agent, through `curious evaluate`'s episodes."""
-    from curious.analysis.palette import module_label
-    from curious.watching.evaluation import open_run
-    from curious.watching.video import GREEN, RED, WHITE, EpisodeFilm, goal_text, open_writer
 
     with open_run(args.run, args.episodes, args.variant, args.seed, processes=1) as session:
         modules = session.modules(args.module)
@@ -296,11 +310,6 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
     """The random or still arm, one episode after another."""
     import numpy as np
 
-    import suite
-    from curious.analysis.palette import module_label
-    from curious.watching.video import burn_caption, open_writer
-    from suite.render import check_gl_backend, render_episode
-
     check_gl_backend()
     variant = "default" if args.variant is None else args.variant  # '' is no variant
     modules = args.module or ["push_cube1"]
@@ -359,7 +368,6 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
 
 def _policy_caption(label: str, raw: Any, policy: str, j: int, episodes: int) -> Any:
     """The caption of an episode of the random or still arm."""
-    from curious.watching.video import WHITE, goal_text
 
     where = f"episode {j + 1}/{episodes}"
     return [(f"{label} | {goal_text(raw)}", WHITE), (f"{policy} arm | {where}", WHITE)]

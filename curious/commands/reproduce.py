@@ -46,8 +46,22 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from curious.commands import add_set_option, refuse
-from curious.reproduction.experiments import BUDGETS, DEFAULT_BUDGET, experiment_names
+from curious.config import PLACEMENT_FIELDS, ConfigError
+from curious.overrides import parse_overrides
+from curious.reproduction.experiments import (
+    BUDGETS,
+    DEFAULT_BUDGET,
+    ExperimentError,
+    experiment_names,
+    get_budget,
+)
+from curious.runs.folder_errors import RunFolderError
+from curious.runs.folder_lock import check_writable
+from curious.runs.shipped_folder import ShippedError, ShippedFolder
 from curious.runs.side_by_side import MAX_WORKERS
+from pipelines.executors import PartitionFailed, RayUnavailable, make_pool
+from pipelines.reproduce import ReproduceError, reproduce
+from pipelines.training import RunFolderMismatch
 
 if TYPE_CHECKING:
     from pipelines.reproduce import ReproduceResult
@@ -183,7 +197,6 @@ def _experiments(text: str | None) -> list[str] | None:
 def placement_overrides(items: list[str]) -> dict[str, object]:
     """`--set KEY=VALUE` items, typed; only settings that leave what a run computes as it is
     (`curious.config.PLACEMENT_FIELDS`), since the budget defines the runs."""
-    from curious.config import PLACEMENT_FIELDS, ConfigError, parse_overrides
 
     overrides = parse_overrides(items)
     other = sorted(set(overrides) - PLACEMENT_FIELDS)
@@ -197,9 +210,6 @@ def placement_overrides(items: list[str]) -> dict[str, object]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from curious.config import ConfigError
-    from curious.reproduction.experiments import ExperimentError
-    from curious.runs.folder_errors import RunFolderError
 
     options = (
         ("--out", args.out, "a folder"),
@@ -254,8 +264,6 @@ def run(args: argparse.Namespace) -> int:
     try:
         overrides = placement_overrides(args.overrides)
         if args.runs_dir is not None and args.ray_address is None:  # Ray's nodes may see another
-            from curious.runs.folder_lock import check_writable
-
             check_writable(args.runs_dir, "--runs-dir", folder=True)
     except (ConfigError, RunFolderError) as exc:
         return refuse("reproduce", exc)
@@ -267,10 +275,6 @@ def run(args: argparse.Namespace) -> int:
         if not torch.cuda.is_available():
             print("curious reproduce: error: --device cuda, but torch sees no GPU", file=sys.stderr)
             return 2
-
-    from pipelines.executors import PartitionFailed, RayUnavailable, make_pool
-    from pipelines.reproduce import ReproduceError, reproduce
-    from pipelines.training import RunFolderMismatch
 
     def pool():
         return make_pool(args.ray_address, args.workers, args.cpus_per_run, args.gpus_per_run)
@@ -341,7 +345,6 @@ CLAIMS: dict[str, str] = {
 def shipped_data_folder(name: str) -> Path | None:
     """The repository's shipped data folder data/<name> (beside the `curious` package of a
     clone, else in the working directory), or None where neither holds one."""
-    from curious.reproduction.shipped_folder import ShippedFolder
 
     here = Path(__file__).resolve().parents[2]
     for root in (here, Path.cwd()):
@@ -362,8 +365,6 @@ def _build_shipped_beside(budget: str, out: str | None, progress: bool) -> Repro
     """The shipped campaign's report and figures, into <campaign>-shipped beside OUT (`out`,
     else the budget's default), then where they and the claims' results table are; None (with
     a line saying why) where the budget has none or it cannot be built."""
-    from curious.reproduction.experiments import ExperimentError, get_budget
-    from pipelines.reproduce import ReproduceError, reproduce
 
     name = SHIPPED_BESIDE.get(budget)
     if name is None:
@@ -397,7 +398,6 @@ def _claims(shipped: ReproduceResult) -> str:
 
 def _what_it_can_show(budget: str) -> str:
     """What a budget with a shipped campaign beside it can show, trained here."""
-    from curious.reproduction.experiments import get_budget
 
     chosen = get_budget(budget)
     return (
@@ -440,10 +440,6 @@ _TRAINING_OPTIONS = {
 
 def _from_data(args: argparse.Namespace) -> int:
     """`--from-data`: the report and figures from shipped runs; nothing is trained."""
-    from curious.reproduction.experiments import ExperimentError
-    from curious.reproduction.shipped_folder import ShippedError, ShippedFolder
-    from pipelines.reproduce import ReproduceError, reproduce
-    from pipelines.training import RunFolderMismatch
 
     given = [flag for name, flag in _TRAINING_OPTIONS.items() if getattr(args, name)]
     given += ["--cpus-per-run"] if args.cpus_per_run is not None else []
@@ -488,5 +484,6 @@ def _done(result: ReproduceResult) -> None:
     shipped = f"CURIOUS_FROM_DATA={result.from_data} " if result.from_data else ""
     print(
         f"  Dagster: DAGSTER_HOME={layout.dagster_home} CURIOUS_BUDGET={result.budget} "
-        f"CURIOUS_OUT={layout.out} {shipped}dagster-webserver -h {LOOPBACK} -m pipelines"
+        f"CURIOUS_OUT={layout.out} {shipped}dagster-webserver -h {LOOPBACK} "
+        "-m pipelines.code_location"
     )

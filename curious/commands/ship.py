@@ -8,7 +8,7 @@
 ROOT is a `curious reproduce` output folder (its run folders are found where its reproduce.json
 says, and its budget is recorded) or any folder of run folders. The data folder holds each
 run's config.json and its tables without the columns no analysis reads
-(`curious.reproduction.shipped_folder`);
+(`curious.runs.shipped_folder`);
 no checkpoint, no recording. By default only finished runs are shipped; `--unfinished` ships the
 others too, marked as unfinished in shipped.json. An --out holding an earlier ship of the same
 budget is replaced, or with `--keep` added to: the runs it holds stay unless this ship writes
@@ -23,6 +23,10 @@ import argparse
 from pathlib import Path
 
 from curious.commands import folder_name
+from curious.reproduction.experiments import ExperimentError, get_budget
+from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.shipped_folder import MANIFEST_FILE, ShippedFolder
+from pipelines.resources import OutputLayout
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -59,11 +63,7 @@ def _megabytes(n: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from curious.reproduction.experiments import ExperimentError, get_budget
-    from curious.reproduction.shipped_folder import MANIFEST_FILE, ShippedFolder
     from curious.reproduction.shipping import check_root, ship
-    from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
-    from pipelines.resources import OutputLayout
 
     root = Path(args.root)
     check_root(root)  # before --out is asked for: a mistyped ROOT is named first

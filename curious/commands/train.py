@@ -32,18 +32,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from curious.commands import HelpFormatter, add_set_option, refuse
-from curious.config import (
-    MAX_EPISODES,
-    PRESETS,
-    RESUMABLE_FIELDS,
-    Config,
-    ConfigError,
-    condition_names,
-    parse_overrides,
-    parse_seeds,
-    resolve,
-)
+from curious.config import MAX_EPISODES, RESUMABLE_FIELDS, Config, ConfigError
+from curious.overrides import parse_overrides, parse_seeds
+from curious.presets import PRESETS, resolve
+from curious.registry import condition_names
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_layout import CONFIG_FILE
+from curious.runs.folder_lock import check_writable
+from curious.runs.memory import check_each_fits, runs_that_fit
+from curious.runs.side_by_side import Failed, Interrupted, run_side_by_side, stop_requested
+from curious.watching.recording.settings import RecorderSettings
 
 if TYPE_CHECKING:
     from curious.runs.folder import RunFolder
@@ -169,7 +168,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from curious.runs.checkpoint import CheckpointError
-    from curious.runs.folder_errors import RunFolderError
 
     try:
         if not args.out.strip():
@@ -218,7 +216,6 @@ def run(args: argparse.Namespace) -> int:
     if args.seeds is not None:
         return _train_seeds(args, configs, recording)
     from curious.runs.driver import train
-    from curious.runs.folder_lock import check_writable
     from curious.runs.trainer import TrainingDiverged
 
     try:
@@ -250,7 +247,6 @@ class _Recording:
 
     def factory(self, resume: bool) -> Callable[[Trainer, RunFolder], Recorder]:
         """The `make_recorder` of a run (`curious.runs.driver.train`)."""
-        from curious.watching.recording import RecorderSettings
         from curious.watching.recording.rollout_capture import recorder_factory
 
         settings = RecorderSettings()
@@ -272,7 +268,6 @@ class _SeedRun:
 
     def __call__(self) -> str:
         from curious.runs.driver import train
-        from curious.runs.side_by_side import stop_requested
 
         trainer = train(
             self.config, self.out, resume=self.resume, restart=self.restart,
@@ -288,10 +283,6 @@ def _train_seeds(
     """`--seeds`: every seed's folder checked, then each run in a process of its own, side by
     side (`curious.runs.side_by_side`), its summary line printed once all have ended."""
     from curious.runs.checkpoint import CheckpointError
-    from curious.runs.folder import RunFolder
-    from curious.runs.folder_errors import RunFolderError
-    from curious.runs.folder_lock import check_writable
-    from curious.runs.side_by_side import Interrupted, run_side_by_side
 
     outs = [Path(args.out) / f"seed-{config.seed}" for config in configs]
     # With --resume, a seed whose run a stop kept from beginning starts (see `_config`); with
@@ -330,7 +321,6 @@ def _workers(asked: int | None, configs: list[Config]) -> int:
     """How many seeds train at once: `--workers`, by default the cores over each run's
     environment processes; and no more than fit in this machine's memory together (each run
     checks its own as it starts, and one too big alone is refused here)."""
-    from curious.runs.memory import check_each_fits, runs_that_fit
 
     check_each_fits(configs)
     cores = os.cpu_count() or 1
@@ -347,7 +337,6 @@ def _workers(asked: int | None, configs: list[Config]) -> int:
 
 def _report_failures(outs: list[Path], results: list[object]) -> bool:
     """A line on stderr for each run that failed (`Failed`); whether one did."""
-    from curious.runs.side_by_side import Failed
 
     failed = [(out, r) for out, r in zip(outs, results, strict=True) if isinstance(r, Failed)]
     for out, result in failed:
@@ -429,8 +418,6 @@ def _config(args: argparse.Namespace, seed: int | None, overrides: dict[str, Any
     `--seeds` whose run a stop kept from beginning takes the settings of the first seed's run
     that began, with its own seed."""
     identity = {"preset": args.preset, "condition": args.condition, "seed": seed}
-    from curious.runs.folder import RunFolder
-    from curious.runs.folder_errors import RunFolderError
 
     if args.seeds is None:
         folders = [RunFolder(args.out)]

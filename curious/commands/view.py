@@ -27,8 +27,8 @@ import time
 from pathlib import Path
 
 from curious.commands import folder_name, refuse
-from curious.reproduction.shipped_folder import shipped_run_note
 from curious.runs.folder import RunFolder, folders_below, name_some
+from curious.runs.shipped_folder import shipped_run_note
 from curious.watching.display import has_display
 from curious.watching.viewer_analytics import viewer_environment
 

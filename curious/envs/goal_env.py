@@ -39,7 +39,10 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+import suite
 from curious.config import ConfigError
+from suite import layout
+from suite.outcomes import ModuleEvaluator
 
 
 class Obs(NamedTuple):
@@ -99,7 +102,6 @@ class EnvSpec:
     def module_index(self, module: int | str) -> int:
         """Index of a module given by index or name: the suite's rule (`suite.module_index`),
         a ValueError listing the modules otherwise."""
-        import suite  # imported here: MuJoCo is only needed when the real suite is used
 
         return suite.module_index(self.module_names, module)
 
@@ -183,9 +185,6 @@ class SuiteEnv:
     """Steps per episode in every suite variant (episodes never end early)."""
 
     def __init__(self, variant: str = "default", seed: int = 0) -> None:
-        import suite  # imported here: MuJoCo is only needed when the real suite is used
-        from suite import layout
-        from suite.outcomes import ModuleEvaluator
 
         if variant not in suite.ALL_VARIANTS:
             raise ConfigError(
@@ -326,7 +325,6 @@ def suite_sensor_failure_modules(variant: str) -> tuple[str, ...]:
 
     with warnings.catch_warnings():  # MuJoCo's GL probing warns where nothing renders
         warnings.simplefilter("ignore")
-        import suite
 
         if variant not in suite.ALL_VARIANTS:
             return ()

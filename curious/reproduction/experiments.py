@@ -41,7 +41,7 @@ partition. Partitions are two-dimensional (Dagster's multi-partitions take exact
 variant as well: `curious@distractors_4`.
 
 A *budget* (`curious reproduce --budget NAME`) chooses the training preset
-(`curious.config.PRESETS`, what `curious train --preset` takes), the seeds and the episodes per
+(`curious.presets.PRESETS`, what `curious train --preset` takes), the seeds and the episodes per
 run of every experiment:
 
 =========  ===============================================================================
@@ -54,10 +54,10 @@ run of every experiment:
 The numbers behind `quick` were measured on a 2-core machine; see `ReproduceBudget.notes`.
 
 This module is in `curious`, not in `pipelines/`, although the Dagster assets are its main
-readers: `curious progress` (`curious.analysis.progress`) lists the runs a reproduction's budget
-has not started from it, and `curious reproduce` builds its `--budget` choices and help from it
-without loading Dagster. `pipelines/` imports it; nothing in `curious` imports `pipelines/`
-except `curious reproduce` when it runs them.
+readers: `curious progress` (`curious.reproduction.campaign_progress`) lists the runs a
+reproduction's budget has not started from it, and `curious reproduce` builds its `--budget`
+choices and help from it without loading Dagster. `pipelines/` imports it; of `curious`, only
+the command line, the layer above `pipelines/`, imports `pipelines/` (docs/architecture.md).
 """
 
 from __future__ import annotations
@@ -69,7 +69,9 @@ from pathlib import PurePosixPath
 from typing import Any
 
 from curious.agent.learning_progress import MASTERED_COMPETENCE
-from curious.config import LEARNED_COMPETENCE, PRESETS, Config, condition_names, resolve
+from curious.config import LEARNED_COMPETENCE, Config
+from curious.presets import PRESETS, resolve
+from curious.registry import condition_names
 
 EXPERIMENTS: tuple[str, ...] = (
     "main",

@@ -1,5 +1,5 @@
 """Ship runs: the run folders below a folder, reduced to a shipped data folder
-(`curious.reproduction.shipped_folder`).
+(`curious.runs.shipped_folder`).
 
 `ship(root, out)` finds every run folder below `root` and ships the finished ones: every episode
 of the run's budget logged and a checkpoint taken at the end (`RunFolder.finished_at`, how
@@ -41,7 +41,11 @@ from pathlib import Path, PurePosixPath
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from curious.reproduction.shipped_folder import (
+from curious.runs.folder import RunFolder
+from curious.runs.folder_errors import RunFolderBusy, RunFolderError
+from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.folder_lock import check_writable, folder_lock
+from curious.runs.shipped_folder import (
     COMPRESSION,
     LEVEL,
     MANIFEST_FILE,
@@ -53,10 +57,6 @@ from curious.reproduction.shipped_folder import (
     ShippedRun,
     shipped_metadata,
 )
-from curious.runs.folder import RunFolder
-from curious.runs.folder_errors import RunFolderBusy, RunFolderError
-from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
-from curious.runs.folder_lock import check_writable, folder_lock
 
 
 @dataclass(frozen=True)
@@ -203,7 +203,7 @@ def find_runs(root: Path) -> list[_Found]:
 
 def _reduce(source: Path, target: Path, dropped: tuple[str, ...]) -> int:
     """Write `source` without the columns `dropped` to `target` (see
-    `curious.reproduction.shipped_folder`); its rows."""
+    `curious.runs.shipped_folder`); its rows."""
     table = pq.read_table(source)
     drop = tuple(c for c in dropped if c in table.column_names)
     table = table.drop_columns(list(drop))

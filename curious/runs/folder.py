@@ -27,14 +27,8 @@ import shutil
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from curious.config import (
-    EARLIER_BEHAVIOUR,
-    RESUMABLE_FIELDS,
-    Config,
-    ConfigError,
-    format_seeds,
-    setting_names,
-)
+from curious.config import EARLIER_BEHAVIOUR, RESUMABLE_FIELDS, Config, ConfigError, setting_names
+from curious.overrides import format_seeds
 from curious.plugins import missing, sources
 from curious.runs.folder_errors import ConfigMismatch, RunFolderError
 from curious.runs.folder_layout import (

@@ -9,7 +9,7 @@ agrees on the layout:
     checkpoints/      resumable checkpoints, `ep-<episodes, 12 digits>/` (`curious.runs.checkpoint`)
 
 and the mark of a shipped data folder, `shipped.json` at its root
-(`curious.reproduction.shipped_folder`): the runs below it are finished runs' tables, read by the
+(`curious.runs.shipped_folder`): the runs below it are finished runs' tables, read by the
 analysis and never trained into.
 """
 

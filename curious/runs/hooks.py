@@ -1,7 +1,7 @@
 """What a training run calls outside itself: a recorder after every cycle, an observer around
 every round of parallel episodes. Both are optional; `curious.watching.recording` implements them.
 
-A `Recorder` (e.g. `curious.watching.recording.RunRecorder`) is called by
+A `Recorder` (e.g. `curious.watching.recording.recorder.RunRecorder`) is called by
 `curious.runs.driver.train` after every cycle, with B the cycle's episodes and N the modules:
 
     recorder.log_episodes(episode=(B,), module=(B,) slot indices, success=(B,), eval=(B,),
@@ -41,7 +41,7 @@ from curious.runs.metrics import LEARNER_STATS
 
 class Recorder(Protocol):
     """What `curious.runs.driver.train` logs to after every cycle (see the module docstring);
-    `curious.watching.recording.RunRecorder` is one."""
+    `curious.watching.recording.recorder.RunRecorder` is one."""
 
     def log_episodes(
         self,

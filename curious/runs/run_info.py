@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from curious.envs.goal_env import suite_sensor_failure_modules
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.provenance import machine_text
 
@@ -75,7 +76,6 @@ class RunInfo:
         definition, `curious.envs.goal_env.suite_sensor_failure_modules`."""
         if self.recorded_failure_modules is not None:
             return self.recorded_failure_modules
-        from curious.envs.goal_env import suite_sensor_failure_modules
 
         found = suite_sensor_failure_modules(self.variant)
         return tuple(m for m in found if m in self.module_names)

@@ -28,6 +28,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from curious.agent.conditions import make_condition
+from curious.agent.goals import GoalBox
+from curious.config import MAX_SEED
+from curious.envs.batch import LocalEnvs, ProcessEnvs
+from curious.envs.goal_env import suite_env_fns
+from curious.runs.folder import RunFolder, config_differences
+from curious.runs.shipped_folder import shipped_run_note
+
 if TYPE_CHECKING:
     from curious.agent.goals import GoalInput
     from curious.runs.play import Act, PolicyFor
@@ -257,7 +265,6 @@ def check_episodes(episodes: int) -> None:
 def check_seed(seed: int) -> None:
     """A `ValueError` naming `--seed` outside 0 to `curious.config.MAX_SEED`, the seeds the
     suite's episodes take (as `curious render --seed`, which plays the same episodes)."""
-    from curious.config import MAX_SEED
 
     if not 0 <= seed <= MAX_SEED:
         raise ValueError(f"--seed must be from 0 to {MAX_SEED:,}, got {seed}")
@@ -278,12 +285,7 @@ def open_run(
     import torch
 
     from curious.agent.agent import Agent
-    from curious.agent.conditions import make_condition
-    from curious.agent.goals import GoalBox
-    from curious.envs.batch import LocalEnvs, ProcessEnvs
-    from curious.envs.goal_env import suite_env_fns
     from curious.runs import checkpoint
-    from curious.runs.folder import RunFolder, config_differences
 
     check_episodes(episodes)
     check_seed(seed)
@@ -295,8 +297,6 @@ def open_run(
     run_modules = list(info.module_names)
     latest = checkpoint.load_latest(folder.checkpoints, config.device, replay=False)
     if latest is None:
-        from curious.reproduction.shipped_folder import shipped_run_note
-
         raise ValueError(
             f"{folder.path} holds no checkpoint of a trained agent (in {folder.checkpoints})."
             + shipped_run_note(folder.path)

@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from suite.render import add_goal_marker, make_renderer, scene_camera
+
 VIDEO_SUFFIXES: dict[str, str] = {".mp4": "mp4", ".gif": "gif", ".webp": "webp"}
 """Suffixes of `--out` that make a video, and the format of each."""
 MIN_FRAME_SIDE = 16
@@ -361,7 +363,6 @@ class EpisodeFilm:
         self._frames = [[] for _ in self._views]
 
     def _render(self, i: int, env: Any) -> np.ndarray:
-        from suite.render import add_goal_marker, make_renderer, scene_camera
 
         physics = env.dm_env.physics
         renderer = self._renderers.get(i)

@@ -14,9 +14,9 @@ import pandas as pd
 
 from curious import analysis
 from curious.analysis.formatting import format_p, format_value
-from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
 from curious.reproduction.figures import FigureSpec, figures_of
+from curious.watching.palette import condition_label
 from pipelines.resources import Reproduction
 
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 import pandas as pd
 
 from curious import analysis
-from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
+from curious.watching.palette import condition_label
 from pipelines.report.blocks import ExperimentTables, lead_figure, other_figures
 from pipelines.report.spontaneous_forgetting import dip_clauses, spontaneous_forgetting
 from pipelines.resources import Reproduction

@@ -13,8 +13,8 @@ import pandas as pd
 from curious import analysis
 from curious.analysis.figures.beyond_paper import LP_USE_ORDER
 from curious.analysis.lp_ablations import SIGNED_LP
-from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
+from curious.watching.palette import condition_label
 from pipelines.report.blocks import (
     ExperimentTables,
     fmt,

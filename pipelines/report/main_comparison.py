@@ -11,9 +11,9 @@ from typing import Any
 import pandas as pd
 
 from curious import analysis
-from curious.analysis import DEFAULT_TEST_EPOCHS
-from curious.analysis.palette import condition_label, module_label
+from curious.config import DEFAULT_TEST_EPOCHS
 from curious.reproduction.experiments import Experiment
+from curious.watching.palette import condition_label, module_label
 from pipelines.report.blocks import (
     NO_TESTS,
     ExperimentTables,

@@ -9,8 +9,8 @@ import math
 import pandas as pd
 
 from curious import analysis
-from curious.analysis.palette import condition_label
 from curious.reproduction.experiments import Experiment
+from curious.watching.palette import condition_label
 from pipelines.report.blocks import (
     NO_TESTS,
     ExperimentTables,

@@ -8,8 +8,8 @@ import math
 import pandas as pd
 
 from curious import analysis
-from curious.analysis.palette import condition_label, module_label
 from curious.reproduction.experiments import Experiment
+from curious.watching.palette import condition_label, module_label
 from pipelines.report.blocks import fmt, fmt_episodes, fmt_p, in_order, markdown_table
 
 

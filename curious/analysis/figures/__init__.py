@@ -30,7 +30,7 @@ Every x axis counts episodes (bar the distractors figure's and `lp_uses`' first 
 every caption names the seeds, the budget in episodes, the preset and the variant of the runs
 drawn; ``note`` adds a sentence at its end (the reproduction says there when a budget is far
 below the paper's). Colours and labels of modules and conditions come from
-`curious.analysis.palette`.
+`curious.watching.palette`.
 """
 
 from __future__ import annotations

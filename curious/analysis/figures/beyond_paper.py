@@ -16,7 +16,6 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from curious.analysis import palette
 from curious.analysis.figures.failure_recovery import sensor_failure
 from curious.analysis.figures.parts import (
     caption,
@@ -37,6 +36,7 @@ from curious.analysis.statistics import (
     final_test_success,
 )
 from curious.analysis.style import budget_text, episodes_axis, figure_style, new_figure
+from curious.watching import palette
 
 LP_USE_ORDER: tuple[str, ...] = ("m-uvfa", "lp-replay", "lp-select", "curious")
 """The conditions of `lp_uses`, from no use of LP to both."""

@@ -12,7 +12,6 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from curious.analysis import palette
 from curious.analysis.figures.parts import (
     caption,
     finish,
@@ -35,6 +34,7 @@ from curious.analysis.style import (
     new_figure,
     seeds_text,
 )
+from curious.watching import palette
 
 
 def distractors(

@@ -14,7 +14,6 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.transforms import ScaledTranslation
 
-from curious.analysis import DEFAULT_TEST_EPOCHS, palette
 from curious.analysis.figures.parts import (
     caption,
     competence_axis,
@@ -46,6 +45,8 @@ from curious.analysis.style import (
     figure_style,
     new_figure,
 )
+from curious.config import DEFAULT_TEST_EPOCHS
+from curious.watching import palette
 
 _LEGEND_HEIGHT = (0.45, 0.16)
 """Inches the figure grows by for the per-run legend under its panels: its gap and title, then

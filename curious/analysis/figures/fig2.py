@@ -10,7 +10,6 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from curious.analysis import palette
 from curious.analysis.figures.parts import (
     caption,
     competence_axis,
@@ -49,6 +48,7 @@ from curious.analysis.style import (
     new_figure,
     seeds_text,
 )
+from curious.watching import palette
 
 
 def fig2a(

@@ -12,7 +12,6 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from curious.analysis import palette
 from curious.analysis.drops import DROP_DEPTH, mastery_drops
 from curious.analysis.figures.parts import (
     caption,
@@ -32,6 +31,7 @@ from curious.analysis.figures.parts import (
 )
 from curious.analysis.loading import AnalysisError, require_runs
 from curious.analysis.style import budget_text, figure_style, new_figure, seeds_text
+from curious.watching import palette
 
 DIP_MARKER = "v"
 """How a dip (a fall smaller than a drop, `dips`) is marked: a triangle at its trough."""

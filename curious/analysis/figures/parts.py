@@ -10,7 +10,6 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from curious.analysis import palette
 from curious.analysis.loading import (
     AnalysisError,
     is_integer,
@@ -28,6 +27,7 @@ from curious.analysis.style import (
     seeds_text,
     wrap_caption,
 )
+from curious.watching import palette
 
 CONDITION_ORDER: tuple[str, ...] = ("curious", "mg-te", "her", "m-uvfa", "lp-select", "lp-replay")
 CURVE_POINTS = 400  # at most this many points per drawn curve of one run

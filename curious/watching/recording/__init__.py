@@ -4,6 +4,9 @@ The training loop makes one `RunRecorder` per run and calls its `log_*` methods 
 arrays; rollout code fills a `RolloutCapture` from MuJoCo data each step. `curious view` opens
 the resulting `recording.rrd` files (named by the run folder's format,
 `curious.runs.folder_layout.RECORDING_FILE`); `curious.watching.recording.reader` reads them back.
+Each name is imported from its module (`recorder.RunRecorder`, `settings.RecorderSettings`,
+`scene.RolloutCapture`, ...): `settings`, which the command line's help reads, loads neither
+Rerun nor MuJoCo.
 """
 
 import os
@@ -18,39 +21,3 @@ the recording stream about its sinks, which say in Rerun's terms what `curious` 
 in one line, naming the file (a full disk:
 `curious.watching.recording.rrd_files.RecordingWriteError`)."""
 os.environ.setdefault("RUST_LOG", RERUN_LOG_FILTER)
-
-import importlib  # noqa: E402
-from typing import Any  # noqa: E402
-
-_HOMES = {
-    "APPLICATION_ID": "working_file",
-    "RecorderSettings": "settings",
-    "RunRecorder": "recorder",
-    "compact_recording": "rrd_files",
-    "RolloutCapture": "scene",
-    "SceneLayout": "scene",
-    "wxyz_to_xyzw": "scene",
-    "default_blueprint": "blueprint",
-}
-"""Where each public name lives; imported on first use, so that `RecorderSettings` (the command
-line's help) does not load Rerun and MuJoCo."""
-
-__all__ = [
-    "APPLICATION_ID",
-    "RERUN_LOG_FILTER",
-    "RecorderSettings",
-    "RolloutCapture",
-    "RunRecorder",
-    "SceneLayout",
-    "compact_recording",
-    "default_blueprint",
-    "wxyz_to_xyzw",
-]
-
-
-def __getattr__(name: str) -> Any:
-    if name in _HOMES:
-        value = getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,7 +14,7 @@ run, where every module's curve begins. Absolute learning progress, p_LP and the
 composition show no legend of their own: their colours are those of the competence legend above
 them (every view draws a module in the same colour). The viewer lists a legend in the order of
 the entity paths, so a module's path part leads with the paper's task number
-(`competence/T1-reach`, `curious.analysis.palette.module_entity`) and the legend reads T1..T7.
+(`competence/T1-reach`, `curious.watching.palette.module_entity`) and the legend reads T1..T7.
 
 Axes of shares and success rates span [-0.05, 1.05], and the module of each episode (its slot
 index) -0.5 to n_modules - 0.5, so that points and lines at the ends are drawn whole instead of

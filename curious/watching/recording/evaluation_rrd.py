@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from curious.analysis.palette import module_entity
 from curious.runs.folder_layout import CONFIG_FILE, EVALUATION_RECORDING_FILE, RECORDING_FILE
 from curious.runs.folder_lock import check_writable
+from curious.watching.palette import module_entity
 from curious.watching.recording.recorder import RecorderSettings, RunRecorder
 from curious.watching.recording.rollout_capture import RolloutObserver
 

@@ -3,7 +3,7 @@
 argument is off.
 
 A module's entity name and legend label lead with its task number in the paper where it has one
-(`T1-reach`, "T1 reach"), and its colour is the figures' (`curious.analysis.palette`), so that
+(`T1-reach`, "T1 reach"), and its colour is the figures' (`curious.watching.palette`), so that
 the viewer's legends read T1..T7 in the figures' colours.
 """
 
@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from curious.analysis.palette import module_entity, module_label, module_rgb
+from curious.watching.palette import module_entity, module_label, module_rgb
+from suite import module_index
 
 __all__ = ["RecordedModules", "as_1d"]
 
@@ -50,7 +51,6 @@ class RecordedModules:
     def slots(self, module: Any, n: int) -> np.ndarray:
         """(n,) slot indices of modules given by name or index: the suite's rule and its
         errors (`suite.module_index`), applied once per distinct value."""
-        from suite import module_index  # a run has loaded the suite already
 
         values, inverse = np.unique(as_1d("module", module, n), return_inverse=True)
         index = [module_index(self.names, value) for value in values.tolist()]

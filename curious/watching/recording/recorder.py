@@ -17,7 +17,7 @@ composes the parts that do the work:
 
 Entity paths (fixed, so that recordings of different runs line up; `<module>` is the module's
 name led by its task number in the paper where it has one, `T1-reach`, `T2-push_cube1`, ...,
-`curious.analysis.palette.module_entity`, so that the viewer's legends read T1..T7):
+`curious.watching.palette.module_entity`, so that the viewer's legends read T1..T7):
 
 | path | content |
 |---|---|

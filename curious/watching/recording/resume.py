@@ -40,6 +40,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 from rerun.chunk import Chunk
 
+from curious.runs.hooks import log_learner_rows
 from curious.watching.recording.rrd_files import PreviousRecording, load_previous
 
 __all__ = [
@@ -177,7 +178,6 @@ def rebuild_from_tables(
     episodes cycle by cycle (`episodes_per_cycle` a cycle: written-where-it-changes statistics
     and their keyframes depend on it), after each its test rollouts (at an epoch's end) and its
     row of `learner` (`learner.parquet`, where there is one). Returns the episodes logged."""
-    from curious.runs.hooks import log_learner_rows
 
     metrics = metrics.filter(pc.less(metrics["episode"], episodes_done)).sort_by("episode")
     tests = tests.filter(pc.less_equal(tests["episode"], episodes_done)).sort_by("episode")

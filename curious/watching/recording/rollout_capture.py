@@ -73,7 +73,7 @@ class RolloutObserver:
 
     Args:
         recorder: the run's recorder; needs `rollout_due(eval_index)` and `log_rollout(...)`
-            (`curious.watching.recording.RunRecorder`).
+            (`curious.watching.recording.recorder.RunRecorder`).
         eval_every: the run's `Config.eval_every` (every eval_every-th episode is an evaluation).
         episode_length: steps per episode (the capture holds episode_length + 1 rows).
         inner: another observer that gets every call after this one, or None.

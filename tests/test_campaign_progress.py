@@ -10,7 +10,9 @@ import pandas as pd
 import pytest
 
 from curious.analysis.loading import AnalysisError
-from curious.analysis.progress import (
+from curious.cli import main as curious_cli
+from curious.commands.progress import BEGIN, END
+from curious.reproduction.campaign_progress import (
     current_pace,
     experiment_progress,
     progress_markdown,
@@ -19,8 +21,6 @@ from curious.analysis.progress import (
     runs_at_once,
     summary_markdown,
 )
-from curious.cli import main as curious_cli
-from curious.commands.progress import BEGIN, END
 from curious.reproduction.experiments import get_budget
 
 

@@ -31,17 +31,19 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
-from curious.analysis import DEFAULT_TEST_EPOCHS
 from curious.analysis.loading import (
     AnalysisError,
     read_run_info,
     run_path_below,
     search_run_folders,
 )
+from curious.config import DEFAULT_TEST_EPOCHS
+from curious.reproduction.experiments import ExperimentError, get_budget
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_layout import CONFIG_FILE
 from curious.runs.run_info import RunInfo
+from curious.runs.shipped_folder import ShippedFolder
 
 if TYPE_CHECKING:
     from curious.reproduction.experiments import ReproduceBudget
@@ -187,7 +189,6 @@ def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
     `reproduce.json`; its runs lie under `runs/` or where `--runs-dir` put them), else None.
     The seeds a campaign plans beyond the budget's (`extra_seeds`: experiment -> seeds, which
     `tools/campaign.py --seeds` writes) are added to its experiments (`Experiment.with_seeds`)."""
-    from curious.reproduction.experiments import ExperimentError, get_budget
 
     manifest = root / "reproduce.json"
     if not manifest.is_file():
@@ -277,7 +278,6 @@ def progress_table(
     paths = [Path(roots)] if isinstance(roots, (str, PathLike)) else [Path(r) for r in roots]
     if not paths:
         raise AnalysisError("no folder given")
-    from curious.reproduction.shipped_folder import ShippedFolder
 
     planned: dict[str, RunProgress] = {}
     found: dict[Path, tuple[Path, bool]] = {}  # run folder -> (its root, shipped)
