@@ -17,6 +17,7 @@ Nothing here imports MuJoCo at module level: this runs before the argument parse
 
 from __future__ import annotations
 
+import ctypes
 import os
 
 GL_FIX = (
@@ -56,7 +57,6 @@ def headless_default() -> str | None:
     library loads, else None (render then refuses with `GL_FIX`)."""
     if _has_display():
         return None
-    import ctypes
 
     for backend, names in (
         ("egl", ("libEGL.so.1", "libEGL.so")),

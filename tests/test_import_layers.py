@@ -199,6 +199,20 @@ def test_an_import_inside_a_function_keeps_its_module_light():
     assert not hidden, "\n".join(hidden)
 
 
+def test_a_library_imported_inside_a_function_is_a_heavy_one():
+    """The standard library, numpy and the like are imported at the top: only a library that
+    takes long to load, and that the module does not load already, waits for its function."""
+    hidden = [
+        f"{module}:{line} imports {target} inside a function (move it to the top)"
+        for module in _files()
+        for target, where, line in _imports(module)
+        if where == "function"
+        and _own(target) is None
+        and (target.split(".")[0] not in HEAVY or target.split(".")[0] in _heavy(module))
+    ]
+    assert not hidden, "\n".join(hidden)
+
+
 def test_no_module_level_getattr():
     """A package's names are imported plainly, so that go-to-definition finds them."""
     lazy = [

@@ -30,6 +30,9 @@ import argparse
 import math
 from typing import Any
 
+import numpy as np
+from tqdm.auto import tqdm
+
 import suite
 from curious.commands import HelpFormatter, folder_name
 from curious.config import MAX_SEED
@@ -233,7 +236,6 @@ def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tup
 
 def _bar(total: int, args: argparse.Namespace, desc: str, unit: str = "frame") -> Any:
     """A progress bar (none with --no-progress)."""
-    from tqdm.auto import tqdm
 
     return tqdm(total=total, unit=unit, disable=args.no_progress, dynamic_ncols=True, desc=desc)
 
@@ -308,7 +310,6 @@ def _wrote(writer: Any, out: str, kind: str, fps: float) -> str:
 
 def _render_policy(args: argparse.Namespace, kind: str) -> int:
     """The random or still arm, one episode after another."""
-    import numpy as np
 
     check_gl_backend()
     variant = "default" if args.variant is None else args.variant  # '' is no variant

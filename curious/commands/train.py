@@ -25,11 +25,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import socket
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+from urllib.parse import urlsplit
 
 from curious.commands import HelpFormatter, add_set_option, refuse
 from curious.config import MAX_EPISODES, RESUMABLE_FIELDS, Config, ConfigError
@@ -376,8 +378,6 @@ def _check_viewer_url(url: str) -> None:
     """A `ConfigError` unless Rerun takes `url` as a gRPC endpoint and something listens there,
     checked before any run starts: Rerun would refuse a bad url only when the recording opens,
     and with nothing listening its first flush waits minutes for a viewer."""
-    import socket
-    from urllib.parse import urlsplit
 
     import rerun as rr
 

@@ -33,6 +33,7 @@ slice of `achieved`, the part comparable with its goals); see `EnvSpec.hindsight
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Protocol, runtime_checkable
@@ -321,7 +322,6 @@ def suite_sensor_failure_modules(variant: str) -> tuple[str, ...]:
     """The modules the sensory failure of a suite variant perturbs, from the variant's own
     definition (the task it builds); empty for a variant without one, or one the suite does not
     know. For run folders written before config.json recorded them (`EnvSpec`)."""
-    import warnings
 
     with warnings.catch_warnings():  # MuJoCo's GL probing warns where nothing renders
         warnings.simplefilter("ignore")

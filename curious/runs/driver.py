@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow.compute as pc
+from tqdm.auto import tqdm
 
 from curious.agent.conditions import Condition
 from curious.config import Config, ConfigError
@@ -168,7 +169,6 @@ def _run(
     stop: Callable[[], bool] | None = None,
     position: int | None = None,
 ) -> Trainer:
-    from tqdm.auto import tqdm
 
     config = trainer.config
     latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None

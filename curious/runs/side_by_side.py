@@ -21,13 +21,17 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import contextlib
+import ctypes
 import multiprocessing
 import os
 import signal
 import sys
+import traceback
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
+
+from tqdm.auto import tqdm
 
 MAX_WORKERS = 4096
 """The most worker processes a pool of runs is asked for (`curious reproduce --workers`,
@@ -83,8 +87,6 @@ def die_with_parent() -> None:
     """On Linux, have this process killed when its parent dies: without it, a worker whose
     parent was killed (SIGKILL reaches only the parent) would go on training alone."""
     if sys.platform.startswith("linux"):
-        import ctypes
-
         libc = ctypes.CDLL(None, use_errno=True)
         pr_set_pdeathsig = 1
         libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
@@ -115,7 +117,6 @@ def _start_worker(stop: Any, progress_lock: Any) -> None:
     _Worker.stop = stop
     signal.signal(signal.SIGINT, _on_interrupt)
     die_with_parent()
-    from tqdm.auto import tqdm
 
     tqdm.set_lock(progress_lock)
 
@@ -134,8 +135,6 @@ def _call(job: Callable[[], Result]) -> Result | Failed | _NotStarted:
     except Exception as exc:
         message = f"{type(exc).__name__}: {exc}"
         if os.environ.get("CURIOUS_DEBUG"):
-            import traceback
-
             message += "\n" + traceback.format_exc()
         return Failed(message)
     finally:

@@ -23,6 +23,7 @@ The observer hands every call on to `inner` (another observer), so observers cha
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -233,7 +234,6 @@ def _rebuild(recorder: Any, trainer: Any, folder: Any) -> None:
     """A resumed run's recording that was missing or unreadable, rebuilt from its tables
     (`curious.watching.recording.resume.rebuild_from_tables`), with a warning naming each series
     the tables do not hold from the run's start, and the episode of its first point."""
-    import warnings
 
     import pyarrow.parquet as pq
 
