@@ -189,6 +189,29 @@ def test_imports_point_down_never_up():
     assert not upward, "imports pointing up the layers:\n" + "\n".join(upward)
 
 
+def test_no_module_imports_itself_through_others():
+    """No circle at all, within a layer too: following the imports (at the top, in functions or
+    for type checking) from any module never leads back to it."""
+    graph: dict[str, set[str]] = {}
+    for i in own_imports():
+        graph.setdefault(i.module, set()).add(i.target)
+    done: set[str] = set()
+
+    def walk(module: str, path: list[str]) -> None:
+        if module in path:
+            raise AssertionError(
+                "import circle: " + " -> ".join([*path[path.index(module) :], module])
+            )
+        if module in done:
+            return
+        for target in sorted(graph.get(module, ())):
+            walk(target, [*path, module])
+        done.add(module)
+
+    for module in sorted(graph):
+        walk(module, [])
+
+
 def test_an_import_inside_a_function_keeps_its_module_light():
     hidden = [
         f"{i.module}:{i.line} imports {i.target} inside a function, and it loads nothing "
