@@ -33,8 +33,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from tqdm.auto import tqdm
-
 from curious.reproduction.experiments import Experiment, ReproduceBudget, RunSpec
 from curious.runs.memory import runs_that_fit
 from curious.runs.shipped_folder import ShippedFolder
@@ -180,6 +178,7 @@ class OutputLayout:
 
 
 def _print(message: str) -> None:
+    from tqdm.auto import tqdm  # it picks notebook or console bars, and warns, when imported
 
     tqdm.write(message, file=sys.stderr)
 
@@ -311,6 +310,7 @@ class Reproduction:
         return runs_that_fit([job.spec.config(self.overrides) for job in jobs])
 
     def _train(self, experiment: Experiment, jobs: list[Job]) -> dict[str, PartitionResult]:
+        from tqdm.auto import tqdm  # it picks notebook or console bars, and warns, when imported
 
         bar = tqdm(
             total=sum(job.spec.total_episodes for job in jobs),

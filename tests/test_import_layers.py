@@ -40,6 +40,10 @@ HEAVY = frozenset(
     }
 )
 """The libraries that take long to import or pull in native code: what a light module avoids."""
+WAITS_FOR_ITS_FUNCTION = HEAVY | {"tqdm"}
+"""The libraries a function may import for itself: the heavy ones, and tqdm, whose `tqdm.auto`
+chooses Jupyter's bars or the console's when it is imported, and warns in a notebook kernel
+without ipywidgets: imported where a bar is drawn, a notebook that draws none stays quiet."""
 
 
 @dataclass(frozen=True)
@@ -224,14 +228,18 @@ def test_an_import_inside_a_function_keeps_its_module_light():
 
 def test_a_library_imported_inside_a_function_is_a_heavy_one():
     """The standard library, numpy and the like are imported at the top: only a library that
-    takes long to load, and that the module does not load already, waits for its function."""
+    takes long to load (or tqdm, above), and that the module does not load already, waits for
+    its function."""
     hidden = [
         f"{module}:{line} imports {target} inside a function (move it to the top)"
         for module in _files()
         for target, where, line in _imports(module)
         if where == "function"
         and _own(target) is None
-        and (target.split(".")[0] not in HEAVY or target.split(".")[0] in _heavy(module))
+        and (
+            target.split(".")[0] not in WAITS_FOR_ITS_FUNCTION
+            or target.split(".")[0] in _heavy(module)
+        )
     ]
     assert not hidden, "\n".join(hidden)
 

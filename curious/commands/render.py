@@ -31,7 +31,6 @@ import math
 from typing import Any
 
 import numpy as np
-from tqdm.auto import tqdm
 
 import suite
 from curious.commands import HelpFormatter, folder_name
@@ -236,6 +235,7 @@ def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tup
 
 def _bar(total: int, args: argparse.Namespace, desc: str, unit: str = "frame") -> Any:
     """A progress bar (none with --no-progress)."""
+    from tqdm.auto import tqdm  # it picks notebook or console bars, and warns, when imported
 
     return tqdm(total=total, unit=unit, disable=args.no_progress, dynamic_ncols=True, desc=desc)
 

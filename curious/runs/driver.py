@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow.compute as pc
-from tqdm.auto import tqdm
 
 from curious.agent.conditions import Condition
 from curious.config import Config, ConfigError
@@ -169,6 +168,7 @@ def _run(
     stop: Callable[[], bool] | None = None,
     position: int | None = None,
 ) -> Trainer:
+    from tqdm.auto import tqdm  # it picks notebook or console bars, and warns, when imported
 
     config = trainer.config
     latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device) if resume else None

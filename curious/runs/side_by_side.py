@@ -31,8 +31,6 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
-from tqdm.auto import tqdm
-
 MAX_WORKERS = 4096
 """The most worker processes a pool of runs is asked for (`curious reproduce --workers`,
 `CURIOUS_WORKERS`): more cores than any one machine has, far below what would overflow the
@@ -112,6 +110,8 @@ def _start_worker(stop: Any, progress_lock: Any) -> None:
     """A worker's start: no display for MuJoCo, one thread for numpy's and torch's default pools
     (the runs share the cores; a run's own `torch_threads` still applies), the answer to
     Ctrl-C, death with the parent, and the progress bars' shared lock."""
+    from tqdm.auto import tqdm  # it picks notebook or console bars, and warns, when imported
+
     os.environ.setdefault("MUJOCO_GL", "disable")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     _Worker.stop = stop

@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from curious.agent.conditions import make_condition
 from curious.agent.goals import GoalBox
@@ -172,6 +171,7 @@ class EvaluationSession:
         sees are numbered 0, 1, ... through the evaluation, module after module (module k's
         j-th episode is k * episodes + j), and all are evaluation episodes. `policy`: as
         `evaluate`'s."""
+        from tqdm.auto import tqdm  # it picks notebook or console bars, and warns, when imported
 
         from curious.runs.play import goal_policy, play_round
 
