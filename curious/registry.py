@@ -3,9 +3,8 @@
 A `Config` names its condition, and `Config.validate` checks the name here; the classes are the
 agent's (`curious.agent.conditions`), which registers the built-in ones when it is imported and
 takes a plugin's through `register_condition`. The registry lies below both so that the settings
-never import the agent: `import curious` imports `curious.agent.conditions` first thing, so the
-built-in conditions are registered before any config is made. It needs nothing but Python, so the
-command line's help reads the names without loading numpy's users.
+never import the agent: `import curious` imports `curious.agent.conditions` first thing (numpy,
+not torch), so the built-in conditions are registered before any config is made.
 """
 
 from __future__ import annotations
