@@ -100,7 +100,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None, words: list[str]) -> int:
-
     gl_for_command(words)  # before anything imports MuJoCo (the parser does)
     if renders(words):
         problem = rendering_problem()

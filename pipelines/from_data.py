@@ -73,7 +73,6 @@ class ShippedData:
         """A `ShippedDataError`, before anything is written, where a run shipped.json lists is
         gone or has a file that cannot be read (a truncated copy, a bad merge): named with the
         way out, where later steps would fail on it in their own words."""
-
         for entry in self.manifest.runs:
             folder = RunFolder(ShippedFolder(self.path).run_path(entry.run))
             tables = [folder.metrics_path] + [folder.tests_path] * (entry.test_rollouts > 0)
@@ -98,7 +97,6 @@ class ShippedData:
 
     def state(self, spec: RunSpec) -> str:
         """`new`, `partial` or `finished` (see the module docstring)."""
-
         entry = self.manifest.get(spec.relative_path)
         if entry is None:
             return NEW

@@ -333,7 +333,6 @@ def _shipped_data(
     """The shipped data folder at `path`, checked against `budget`, the budget as it can stand
     for it (`ShippedData.stands_for`) and the experiments to build from it; `ReproduceError`
     where it cannot stand for them."""
-
     try:
         data = ShippedData.open(path)
         data.check_budget(budget)
@@ -348,7 +347,6 @@ def _check_places(layout: OutputLayout) -> None:
     run folder (the search for runs stops at one, so nothing trained there would be found), or
     where the runs folder is another reproduction's output (its runs lie in its own runs folder:
     naming the output instead would train every run anew beside them)."""
-
     for option, path in (("--out", layout.out), ("--runs-dir", layout.runs_root)):
         for folder in (path, *path.parents):
             if RunFolder(folder).holds_a_run:
@@ -368,7 +366,6 @@ def _check_places(layout: OutputLayout) -> None:
 def _check_writable(layout: OutputLayout) -> None:
     """A `ReproduceError` naming `--out` where OUT (its lock beside it, its report and figures
     in it) cannot be written, before anything is locked or trained."""
-
     try:
         check_writable(layout.out, "--out", folder=True)
     except RunFolderError as exc:
@@ -380,7 +377,6 @@ def _reproduction_lock(layout: OutputLayout) -> Iterator[None]:
     """Hold OUT's lock for the whole reproduction: a second `curious reproduce` of the same
     folder is refused at once (`ReproduceError`) while the first goes on; nothing is left
     behind (`curious.runs.folder_lock.folder_lock`)."""
-
     with contextlib.ExitStack() as stack:
         try:
             stack.enter_context(folder_lock(layout.out, activity="reproduced"))

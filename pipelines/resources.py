@@ -277,7 +277,6 @@ class Reproduction:
         self, experiment: Experiment, specs: Sequence[RunSpec]
     ) -> list[PartitionResult]:
         """The shipped runs of `specs`, checked to be there and finished; nothing is trained."""
-
         assert self.data is not None
         lacking = [s for s in specs if self.data.state(s) != FINISHED]
         if lacking:

@@ -82,7 +82,6 @@ def run_folder(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
 
 def episodes_logged(folder: Path) -> int:
     """Episodes in a run folder's metrics.parquet (0 when there is none yet)."""
-
     return RunFolder(folder).episodes_logged()
 
 
@@ -91,7 +90,6 @@ def folder_state(spec: RunSpec, runs_root: str | os.PathLike, overrides: dict | 
 
     Whether the folder holds (a part of) the run is the check a resume makes
     (`curious.runs.folder.RunFolder.check_resumable`)."""
-
     folder = RunFolder(run_folder(spec, runs_root))
     if folder.path.exists() and not folder.path.is_dir():
         raise RunFolderMismatch(f"{folder.path} exists and is not a folder")
@@ -139,7 +137,6 @@ def _make_recorder(spec: RunSpec, record: bool, resume: bool):
 
 def lock_path(spec: RunSpec, runs_root: str | os.PathLike) -> Path:
     """The lock file beside a run folder (`curious.runs.folder_lock.lock_path`)."""
-
     return folder_lock_path(run_folder(spec, runs_root))
 
 
@@ -149,7 +146,6 @@ def training_lock(
 ) -> Iterator[None]:
     """Hold the run's lock (`curious.runs.folder_lock.folder_lock`, the one `train` takes while it
     trains); raise `RunFolderBusy` if another process holds it."""
-
     with contextlib.ExitStack() as stack:
         try:
             stack.enter_context(folder_lock(run_folder(spec, runs_root), claim=claim))

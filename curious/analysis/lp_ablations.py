@@ -24,6 +24,7 @@ __all__ = [
     "compare_lp_uses",
     "compare_refocus",
     "lp_use_readings",
+    "lp_uses_tables",
     "signed_beside_absolute",
     "with_paper_pair",
 ]
@@ -47,6 +48,22 @@ def with_paper_pair(own: pd.DataFrame, theirs: pd.DataFrame | None, variant: str
         (_BOTH, _NEITHER)
     )
     return pd.concat([own, theirs[keep]], ignore_index=True)
+
+
+def lp_uses_tables(
+    metrics: pd.DataFrame,
+    tests: pd.DataFrame | None,
+    their_metrics: pd.DataFrame | None,
+    their_tests: pd.DataFrame | None,
+    variant: str,
+) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+    """The `lp_uses` runs' (metrics, tests) with the `distractors` runs' CURIOUS and M-UVFA rows
+    of ``variant`` beside them (`with_paper_pair`; their tables None: the own runs alone). The
+    tests compare all four conditions or none: None where either side has no test rollouts."""
+    both = with_paper_pair(metrics, their_metrics, variant)
+    if tests is None or (their_metrics is not None and their_tests is None):
+        return both, None
+    return both, with_paper_pair(tests, their_tests, variant)
 
 
 def signed_beside_absolute(signed: pd.DataFrame, absolute: pd.DataFrame | None) -> pd.DataFrame:

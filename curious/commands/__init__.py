@@ -58,12 +58,10 @@ def add_set_option(parser: argparse.ArgumentParser, help_text: str) -> None:
 
 
 def _suite_variants() -> str:
-
     return ", ".join(suite.ALL_VARIANTS)
 
 
 def _suite_modules() -> str:
-
     names: dict[str, None] = {}
     for spec in BUILT_IN.values():  # described, not built
         names.update(dict.fromkeys(spec.module_names))
@@ -71,7 +69,6 @@ def _suite_modules() -> str:
 
 
 def _rollout_every() -> str:
-
     return str(RecorderSettings().rollout_every)
 
 

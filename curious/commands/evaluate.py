@@ -40,7 +40,6 @@ RECORD_EPISODES = 2
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious evaluate`."""
-
     parser = sub.add_parser(
         "evaluate",
         help="success per module of a trained run's newest checkpoint (noise-free episodes)",
@@ -101,7 +100,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-
     if args.record is None:
         if args.record_episodes is not None:
             raise ValueError("--record-episodes is for --record: add --record [FILE]")

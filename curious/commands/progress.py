@@ -31,7 +31,6 @@ END = "<!-- progress:end -->"
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious progress`."""
-
     parser = sub.add_parser(
         "progress",
         help="how far the runs below a folder have got (episodes, checkpoints, test success)",

@@ -67,7 +67,6 @@ PNG_EVERY = 10
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add `curious render`."""
-
     parser = sub.add_parser(
         "render",
         help="render episodes headless: a trained run's agent (--run) or a random arm, to "
@@ -171,7 +170,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _check(args: argparse.Namespace) -> str:
     """Refuses bad arguments before anything loads; returns the output format."""
-
     kind = output_kind(args.out)
     check_writer(kind, args.width, args.height)
     check_seed(args.seed)
@@ -226,7 +224,6 @@ def _timing_options(args: argparse.Namespace) -> str:
 
 def _timing(args: argparse.Namespace, kind: str, control_timestep: float) -> tuple[int, float, int]:
     """(every, fps, hold frames) of the output."""
-
     every, speed = _every_and_speed(args, kind)
     fps = args.fps if args.fps is not None else real_time_fps(control_timestep, every, speed)
     hold = 0 if kind == "png" else round(args.hold * fps)
@@ -250,7 +247,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _render_run(args: argparse.Namespace, kind: str) -> int:
     """The run's trained agent, through `curious evaluate`'s episodes."""
-
     with open_run(args.run, args.episodes, args.variant, args.seed, processes=1) as session:
         modules = session.modules(args.module)
         names = session.spec.module_names
@@ -310,7 +306,6 @@ def _wrote(writer: Any, out: str, kind: str, fps: float) -> str:
 
 def _render_policy(args: argparse.Namespace, kind: str) -> int:
     """The random or still arm, one episode after another."""
-
     check_gl_backend()
     variant = "default" if args.variant is None else args.variant  # '' is no variant
     modules = args.module or ["push_cube1"]
@@ -369,6 +364,5 @@ def _render_policy(args: argparse.Namespace, kind: str) -> int:
 
 def _policy_caption(label: str, raw: Any, policy: str, j: int, episodes: int) -> Any:
     """The caption of an episode of the random or still arm."""
-
     where = f"episode {j + 1}/{episodes}"
     return [(f"{label} | {goal_text(raw)}", WHITE), (f"{policy} arm | {where}", WHITE)]

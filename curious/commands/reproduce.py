@@ -197,7 +197,6 @@ def _experiments(text: str | None) -> list[str] | None:
 def placement_overrides(items: list[str]) -> dict[str, object]:
     """`--set KEY=VALUE` items, typed; only settings that leave what a run computes as it is
     (`curious.config.PLACEMENT_FIELDS`), since the budget defines the runs."""
-
     overrides = parse_overrides(items)
     other = sorted(set(overrides) - PLACEMENT_FIELDS)
     if other:
@@ -210,7 +209,6 @@ def placement_overrides(items: list[str]) -> dict[str, object]:
 
 
 def run(args: argparse.Namespace) -> int:
-
     options = (
         ("--out", args.out, "a folder"),
         ("--runs-dir", args.runs_dir, "a folder"),
@@ -345,7 +343,6 @@ CLAIMS: dict[str, str] = {
 def shipped_data_folder(name: str) -> Path | None:
     """The repository's shipped data folder data/<name> (beside the `curious` package of a
     clone, else in the working directory), or None where neither holds one."""
-
     here = Path(__file__).resolve().parents[2]
     for root in (here, Path.cwd()):
         folder = ShippedFolder(root / "data" / name)
@@ -365,7 +362,6 @@ def _build_shipped_beside(budget: str, out: str | None, progress: bool) -> Repro
     """The shipped campaign's report and figures, into <campaign>-shipped beside OUT (`out`,
     else the budget's default), then where they and the claims' results table are; None (with
     a line saying why) where the budget has none or it cannot be built."""
-
     name = SHIPPED_BESIDE.get(budget)
     if name is None:
         return None
@@ -398,7 +394,6 @@ def _claims(shipped: ReproduceResult) -> str:
 
 def _what_it_can_show(budget: str) -> str:
     """What a budget with a shipped campaign beside it can show, trained here."""
-
     chosen = get_budget(budget)
     return (
         f"budget `{budget}`, trained here ({chosen.description}). It checks that training, the "
@@ -440,7 +435,6 @@ _TRAINING_OPTIONS = {
 
 def _from_data(args: argparse.Namespace) -> int:
     """`--from-data`: the report and figures from shipped runs; nothing is trained."""
-
     given = [flag for name, flag in _TRAINING_OPTIONS.items() if getattr(args, name)]
     given += ["--cpus-per-run"] if args.cpus_per_run is not None else []
     given += ["--gpus-per-run"] if args.gpus_per_run else []

@@ -323,7 +323,6 @@ def _workers(asked: int | None, configs: list[Config]) -> int:
     """How many seeds train at once: `--workers`, by default the cores over each run's
     environment processes; and no more than fit in this machine's memory together (each run
     checks its own as it starts, and one too big alone is refused here)."""
-
     check_each_fits(configs)
     cores = os.cpu_count() or 1
     wanted = asked or max(1, cores // max(config.processes for config in configs))
@@ -339,7 +338,6 @@ def _workers(asked: int | None, configs: list[Config]) -> int:
 
 def _report_failures(outs: list[Path], results: list[object]) -> bool:
     """A line on stderr for each run that failed (`Failed`); whether one did."""
-
     failed = [(out, r) for out, r in zip(outs, results, strict=True) if isinstance(r, Failed)]
     for out, result in failed:
         print(f"curious train: error: {out}: {result.message}", file=sys.stderr)
@@ -378,7 +376,6 @@ def _check_viewer_url(url: str) -> None:
     """A `ConfigError` unless Rerun takes `url` as a gRPC endpoint and something listens there,
     checked before any run starts: Rerun would refuse a bad url only when the recording opens,
     and with nothing listening its first flush waits minutes for a viewer."""
-
     import rerun as rr
 
     from curious.watching.recording.working_file import DEFAULT_VIEWER_PORT

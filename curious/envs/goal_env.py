@@ -103,7 +103,6 @@ class EnvSpec:
     def module_index(self, module: int | str) -> int:
         """Index of a module given by index or name: the suite's rule (`suite.module_index`),
         a ValueError listing the modules otherwise."""
-
         return suite.module_index(self.module_names, module)
 
 
@@ -186,7 +185,6 @@ class SuiteEnv:
     """Steps per episode in every suite variant (episodes never end early)."""
 
     def __init__(self, variant: str = "default", seed: int = 0) -> None:
-
         if variant not in suite.ALL_VARIANTS:
             raise ConfigError(
                 f"unknown suite variant {variant!r}; variants: {', '.join(suite.ALL_VARIANTS)}"
@@ -322,7 +320,6 @@ def suite_sensor_failure_modules(variant: str) -> tuple[str, ...]:
     """The modules the sensory failure of a suite variant perturbs, from the variant's own
     definition (the task it builds); empty for a variant without one, or one the suite does not
     know. For run folders written before config.json recorded them (`EnvSpec`)."""
-
     with warnings.catch_warnings():  # MuJoCo's GL probing warns where nothing renders
         warnings.simplefilter("ignore")
 

@@ -189,7 +189,6 @@ def _reproduction(root: Path) -> tuple[ReproduceBudget, Path] | None:
     `reproduce.json`; its runs lie under `runs/` or where `--runs-dir` put them), else None.
     The seeds a campaign plans beyond the budget's (`extra_seeds`: experiment -> seeds, which
     `tools/campaign.py --seeds` writes) are added to its experiments (`Experiment.with_seeds`)."""
-
     manifest = root / "reproduce.json"
     if not manifest.is_file():
         return None

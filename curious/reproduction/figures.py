@@ -309,14 +309,12 @@ def _long_runs(inputs: FigureInputs) -> Figure:
 def _lp_uses(inputs: FigureInputs) -> Figure:
     from curious import analysis
 
-    variant = inputs.experiment.variants[0]
-    metrics, tests = inputs.metrics, inputs.tests_if_any()
-    theirs, their_tests = inputs.other("distractors")
-    metrics = analysis.with_paper_pair(metrics, theirs, variant)
-    if tests is not None and their_tests is not None:
-        tests = analysis.with_paper_pair(tests, their_tests, variant)
-    elif theirs is not None:
-        tests = None  # the test panel compares all four conditions, or none
+    metrics, tests = analysis.lp_uses_tables(
+        inputs.metrics,
+        inputs.tests_if_any(),
+        *inputs.other("distractors"),
+        inputs.experiment.variants[0],
+    )
     return analysis.lp_uses(metrics, tests, note=inputs.note)
 
 

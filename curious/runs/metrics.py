@@ -218,6 +218,7 @@ class LearnerLog(TableLog):
             begins = episodes
             super().__init__(path, learner_schema(module_names, begins))
         self.from_episode = begins
+        self._replay_columns = [f"replay/{name}" for name in module_names]
 
     def truncate(self, n_episodes: int, inclusive: bool = True) -> None:
         """Keep the rows of the cycles up to a checkpoint at `n_episodes` (the last of them at
@@ -231,10 +232,9 @@ class LearnerLog(TableLog):
         row) for a cycle without updates, which the recording shows nothing of either."""
         if not (replay_counts.sum() > 0 or any(k in losses for k in LEARNER_STATS)):
             return None
-        names = [n.removeprefix("replay/") for n in self.schema.names if n.startswith("replay/")]
         row: dict[str, np.ndarray] = {"episode": np.array([episode], np.int64)}
-        for name, count in zip(names, replay_counts, strict=True):
-            row[f"replay/{name}"] = np.array([count], np.int64)
+        for column, count in zip(self._replay_columns, replay_counts, strict=True):
+            row[column] = np.array([count], np.int64)
         for stat in LEARNER_STATS:
             row[stat] = np.array([losses.get(stat, np.nan)], np.float64)
         row["wall_time"] = np.array([wall], np.float64)

@@ -265,7 +265,6 @@ def check_episodes(episodes: int) -> None:
 def check_seed(seed: int) -> None:
     """A `ValueError` naming `--seed` outside 0 to `curious.config.MAX_SEED`, the seeds the
     suite's episodes take (as `curious render --seed`, which plays the same episodes)."""
-
     if not 0 <= seed <= MAX_SEED:
         raise ValueError(f"--seed must be from 0 to {MAX_SEED:,}, got {seed}")
 

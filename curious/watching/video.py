@@ -363,7 +363,6 @@ class EpisodeFilm:
         self._frames = [[] for _ in self._views]
 
     def _render(self, i: int, env: Any) -> np.ndarray:
-
         physics = env.dm_env.physics
         renderer = self._renderers.get(i)
         if renderer is None or renderer.model is not physics.model.ptr:

@@ -32,12 +32,6 @@ from pipelines.report.sensory_failures import (
 from pipelines.resources import Reproduction
 
 
-def _other(repro: Reproduction, name: str) -> ExperimentTables | None:
-    """Experiment `name`'s combined tables in this reproduction (None before its metrics)."""
-    metrics, tests = repro.layout.read_tables(name)
-    return None if metrics is None else ExperimentTables(metrics, tests)
-
-
 def _figures(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
     tested = tables.tests is not None
     return [*lead_figure(repro, e, tested), *other_figures(repro, e, tested)]
@@ -73,15 +67,11 @@ def lp_uses(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> lis
     """The four conditions' competence and test success at the end, their practice on
     distracting modules, the four Welch tests per measure and the reading fixed before."""
     lines = _figures(repro, e, tables)
-    variant = e.variants[0]
-    theirs = _other(repro, "distractors")
-    their_metrics = None if theirs is None else theirs.metrics
-    metrics = analysis.with_paper_pair(tables.metrics, their_metrics, variant)
-    tests = None
-    if tables.tests is not None and (theirs is None or theirs.tests is not None):
-        their_tests = None if theirs is None else theirs.tests
-        tests = analysis.with_paper_pair(tables.tests, their_tests, variant)
-    if theirs is None:
+    their_metrics, their_tests = repro.layout.read_tables("distractors")
+    metrics, tests = analysis.lp_uses_tables(
+        tables.metrics, tables.tests, their_metrics, their_tests, e.variants[0]
+    )
+    if their_metrics is None:
         lines += [
             "The `distractors` experiment's CURIOUS and M-UVFA runs, which this one is read "
             "against, are not in this reproduction: its tests wait for them.",
@@ -144,17 +134,15 @@ def signed_lp(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> l
     if not csv.is_file():
         return lines
     per_run = pd.read_csv(csv)
-    absolute = _other(repro, "sensor_failure_mastered")
-    if absolute is None:
+    absolute_metrics, absolute_tests = repro.layout.read_tables("sensor_failure_mastered")
+    if absolute_metrics is None:
         lines += [
             "The `sensor_failure_mastered` experiment's CURIOUS runs (absolute LP), which this one "
             "is read against, are not in this reproduction: its tests wait for them.",
             "",
         ]
     by_tests = None
-    if tables.tests is not None and (absolute is None or absolute.tests is not None):
-        absolute_metrics = None if absolute is None else absolute.metrics
-        absolute_tests = None if absolute is None else absolute.tests
+    if tables.tests is not None and (absolute_metrics is None or absolute_tests is not None):
         metrics = analysis.signed_beside_absolute(tables.metrics, absolute_metrics)
         tests = analysis.signed_beside_absolute(tables.tests, absolute_tests)
         onsets = analysis.failure_onsets(metrics)["onset"]
@@ -183,7 +171,7 @@ def signed_lp(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> l
         "recovery by test success",
     )
     lines += markdown_table(header, rows)
-    if absolute is None:
+    if absolute_metrics is None:
         return lines
     refocus = analysis.compare_refocus(
         per_run[per_run["condition"] == "curious"], per_run[per_run["condition"] == SIGNED_LP]

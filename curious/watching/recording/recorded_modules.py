@@ -51,7 +51,6 @@ class RecordedModules:
     def slots(self, module: Any, n: int) -> np.ndarray:
         """(n,) slot indices of modules given by name or index: the suite's rule and its
         errors (`suite.module_index`), applied once per distinct value."""
-
         values, inverse = np.unique(as_1d("module", module, n), return_inverse=True)
         index = [module_index(self.names, value) for value in values.tolist()]
         return np.asarray(index, np.int64)[inverse.reshape(-1)]

@@ -178,7 +178,6 @@ def rebuild_from_tables(
     episodes cycle by cycle (`episodes_per_cycle` a cycle: written-where-it-changes statistics
     and their keyframes depend on it), after each its test rollouts (at an epoch's end) and its
     row of `learner` (`learner.parquet`, where there is one). Returns the episodes logged."""
-
     metrics = metrics.filter(pc.less(metrics["episode"], episodes_done)).sort_by("episode")
     tests = tests.filter(pc.less_equal(tests["episode"], episodes_done)).sort_by("episode")
     if learner is not None:

@@ -234,7 +234,6 @@ def _rebuild(recorder: Any, trainer: Any, folder: Any) -> None:
     """A resumed run's recording that was missing or unreadable, rebuilt from its tables
     (`curious.watching.recording.resume.rebuild_from_tables`), with a warning naming each series
     the tables do not hold from the run's start, and the episode of its first point."""
-
     import pyarrow.parquet as pq
 
     from curious.runs.metrics import metrics_schema, tests_schema
