@@ -29,7 +29,7 @@ from curious import analysis
 from curious.agent.conditions import CONDITION_CLASSES
 from curious.cli import main as curious_cli
 from curious.reproduction.experiments import BEYOND_PAPER, get_budget
-from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.folder_layout import CONFIG_FILE, LEARNER_FILE, METRICS_FILE, TESTS_FILE
 from curious.runs.shipped_folder import MANIFEST_FILE, ShippedFolder
 from pipelines.from_data import ShippedData, ShippedDataError
 
@@ -71,6 +71,10 @@ def check_shipped_folder(data: Path, out: Path, built: bool = False) -> str:
         expected_files |= {f"{r.run}/{CONFIG_FILE}", f"{r.run}/{METRICS_FILE}"}
         if r.test_rollouts:
             expected_files.add(f"{r.run}/{TESTS_FILE}")
+        if analysis.has_learner(shipped.run_path(r.run)):  # runs trained before it have none
+            expected_files.add(f"{r.run}/{LEARNER_FILE}")
+            learner = analysis.load_learner(shipped.run_path(r.run))
+            assert learner["episode"].max() <= r.episodes, f"{r.run}: its cycles, no more"
     assert files_of(data) == expected_files, "the folder holds what shipped.json lists, only"
 
     for r in manifest.runs:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 import pyarrow.parquet as pq
 
 from curious.runs import metrics as run_tables
@@ -146,6 +147,26 @@ def write_run(
     if tests_per_epoch:
         write_tests(folder, names, comp, tests_per_epoch, epoch_episodes, seed)
     return folder
+
+
+def write_learner(
+    folder: Path, names: Sequence[str], counts: np.ndarray, per_cycle: int, from_episode: int = 0
+) -> Path:
+    """Writes ``learner.parquet`` into a run folder as training does (`learner_schema`): one row
+    per cycle of ``per_cycle`` episodes from ``from_episode`` on, ``counts`` (cycles, modules) the
+    transitions replayed as each module, the learner statistics made up."""
+    counts = np.asarray(counts, np.int64)
+    cycles = len(counts)
+    columns: dict[str, np.ndarray] = {
+        "episode": from_episode + per_cycle * np.arange(1, cycles + 1, dtype=np.int64)
+    }
+    columns |= {f"replay/{m}": counts[:, j] for j, m in enumerate(names)}
+    columns |= {stat: np.linspace(1.0, 0.5, cycles) for stat in run_tables.LEARNER_STATS}
+    columns["wall_time"] = np.arange(cycles, dtype=np.float64)
+    table = pa.table(columns, schema=run_tables.learner_schema(list(names), from_episode))
+    path = folder / "learner.parquet"
+    pq.write_table(table, path)
+    return path
 
 
 def write_tests(

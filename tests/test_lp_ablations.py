@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from curious import analysis
 from curious.analysis.loading import AnalysisError
 from curious.analysis.lp_ablations import (
     compare_lp_uses,
@@ -123,6 +124,7 @@ def beyond(tmp_path_factory):
     from test_analysis_synthetic import (
         distractor_modules,
         study_curves,
+        write_learner,
         write_perturbation_study,
         write_run,
     )
@@ -139,6 +141,9 @@ def beyond(tmp_path_factory):
             folder = root / "uses" / c / f"seed-{s}"
             write_run(folder, condition=c, seed=s, competence=curves, achievable=achievable,
                       variant="distractors_7", tests_per_epoch=8)  # fmt: skip
+            if c.startswith("lp-"):  # the shipped CURIOUS and M-UVFA runs kept no replay counts
+                counts = np.where(achievable, 30, 10 * (i - 1))  # lp-select 10, lp-replay 20
+                write_learner(folder, names, np.tile(counts, (30, 1)), per_cycle=10)
     write_perturbation_study(
         root / "absolute", perturbation=300, n_episodes=900, recovery_tau={"curious": 80.0},
         tests_per_epoch=40,
@@ -155,7 +160,7 @@ def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_pa
     from curious.analysis.figures.beyond_paper import LP_USE_ORDER, lp_uses
 
     runs, tests = beyond["uses"]
-    fig = lp_uses(runs, tests, out_dir=tmp_path)
+    fig = lp_uses(runs, tests, out_dir=tmp_path, learner=analysis.learner_of(runs))
     assert (tmp_path / "lp_uses.png").stat().st_size > 0
     left, middle, right = fig.axes[:3]
     assert "test success" in middle.get_ylabel()
@@ -164,8 +169,18 @@ def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_pa
     ]  # fmt: skip
     assert len(left.collections) >= len(LP_USE_ORDER)  # a dot per run, per condition
     assert "distracting module" in right.get_ylabel()
+    dashed = [line for line in right.get_lines() if line.get_linestyle() == "--"]
+    # the share of replay where the runs kept their counts: 7 x 10 of 7 x 10 + 4 x 30, and 7 x 20
+    # of 7 x 20 + 4 x 30 in every bin
+    assert len(dashed) == 2
+    first = sorted(line.get_ydata()[0] for line in dashed)
+    np.testing.assert_allclose(first, [70 / 190, 140 / 260])
     text = fig.get_supxlabel()
     assert "neither is in the paper" in text and "3 seeds (0–2)" in text
+    assert "(M-UVFA, CURIOUS: runs trained before runs kept them, none drawn)" in text
+    without = lp_uses(runs, tests)
+    assert not [line for line in without.axes[2].get_lines() if line.get_linestyle() == "--"]
+    assert "no run kept its replay counts" in without.get_supxlabel()
 
 
 def test_the_signed_lp_figure_draws_both_measures_as_two_conditions(beyond, tmp_path):

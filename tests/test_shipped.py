@@ -30,8 +30,13 @@ from curious.cli import main as curious_cli
 from curious.reproduction.experiments import get_budget
 from curious.reproduction.shipping import clean_leftovers
 from curious.runs.folder import RunFolder
-from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
-from curious.runs.shipped_folder import METRICS_DROPPED, TESTS_DROPPED, ShippedFolder
+from curious.runs.folder_layout import CONFIG_FILE, LEARNER_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.shipped_folder import (
+    LEARNER_DROPPED,
+    METRICS_DROPPED,
+    TESTS_DROPPED,
+    ShippedFolder,
+)
 from pipelines.resources import OutputLayout
 
 N_SMOKE = len(get_budget("smoke").runs())
@@ -82,14 +87,18 @@ def test_ship_writes_each_runs_description_and_reduced_tables_and_prints_their_s
     assert manifest.budget == "smoke"
     assert [r.run for r in manifest.runs] == sorted(relative)
     assert all(r.finished and r.episodes == r.total_episodes == 24 for r in manifest.runs)
-    expected = {"shipped.json"} | {
-        f"{r}/{name}" for r in relative for name in (CONFIG_FILE, METRICS_FILE, TESTS_FILE)
-    }
+    shipped_tables = (CONFIG_FILE, METRICS_FILE, TESTS_FILE, LEARNER_FILE)
+    expected = {"shipped.json"} | {f"{r}/{name}" for r in relative for name in shipped_tables}
     assert files_of(data) == expected  # no checkpoint, no recording
+    reduced_tables = (
+        (METRICS_FILE, METRICS_DROPPED),
+        (TESTS_FILE, TESTS_DROPPED),
+        (LEARNER_FILE, LEARNER_DROPPED),
+    )
     for source, rel in zip(sources, relative, strict=True):
         target = data / rel
         assert (target / CONFIG_FILE).read_bytes() == (source / CONFIG_FILE).read_bytes()
-        for name, dropped in ((METRICS_FILE, METRICS_DROPPED), (TESTS_FILE, TESTS_DROPPED)):
+        for name, dropped in reduced_tables:
             original, reduced = pq.read_table(source / name), pq.read_table(target / name)
             kept = [f for f in original.schema if f.name not in dropped]
             assert list(reduced.schema) == kept  # names, order and Arrow types
@@ -113,11 +122,7 @@ def test_ship_writes_each_runs_description_and_reduced_tables_and_prints_their_s
         f"shipped {N_SMOKE} finished run(s) of budget smoke from {smoke.out} to {data}"
         in shipped.stdout
     )
-    tables = sum(
-        (p / name).stat().st_size
-        for p in sources
-        for name in (CONFIG_FILE, METRICS_FILE, TESTS_FILE)
-    )
+    tables = sum((p / name).stat().st_size for p in sources for name in shipped_tables)
     whole = sum(p.stat().st_size for p in (smoke.out / "runs").rglob("*") if p.is_file())
     assert size < tables and size < 0.01 * whole
 

@@ -7,6 +7,8 @@ one `pandas.DataFrame` with one row per (run, episode): the run's identity colum
 every column of ``metrics.parquet``. `load_tests` reads the same folders' ``tests.parquet`` into
 one row per (run, test rollout), with the same identity columns; a run without test rollouts (one
 trained before they were logged, or with ``test_rollouts_per_worker=0``) is an `AnalysisError`.
+`load_learner` reads their ``learner.parquet`` (one row per training cycle with updates: the
+transitions replayed as each module, ``replay/<module>``), where the runs kept one.
 
 A shipped data folder (`curious.runs.shipped_folder`, written by ``curious ship``: a
 reproduction's runs
@@ -48,8 +50,8 @@ from pandas.api.types import union_categoricals
 
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
-from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
-from curious.runs.metrics import tests_schema
+from curious.runs.folder_layout import CONFIG_FILE, LEARNER_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.metrics import learner_begins, tests_schema
 from curious.runs.run_info import RunInfo
 from curious.runs.shipped_folder import ShippedError, shipped_drops
 
@@ -59,7 +61,10 @@ __all__ = [
     "AnalysisError",
     "RunInfo",
     "find_run_folders",
+    "has_learner",
     "is_integer",
+    "learner_of",
+    "load_learner",
     "load_run",
     "load_runs",
     "load_tests",
@@ -67,6 +72,7 @@ __all__ = [
     "read_run_info",
     "require_count",
     "require_identity",
+    "require_learner",
     "require_runs",
     "require_tests",
     "require_values",
@@ -440,6 +446,77 @@ def load_tests(paths_or_root: PathsOrRoot) -> pd.DataFrame:
     return _combined(tables)
 
 
+def has_learner(path: str | PathLike[str]) -> bool:
+    """Whether the run folder at ``path`` kept a ``learner.parquet`` (runs trained before the
+    table existed did not, nor do shipped runs of them)."""
+    return RunFolder(path).learner_path.is_file()
+
+
+def _read_learner(info: RunInfo) -> pd.DataFrame:
+    """One run's ``learner.parquet``, checked, with ``from_episode`` (where the table begins:
+    0 for a run that kept it from its start) as its first column."""
+    path = RunFolder(info.path).learner_path
+    if not path.is_file():
+        raise AnalysisError(
+            f"{info.path} has no learner statistics (no {LEARNER_FILE}): the run was trained "
+            "before runs kept them, so what it replayed cannot be read"
+        )
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:  # pyarrow raises several types for unreadable files
+        raise AnalysisError(f"{path} is not a readable parquet file: {exc}") from exc
+    _shipped_drops(path)
+    learner = table.to_pandas()
+    expected = ["episode", *(f"replay/{m}" for m in info.module_names)]
+    if missing := [c for c in expected if c not in learner.columns]:
+        raise AnalysisError(
+            f"{path} lacks column(s) {', '.join(missing)} (modules in {CONFIG_FILE}: "
+            f"{', '.join(info.module_names)})"
+        )
+    replayed = [c for c in learner.columns if c.startswith("replay/")]
+    if strangers := sorted(set(replayed) - set(expected)):
+        raise AnalysisError(
+            f"{path} has column(s) {', '.join(strangers)} for modules that {CONFIG_FILE} does "
+            f"not list ({', '.join(info.module_names)}): learner table and config disagree"
+        )
+    if learner.empty:
+        raise AnalysisError(f"{path} has no cycle with updates yet")
+    if (learner[replayed].to_numpy() < 0).any():
+        raise AnalysisError(f"{path}: a replay count is negative")
+    learner.insert(0, "from_episode", np.int64(learner_begins(table.schema)))
+    return learner.sort_values("episode", kind="stable").reset_index(drop=True)
+
+
+def load_learner(paths_or_root: PathsOrRoot) -> pd.DataFrame:
+    """The learner statistics of any set of run folders (or a root holding them), one row per
+    training cycle with updates.
+
+    Identity columns as in `load_runs`, then ``from_episode`` (where the run's table begins: 0
+    for a run that kept it from its start, later for one resumed from before the table existed
+    or whose table was lost), ``episode`` (the episodes done after the cycle) and
+    ``replay/<module>`` (the transitions replayed as each module in the cycle; all 0 in a
+    condition that replays over the whole goal, as ``her`` does), with the learner statistics
+    (losses, Q) and clock where the folder has them (shipped runs leave them out). Raises
+    `AnalysisError` naming the folder for a run without the table (`has_learner` says which
+    have one).
+    """
+    tables = []
+    for folder in find_run_folders(paths_or_root):
+        info = read_run_info(folder)
+        learner = _read_learner(info)
+        tables.append(pd.concat([_identity(info, len(learner)), learner], axis=1))
+    return _combined(tables)
+
+
+def learner_of(df: pd.DataFrame) -> pd.DataFrame | None:
+    """The `load_learner` table of the runs of ``df`` (any table with a ``run`` column, e.g. a
+    `load_runs` one) that kept one (`has_learner`), or None where none did: what a reading of
+    replay draws beside the runs' other tables, their older runs going without."""
+    require_identity(df)
+    kept = [run for run in df["run"].astype(str).unique() if has_learner(run)]
+    return load_learner(kept) if kept else None
+
+
 def runs_table(df: pd.DataFrame) -> pd.DataFrame:
     """One row per run of a loaded table: identity columns plus first/last episode and count."""
     require_identity(df)
@@ -538,6 +615,19 @@ def require_runs(df: pd.DataFrame) -> None:
             f"this table has no competence/<module> columns, {kind}: pass a table from "
             "curious.analysis.load_runs (metrics.parquet)"
         )
+
+
+def require_learner(df: pd.DataFrame) -> None:
+    """An `AnalysisError` unless ``df`` is a table of learner statistics (`load_learner`), with
+    rows: identity columns, ``from_episode``, ``episode`` and the ``replay/<module>`` counts."""
+    missing = [c for c in (*IDENTITY_COLUMNS, "from_episode", "episode") if c not in df]
+    if missing or not any(str(c).startswith("replay/") for c in df.columns):
+        said = ", ".join(missing) if missing else "replay/<module> columns"
+        raise AnalysisError(
+            f"this table lacks {said}: pass a table from curious.analysis.load_learner "
+            "(learner.parquet)"
+        )
+    _require_rows(df)
 
 
 def require_tests(df: pd.DataFrame) -> None:

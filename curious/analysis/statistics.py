@@ -56,6 +56,7 @@ from curious.analysis.loading import (
     require_alpha,
     require_count,
     require_episode,
+    require_learner,
     require_runs,
     require_tests,
     require_values,
@@ -82,6 +83,7 @@ __all__ = [
     "main_comparison",
     "nice_bin_size",
     "on_achievable",
+    "replay_share",
     "run_arrays",
     "welch_greater",
     "welch_per_bin",
@@ -578,6 +580,61 @@ def distractor_share(df: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     done = pd.Series(episode + 1, index=frame["run"]).groupby(level=0, observed=True).max()
     out = out[out["episodes"] <= out["run"].map(done).astype(np.int64)]
     identity = df.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
+    out = out.join(identity, on="run")
+    out.attrs["bin_size"] = bin_size
+    return out[[*RUN_COLUMNS, "episodes", "value"]].reset_index(drop=True)
+
+
+def replay_share(learner: pd.DataFrame, bin_size: int | None = None) -> pd.DataFrame:
+    """Each run's share of replayed transitions assigned to a distracting module, per
+    ``bin_size``-episode bin its table covers whole: how much of its learning a condition spends
+    on what cannot be learned, where `distractor_share` measures its practice.
+
+    ``learner`` is a `load_learner` table (``replay/<module>``: the transitions each training
+    cycle replayed as each module). A cycle that ended at ``e`` episodes counts in the bin of its
+    last episode, ``((e - 1) // w + 1) w``, as in the episode bins above; a bin counts where the
+    run completed it and its table covers it from its start (``from_episode``), and where
+    something was replayed as a module (never in a condition that replays over the whole goal,
+    as ``her`` does). ``bin_size`` defaults to `nice_bin_size` of the longest run; the run's
+    length in episodes gives one share over the whole run. Returns one row per (run, bin): the
+    run columns, ``episodes`` (the bin's end) and ``value`` (the share, 0 to 1).
+    """
+    require_learner(learner)
+    episode = learner["episode"].to_numpy(np.int64)
+    if bin_size is None:
+        bin_size = nice_bin_size(int(episode.max()))
+    require_count(bin_size, "bin_size", "episode")
+    distracting = np.zeros(len(learner), np.float64)
+    replayed = np.zeros(len(learner), np.float64)
+    for (modules, achievable), rows in learner.groupby(
+        ["modules", "achievable_modules"], observed=True
+    ).indices.items():
+        names = [m for m in str(modules).split(",") if m]
+        counts = learner[[f"replay/{m}" for m in names]].to_numpy(np.float64)[rows]
+        out = ~np.isin(names, [m for m in str(achievable).split(",") if m])
+        distracting[rows] = counts[:, out].sum(axis=1)
+        replayed[rows] = counts.sum(axis=1)
+    frame = pd.DataFrame(
+        {
+            "run": learner["run"].to_numpy(),
+            "episodes": ((episode - 1) // bin_size + 1) * bin_size,
+            "distracting": distracting,
+            "replayed": replayed,
+        }
+    )
+    sums = frame.groupby(["run", "episodes"], observed=True, sort=True)[
+        ["distracting", "replayed"]
+    ].sum()
+    out = sums.reset_index()
+    runs = pd.DataFrame({"run": learner["run"].to_numpy(), "episode": episode})
+    done = runs.groupby("run", observed=True)["episode"].max()
+    begins = learner.groupby("run", observed=True)["from_episode"].first()
+    whole = (out["episodes"] <= out["run"].map(done).astype(np.int64)) & (
+        out["episodes"] - bin_size >= out["run"].map(begins).astype(np.int64)
+    )
+    out = out[whole & (out["replayed"] > 0)]
+    out = out.assign(value=out["distracting"] / out["replayed"])
+    identity = learner.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
     out = out.join(identity, on="run")
     out.attrs["bin_size"] = bin_size
     return out[[*RUN_COLUMNS, "episodes", "value"]].reset_index(drop=True)

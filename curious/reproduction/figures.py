@@ -298,12 +298,14 @@ def _long_runs(inputs: FigureInputs) -> Figure:
     "lp_uses",
     ("lp_uses",),
     "Competence (left) and test success (middle) over the achievable modules at the end of each "
-    "run, and the share of practice on distracting modules over the runs (right): LP-select and "
-    "LP-replay beside the `distractors` experiment's CURIOUS and M-UVFA runs of the same variant.",
+    "run, and the share of practice (solid) and of replay (dashed, the runs that kept their "
+    "replay counts) on distracting modules over the runs (right): LP-select and LP-replay beside "
+    "the `distractors` experiment's CURIOUS and M-UVFA runs of the same variant.",
     untested_text="Competence over the achievable modules at the end of each run (left), and the "
-    "share of practice on distracting modules over the runs (right): LP-select and LP-replay "
-    "beside the `distractors` experiment's CURIOUS and M-UVFA runs of the same variant (the runs "
-    "have no test rollouts: no test success panel).",
+    "share of practice (solid) and of replay (dashed, the runs that kept their replay counts) on "
+    "distracting modules over the runs (right): LP-select and LP-replay beside the "
+    "`distractors` experiment's CURIOUS and M-UVFA runs of the same variant (the runs have no "
+    "test rollouts: no test success panel).",
     reads=("distractors",),
 )
 def _lp_uses(inputs: FigureInputs) -> Figure:
@@ -315,7 +317,8 @@ def _lp_uses(inputs: FigureInputs) -> Figure:
         *inputs.other("distractors"),
         inputs.experiment.variants[0],
     )
-    return analysis.lp_uses(metrics, tests, note=inputs.note)
+    learner = analysis.learner_of(metrics)
+    return analysis.lp_uses(metrics, tests, note=inputs.note, learner=learner)
 
 
 @register_figure(

@@ -43,10 +43,11 @@ import pyarrow.parquet as pq
 
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderBusy, RunFolderError
-from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.folder_layout import CONFIG_FILE, LEARNER_FILE, METRICS_FILE, TESTS_FILE
 from curious.runs.folder_lock import check_writable, folder_lock
 from curious.runs.shipped_folder import (
     COMPRESSION,
+    LEARNER_DROPPED,
     LEVEL,
     MANIFEST_FILE,
     METRICS_DROPPED,
@@ -68,8 +69,8 @@ class ShipResult:
     left_out: tuple[str, ...]
     """Runs not shipped, each as `path (why)`."""
     sizes: dict[str, int]
-    """Bytes written per file name (`metrics.parquet`, `tests.parquet`, `config.json`,
-    `shipped.json`), over every run."""
+    """Bytes written per file name (`metrics.parquet`, `tests.parquet`, `learner.parquet`,
+    `config.json`, `shipped.json`), over every run."""
     seconds: float
     kept: tuple[str, ...] = ()
     """Runs an earlier ship put in `out` that stayed there as they were (`keep`)."""
@@ -104,12 +105,13 @@ class _Found:
 
 
 def _damage(folder: RunFolder, tests_due: bool) -> str | None:
-    """Why a run's metrics.parquet or tests.parquet that is there cannot be read, or why a
-    tests.parquet that is due (`tests_due`: the run finished, and its settings ran test
-    rollouts, after every epoch and at the end) is not there; None otherwise."""
+    """Why a run's metrics.parquet, tests.parquet or learner.parquet that is there cannot be
+    read, or why a tests.parquet that is due (`tests_due`: the run finished, and its settings
+    ran test rollouts, after every epoch and at the end) is not there; None otherwise."""
     if tests_due and not folder.tests_path.is_file():
         return f"its {folder.tests_path.name} is missing, though the run tested every epoch"
-    present = [p for p in (folder.metrics_path, folder.tests_path) if p.is_file()]
+    tables = (folder.metrics_path, folder.tests_path, folder.learner_path)
+    present = [p for p in tables if p.is_file()]
     unreadable = RunFolder.unreadable_table(present)
     return None if unreadable is None else f"its {unreadable[0].name} is damaged"
 
@@ -241,6 +243,8 @@ def _write(
         tests = 0
         if f.folder.tests_path.is_file():
             tests = _reduce(f.folder.tests_path, folder / TESTS_FILE, TESTS_DROPPED)
+        if f.folder.learner_path.is_file():
+            _reduce(f.folder.learner_path, folder / LEARNER_FILE, LEARNER_DROPPED)
         runs.append(ShippedRun(f.run.as_posix(), f.finished, episodes, f.total, tests))
     manifest = ShippedManifest(budget, tuple(sorted(runs, key=lambda r: r.run)))
     ShippedFolder(target).write_manifest(manifest)
@@ -258,6 +262,8 @@ def _verify(target: Path, manifest: ShippedManifest) -> None:
         try:
             rows = len(analysis.load_runs(path))
             tests = len(analysis.load_tests(path)) if r.test_rollouts else 0
+            if (path / LEARNER_FILE).is_file():
+                analysis.load_learner(path)
         except analysis.AnalysisError as exc:
             raise ShippedError(f"the shipped run {r.run} does not load: {exc}") from None
         if (rows, tests) != (r.episodes, r.test_rollouts):

@@ -11,6 +11,9 @@ the format.
     <run>/metrics.parquet     the run's metrics.parquet without the columns in METRICS_DROPPED
     <run>/tests.parquet       the run's tests.parquet without TESTS_DROPPED (absent where the
                               run has no test rollouts)
+    <run>/learner.parquet     the run's learner.parquet without LEARNER_DROPPED: each cycle's
+                              replayed transitions per module (absent where the run kept none,
+                              as runs trained before the table did not)
 
 `<run>` is where the run folder lay below the runs root it was shipped from: for a reproduction
 the partition's path, `main/curious/seed-0` (`RunSpec.relative_path`). So a shipped run is a run
@@ -62,6 +65,10 @@ METRICS_DROPPED: tuple[str, ...] = ("worker", "g0", "g1", "g2", "success")
 """Columns of metrics.parquet a shipped run leaves out (see the module docstring)."""
 TESTS_DROPPED: tuple[str, ...] = ("g0", "g1", "g2", "wall_time")
 """Columns of tests.parquet a shipped run leaves out."""
+LEARNER_DROPPED: tuple[str, ...] = ("critic_loss", "actor_loss", "q_target_mean", "wall_time")
+"""Columns of learner.parquet a shipped run leaves out: every learner statistic
+(`curious.runs.metrics.LEARNER_STATS`) and the clock; `episode` and the `replay/<module>` counts
+stay."""
 
 
 class ShippedError(RuntimeError):
@@ -203,7 +210,7 @@ def shipped_drops(metadata: Mapping[bytes, bytes] | None) -> tuple[str, ...]:
             f"it was shipped in format {mark.get('format')!r}; this curious reads format "
             f"{FORMAT}: ship the runs again with this version"
         )
-    strangers = sorted(set(dropped) - set(METRICS_DROPPED) - set(TESTS_DROPPED))
+    strangers = sorted(set(dropped) - {*METRICS_DROPPED, *TESTS_DROPPED, *LEARNER_DROPPED})
     if strangers:
         raise ShippedError(f"its {SHIPPED_KEY.decode()} metadata drops {', '.join(strangers)}")
     return dropped

@@ -6,6 +6,7 @@ CURIOUS and M-UVFA runs of the same variant) and signed LP (`signed_lp`, read be
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -23,6 +24,7 @@ from pipelines.report.blocks import (
     markdown_table,
     other_figures,
 )
+from pipelines.report.distracting_modules import PER_RUN_BINS
 from pipelines.report.sensory_failures import (
     RECOVERED_FRACTION,
     practice_share,
@@ -79,8 +81,13 @@ def lp_uses(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> lis
         ]
     final = analysis.final_competence(metrics)
     tested = None if tests is None else analysis.final_test_success(tests)
-    share = analysis.distractor_share(metrics, int(final["episodes"].iat[0]))
-    by_run = share.set_index("run")["value"]
+    episodes = int(final["episodes"].iat[0])
+    width = analysis.nice_bin_size(episodes, PER_RUN_BINS)
+    practised = _per_bin_and_whole(analysis.distractor_share, metrics, width, episodes)
+    learner = analysis.learner_of(metrics)
+    replayed: dict[str, str] = {}
+    if learner is not None:
+        replayed = _per_bin_and_whole(analysis.replay_share, learner, width, episodes)
     tested_by_run = None if tested is None else tested.set_index("run")["value"]
     rows = [
         (
@@ -88,19 +95,22 @@ def lp_uses(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> lis
             r.seed,
             fmt(r.value),
             "–" if tested_by_run is None else fmt(tested_by_run.get(r.run, math.nan)),
-            f"{by_run.get(r.run, math.nan):.0%}",
+            practised.get(r.run, "–"),
+            replayed.get(r.run, "–"),
         )
         for r in _ordered(final).itertuples()
     ]
     header = (
         "condition",
         "seed",
-        f"competence at {int(final['episodes'].iat[0]):,}",
+        f"competence at {episodes:,}",
         "test success, last bin",
-        "episodes on a distracting module",
+        f"episodes on a distracting module, per {width:,} (whole run)",
+        f"transitions replayed as a distracting module, per {width:,} (whole run)",
     )
     lines += ["Per run (the comparison reads the seeds all four conditions have):", ""]
     lines += markdown_table(header, rows)
+    lines += [_replay_note(final, replayed), ""]
     measures = [("competence at the end (primary)", final)]
     if tested is not None:
         measures.append(("test success in the last bin (secondary, decides nothing)", tested))
@@ -121,6 +131,41 @@ def lp_uses(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> lis
             said = "; ".join(f"{use}: {verdict}" for use, verdict in readings.items())
             lines += [f"The reading fixed before the runs: {said}.", ""]
     return lines
+
+
+def _per_bin_and_whole(
+    share: Callable[[pd.DataFrame, int], pd.DataFrame], table: pd.DataFrame, width: int, whole: int
+) -> dict[str, str]:
+    """Per run of ``table``: ``share`` (`distractor_share` or `replay_share`) in each bin of
+    ``width`` episodes, then over the ``whole`` run in brackets, as percentages; a run without
+    the whole run's share (its table does not cover it) is left out."""
+    over = share(table, whole).set_index("run")["value"]
+    bins = share(table, width).groupby("run", observed=True)["value"]
+    cells = {}
+    for run, value in over.items():
+        values = bins.get_group(run) if run in bins.groups else []
+        cells[str(run)] = f"{', '.join(f'{100 * v:.0f} %' for v in values)} ({100 * value:.0f} %)"
+    return cells
+
+
+def _replay_note(final: pd.DataFrame, replayed: dict[str, str]) -> str:
+    """What the replay column reads, and which runs it cannot read."""
+    runs = final.assign(kept=final["run"].astype(str).isin(list(replayed)))
+    without = sorted(
+        {condition_label(str(c)) for c in runs.loc[~runs["kept"], "condition"]},
+        key=str,
+    )
+    note = (
+        "The last two columns are each run's share of its training episodes that practised a "
+        "distracting module, and of the transitions its updates replayed as one (the replay "
+        "counts of its learner.parquet), per bin and, in brackets, over the whole run"
+    )
+    if without:
+        note += (
+            f"; – where a run's replay counts do not cover its whole length ({', '.join(without)}"
+            ": runs trained before runs kept them have none)"
+        )
+    return note + "."
 
 
 # ----------------------------------------------------------------------------- signed LP

@@ -2,8 +2,9 @@
 
 `lp_uses` sets the four conditions side by side on `distractors_7`: each run's competence (and
 test success) at the end, and the share of its practice spent on distracting modules over the
-run. `signed_lp` is the sensory-failure figure with CURIOUS's runs under each LP measure, the
-signed ones drawn as a condition of their own (`SIGNED_LP`).
+run, with the share of its replayed transitions assigned to one where its runs kept their replay
+counts (`learner.parquet`). `signed_lp` is the sensory-failure figure with CURIOUS's runs
+under each LP measure, the signed ones drawn as a condition of their own (`SIGNED_LP`).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from curious.analysis.statistics import (
     distractor_share,
     final_competence,
     final_test_success,
+    replay_share,
 )
 from curious.analysis.style import budget_text, episodes_axis, figure_style, new_figure
 from curious.watching import palette
@@ -49,11 +51,14 @@ def lp_uses(
     note: str | None = None,
     out_dir: str | PathLike[str] | None = None,
     name: str = "lp_uses",
+    learner: pd.DataFrame | None = None,
 ) -> Figure:
     """Each condition's competence over the achievable modules at the end of its runs (and,
     with ``tests``, their test success over the last bin), one dot a run and its mean ± std, and
     the share of training episodes spent on a distracting module over the runs, mean ± std
-    across seeds: M-UVFA, `lp-replay`, `lp-select` and CURIOUS (those of them ``df`` holds)."""
+    across seeds: M-UVFA, `lp-replay`, `lp-select` and CURIOUS (those of them ``df`` holds).
+    With ``learner`` (`load_learner` of the runs that kept their replay counts), the share of
+    replayed transitions assigned to a distracting module beside it, dashed."""
     present = set(df["condition"].astype(str))
     conditions = [c for c in LP_USE_ORDER if c in present]
     if not conditions:
@@ -67,6 +72,11 @@ def lp_uses(
         tested = final_test_success(restrict(tests, conditions, None))
         panels.append((tested, "test success over the\nachievable modules, last bin"))
     share = distractor_share(rows)
+    bin_size = int(share.attrs["bin_size"])
+    replayed = None
+    kept = None if learner is None else restrict(learner, conditions, None)
+    if kept is not None and not kept.empty:
+        replayed = replay_share(kept, bin_size)
     runs = runs_of(rows)
     with figure_style():
         fig = new_figure(4.2 * len(panels) + 5.4, 4.4)
@@ -74,7 +84,7 @@ def lp_uses(
         for ax, (values, label) in zip(axes[:-1], panels, strict=True):
             _per_run_panel(ax, values, conditions)
             ax.set_ylabel(label)
-        _share_panel(axes[-1], share, conditions)
+        _share_panel(axes[-1], share, conditions, replayed)
         legend_right(axes[-1])
         fig.suptitle("LP's two uses apart — module selection and task replay")
         episodes = int(final["episodes"].iat[0])
@@ -91,10 +101,12 @@ def lp_uses(
                 f"run over episodes {max(end - width, 0) + 1:,}–{end:,}"
             )
         text += (
-            f". Right: the share of training episodes that practised a distracting module, per "
-            f"{int(share.attrs['bin_size']):,} episodes, mean ± std across seeds. LP-select "
-            "chooses modules by LP and replays uniformly; LP-replay chooses uniformly and "
-            "replays by LP; neither is in the paper."
+            f". Right: the share of training episodes that practised a distracting module "
+            f"(solid), per {bin_size:,} episodes, mean ± std across seeds"
+        )
+        text += _replay_text(replayed, conditions) + (
+            ". LP-select chooses modules by LP and replays uniformly; LP-replay chooses "
+            "uniformly and replays by LP; neither is in the paper."
         )
         caption(fig, text, note)
     return finish(fig, out_dir, name)
@@ -115,15 +127,39 @@ def _per_run_panel(ax: Axes, values: pd.DataFrame, conditions: Sequence[str]) ->
     ax.set_ylim(-0.03, 1.03)
 
 
-def _share_panel(ax: Axes, share: pd.DataFrame, conditions: Sequence[str]) -> None:
-    """The distracting modules' share of practice over the runs, a curve per condition."""
+def _share_panel(
+    ax: Axes, share: pd.DataFrame, conditions: Sequence[str], replayed: pd.DataFrame | None
+) -> None:
+    """The distracting modules' share of practice over the runs, a curve per condition, and
+    their share of replay (dashed) where ``replayed`` has the condition's runs."""
     table = across_seeds(share)
     for c in conditions:
         s = table[table["condition"].astype(str) == c].sort_values("episodes")
         draw_mean_std(ax, s, palette.condition_color(c), 2.0, palette.condition_label(c))
+    if replayed is not None and not replayed.empty:
+        table = across_seeds(replayed)
+        for c in conditions:
+            s = table[table["condition"].astype(str) == c].sort_values("episodes")
+            if not s.empty:
+                draw_mean_std(ax, s, palette.condition_color(c), 1.4, None, 0.1, "--")
     ax.set_ylim(-0.03, 1.03)
-    ax.set_ylabel("share of episodes on a distracting module")
+    ax.set_ylabel("share on a distracting module\n(solid: episodes; dashed: replay)")
     episodes_axis(ax)
+
+
+def _replay_text(replayed: pd.DataFrame | None, conditions: Sequence[str]) -> str:
+    """The caption's words for the dashed curves: what they are, and whose runs have none."""
+    have = set() if replayed is None else set(replayed["condition"].astype(str))
+    without = [palette.condition_label(c) for c in conditions if c not in have]
+    if len(without) == len(conditions):
+        return "; no run kept its replay counts, so no share of replay is drawn"
+    text = (
+        "; dashed, the share of transitions replayed as a distracting module, from the runs' "
+        "replay counts"
+    )
+    if without:
+        text += f" ({', '.join(without)}: runs trained before runs kept them, none drawn)"
+    return text
 
 
 def signed_lp(

@@ -225,10 +225,16 @@ def test_runs_of(tests: pd.DataFrame) -> pd.DataFrame:
 
 
 def draw_mean_std(
-    ax: Axes, s: pd.DataFrame, color: str, width: float, label: str | None, alpha: float = 0.2
+    ax: Axes,
+    s: pd.DataFrame,
+    color: str,
+    width: float,
+    label: str | None,
+    alpha: float = 0.2,
+    linestyle: str = "-",
 ) -> None:
     """One condition's mean curve and, with several seeds, its ± std band (opacity ``alpha``)."""
-    ax.plot(s["episodes"], s["mean"], color=color, linewidth=width, label=label)
+    ax.plot(s["episodes"], s["mean"], color=color, linewidth=width, label=label, ls=linestyle)
     if (s["n"] > 1).any():
         ax.fill_between(
             s["episodes"],
