@@ -26,6 +26,7 @@ NAMES = (
     "developmental_phases",
     "forgetting_and_sensor_failure",
     "distractors",
+    "beyond_the_paper",
 )
 
 
@@ -112,6 +113,23 @@ def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(
     tables = [o["data"]["text/plain"] for o in outputs if "text/plain" in o.get("data", {})]
     # part 3's two tables, and only those: the deepest falls per run and module, the drops
     assert len(tables) == 2 and "push_cube1" in tables[0] and "drop_episode" in tables[1]
+
+
+def test_the_beyond_the_paper_notebook_says_why_a_quick_output_has_neither_part(smoke, tmp_path):
+    """The quick budget trains neither `lp_uses` nor `signed_lp`: each part says why and draws
+    nothing. The smoke output without those runs, relabelled as made by `quick`, stands for it."""
+    out = tmp_path / "quick"
+    left = ("lp_uses", "signed_lp", "*.lock", ".dagster", "*.rrd", "checkpoints")
+    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns(*left))
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "quick"}))
+    outputs = execute("beyond_the_paper", out)
+    printed = "".join(o.get("text", "") for o in outputs if o.get("output_type") == "stream")
+    quick = get_budget("quick")
+    assert printed == "".join(
+        f"{out.resolve()} holds no {e} runs, so part {part} is skipped. {quick.why_absent(e)}\n"
+        for part, e in ((1, "lp_uses"), (2, "signed_lp"))
+    )
+    assert not [o for o in outputs if o.get("data")]  # no figure, no table
 
 
 def test_the_documented_default_viewer_setting_opens_py_files_as_notebooks(tmp_path):
