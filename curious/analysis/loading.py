@@ -39,7 +39,7 @@ check that the runs they compare agree where it matters.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from os import PathLike
 from pathlib import Path, PurePosixPath
 
@@ -438,11 +438,16 @@ def load_tests(paths_or_root: PathsOrRoot) -> pd.DataFrame:
     Raises `AnalysisError` naming the folder for a run without test rollouts: there is no
     fallback to the competence of ``metrics.parquet``, which measures something else.
     """
+    return _load_each(paths_or_root, _read_tests)
+
+
+def _load_each(paths_or_root: PathsOrRoot, read: Callable[[RunInfo], pd.DataFrame]) -> pd.DataFrame:
+    """One table of ``read``'s table of each run folder, its identity columns in front."""
     tables = []
     for folder in find_run_folders(paths_or_root):
         info = read_run_info(folder)
-        tests = _read_tests(info)
-        tables.append(pd.concat([_identity(info, len(tests)), tests], axis=1))
+        table = read(info)
+        tables.append(pd.concat([_identity(info, len(table)), table], axis=1))
     return _combined(tables)
 
 
@@ -500,12 +505,7 @@ def load_learner(paths_or_root: PathsOrRoot) -> pd.DataFrame:
     `AnalysisError` naming the folder for a run without the table (`has_learner` says which
     have one).
     """
-    tables = []
-    for folder in find_run_folders(paths_or_root):
-        info = read_run_info(folder)
-        learner = _read_learner(info)
-        tables.append(pd.concat([_identity(info, len(learner)), learner], axis=1))
-    return _combined(tables)
+    return _load_each(paths_or_root, _read_learner)
 
 
 def learner_of(df: pd.DataFrame) -> pd.DataFrame | None:
