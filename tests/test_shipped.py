@@ -552,19 +552,22 @@ def test_a_finished_run_without_its_test_rollouts_is_left_out_and_named(smoke, t
 
 
 def test_a_run_with_a_damaged_file_is_left_out_and_named_the_others_shipped(smoke, tmp_path):
-    """One run of many with a damaged tests.parquet or config.json stopped the whole ship (in
-    pyarrow's words for the first); a damaged metrics.parquet was already left out so."""
+    """One run of many with a damaged tests.parquet, learner.parquet or config.json stopped the
+    whole ship (in pyarrow's words for the first); a damaged metrics.parquet was already left out
+    so."""
     root = tmp_path / "out"
     partial_copy(smoke, root)
     runs = root / "runs" / "main"
     RunFolder(runs / "mg-te" / "seed-0").tests_path.write_bytes(b"PAR1 cut short")
     RunFolder(runs / "her" / "seed-0").config_path.write_text("")
+    RunFolder(runs / "mg-te" / "seed-1").learner_path.write_bytes(b"PAR1 cut short")
     code, stdout, err = cli(["ship", str(root), "--out", str(tmp_path / "data")])
     assert code == 0, err
     assert "main/mg-te/seed-0 (its tests.parquet is damaged)" in stdout
     assert "main/her/seed-0 (" in stdout and "config.json is damaged: it is empty" in stdout
+    assert "main/mg-te/seed-1 (its learner.parquet is damaged)" in stdout
     shipped = {r.run for r in ShippedFolder(tmp_path / "data").read_manifest().runs}
-    assert "main/mg-te/seed-0" not in shipped and "main/her/seed-0" not in shipped
+    assert not shipped & {"main/mg-te/seed-0", "main/her/seed-0", "main/mg-te/seed-1"}
     assert "main/curious/seed-1" in shipped
 
 

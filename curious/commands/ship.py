@@ -24,7 +24,7 @@ from pathlib import Path
 
 from curious.commands import folder_name
 from curious.reproduction.experiments import ExperimentError, get_budget
-from curious.runs.folder_layout import CONFIG_FILE, METRICS_FILE, TESTS_FILE
+from curious.runs.folder_layout import CONFIG_FILE, LEARNER_FILE, METRICS_FILE, TESTS_FILE
 from curious.runs.shipped_folder import MANIFEST_FILE, ShippedFolder
 from pipelines.resources import OutputLayout
 
@@ -105,10 +105,12 @@ def run(args: argparse.Namespace) -> int:
         print(f"  kept from the earlier ship: {', '.join(result.kept)}")
     sizes = result.sizes
     metadata = sizes.get(CONFIG_FILE, 0) + sizes.get(MANIFEST_FILE, 0)
+    tables = [METRICS_FILE, TESTS_FILE] + [LEARNER_FILE] * (LEARNER_FILE in sizes)
     print(
-        f"  {METRICS_FILE} {_megabytes(sizes.get(METRICS_FILE, 0))}, {TESTS_FILE} "
-        f"{_megabytes(sizes.get(TESTS_FILE, 0))}, {CONFIG_FILE} and {MANIFEST_FILE} "
-        f"{_megabytes(metadata)}: {_megabytes(result.bytes)} in all ({result.bytes:,} bytes), "
+        "  "
+        + "".join(f"{name} {_megabytes(sizes.get(name, 0))}, " for name in tables)
+        + f"{CONFIG_FILE} and {MANIFEST_FILE} {_megabytes(metadata)}: "
+        f"{_megabytes(result.bytes)} in all ({result.bytes:,} bytes), "
         f"{sum(r.episodes for r in runs):,} episodes, in {result.seconds:.1f} s"
     )
     if result.left_out:
