@@ -301,3 +301,26 @@ def test_without_the_worktree_on_the_path_the_queue_says_how_to_start_it(tmp_pat
     assert done.returncode == 2, done.stderr
     assert "PYTHONPATH" in done.stderr and "tools/campaign.sh" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_plan_only_records_each_steps_seeds_and_trains_nothing(campaign, tmp_path, capsys):
+    """A campaign of two steps records its whole plan before either trains: each `--plan-only`
+    adds its seeds beyond the budget's to reproduce.json, keeps those recorded before, writes no
+    run folder, and `curious progress` lists every planned run as not started."""
+    from curious.reproduction.campaign_progress import progress_table
+    from curious.reproduction.experiments import get_budget
+
+    out = tmp_path / "out"
+    smoke = ["--budget", "smoke", "--out", str(out), "--plan-only"]
+    assert campaign.main([*smoke, "--seeds", "main=0-2", "--only", "main/*"]) == 0
+    assert campaign.main([*smoke, "--seeds", "distractors=0,3", "--only", "distractors/*"]) == 0
+    manifest = json.loads((out / "reproduce.json").read_text())
+    assert manifest["extra_seeds"] == {"main": [2], "distractors": [3]}
+    assert not (out / "runs").exists() or not any((out / "runs").rglob("config.json"))
+    rows = progress_table(out)
+    budget = get_budget("smoke")
+    assert len(rows) == len(budget.runs()) + 3 + len(budget.experiments["distractors"].runs())
+    assert not any(r.episodes for r in rows)
+    with pytest.raises(SystemExit):
+        campaign.main([*smoke, "--dry-run"])
+    assert "--plan-only writes the plan, --dry-run writes nothing" in capsys.readouterr().err

@@ -33,8 +33,10 @@ the budget's runs, pattern by pattern of `--only` again, experiment by experimen
 then the main comparison to five, as the paper's. Their seeds are written in the folder's
 `reproduce.json` (`extra_seeds`), so that `curious progress` lists those not started as it lists
 the budget's; a later start with fewer (`--seeds none`, the budget's runs alone) keeps them
-there. `curious ship` ships them, and `curious reproduce --from-data` reads a seed beyond the
-budget's once every run of it in an experiment is shipped finished.
+there. `--plan-only` writes them and stops, so that a campaign of several steps records its
+whole plan before its first step trains (`tools/campaign.sh` does). `curious ship` ships them,
+and `curious reproduce --from-data` reads a seed beyond the budget's once every run of it in an
+experiment is shipped finished.
 
 With `--ship`, each run that finishes is shipped at once into the `--shipped` folder (`curious
 ship --keep`, by the checkout this file lies in) and committed there, so that a machine that is lost
@@ -290,9 +292,17 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--workers", type=int, default=2, help="runs side by side (default 2)")
     parser.add_argument("--dry-run", action="store_true", help="list the queue and stop")
+    parser.add_argument(
+        "--plan-only",
+        action="store_true",
+        help="record the seeds beyond the budget's that the queue trains in the output folder's "
+        "reproduce.json (the plan `curious progress` counts), then stop without training",
+    )
     args = parser.parse_args(argv)
     if args.ship and args.shipped is None:
         parser.error("--ship needs --shipped: the data folder to ship into")
+    if args.plan_only and args.dry_run:
+        parser.error("--plan-only writes the plan, --dry-run writes nothing: give one")
 
     if args.workers < 1:
         parser.error(f"--workers must be at least 1, got {args.workers}")
@@ -334,6 +344,8 @@ def main(argv: list[str] | None = None) -> int:
         plan[name] = tuple(dict.fromkeys(plan.get(name, ()) + extra))
     _write_manifest(layout, budget)
     record_seeds(layout, plan)
+    if args.plan_only:
+        return 0
     jobs = [Job(spec, str(layout.runs_root), overrides) for spec in specs]
     tic = time.time()
     pool = LocalPool(args.workers)
