@@ -51,6 +51,18 @@ def test_the_share_of_replay_on_distracting_modules_is_read_per_bin_and_over_the
     np.testing.assert_allclose(whole["value"], [70 * 5 / (40 * 5 + 110 * 5)])
 
 
+def test_runs_of_several_module_sets_are_read_each_over_its_own_modules(tmp_path):
+    _run(tmp_path / "seven", _cycles(5, 1, 7))  # 7 distracting modules, 4 achievable
+    names, achievable = distractor_modules(4)
+    folder = tmp_path / "four" / "curious" / "seed-1"
+    write_run(folder, condition="curious", seed=1, competence={m: np.full(40, 0.5) for m in names},
+              achievable=achievable, variant="distractors_4")  # fmt: skip
+    write_learner(folder, names, np.tile(np.where(achievable, 1, 3), (5, 1)), PER_CYCLE)
+    shares = analysis.replay_share(analysis.load_learner(tmp_path), 40)
+    by_variant = dict(zip(shares["variant"].astype(str), shares["value"], strict=True))
+    assert by_variant == pytest.approx({"distractors_7": 7 / 35, "distractors_4": 12 / 16})
+
+
 def test_a_bin_counts_only_where_the_table_covers_it_whole(tmp_path):
     # the table begins at episode 20 (a run resumed from before it) and ends at 100: of the bins
     # of 40, the first began before it and the third is not complete
