@@ -611,8 +611,8 @@ def replay_share(learner: pd.DataFrame, bin_size: int | None = None) -> pd.DataF
     ).indices.items():
         names = [m for m in str(modules).split(",") if m]
         counts = learner[[f"replay/{m}" for m in names]].to_numpy(np.float64)[rows]
-        out = ~np.isin(names, [m for m in str(achievable).split(",") if m])
-        distracting[rows] = counts[:, out].sum(axis=1)
+        distractors = ~np.isin(names, [m for m in str(achievable).split(",") if m])
+        distracting[rows] = counts[:, distractors].sum(axis=1)
         replayed[rows] = counts.sum(axis=1)
     frame = pd.DataFrame(
         {
@@ -626,8 +626,7 @@ def replay_share(learner: pd.DataFrame, bin_size: int | None = None) -> pd.DataF
         ["distracting", "replayed"]
     ].sum()
     out = sums.reset_index()
-    runs = pd.DataFrame({"run": learner["run"].to_numpy(), "episode": episode})
-    done = runs.groupby("run", observed=True)["episode"].max()
+    done = learner.groupby("run", observed=True)["episode"].max()
     begins = learner.groupby("run", observed=True)["from_episode"].first()
     whole = (out["episodes"] <= out["run"].map(done).astype(np.int64)) & (
         out["episodes"] - bin_size >= out["run"].map(begins).astype(np.int64)
