@@ -104,11 +104,16 @@ if uses is not None:
     if tests is not None:
         tested = analysis.final_test_success(tests).set_index("run")["value"]
         per_run["test_success"] = per_run["run"].map(tested)
-    practice = analysis.distractor_share(metrics, episodes).set_index("run")["value"]
+
+    def over_the_run(share: pd.DataFrame) -> pd.Series:
+        """Each run's share over its first `episodes` (the bin that ends there)."""
+        return share[share["episodes"] == episodes].set_index("run")["value"]
+
+    practice = over_the_run(analysis.distractor_share(metrics, episodes))
     per_run["practice_on_distractors"] = per_run["run"].map(practice)
     replay = pd.Series(dtype=float)
     if learner is not None:
-        replay = analysis.replay_share(learner, episodes).set_index("run")["value"]
+        replay = over_the_run(analysis.replay_share(learner, episodes))
     per_run["replay_on_distractors"] = per_run["run"].map(replay).astype(float)
     display(per_run.drop(columns="run").sort_values(["condition", "seed"]).round(3))
 

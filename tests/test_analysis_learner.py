@@ -149,3 +149,24 @@ def test_the_smoke_report_gives_each_lp_uses_run_its_share_of_replay(smoke):
         expected.add(f"{', '.join(f'{100 * v:.0f} %' for v in shares)} ({100 * value:.0f} %)")
     assert cells == expected
     assert "the replay counts of its learner.parquet" in section
+
+
+def test_a_learner_table_without_a_cycle_counts_as_none_kept(tmp_path):
+    """A run that has not updated yet (or never does) holds an empty table: no replay is read
+    from it, and loading it says why."""
+    folder = _run(tmp_path, _cycles(0, 1, 1), episodes=40)
+    assert not analysis.has_learner(folder)
+    assert analysis.learner_of(analysis.load_runs(folder)) is None
+    with pytest.raises(AnalysisError, match="has no cycle with updates yet"):
+        analysis.load_learner(folder)
+
+
+def test_the_reports_shares_read_every_run_over_the_same_episodes(tmp_path):
+    """In the `lp_uses` table per run, a longer run's shares are read over the bins of the
+    shortest run's length, and its share over those episodes, not over its later stretch."""
+    from pipelines.report.lp_studies import _per_bin_and_whole
+
+    _run(tmp_path, _cycles(10, 0, 10), seed=0)  # 80 episodes, nothing on the distractors
+    _run(tmp_path, np.concatenate([_cycles(10, 0, 10), _cycles(10, 10, 0)]), seed=1)
+    cells = _per_bin_and_whole(analysis.replay_share, analysis.load_learner(tmp_path), 40, 80)
+    assert sorted(cells.values()) == ["0 %, 0 % (0 %)", "0 %, 0 % (0 %)"]

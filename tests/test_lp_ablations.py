@@ -158,6 +158,7 @@ def beyond(tmp_path_factory):
 
 def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_path):
     from curious.analysis.figures.beyond_paper import LP_USE_ORDER, lp_uses
+    from curious.watching.palette import condition_color
 
     runs, tests = beyond["uses"]
     fig = lp_uses(runs, tests, out_dir=tmp_path, learner=analysis.learner_of(runs))
@@ -172,15 +173,16 @@ def test_the_lp_uses_figure_sets_the_four_conditions_side_by_side(beyond, tmp_pa
     dashed = [line for line in right.get_lines() if line.get_linestyle() == "--"]
     # the share of replay where the runs kept their counts: 7 x 10 of 7 x 10 + 4 x 30, and 7 x 20
     # of 7 x 20 + 4 x 30 in every bin
-    assert len(dashed) == 2
-    first = sorted(line.get_ydata()[0] for line in dashed)
-    np.testing.assert_allclose(first, [70 / 190, 140 / 260])
+    first = {line.get_color(): line.get_ydata()[0] for line in dashed}
+    assert first == pytest.approx(
+        {condition_color("lp-select"): 70 / 190, condition_color("lp-replay"): 140 / 260}
+    )
     text = fig.get_supxlabel()
     assert "neither is in the paper" in text and "3 seeds (0–2)" in text
-    assert "(M-UVFA, CURIOUS: runs trained before runs kept them, none drawn)" in text
+    assert "(M-UVFA, CURIOUS: none drawn, their runs' replay counts covering" in text
     without = lp_uses(runs, tests)
     assert not [line for line in without.axes[2].get_lines() if line.get_linestyle() == "--"]
-    assert "no run kept its replay counts" in without.get_supxlabel()
+    assert "no run's replay counts cover a whole bin" in without.get_supxlabel()
 
 
 def test_the_signed_lp_figure_draws_both_measures_as_two_conditions(beyond, tmp_path):

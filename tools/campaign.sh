@@ -29,8 +29,9 @@
 # campaign's runs"). The earlier phases of the campaign (the budget's runs, the study on a
 # mastered module's seeds 0-2, the distractors' seed 2 and main's seeds 3 and 4) are all shipped.
 #
-# Before the lanes start, every step records the seeds it adds beyond the budget's in the runs'
-# reproduce.json (`campaign.py --plan-only`), so that `curious progress` counts the whole plan.
+# Before a lane starts, each of its steps records the seeds it adds beyond the budget's in the
+# runs' reproduce.json (`campaign.py --plan-only`), so that `curious progress` counts the whole
+# plan.
 #
 # Settings (environment): CAMPAIGN_RUNS (~/curious-runs), CAMPAIGN_WORKTREE,
 # CAMPAIGN_C5_WORKTREE, CAMPAIGN_LONG_WORKTREE, CAMPAIGN_BEYOND_WORKTREE. Logs: $CAMPAIGN_RUNS/laptop-lane-{a,b}.log. The
@@ -89,16 +90,15 @@ main() {
             ;;
         "")
             mkdir -p "$runs"
-            # every step's seeds beyond the budget's into reproduce.json first, so that
-            # `curious progress` counts the whole plan, not only the steps begun
-            for lane in a b; do
-                lane_steps "$lane" --plan-only >/dev/null
-            done
             for lane in a b; do
                 if pgrep -f "tools/campaign.sh --lane $lane" >/dev/null; then
                     echo "campaign.sh: lane $lane is already training (pgrep -af campaign)"
                     continue
                 fi
+                # its steps' seeds beyond the budget's into reproduce.json first, so that
+                # `curious progress` counts the whole plan, not only the steps begun
+                lane_steps "$lane" --plan-only >/dev/null ||
+                    echo "campaign.sh: lane $lane's plan not recorded; it trains all the same" >&2
                 nohup nice -n 5 bash "$repo/tools/campaign.sh" --lane "$lane" \
                     >>"$runs/laptop-lane-$lane.log" 2>&1 &
                 echo "campaign.sh: lane $lane training (pid $!), log $runs/laptop-lane-$lane.log"

@@ -1,7 +1,8 @@
 """Analysis of run folders: loading, statistics and the paper's figures.
 
 Pipelines and notebooks call this package; it reads run folders only (``config.json``,
-``metrics.parquet`` and ``tests.parquet``, docs/architecture.md) and never the Rerun recording.
+``metrics.parquet``, ``tests.parquet`` and the replay counts of ``learner.parquet``,
+docs/architecture.md) and never the Rerun recording.
 
 ```python
 from curious import analysis

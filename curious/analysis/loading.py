@@ -14,8 +14,9 @@ A shipped data folder (`curious.runs.shipped_folder`, written by ``curious ship`
 reproduction's runs
 reduced to what the analysis reads, e.g. the repository's ``data/laptop``) is a folder of run
 folders too, and loads wherever run folders do: ``load_runs("data/laptop/main")``. Its tables
-lack the columns shipping leaves out (the goals, the worker, the raw self-evaluations and the
-tests' clock; their parquet metadata says which), and every column they keep is the run's own.
+lack the columns shipping leaves out (the goals, the worker, the raw self-evaluations, the
+tests' clock, and the learner's losses, Q and clock; their parquet metadata says which), and
+every column they keep is the run's own.
 
 What ``config.json`` says about a run is read by `curious.runs.folder.RunFolder.read_info`, which
 knows every version of the file (`read_run_info` here raises its errors as `AnalysisError`).
@@ -452,9 +453,16 @@ def _load_each(paths_or_root: PathsOrRoot, read: Callable[[RunInfo], pd.DataFram
 
 
 def has_learner(path: str | PathLike[str]) -> bool:
-    """Whether the run folder at ``path`` kept a ``learner.parquet`` (runs trained before the
-    table existed did not, nor do shipped runs of them)."""
-    return RunFolder(path).learner_path.is_file()
+    """Whether the run folder at ``path`` kept a ``learner.parquet`` with a cycle in it (runs
+    trained before the table existed did not, nor do shipped runs of them, nor a run that has
+    not updated yet)."""
+    path = RunFolder(path).learner_path
+    if not path.is_file():
+        return False
+    try:
+        return pq.read_metadata(path).num_rows > 0
+    except (OSError, ValueError):  # a damaged table: `load_learner` says what is wrong
+        return True
 
 
 def _read_learner(info: RunInfo) -> pd.DataFrame:

@@ -262,7 +262,7 @@ def _verify(target: Path, manifest: ShippedManifest) -> None:
         try:
             rows = len(analysis.load_runs(path))
             tests = len(analysis.load_tests(path)) if r.test_rollouts else 0
-            if (path / LEARNER_FILE).is_file():
+            if analysis.has_learner(path):
                 analysis.load_learner(path)
         except analysis.AnalysisError as exc:
             raise ShippedError(f"the shipped run {r.run} does not load: {exc}") from None

@@ -1,6 +1,7 @@
 """The run's tables: `metrics.parquet` (one row per training episode), `tests.parquet` (one row
 per test rollout) and `learner.parquet` (one row per cycle with updates: what the recording shows
-of the replay and the learner), columns as in docs/architecture.md.
+of the replay and the learner, whose replay counts the analysis reads), columns as in
+docs/architecture.md.
 
 Rows accumulate in memory and the file is rewritten atomically at every flush (write a temporary
 file beside it, then rename over it), so a run killed at any moment, SIGKILL included, leaves the
@@ -196,9 +197,10 @@ class LearnerLog(TableLog):
 
     `from_episode` is where the table begins: 0 for a run that wrote it from its start; a run
     from before the table, or whose table was lost, begins it where it resumes, so that a
-    rebuilt recording can say from which episode these series are there. These statistics are
-    for looking, never a reason a run cannot resume: a table that cannot be read is set aside
-    as `learner.parquet.unreadable`, with a warning, and a new one begins.
+    rebuilt recording can say from which episode these series are there (and the analysis which
+    stretch its replay counts cover). The table is never a reason a run cannot resume: one that
+    cannot be read is set aside as `learner.parquet.unreadable`, with a warning, and a new one
+    begins.
     """
 
     def __init__(self, path: str | os.PathLike, module_names: Sequence[str], episodes: int) -> None:

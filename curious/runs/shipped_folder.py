@@ -25,11 +25,12 @@ types, the same values), so every number drawn from them is the run's. They leav
 analysis, figure, report or notebook reads: the goal of every episode (`g0..g2`, random floats
 that are most of the bytes), the worker, each episode's `success` (the competence, LP and p_LP
 computed from the self-evaluations' successes are kept, and with them the episode's `module`
-and `eval` flag, from which the order of learning counts each module's evaluations), and the
-clock of the test rollouts. Each reduced table says so in its parquet metadata
-(`SHIPPED_KEY`), which `shipped_drops` reads for the loaders. They are written with zstd
-(`COMPRESSION`, `LEVEL`), dictionary-encoded only for strings; writing the same runs again gives
-the same bytes.
+and `eval` flag, from which the order of learning counts each module's evaluations), the
+clock of the test rollouts, and the learner's losses, Q values and clock (its replay counts per
+module are kept: `lp_uses` reads its share of replay from them). Each reduced table says so in
+its parquet metadata (`SHIPPED_KEY`), which `shipped_drops` reads for the loaders. They are
+written with zstd (`COMPRESSION`, `LEVEL`), dictionary-encoded only for strings; writing the
+same runs again gives the same bytes.
 
 `shipped.json`:
 

@@ -137,20 +137,24 @@ def _per_bin_and_whole(
     share: Callable[[pd.DataFrame, int], pd.DataFrame], table: pd.DataFrame, width: int, whole: int
 ) -> dict[str, str]:
     """Per run of ``table``: ``share`` (`distractor_share` or `replay_share`) in each bin of
-    ``width`` episodes, then over the ``whole`` run in brackets, as percentages; a run without
-    the whole run's share (its table does not cover it) is left out."""
-    over = share(table, whole).set_index("run")["value"]
-    bins = share(table, width).groupby("run", observed=True)["value"]
+    ``width`` episodes up to ``whole``, then over the first ``whole`` episodes in brackets, as
+    percentages (– where the run's table does not cover it); a run with neither is left out."""
+    over = share(table, whole)
+    over = over[over["episodes"] == whole].set_index("run")["value"]
+    bins = share(table, width)
+    bins = bins[bins["episodes"] <= whole].groupby("run", observed=True)["value"]
     cells = {}
-    for run, value in over.items():
+    for run in dict.fromkeys([*bins.groups, *over.index]):
         values = bins.get_group(run) if run in bins.groups else []
-        cells[str(run)] = f"{', '.join(f'{100 * v:.0f} %' for v in values)} ({100 * value:.0f} %)"
+        total = f"{100 * over[run]:.0f} %" if run in over.index else "–"
+        cells[str(run)] = f"{', '.join(f'{100 * v:.0f} %' for v in values)} ({total})"
     return cells
 
 
 def _replay_note(final: pd.DataFrame, replayed: dict[str, str]) -> str:
     """What the replay column reads, and which runs it cannot read."""
-    runs = final.assign(kept=final["run"].astype(str).isin(list(replayed)))
+    covered = [run for run, cell in replayed.items() if not cell.endswith("(–)")]
+    runs = final.assign(kept=final["run"].astype(str).isin(covered))
     without = sorted(
         {condition_label(str(c)) for c in runs.loc[~runs["kept"], "condition"]},
         key=str,

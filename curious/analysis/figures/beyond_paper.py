@@ -152,13 +152,16 @@ def _replay_text(replayed: pd.DataFrame | None, conditions: Sequence[str]) -> st
     have = set() if replayed is None else set(replayed["condition"].astype(str))
     without = [palette.condition_label(c) for c in conditions if c not in have]
     if len(without) == len(conditions):
-        return "; no run kept its replay counts, so no share of replay is drawn"
+        return "; no share of replay is drawn: no run's replay counts cover a whole bin"
     text = (
         "; dashed, the share of transitions replayed as a distracting module, from the runs' "
         "replay counts"
     )
     if without:
-        text += f" ({', '.join(without)}: runs trained before runs kept them, none drawn)"
+        text += (
+            f" ({', '.join(without)}: none drawn, their runs' replay counts covering no whole "
+            "bin; runs trained before runs kept them have none)"
+        )
     return text
 
 
