@@ -92,6 +92,21 @@ def test_notebook_executes_against_the_smoke_output_and_its_shipped_data(name, s
     assert from_data == from_runs
 
 
+def quick_copy(smoke, tmp_path: Path, without: tuple[str, ...]) -> Path:
+    """The smoke output copied without the runs `without` names (no locks, Dagster state,
+    recordings or checkpoints) and relabelled as made by `quick`: what a quick output holds."""
+    out = tmp_path / "quick"
+    left = (*without, "*.lock", ".dagster", "*.rrd", "checkpoints")
+    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns(*left))
+    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "quick"}))
+    return out
+
+
+def stream_text(outputs: list[nbformat.NotebookNode]) -> str:
+    """What the notebook's cells printed, in order."""
+    return "".join(o.get("text", "") for o in outputs if o.get("output_type") == "stream")
+
+
 def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(smoke, tmp_path):
     """The quick budget trains neither sensory-failure experiment: parts 1 and 2 say why and
     skip, part 3 (spontaneous forgetting) runs.
@@ -99,12 +114,9 @@ def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(
     The smoke output, copied without its sensor_failure runs and relabelled as made by `quick`,
     stands for a quick output folder.
     """
-    out = tmp_path / "quick"
-    left = ("sensor_failure*", "*.lock", ".dagster", "*.rrd", "checkpoints")
-    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns(*left))
-    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "quick"}))
+    out = quick_copy(smoke, tmp_path, ("sensor_failure*",))
     outputs = execute("forgetting_and_sensor_failure", out)
-    printed = "".join(o.get("text", "") for o in outputs if o.get("output_type") == "stream")
+    printed = stream_text(outputs)
     quick = get_budget("quick")
     assert printed == "".join(
         f"{out.resolve()} holds no {e} runs, so part {part} is skipped. {quick.why_absent(e)}\n"
@@ -118,12 +130,9 @@ def test_forgetting_notebook_runs_on_a_quick_output_without_the_sensory_failure(
 def test_the_beyond_the_paper_notebook_says_why_a_quick_output_has_neither_part(smoke, tmp_path):
     """The quick budget trains neither `lp_uses` nor `signed_lp`: each part says why and draws
     nothing. The smoke output without those runs, relabelled as made by `quick`, stands for it."""
-    out = tmp_path / "quick"
-    left = ("lp_uses", "signed_lp", "*.lock", ".dagster", "*.rrd", "checkpoints")
-    shutil.copytree(smoke.out, out, ignore=shutil.ignore_patterns(*left))
-    (out / "reproduce.json").write_text(json.dumps({"version": 1, "budget": "quick"}))
+    out = quick_copy(smoke, tmp_path, ("lp_uses", "signed_lp"))
     outputs = execute("beyond_the_paper", out)
-    printed = "".join(o.get("text", "") for o in outputs if o.get("output_type") == "stream")
+    printed = stream_text(outputs)
     quick = get_budget("quick")
     assert printed == "".join(
         f"{out.resolve()} holds no {e} runs, so part {part} is skipped. {quick.why_absent(e)}\n"
