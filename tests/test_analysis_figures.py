@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -19,7 +20,7 @@ from test_analysis_synthetic import (
 )
 
 from curious import analysis
-from curious.analysis.style import format_episodes
+from curious.analysis.style import format_episodes, seeds_text
 from curious.watching import palette
 
 
@@ -91,6 +92,8 @@ def test_every_figure_writes_png_and_svg_and_rebuilds_byte_identical(name, studi
     # distracting modules).
     caption = _caption(first)
     assert "seed" in caption and "episodes" in caption
+    assert not re.search(r"seeds \d+ seed", caption), caption
+    assert not re.search(r"\. [a-z]", caption), f"a sentence starts in lower case: {caption}"
     assert "preset synthetic" in caption
     labels = {ax.get_xlabel() for ax in first.axes if ax.get_xlabel()}
     if name == "distractors":
@@ -424,6 +427,8 @@ def test_the_long_runs_figure_draws_every_seed_whole_and_marks_drops_and_dips(st
     assert fig.axes[0].get_ylabel().startswith(f"seed {seeds[0]}")
     marks = [line for ax in fig.axes for line in ax.lines if line.get_marker() == "v"]
     assert len(marks) == 1 and list(marks[0].get_xdata()) == [300]
-    assert "Triangles: the troughs of the 1 dip (" in _caption(fig)
+    text = _caption(fig)
+    assert "Triangles: the troughs of the 1 dip (" in text
+    assert text.startswith(f"CURIOUS: {seeds_text(seeds)}; ")
     with pytest.raises(analysis.AnalysisError, match="no seed"):
         analysis.long_runs(table, seeds=[99])

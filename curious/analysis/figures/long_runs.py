@@ -110,7 +110,7 @@ def long_runs(
             f"{n_drops} drop{'s' * (n_drops != 1)} of a mastered module by {DROP_DEPTH:g} or "
             "more, shaded in the module's colour from the start of its descent to its recovery"
             if n_drops
-            else f"no mastered module's competence fell by {DROP_DEPTH:g} or more below its peak "
+            else f"No mastered module's competence fell by {DROP_DEPTH:g} or more below its peak "
             "(nothing shaded)"
         )
         dips_text = (
@@ -121,7 +121,7 @@ def long_runs(
         )
         caption(
             fig,
-            f"{label}, seeds {seeds_text(runs['seed'])}; {budget_text(runs['n_episodes'])} "
+            f"{label}: {seeds_text(runs['seed'])}; {budget_text(runs['n_episodes'])} "
             f"({setting_text(runs)}), each run whole, sampled every "
             f"{episodes_text(curve_bin(int(runs['n_episodes'].max())))}. Competence: success "
             "rate of the module's recent self-evaluations; absolute LP: |competence over the "
