@@ -214,11 +214,15 @@ drops[columns].round(3)
 # every dip of a mastered module's competence of 0.1 (the depth tested) and of 0.05 below its
 # peak, the change of the module's p_LP and share of practice from the 5,000 episodes before the
 # dip to the 5,000 after, and its excess over the same module's windows without a dip; then, per
-# condition, the one-sided exact sign-flip test of the runs' mean excess (a run one unit).
+# condition, the one-sided exact sign-flip test of the runs' mean excess (a run one unit). A
+# `long` run retraces the `main` run of its seed over the main run's episodes, so the test keeps
+# one run per condition, variant and seed, the longest (`analysis.longest_per_seed`).
 
 # %%
+display(analysis.shorter_of_seed(spontaneous).rename_axis("left out of the test"))
+units = analysis.longest_per_seed(spontaneous)
 for depth in analysis.DIP_DEPTHS:
-    found = analysis.dip_responses(spontaneous, depth)
+    found = analysis.dip_responses(units, depth)
     print(f"depth {depth:g}: {len(found)} dips,", dict(found["status"].value_counts()))
     for condition, own in found.groupby("condition", observed=True):
         tests = {c: analysis.dip_test(own, c) for c in ("excess_p_lp", "excess_practice")}

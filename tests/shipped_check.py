@@ -32,6 +32,7 @@ from curious.reproduction.experiments import BEYOND_PAPER, get_budget
 from curious.runs.folder_layout import CONFIG_FILE, LEARNER_FILE, METRICS_FILE, TESTS_FILE
 from curious.runs.shipped_folder import MANIFEST_FILE, ShippedFolder
 from pipelines.from_data import ShippedData, ShippedDataError
+from pipelines.report.long_study import UNPERTURBED
 
 
 def files_of(folder: Path) -> set[str]:
@@ -166,5 +167,17 @@ def check_shipped_folder(data: Path, out: Path, built: bool = False) -> str:
         if experiment in unperturbed:
             without_drops += analysis.mastery_drops(runs).empty
     assert report.count("No drop of a mastered module in these runs.") == without_drops
+    if "long" in built:  # the dips' test: one run per seed, the longest (`longest_per_seed`)
+        pooled = pd.concat(
+            [pd.read_parquet(out / "metrics" / f"{e}.parquet") for e in UNPERTURBED if e in built]
+        )
+        pooled = pooled[pooled["condition"] == "curious"]
+        left = analysis.shorter_of_seed(pooled)
+        line = next(x for x in report.splitlines() if x.startswith("The dips' test over every"))
+        assert f"({pooled['run'].nunique() - len(left)} runs of " in line, line
+        assert (", the longest; left out: " in line) == (not left.empty), line
+        for r in left.itertuples():
+            pair = "/".join(Path(r.run).parts[-3:]) + " (for " + "/".join(Path(r.kept).parts[-3:])
+            assert pair in line, line
     assert f"This report was built from {n_runs} runs, " in report, "the header counts its runs"
     return report

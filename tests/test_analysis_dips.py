@@ -4,12 +4,23 @@ computed as the rule says, and the exact sign-flip test."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
 from test_analysis_synthetic import write_run
 
-from curious.analysis import DIP_COLUMNS, dip_responses, dip_test, load_runs, mastery, mastery_dips
+from curious.analysis import (
+    DIP_COLUMNS,
+    dip_responses,
+    dip_test,
+    load_runs,
+    longest_per_seed,
+    mastery,
+    mastery_dips,
+    shorter_of_seed,
+)
 from curious.analysis.loading import AnalysisError
 
 N = 40_000
@@ -110,6 +121,39 @@ def test_the_sign_flip_test_counts_every_flip_with_the_run_as_the_unit():
     assert empty["n_runs"] == 0 and np.isnan(empty["p"]) and not empty["significant"]
     with pytest.raises(AnalysisError, match="excess_p_lp or excess_practice"):
         dip_test(table({"a": [1.0]}), column="p_lp_change")
+
+
+def test_a_pool_keeps_one_run_per_condition_variant_and_seed_the_longest(tmp_path):
+    """A `long` run retraces the `main` run of its seed: the shorter is left out of a pool whose
+    unit is a run; another seed, condition or variant is another unit; of two runs of one
+    length, the first by name stays."""
+    curve = {"reach": np.linspace(0.0, 1.0, 3_000)}
+
+    def run(name: str, n: int, **kw) -> None:
+        kw = {"condition": "curious", "seed": 0, **kw}
+        short = {m: c[:n] for m, c in curve.items()}
+        write_run(tmp_path / name, competence=short, achievable=[True], **kw)
+
+    run("long/curious/seed-0", 3_000)
+    run("main/curious/seed-0", 1_000)
+    run("main/curious/seed-1", 1_000, seed=1)
+    run("main/m-uvfa/seed-0", 1_000, condition="m-uvfa")
+    run("distractors/curious@distractors_4/seed-0", 1_000, variant="distractors_4")
+    run("twin-a/curious/seed-2", 1_000, seed=2)
+    run("twin-b/curious/seed-2", 1_000, seed=2)
+    table = load_runs(tmp_path)
+    left = shorter_of_seed(table)
+    assert [Path(r).relative_to(tmp_path).as_posix() for r in left["run"]] == [
+        "main/curious/seed-0",
+        "twin-b/curious/seed-2",
+    ]
+    assert [Path(r).parts[-3] for r in left["kept"]] == ["long", "twin-a"]
+    assert left["episodes"].tolist() == [1_000, 1_000]
+    assert left["kept_episodes"].tolist() == [3_000, 1_000]
+    kept = longest_per_seed(table)
+    assert kept["run"].nunique() == 5
+    assert not kept["run"].astype(str).isin(left["run"]).any()
+    assert len(kept) == len(table) - 2_000  # every row of the runs kept, none of the others
 
 
 @pytest.mark.parametrize(

@@ -691,6 +691,29 @@ def test_c3_the_dips_in_the_shipped_runs():
     assert f"in {p_lp['n_positive']} of {n} CURIOUS runs (p = {format_p(p_lp['p'])}" in text
 
 
+def test_c3_each_shipped_long_run_retraces_the_main_run_of_its_seed():
+    """Why the dips' test keeps one run per seed (results.md, C3's rules): over the main run's
+    episodes, a long run logged what the main comparison's run of its seed logged, every column
+    but the clock."""
+    import pandas as pd
+
+    from curious.runs.folder_layout import METRICS_FILE
+
+    pairs = [
+        (long, DATA / "main" / "curious" / long.name)
+        for long in sorted((DATA / "long" / "curious").glob("seed-*"))
+        if (DATA / "main" / "curious" / long.name).is_dir()
+    ]
+    if not pairs:
+        pytest.skip("no long run shipped yet")
+    assert "had logged over those episodes exactly what the shipped" in _text(RESULTS)
+    for long, main in pairs:
+        short = pd.read_parquet(main / METRICS_FILE).drop(columns="wall_time")
+        extended = pd.read_parquet(long / METRICS_FILE).drop(columns="wall_time")
+        extended = extended[extended["episode"] < len(short)].reset_index(drop=True)
+        pd.testing.assert_frame_equal(extended, short, obj=f"{long.name}: long against main")
+
+
 def test_c5_the_censored_reading_at_three_seeds_a_side():
     """The log-rank test fixed for five seeds a side, on the three shipped, as results.md gives
     it (while seeds 3 and 4 train)."""

@@ -28,6 +28,9 @@ dips:
 5. **Test** (`dip_test`). One number per run: its dips' mean excess; a one-sided exact sign-flip
    permutation test that the mean over runs is above 0 (every run's sign flipped in every
    combination: 2^n for n runs), since a run's dips share one agent and are not independent.
+6. **One unit per seed** (`longest_per_seed`). Runs of one condition, variant, preset and seed
+   are one run for as long as the shorter lasts (a `long` run retraces the `main` run of its
+   seed episode for episode): a pool keeps the longest of them only.
 """
 
 from __future__ import annotations
@@ -54,7 +57,9 @@ __all__ = [
     "TEST_DEPTH",
     "dip_responses",
     "dip_test",
+    "longest_per_seed",
     "mastery_dips",
+    "shorter_of_seed",
 ]
 
 TEST_DEPTH = 0.1
@@ -278,3 +283,42 @@ def dip_test(
         "significant": bool(p < alpha) if np.isfinite(p) else False,
         "per_run": per_run,
     }
+
+
+SEED_KEY: tuple[str, ...] = ("condition", "variant", "preset", "seed")
+"""What makes runs one run while the shorter lasts: the same agent, task and seed."""
+
+
+def shorter_of_seed(df: pd.DataFrame) -> pd.DataFrame:
+    """The runs of ``df`` (a `load_runs` table) that a longer run of the same `SEED_KEY`
+    stands for (the module doc, step 6): one row per run left out, with ``run``, its
+    ``episodes`` and the run kept for it (``kept``, ``kept_episodes``). Of runs of one key and
+    one length, the first by name is kept."""
+    require_runs(df)
+    columns = ["run", "episodes", "kept", "kept_episodes"]
+    lengths = df.groupby("run", observed=True, sort=False).agg(
+        **{c: (c, "first") for c in SEED_KEY}, episodes=("episode", "max")
+    )
+    lengths = lengths.reset_index()
+    lengths["run"] = lengths["run"].astype(str)
+    lengths["episodes"] = lengths["episodes"].astype(np.int64) + 1
+    lengths = lengths.sort_values(["episodes", "run"], ascending=[False, True], kind="stable")
+    rows = []
+    for _, group in lengths.groupby(
+        [lengths[c].astype(str) for c in SEED_KEY], sort=True, observed=True
+    ):
+        kept = group.iloc[0]
+        rows += [
+            (r.run, int(r.episodes), kept["run"], int(kept["episodes"]))
+            for r in group.iloc[1:].itertuples()
+        ]
+    return pd.DataFrame(rows, columns=columns).astype(
+        {"episodes": np.int64, "kept_episodes": np.int64}
+    )
+
+
+def longest_per_seed(df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` without the runs `shorter_of_seed` names: one run per condition, variant, preset
+    and seed, the longest, for a test whose unit is a run."""
+    left_out = set(shorter_of_seed(df)["run"])
+    return df[~df["run"].astype(str).isin(left_out)]

@@ -4,6 +4,8 @@ and the dips' test over every CURIOUS run that nothing perturbs, the long runs a
 
 from __future__ import annotations
 
+from pathlib import PurePath
+
 import pandas as pd
 
 from curious import analysis
@@ -28,11 +30,15 @@ def pooled_dips(repro: Reproduction, condition: str = "curious") -> list[str]:
     pooled = pd.concat([t[t["condition"] == condition] for t in tables], ignore_index=True)
     if pooled.empty:
         return []
+    left_out = analysis.shorter_of_seed(pooled)
+    pooled = analysis.longest_per_seed(pooled)
     runs = pooled["run"].nunique()
     read = ", ".join(present)
     lines = [
         f"The dips' test over every {condition_label(condition)} run that nothing perturbs in "
-        f"this report ({runs} runs of {read}), a run one unit:",
+        f"this report ({runs} runs of {read}), a run one unit"
+        + (f" ({_seed_units(left_out)})" if len(left_out) else "")
+        + ":",
         "",
     ]
     for depth in analysis.DIP_DEPTHS:
@@ -45,6 +51,20 @@ def pooled_dips(repro: Reproduction, condition: str = "curious") -> list[str]:
         )
         lines += [f"- at a depth of {depth:g}{decides}: {'; '.join(clauses)}.", ""]
     return lines
+
+
+def _seed_units(left_out: pd.DataFrame) -> str:
+    """Which runs the pool leaves out for a longer run of their seed (`analysis.shorter_of_seed`),
+    in a clause."""
+    pairs = ", ".join(
+        f"{_short(r.run)} (for {_short(r.kept)})" for r in left_out.itertuples(index=False)
+    )
+    return f"one run per condition, variant and seed, the longest; left out: {pairs}"
+
+
+def _short(run: str) -> str:
+    """A run's folder as experiment/condition/seed-K."""
+    return "/".join(PurePath(str(run)).parts[-3:])
 
 
 def long_runs(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
