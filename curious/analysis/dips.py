@@ -303,18 +303,11 @@ def shorter_of_seed(df: pd.DataFrame) -> pd.DataFrame:
     lengths["run"] = lengths["run"].astype(str)
     lengths["episodes"] = lengths["episodes"].astype(np.int64) + 1
     lengths = lengths.sort_values(["episodes", "run"], ascending=[False, True], kind="stable")
-    rows = []
-    for _, group in lengths.groupby(
-        [lengths[c].astype(str) for c in SEED_KEY], sort=True, observed=True
-    ):
-        kept = group.iloc[0]
-        rows += [
-            (r.run, int(r.episodes), kept["run"], int(kept["episodes"]))
-            for r in group.iloc[1:].itertuples()
-        ]
-    return pd.DataFrame(rows, columns=columns).astype(
-        {"episodes": np.int64, "kept_episodes": np.int64}
-    )
+    by_key = lengths.groupby(list(SEED_KEY), observed=True, sort=False, dropna=False)
+    first = by_key[["run", "episodes"]].transform("first")
+    lengths["kept"], lengths["kept_episodes"] = first["run"], first["episodes"]
+    left = lengths[lengths["run"] != lengths["kept"]]
+    return left[columns].sort_values("run", kind="stable").reset_index(drop=True)
 
 
 def longest_per_seed(df: pd.DataFrame) -> pd.DataFrame:
