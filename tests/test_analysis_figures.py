@@ -305,6 +305,24 @@ def test_the_sensor_failure_figure_draws_every_run_over_its_whole_recovery():
     assert sorted(x for c in circles for x in c.get_xdata()) == sorted(recovered.astype(int))
 
 
+def test_five_seeds_of_a_condition_draw_in_five_line_styles():
+    """The sensory-failure figures tell a condition's runs apart by line style, seed by seed: the
+    five seeds a side of the study on a mastered module need five patterns (its seed 3 was drawn
+    like seed 0 while there were four)."""
+    from matplotlib import rcParams
+
+    from curious.analysis.figures.failure_recovery import SEED_STYLES
+
+    named = {
+        "-": (),
+        "--": tuple(rcParams["lines.dashed_pattern"]),
+        ":": tuple(rcParams["lines.dotted_pattern"]),
+        "-.": tuple(rcParams["lines.dashdot_pattern"]),
+    }
+    patterns = [named[s] if isinstance(s, str) else tuple(s[1]) for s in SEED_STYLES]
+    assert len(set(patterns[:5])) == 5, patterns
+
+
 def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies):
     fig = analysis.distractors(studies["distractors"])
     ax = fig.axes[0]

@@ -438,6 +438,33 @@ def test_c3_no_drop_of_a_mastered_module():
     assert results in _text(RESULTS), results
 
 
+def test_c3_no_drop_in_the_study_on_a_mastered_module():
+    """C3's paragraph on the study on a mastered module's runs: how many, the episodes from
+    which CURIOUS mastered the two later modules, the module-episodes mastered and the deepest
+    fall, over the seeds the report reads."""
+    paths = _whole_seeds("sensor_failure_mastered")
+    table = analysis.mastery(analysis.load_runs(paths))
+    assert int(table["n_drops"].sum()) == 0
+    mastered = table.dropna(subset=["mastered_episode"])
+    n, seeds = len(paths), sorted(table["seed"].unique())
+    text = _text(RESULTS)
+    assert (
+        f"In the {WORDS[n]} runs of the study on a mastered module (seeds 0 to {seeds[-1]}," in text
+    )
+    assert f"(reach and push cube 1 in all {WORDS[n]} runs;" in text
+    assert all((mastered["module"] == m).sum() == n for m in ("reach", "push_cube1"))
+    for module, name in (
+        ("cube1_above_cube2", "cube 1 above cube 2"),
+        ("push_cube3", "push cube 3"),
+    ):
+        at = mastered[(mastered["condition"] == "curious") & (mastered["module"] == module)]
+        episodes = _listed([f"{int(e):,}" for e in at.sort_values("seed")["mastered_episode"]])
+        assert f"{name} from {episodes}" in text, episodes
+    total = int(mastered["mastered_episodes"].sum())
+    deepest = float(mastered["deepest_fall"].max())
+    assert f"{total:,} module-episodes in all, fell at most {deepest:.2f} below their peaks" in text
+
+
 def test_c3_when_each_module_was_first_mastered_in_the_main_comparison():
     """C3's ranges of the episode at which each module was first mastered, per condition of the
     main comparison, over its modules mastered in some run (`mastery`)."""
@@ -573,7 +600,8 @@ def test_c1_area_under_success_per_seed_and_its_welch_test():
 
 def test_the_protocols_compute_is_the_runs_own_clocks():
     """The protocol's compute row: each experiment's run-hours over the budget's seeds, their
-    total, and each seed beyond the budget's that the report reads, by the runs' own clocks."""
+    total, and each seed beyond the budget's that the report reads, by the runs' own clocks,
+    over the experiments the report reads (those still training are in the progress table)."""
     names = {
         "main": "main comparison",
         "sensor_failure": "sensory failure",
@@ -581,8 +609,11 @@ def test_the_protocols_compute_is_the_runs_own_clocks():
         "sensor_failure_mastered": "sensory failure on a mastered module",
     }
     text, budget = _text(RESULTS), get_budget("laptop")
+    shipped, read = _read_by_report()
+    whole = [name for name, e in read.experiments.items() if not shipped.missing(e)]
+    assert set(names) <= set(whole), whole
     total, count = 0.0, 0
-    for name in budget.experiments:
+    for name in whole:
         rows = progress_table(_runs(name))
         hours = sum(r.run_hours for r in rows)
         total, count = total + hours, count + len(rows)
@@ -598,16 +629,15 @@ def test_the_protocols_compute_is_the_runs_own_clocks():
             quoted = f"{names[name]} {hours:.2f} ({len(rows)} runs)"
         assert quoted in text, quoted
     assert f"{count} runs, {total:.2f} run-hours" in text
-    _, read = _read_by_report()
-    for name, e in read.experiments.items():
+    for name in whole:
         ours = {r.relative_path for r in budget.experiments[name].runs()}
         beyond: dict[int, list[Path]] = {}
-        for r in e.runs():
+        for r in read.experiments[name].runs():
             if r.relative_path not in ours:
                 beyond.setdefault(r.seed, []).append(DATA / r.relative_path)
         for seed, paths in beyond.items():
             hours = sum(r.run_hours for r in progress_table(paths))
-            whose = "the main comparison's" if name == "main" else f"the {names[name]}'"
+            whose = f"the {names[name]}'" if names[name].endswith("s") else f"the {names[name]}'s"
             quoted = f"{whose} seed {seed}, {hours:.2f} more ({len(paths)} runs)"
             assert quoted in text, quoted
 
@@ -740,4 +770,7 @@ def test_c5_the_censored_reading_on_the_seeds_shipped():
     assert f"Gehan's check {test['gehan']:.0f}, exact p = {format_p(test['p_gehan'])}" in text
     assert f"exact p = {format_p(test['p'])}, the smallest {WORDS[n]} a side allow being" in text
     assert f"the smallest exact p is {format_p(1 / test['splits'])}" in text
-    assert f"censored, exact p = {format_p(test['p'])})" in _text(README)
+    assert (
+        f"censored, exact p = {format_p(test['p'])}, deciding nothing under five seeds a side)"
+        in _text(README)
+    )

@@ -202,8 +202,10 @@ def _draw_conditions(
             draw_mean_std(ax, s[s["n"] == s["n"].max()], color, width, None)
 
 
-SEED_STYLES = ("-", "--", ":", "-.")
-"""Line styles of a condition's runs, in seed order (then again)."""
+SEED_STYLES = ("-", "--", ":", "-.", (0, (6, 1.6, 1, 1.6, 1, 1.6)), (0, (12, 3)))
+"""Line styles of a condition's runs, in seed order (then again): solid, dashed, dotted,
+dash-dot, dash-dot-dot and long dashes, so that the five seeds a side of the study on a mastered
+module draw as five lines, and a sixth seed too."""
 
 
 def _horizon(per_run: pd.DataFrame, remaining: pd.Series) -> int:
