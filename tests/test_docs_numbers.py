@@ -25,6 +25,8 @@ from curious.reproduction.campaign_progress import progress_table
 from curious.reproduction.experiments import get_budget
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from curious.reproduction.experiments import ReproduceBudget
     from pipelines.from_data import ShippedData
 
@@ -438,12 +440,22 @@ def test_c3_no_drop_of_a_mastered_module():
     assert results in _text(RESULTS), results
 
 
+@functools.cache
+def _mastered_study() -> tuple[list[Path], pd.DataFrame, pd.DataFrame]:
+    """The study on a mastered module as the report reads it, loaded once: its run folders,
+    their metrics (`load_runs`) and each run's recovery by test success (`recovery_by_tests`)."""
+    paths = _whole_seeds("sensor_failure_mastered")
+    runs = analysis.load_runs(paths)
+    onsets = analysis.failure_onsets(runs)["onset"]
+    return paths, runs, analysis.recovery_by_tests(analysis.load_tests(paths), onsets)
+
+
 def test_c3_no_drop_in_the_study_on_a_mastered_module():
     """C3's paragraph on the study on a mastered module's runs: how many, the episodes from
     which CURIOUS mastered the two later modules, the module-episodes mastered and the deepest
     fall, over the seeds the report reads."""
-    paths = _whole_seeds("sensor_failure_mastered")
-    table = analysis.mastery(analysis.load_runs(paths))
+    paths, runs, _ = _mastered_study()
+    table = analysis.mastery(runs)
     assert int(table["n_drops"].sum()) == 0
     mastered = table.dropna(subset=["mastered_episode"])
     n, seeds = len(paths), sorted(table["seed"].unique())
@@ -523,10 +535,7 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
     from pipelines.report.blocks import fmt, fmt_p
     from pipelines.report.sensory_failures import primary_cell, secondary_cell
 
-    paths = _whole_seeds("sensor_failure_mastered")
-    runs = analysis.load_runs(paths)
-    onsets = analysis.failure_onsets(runs)["onset"]
-    by_tests = analysis.recovery_by_tests(analysis.load_tests(paths), onsets, fraction=0.9)
+    _, runs, by_tests = _mastered_study()
     competence = analysis.recovery(runs).set_index(["condition", "seed"])
     results, readme = _text(RESULTS), _text(README)
     recovered: dict[str, list[str]] = {"curious": [], "m-uvfa": []}
@@ -753,10 +762,7 @@ def test_c5_the_censored_reading_on_the_seeds_shipped():
     n = len(budget.experiments["sensor_failure_mastered"].seeds)
     if n >= 5:
         pytest.skip("the study on a mastered module is read with five seeds a side")
-    runs = _whole_seeds("sensor_failure_mastered")
-    metrics, tests = analysis.load_runs(runs), analysis.load_tests(runs)
-    onsets = analysis.failure_onsets(metrics)["onset"]
-    by_tests = analysis.recovery_by_tests(tests, onsets, "push_cube3")
+    _, _, by_tests = _mastered_study()
     test = analysis.compare_censored_recoveries(by_tests, "curious", "m-uvfa")
     assert test["n_faster"] == test["n_slower"] == n
     assert 1 / test["splits"] > test["alpha"], "fewer than five a side decides nothing"
