@@ -19,10 +19,42 @@ UNPERTURBED = ("main", "distractors", "long")
 """The experiments whose runs nothing perturbs: their CURIOUS runs are pooled for the dips' test."""
 
 
+DECIDING_SEEDS: dict[str, tuple[int, ...]] = {"long": (0, 1, 2, 3, 4), "distractors": (0, 1, 2)}
+"""The runs the dips' test decides on, named before the first long run shipped (docs/results.md,
+C3's rules, "While the long runs train"): CURIOUS's long runs of these seeds, each standing for
+the main comparison's run of its seed, and these seeds of every distractors variant. A pool that
+lacks one of them decides nothing; runs beyond them are read beside the verdict."""
+
+Unit = tuple[str, str, int]
+"""A unit of the dips' test: (experiment, variant, seed)."""
+
+
+def units(pooled: pd.DataFrame) -> dict[Unit, str]:
+    """Each run of a `longest_per_seed` pool as its unit, the run's folder the value."""
+    runs = pooled.groupby("run", observed=True, sort=True)[["variant", "seed"]].first()
+    return {
+        (PurePath(str(run)).parts[-3], str(r.variant), int(r.seed)): str(run)
+        for run, r in runs.iterrows()
+    }
+
+
+def deciding_units(repro: Reproduction) -> set[Unit]:
+    """The units `DECIDING_SEEDS` names, for the variants of each experiment the budget plans
+    (those the report holds and those it left out)."""
+    named = set()
+    for name, seeds in DECIDING_SEEDS.items():
+        e = repro.budget.experiments.get(name)
+        if e is not None:
+            variants = (*e.variants, *e.left_out_variants)
+            named |= {(name, v, s) for v in variants for s in seeds}
+    return named
+
+
 def pooled_dips(repro: Reproduction, condition: str = "curious") -> list[str]:
     """The sign-flip test of the dips' excess (at `analysis.TEST_DEPTH`, and at the other
     depths beside), a run of ``condition`` of every unperturbed experiment the report holds
-    being one unit."""
+    being one unit; then, where that pool is not the one the test decides on
+    (`DECIDING_SEEDS`), what it lacks, or the verdict on the deciding runs alone."""
     present = [name for name in UNPERTURBED if repro.layout.metrics(name).is_file()]
     if not present:
         return []
@@ -32,25 +64,60 @@ def pooled_dips(repro: Reproduction, condition: str = "curious") -> list[str]:
         return []
     left_out = analysis.shorter_of_seed(pooled)
     pooled = analysis.longest_per_seed(pooled)
-    runs = pooled["run"].nunique()
+    held = units(pooled)
+    named = deciding_units(repro) if condition == "curious" else set()
+    lacking, beyond = sorted(named - held.keys()), sorted(held.keys() - named)
+    whole = bool(named) and not lacking
     read = ", ".join(present)
     lines = [
         f"The dips' test over every {condition_label(condition)} run that nothing perturbs in "
-        f"this report ({runs} runs of {read}), a run one unit"
+        f"this report ({len(held)} runs of {read}), a run one unit"
         + (f" ({_seed_units(left_out)})" if len(left_out) else "")
         + ":",
         "",
+        *_by_depth(pooled, decides=whole and not beyond),
     ]
-    for depth in analysis.DIP_DEPTHS:
-        found = analysis.dip_responses(pooled, depth)
-        clauses = dip_clauses(found)
-        decides = (
-            f" (the test that decides, alpha = {analysis.ALPHA:g})"
-            if depth == analysis.TEST_DEPTH
-            else ""
-        )
-        lines += [f"- at a depth of {depth:g}{decides}: {'; '.join(clauses)}.", ""]
+    if lacking:
+        lines += [
+            f"It decides nothing: the test decides once, on {len(named)} runs named before the "
+            "long runs shipped (docs/results.md, C3's rules), and this report lacks "
+            f"{len(lacking)} of them: {_unit_names(lacking)}.",
+            "",
+        ]
+    elif named and beyond:
+        kept = [held[u] for u in sorted(named)]
+        lines += [
+            f"The verdict, on the {len(named)} runs named before the long runs shipped "
+            f"(docs/results.md, C3's rules), without {_unit_names(beyond)}:",
+            "",
+            *_by_depth(pooled[pooled["run"].astype(str).isin(kept)], decides=True),
+        ]
     return lines
+
+
+def _by_depth(pooled: pd.DataFrame, decides: bool) -> list[str]:
+    """The test's clauses at each depth of `analysis.DIP_DEPTHS`, the tested one marked as
+    deciding where `decides`."""
+    lines = []
+    for depth in analysis.DIP_DEPTHS:
+        clauses = dip_clauses(analysis.dip_responses(pooled, depth))
+        mark = ""
+        if depth == analysis.TEST_DEPTH:
+            mark = (
+                f" (the test that decides, alpha = {analysis.ALPHA:g})"
+                if decides
+                else " (the depth tested; this reading does not decide)"
+            )
+        lines += [f"- at a depth of {depth:g}{mark}: {'; '.join(clauses)}.", ""]
+    return lines
+
+
+def _unit_names(found: list[Unit]) -> str:
+    """Units as experiment/variant seed K, in a clause."""
+    return ", ".join(
+        f"{name} seed {seed}" if variant == "default" else f"{name} {variant} seed {seed}"
+        for name, variant, seed in found
+    )
 
 
 def _seed_units(left_out: pd.DataFrame) -> str:
