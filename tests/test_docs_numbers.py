@@ -639,7 +639,7 @@ def test_the_protocols_compute_is_the_runs_own_clocks():
         elif name == "main":
             quoted = f"main comparison {hours:.2f} run-hours ({len(rows)} runs)"
         else:
-            quoted = f"{names[name]} {hours:.2f} ({len(rows)} runs)"
+            quoted = f"{names[name]} {hours:.2f} ({len(rows)} run{'s' * (len(rows) != 1)})"
         assert quoted in text, quoted
     assert f"{count} runs, {total:.2f} run-hours" in text
     for name in whole:
@@ -653,6 +653,24 @@ def test_the_protocols_compute_is_the_runs_own_clocks():
             whose = f"the {names[name]}'" if names[name].endswith("s") else f"the {names[name]}'s"
             quoted = f"{whose} seed {seed}, {hours:.2f} more ({len(paths)} runs)"
             assert quoted in text, quoted
+
+
+def test_the_machines_row_names_every_run_trained_on_the_intel_xeon():
+    """The protocol's machines row: the runs that started or resumed on an Intel Xeon, by folder,
+    every other on an AMD EPYC, as each run's config.json records its machines."""
+    import json
+
+    intel, amd = set(), set()
+    for config in DATA.glob("**/config.json"):
+        record = json.loads(config.read_text())
+        cpus = {m["machine"]["cpu"] for m in (record, *record.get("resumed", []))}
+        run = config.parent.relative_to(DATA).as_posix()
+        assert len(cpus) == 1, f"{run} trained on several machines: say which in the row"
+        (intel if "Intel" in cpus.pop() else amd).add(run)
+    row = next(line for line in RESULTS.read_text().splitlines() if line.startswith("| machines"))
+    named = set(re.findall(r"`([^`]+/seed-\d+)`", row.split(";")[0]))
+    assert named == intel, f"the Intel runs: {sorted(intel)}"
+    assert "every other run on an AMD EPYC" in row and amd
 
 
 def test_the_laptop_budgets_time_is_the_pace_its_shipped_runs_trained_at():
@@ -755,6 +773,71 @@ def test_c3_each_shipped_long_run_retraces_the_main_run_of_its_seed():
         extended = pd.read_parquet(long / METRICS_FILE).drop(columns="wall_time")
         extended = extended[extended["episode"] < len(short)].reset_index(drop=True)
         pd.testing.assert_frame_equal(extended, short, obj=f"{long.name}: long against main")
+
+
+def test_c3_the_long_runs_as_they_ship():
+    """C3 on the long runs shipped so far (results.md, "The long runs as they ship", by the
+    amended rules): how many, seed 0's masteries, drops, deepest falls past the main run's end
+    and dips, and the dips' test on the pool as the report reads it, which cannot decide yet."""
+    import pandas as pd
+
+    shipped = sorted((DATA / "long" / "curious").glob("seed-*"))
+    if not shipped:
+        pytest.skip("no long run shipped yet")
+    text = _text(RESULTS)
+    assert f"{WORDS[len(shipped)]} run of five so far" in text, "a long run shipped: read it"
+    run = DATA / "long" / "curious" / "seed-0"
+    (hours,) = [r.run_hours for r in progress_table(run)]
+    assert f"(300,000 episodes, commit 24d01ae, {hours:.2f} run-hours on the Intel Xeon)" in text
+    table = analysis.load_runs(run)
+    read = analysis.mastery(table).set_index("module")
+    assert analysis.mastery_drops(table).empty and int(read["n_drops"].sum()) == 0
+    at = {m: f"{int(read.at[m, 'mastered_episode']):,}" for m in read.index}
+    assert (
+        f"(reach at episode {at['reach']}, push cube 1 at {at['push_cube1']}, stack at "
+        f"{at['stack']}, cube 1 above cube 2 at {at['cube1_above_cube2']})"
+    ) in text
+    assert f"{int(read['mastered_episodes'].sum()):,} module-episodes read as mastered" in text
+    deepest = read["deepest_fall"].idxmax()
+    assert deepest == "cube1_above_cube2"
+    assert f"cube 1 above cube 2's {read.at[deepest, 'deepest_fall']:.2f} at 78,889" in text
+    metrics = pd.read_parquet(run / "metrics.parquet")
+    late = metrics[metrics["episode"] >= 100_000]
+    lows = {m: late[f"competence/{m}"].min() for m in read.index}
+    low = min(lows, key=lows.get)
+    episode = int(late.loc[late[f"competence/{low}"].idxmin(), "episode"])
+    assert low == "stack" and f"went below {lows[low]:.2f} (stack, at {episode:,})" in text
+    t3 = metrics[metrics["episode"].between(245_000, 254_999)]["competence/cube1_above_cube2"]
+    assert t3.min() == 1.0 and "stood at 1.00 from 245,000 to 255,000" in text
+    deep = analysis.dip_responses(table, analysis.TEST_DEPTH)
+    assert deep["detect_episode"].tolist() == [78_889] and deep["status"].tolist() == [
+        "before_mastery"
+    ]
+    shallow = analysis.dip_responses(table, 0.05)
+    past = shallow[shallow["detect_episode"] >= 100_000]
+    assert len(past) == 1 and past.iloc[0]["status"] == "read"
+    d = past.iloc[0]
+    assert f"stack at {int(d.detect_episode):,} ({d.peak:.2f} to {d.trough:.2f})" in text
+    assert f"p_LP rose by {d.p_lp_change:.2f} and its share of practice by " in text
+    assert f"{d.practice_change:.2f}, against {d.p_lp_change - d.excess_p_lp:.3f} and " in text
+    assert f"{d.practice_change - d.excess_practice:.3f}" in text
+    # the pool as the report reads it: one run per seed, the long run for the main run of its seed
+    pooled = pd.concat(
+        [analysis.load_runs(_whole_seeds(e)) for e in ("main", "distractors", "long")],
+        ignore_index=True,
+    )
+    pooled = analysis.longest_per_seed(pooled[pooled["condition"] == "curious"])
+    runs = pooled["run"].nunique()
+    assert runs == 14 and f"*The dips' test on the pool as it stands* ({runs} runs" in text
+    assert analysis.dip_test(analysis.dip_responses(pooled, analysis.TEST_DEPTH))["n_runs"] == 0
+    found = analysis.dip_responses(pooled, 0.05)
+    p_lp, practice = (analysis.dip_test(found, c) for c in ("excess_p_lp", "excess_practice"))
+    n = p_lp["n_runs"]
+    assert f"{p_lp['n_dips']} read dips in {n} runs, p_LP's excess" in text
+    assert f"{p_lp['mean']:+.2f} by run (above 0 in {p_lp['n_positive']} of {n})" in text
+    assert p_lp["p"] == practice["p"]
+    assert f"exact sign-flip p = {format_p(p_lp['p'])} for p_LP and practice alike" in text
+    assert len(shipped) < 5 and "This reading decides nothing" in text
 
 
 def test_c5_the_censored_reading_on_the_seeds_shipped():
