@@ -807,6 +807,8 @@ def test_c3_the_long_runs_as_they_ship():
     low = min(lows, key=lows.get)
     episode = int(late.loc[late[f"competence/{low}"].idxmin(), "episode"])
     assert low == "stack" and f"went below {lows[low]:.2f} (stack, at {episode:,})" in text
+    assert f"(seed 0: after episode 100,000 no mastered module below {lows[low]:.2f})" in text
+    assert f"(seed 0: after episode 100,000 none below {lows[low]:.2f})" in _text(README)
     t3 = metrics[metrics["episode"].between(245_000, 254_999)]["competence/cube1_above_cube2"]
     assert t3.min() == 1.0 and "stood at 1.00 from 245,000 to 255,000" in text
     deep = analysis.dip_responses(table, analysis.TEST_DEPTH)
