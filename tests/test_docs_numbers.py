@@ -711,13 +711,17 @@ def test_c1_the_bins_significant_after_holms_correction(main_bins):
     assert corrected in _text(README)
 
 
-def _shipped_dips(depth: float):
+@functools.cache
+def _curious_runs(*experiments: str) -> pd.DataFrame:
+    """The CURIOUS runs of `experiments` that the report reads from data/laptop, loaded once."""
     import pandas as pd
 
-    table = pd.concat(
-        [analysis.load_runs(_whole_seeds(e)) for e in ("main", "distractors")], ignore_index=True
-    )
-    return analysis.dip_responses(table[table["condition"] == "curious"], depth)
+    table = pd.concat([analysis.load_runs(_whole_seeds(e)) for e in experiments], ignore_index=True)
+    return table[table["condition"] == "curious"]
+
+
+def _shipped_dips(depth: float):
+    return analysis.dip_responses(_curious_runs("main", "distractors"), depth)
 
 
 def test_c3_the_dips_in_the_shipped_runs():
@@ -824,11 +828,7 @@ def test_c3_the_long_runs_as_they_ship():
     assert f"{d.practice_change:.2f}, against {d.p_lp_change - d.excess_p_lp:.3f} and " in text
     assert f"{d.practice_change - d.excess_practice:.3f}" in text
     # the pool as the report reads it: one run per seed, the long run for the main run of its seed
-    pooled = pd.concat(
-        [analysis.load_runs(_whole_seeds(e)) for e in ("main", "distractors", "long")],
-        ignore_index=True,
-    )
-    pooled = analysis.longest_per_seed(pooled[pooled["condition"] == "curious"])
+    pooled = analysis.longest_per_seed(_curious_runs("main", "distractors", "long"))
     runs = pooled["run"].nunique()
     assert runs == 14 and f"*The dips' test on the pool as it stands* ({runs} runs" in text
     assert analysis.dip_test(analysis.dip_responses(pooled, analysis.TEST_DEPTH))["n_runs"] == 0

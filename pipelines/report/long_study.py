@@ -85,7 +85,7 @@ def pooled_dips(repro: Reproduction, condition: str = "curious") -> list[str]:
             "",
         ]
     elif named and beyond:
-        kept = [held[u] for u in sorted(named)]
+        kept = [held[u] for u in named]
         lines += [
             f"The verdict, on the {len(named)} runs named before the long runs shipped "
             f"(docs/results.md, C3's rules), without {_unit_names(beyond)}:",
