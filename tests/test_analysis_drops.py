@@ -11,8 +11,10 @@ from test_analysis_synthetic import write_run
 
 from curious.analysis import (
     DROP_COLUMNS,
+    LOWEST_COLUMNS,
     MASTERY_COLUMNS,
     load_runs,
+    lowest_competence,
     mastery,
     mastery_drops,
 )
@@ -178,3 +180,30 @@ def test_the_rule_s_constants_are_checked(runs):
     # a shallower drop counts where a deeper one is asked: the wiggle becomes drops
     shallow = mastery_drops(runs, depth=0.15, band=0.05)
     assert "cube1_above_cube2" in set(shallow["module"])
+
+
+def test_lowest_competence_reads_mastered_modules_over_a_stretch(runs):
+    stored = {m: runs[f"competence/{m}"].to_numpy(np.float64) for m in MODULES}
+    # from 20,000: reach (mastered by ~3,000) falls to 0.6 by 25,000 and stays there; the
+    # wiggle's lowest is its first trough past 20,000; push cube 1, never mastered, has no row
+    after = lowest_competence(runs, 20_000)
+    assert list(after.columns) == list(LOWEST_COLUMNS)
+    assert after["module"].tolist() == ["reach", "cube1_above_cube2"]
+    read = after.set_index("module")
+    assert read.at["reach", "low"] == pytest.approx(0.6)
+    assert read.at["reach", "low_episode"] == 24_999  # the first episode at it
+    wiggle = stored["cube1_above_cube2"][20_000:]
+    assert read.at["cube1_above_cube2", "low"] == pytest.approx(wiggle.min())
+    assert read.at["cube1_above_cube2", "low_episode"] == 20_000 + int(np.argmin(wiggle))
+    table = mastery(runs).set_index("module")
+    first = table.loc[["reach", "cube1_above_cube2"], "mastered_episode"].astype(int).tolist()
+    assert read["mastered_episode"].tolist() == first
+    # a stretch with a stop: reach at its top between its two falls
+    between = lowest_competence(runs, 18_000, 23_000).set_index("module")
+    assert between.at["reach", "low"] == pytest.approx(TOP)
+    assert between.at["reach", "low_episode"] == 18_000
+    # a module mastered inside the stretch is not read, nor a run that never gets there
+    assert lowest_competence(runs, 2_000).empty
+    assert lowest_competence(runs, N + 1).empty
+    with pytest.raises(ValueError, match="start < stop"):
+        lowest_competence(runs, 5_000, 5_000)

@@ -74,9 +74,12 @@ __all__ = [
     "DESCENT_BAND",
     "DROP_COLUMNS",
     "DROP_DEPTH",
+    "LOWEST_COLUMNS",
     "MASTERED_COMPETENCE",
     "MASTERY_COLUMNS",
     "MASTERY_HOLD",
+    "PAPER_FORGETTING_WINDOW",
+    "lowest_competence",
     "mastery",
     "mastery_drops",
 ]
@@ -89,6 +92,9 @@ DROP_DEPTH = 0.2
 DESCENT_BAND = 0.1
 """A drop's descent starts after the last episode whose competence was within this of the
 peak."""
+PAPER_FORGETTING_WINDOW = (245_000, 255_000)
+"""Episodes [start, stop) around the paper's forgetting event: in its Fig. 2b-c the competence on
+T3 (cube 1 above cube 2), mastered, drops "around episode 250,000" (§4, "Results")."""
 
 DROP_COLUMNS: tuple[str, ...] = (
     *RUN_COLUMNS,
@@ -341,4 +347,45 @@ def mastery(
     out["mastered_episode"] = out["mastered_episode"].astype("Int64")
     counts = ["mastered_episodes", "n_drops", "n_recovered"]
     out[counts] = out[counts].astype(np.int64)
+    return out
+
+
+LOWEST_COLUMNS: tuple[str, ...] = (*RUN_COLUMNS, "module", "mastered_episode", "low", "low_episode")
+"""The columns of `lowest_competence`: one row per (run, module mastered before the stretch)."""
+
+
+def lowest_competence(df: pd.DataFrame, start: int, stop: int | None = None) -> pd.DataFrame:
+    """Per run of ``df`` (a `load_runs` table) and achievable module first mastered (`mastery`)
+    before episode ``start``: the lowest competence over episodes [``start``, ``stop``) (``stop``
+    None: to the run's end) and the first episode at it (`LOWEST_COLUMNS`; a run that does not
+    reach ``start`` has no row). What a run shows of its mastered modules over a stretch where
+    the drop rule finds nothing: how near a drop they came there, e.g. past the main
+    comparison's end in a long run, or over `PAPER_FORGETTING_WINDOW`."""
+    if stop is not None and stop <= start:
+        raise ValueError(f"need start < stop, got {start} and {stop}")
+    read = mastery(df).set_index(["run", "module"])["mastered_episode"]
+    rows = []
+    for series in achievable_series(df):
+        first = read.get((series.identity["run"], series.module))
+        if first is None or pd.isna(first) or first >= start:
+            continue
+        inside = series.episodes >= start
+        if stop is not None:
+            inside &= series.episodes < stop
+        competence = np.where(inside, series.values[:, 0], np.nan)
+        if not np.isfinite(competence).any():
+            continue
+        at = int(np.nanargmin(competence))
+        rows.append(
+            {
+                **series.identity,
+                "module": series.module,
+                "mastered_episode": int(first),
+                "low": float(competence[at]),
+                "low_episode": int(series.episodes[at]),
+            }
+        )
+    out = pd.DataFrame(rows, columns=list(LOWEST_COLUMNS))
+    for c in ("mastered_episode", "low_episode"):
+        out[c] = out[c].astype(np.int64)
     return out

@@ -10,8 +10,15 @@ import pandas as pd
 
 from curious import analysis
 from curious.reproduction.experiments import Experiment
-from curious.watching.palette import condition_label
-from pipelines.report.blocks import ExperimentTables, lead_figure, other_figures
+from curious.watching.palette import condition_label, module_label
+from pipelines.report.blocks import (
+    ExperimentTables,
+    fmt,
+    in_order,
+    lead_figure,
+    markdown_table,
+    other_figures,
+)
 from pipelines.report.spontaneous_forgetting import dip_clauses, spontaneous_forgetting
 from pipelines.resources import Reproduction
 
@@ -136,10 +143,60 @@ def _short(run: str) -> str:
 
 def long_runs(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> list[str]:
     """The figure of every long run whole, each module's mastery, deepest fall, drops and dips,
-    then the dips' test pooled over the unperturbed experiments."""
+    the dips' test pooled over the unperturbed experiments, then each mastered module's lowest
+    competence past the main comparison's end."""
     return [
         *lead_figure(repro, e),
         *other_figures(repro, e),
         *spontaneous_forgetting(e, tables.metrics),
         *pooled_dips(repro),
+        *past_the_main_runs(repro, e, tables.metrics),
+    ]
+
+
+def past_the_main_runs(repro: Reproduction, e: Experiment, table: pd.DataFrame) -> list[str]:
+    """Per long run and module mastered before the main comparison's end: its lowest competence
+    from there to the run's end, and over the episodes where the paper saw T3 forgotten
+    (`analysis.lowest_competence`): how near a drop the modules came where no run of the main
+    comparison reached, drops or none."""
+    main = repro.budget.experiments.get("main")
+    start, stop = analysis.PAPER_FORGETTING_WINDOW
+    if main is None or e.total_episodes < stop:
+        return []
+    after = analysis.lowest_competence(table, main.total_episodes)
+    window = analysis.lowest_competence(table, start, stop)
+    if after.empty:
+        return []
+    by_window = window.set_index(["run", "module"])
+    rows = []
+    for r in in_order(after, e).itertuples():
+        key = (r.run, r.module)
+        near = by_window.loc[key] if key in by_window.index else None
+        rows.append(
+            (
+                condition_label(r.condition),
+                r.seed,
+                module_label(str(r.module)),
+                f"{r.mastered_episode:,}",
+                f"{fmt(r.low)} at {r.low_episode:,}",
+                "–" if near is None else f"{fmt(near['low'])} at {int(near['low_episode']):,}",
+            )
+        )
+    header = (
+        "condition",
+        "seed",
+        "module",
+        "mastered at",
+        f"lowest competence from episode {main.total_episodes:,} (at)",
+        f"lowest from {start:,} to {stop:,} (at)",
+    )
+    return [
+        f"#### Past the main comparison's {main.total_episodes:,} episodes",
+        "",
+        "Per run and module mastered before the main comparison's runs end: the lowest "
+        "competence from there to the run's end, and over episodes "
+        f"{start:,} to {stop:,}, where the paper saw T3 (cube 1 above cube 2) forgotten "
+        "(`curious.analysis.lowest_competence`; a reading beside the drop rule, never part of it).",
+        "",
+        *markdown_table(header, rows),
     ]
