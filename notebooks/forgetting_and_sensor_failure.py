@@ -28,12 +28,12 @@
 # Part 1 reads the `sensor_failure` experiment (the failure starts once push_cube3 is learned);
 # part 2 the `sensor_failure_mastered` experiment (once it is mastered), read by its fixed rules:
 # recovery by test success first, the Welch test on the episodes to recover; part 3 looks for
-# spontaneous forgetting in the `main` and `distractors` runs. `out` is the output folder of
-# `curious reproduce`, or a shipped data folder such as the repository's `data/laptop` (default:
-# the quick budget's output). The `quick` budget leaves both sensory-failure experiments out
-# (`curious reproduce --budget laptop --experiments sensor_failure,sensor_failure_mastered`
-# trains them): where the folder has no runs of one, its part says so and does nothing, and the
-# other parts run all the same.
+# spontaneous forgetting in the `main`, `distractors` and `long` runs. `out` is the output folder
+# of `curious reproduce`, or a shipped data folder such as the repository's `data/laptop`
+# (default: the quick budget's output). The `quick` budget leaves both sensory-failure
+# experiments out (`curious reproduce --budget laptop --experiments
+# sensor_failure,sensor_failure_mastered` trains them): where the folder has no runs of one,
+# its part says so and does nothing, and the other parts run all the same.
 
 # %%
 # %matplotlib inline
@@ -230,3 +230,30 @@ for depth in analysis.DIP_DEPTHS:
             c: {k: t[k] for k in ("n_runs", "n_dips", "mean", "p")} for c, t in tests.items()
         }
         display(pd.DataFrame(summary).rename_axis(f"{condition}, depth {depth:g}"))
+
+# %% [markdown]
+# Past the main comparison's end, in the `long` runs (C3 at the paper's episode count): per run
+# and module mastered before the main runs end, its lowest competence from there to the run's
+# end and over episodes 245,000 to 255,000, where the paper saw T3 forgotten
+# (`analysis.lowest_competence`, `analysis.PAPER_FORGETTING_WINDOW`; a reading beside the drop
+# rule, as in the report). A budget whose long runs stop before that window (or that has none,
+# as `quick`) shows nothing here.
+
+# %%
+budget = get_budget(layout.budget_name())
+long_folder = layout.experiment_runs("long")
+start, stop = analysis.PAPER_FORGETTING_WINDOW
+if (
+    {"main", "long"} <= set(budget.experiments)
+    and budget.experiments["long"].total_episodes >= stop
+    and any(long_folder.rglob(METRICS_FILE))
+):
+    long_runs = analysis.load_runs(long_folder)
+    past = analysis.lowest_competence(long_runs, budget.experiments["main"].total_episodes)
+    near = analysis.lowest_competence(long_runs, start, stop)
+    keys = ["run", "seed", "module", "mastered_episode"]
+    display(
+        past.merge(near, on=keys, how="left", suffixes=("", f"_{start}_{stop}"))[
+            [*keys[1:], "low", "low_episode", f"low_{start}_{stop}", f"low_episode_{start}_{stop}"]
+        ]
+    )
