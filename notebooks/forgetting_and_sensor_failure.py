@@ -249,8 +249,11 @@ if (
     and any(long_folder.rglob(METRICS_FILE))
 ):
     long_runs = analysis.load_runs(long_folder)
-    past = analysis.lowest_competence(long_runs, budget.experiments["main"].total_episodes)
-    near = analysis.lowest_competence(long_runs, start, stop)
+    long_read = analysis.mastery(long_runs)
+    past = analysis.lowest_competence(
+        long_runs, budget.experiments["main"].total_episodes, read=long_read
+    )
+    near = analysis.lowest_competence(long_runs, start, stop, read=long_read)
     keys = ["run", "seed", "module", "mastered_episode"]
     display(
         past.merge(near, on=keys, how="left", suffixes=("", f"_{start}_{stop}"))[

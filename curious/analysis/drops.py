@@ -354,19 +354,24 @@ LOWEST_COLUMNS: tuple[str, ...] = (*RUN_COLUMNS, "module", "mastered_episode", "
 """The columns of `lowest_competence`: one row per (run, module mastered before the stretch)."""
 
 
-def lowest_competence(df: pd.DataFrame, start: int, stop: int | None = None) -> pd.DataFrame:
+def lowest_competence(
+    df: pd.DataFrame, start: int, stop: int | None = None, read: pd.DataFrame | None = None
+) -> pd.DataFrame:
     """Per run of ``df`` (a `load_runs` table) and achievable module first mastered (`mastery`)
     before episode ``start``: the lowest competence over episodes [``start``, ``stop``) (``stop``
     None: to the run's end) and the first episode at it (`LOWEST_COLUMNS`; a run that does not
     reach ``start`` has no row). What a run shows of its mastered modules over a stretch where
     the drop rule finds nothing: how near a drop they came there, e.g. past the main
-    comparison's end in a long run, or over `PAPER_FORGETTING_WINDOW`."""
+    comparison's end in a long run, or over `PAPER_FORGETTING_WINDOW`. ``read``: ``df``'s
+    `mastery` table where the caller has it (a scan of every run), computed here otherwise."""
     if stop is not None and stop <= start:
         raise ValueError(f"need start < stop, got {start} and {stop}")
-    read = mastery(df).set_index(["run", "module"])["mastered_episode"]
+    first_mastered = (mastery(df) if read is None else read).set_index(["run", "module"])[
+        "mastered_episode"
+    ]
     rows = []
     for series in achievable_series(df):
-        first = read.get((series.identity["run"], series.module))
+        first = first_mastered.get((series.identity["run"], series.module))
         if first is None or pd.isna(first) or first >= start:
             continue
         inside = series.episodes >= start

@@ -163,8 +163,9 @@ def past_the_main_runs(repro: Reproduction, e: Experiment, table: pd.DataFrame) 
     start, stop = analysis.PAPER_FORGETTING_WINDOW
     if main is None or e.total_episodes < stop:
         return []
-    after = analysis.lowest_competence(table, main.total_episodes)
-    window = analysis.lowest_competence(table, start, stop)
+    read = analysis.mastery(table)
+    after = analysis.lowest_competence(table, main.total_episodes, read=read)
+    window = analysis.lowest_competence(table, start, stop, read=read)
     if after.empty:
         return []
     by_window = window.set_index(["run", "module"])
