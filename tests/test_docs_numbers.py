@@ -779,15 +779,77 @@ def test_c3_each_shipped_long_run_retraces_the_main_run_of_its_seed():
         pd.testing.assert_frame_equal(extended, short, obj=f"{long.name}: long against main")
 
 
+LONG_MODULES = ("reach", "push_cube1", "stack", "cube1_above_cube2")
+"""The long runs' table's modules, in the order they were first mastered in seed 0."""
+
+
+def _machines(run: Path) -> str:
+    """The CPUs a run trained on, as the pages name them, from its config.json."""
+    import json
+
+    record = json.loads((run / "config.json").read_text())
+    cpus = {m["machine"]["cpu"] for m in (record, *record.get("resumed", []))}
+    return " and ".join(sorted("Intel Xeon" if "Intel" in c else "AMD EPYC" for c in cpus))
+
+
+def _long_run_row(run: Path) -> str:
+    """A long run's row of results.md's table "The long runs as they ship", computed from its
+    folder: its clock and machines, when each module was first mastered, the module-episodes
+    read as mastered, the drops by 0.2, the deepest fall below a peak, the lowest competence
+    after episode 100,000 of a module mastered before it, cube 1 above cube 2's lowest over the
+    paper's window, and the dips read at 0.1 and 0.05."""
+    import pandas as pd
+
+    (row,) = progress_table(run)
+    table = analysis.load_runs(run)
+    read = analysis.mastery(table)
+    by_module = read.set_index("module")
+    first = by_module["mastered_episode"].reindex(list(LONG_MODULES))
+    at = ", ".join("never" if pd.isna(x) else f"{int(x):,}" for x in first)
+    deepest = by_module["deepest_fall"].idxmax()
+    late = analysis.lowest_competence(table, 100_000, read=read)
+    after = "–"
+    if len(late):
+        low = late.loc[late["low"].idxmin()]
+        after = f"{low['low']:.2f} ({_words(low['module'])}, at {int(low['low_episode']):,})"
+    window = analysis.lowest_competence(table, *analysis.PAPER_FORGETTING_WINDOW, read=read)
+    t3 = window.set_index("module")["low"].get("cube1_above_cube2")
+    dips = [
+        int((analysis.dip_responses(table, depth)["status"] == "read").sum())
+        for depth in (analysis.TEST_DEPTH, 0.05)
+    ]
+    return (
+        f"| `{run.relative_to(DATA).as_posix()}` | {row.episodes:,}, {row.run_hours:.2f} h "
+        f"({_machines(run)}) | {at} | {int(by_module['mastered_episodes'].sum()):,} | "
+        f"{int(by_module['n_drops'].sum())} | {by_module.at[deepest, 'deepest_fall']:.2f} "
+        f"({_words(deepest)}) | {after} | {'–' if t3 is None else f'{t3:.2f}'} | "
+        f"{dips[0]}, {dips[1]} |"
+    )
+
+
+def _words(module: str) -> str:
+    """A module as the pages' prose names it: "push cube 1", "cube 1 above cube 2", "stack"."""
+    return {"push_cube1": "push cube 1", "cube1_above_cube2": "cube 1 above cube 2"}.get(
+        module, module
+    )
+
+
 def test_c3_the_long_runs_as_they_ship():
     """C3 on the long runs shipped so far (results.md, "The long runs as they ship", by the
-    amended rules): how many, seed 0's masteries, drops, deepest falls past the main run's end
-    and dips, and the dips' test on the pool as the report reads it, which cannot decide yet."""
+    amended rules): how many, a row per run of its masteries, drops, falls and dips, seed 0's
+    reading in words, and the dips' test on the pool as the report reads it, which cannot
+    decide before the five are shipped."""
     shipped = sorted((DATA / "long" / "curious").glob("seed-*"))
     if not shipped:
         pytest.skip("no long run shipped yet")
     text = _text(RESULTS)
-    assert f"{WORDS[len(shipped)]} run of five so far" in text, "a long run shipped: read it"
+    assert f"{WORDS[len(shipped)]} run{'s' if len(shipped) > 1 else ''} of five so far" in text, (
+        "a long run shipped: read it"
+    )
+    rows = [_long_run_row(run) for run in shipped]
+    missing = [row for row in rows if row not in text]
+    assert not missing, "the long runs' table lacks these rows:\n" + "\n".join(missing)
+    # seed 0's reading in words
     run = DATA / "long" / "curious" / "seed-0"
     (hours,) = [r.run_hours for r in progress_table(run)]
     assert f"(300,000 episodes, commit 24d01ae, {hours:.2f} run-hours on the Intel Xeon)" in text
@@ -830,7 +892,13 @@ def test_c3_the_long_runs_as_they_ship():
     # the pool as the report reads it: one run per seed, the long run for the main run of its seed
     pooled = analysis.longest_per_seed(_curious_runs("main", "distractors", "long"))
     runs = pooled["run"].nunique()
-    assert runs == 14 and f"*The dips' test on the pool as it stands* ({runs} runs" in text
+    standing = "; ".join(
+        f"`long/curious/{r.name}` standing for `main/curious/{r.name}`" for r in shipped
+    )
+    assert (
+        runs == 14
+        and f"*The dips' test on the pool as it stands* ({runs} runs, {standing})" in text
+    )
     assert analysis.dip_test(analysis.dip_responses(pooled, analysis.TEST_DEPTH))["n_runs"] == 0
     found = analysis.dip_responses(pooled, 0.05)
     p_lp, practice = (analysis.dip_test(found, c) for c in ("excess_p_lp", "excess_practice"))
