@@ -11,7 +11,7 @@ import pytest
 
 from curious.analysis.loading import AnalysisError
 from curious.cli import main as curious_cli
-from curious.commands.progress import BEGIN, END
+from curious.commands.progress import BEGIN, END, block_episodes, fewer_episodes
 from curious.reproduction.campaign_progress import (
     current_pace,
     experiment_progress,
@@ -89,6 +89,43 @@ def test_update_replaces_only_the_marked_block(campaign, tmp_path, capsys):
     again = text
     assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
     assert doc.read_text().count(BEGIN) == 1 and len(doc.read_text()) == len(again)
+
+
+def test_update_names_the_runs_that_lost_episodes_since_the_table_it_replaces(
+    campaign, tmp_path, capsys
+):
+    """A machine that lost a run folder (or rolled it back) leaves a table with fewer episodes
+    than the one before: the update says which runs, since the next table cannot."""
+    doc = tmp_path / "results.md"
+    doc.write_text(f"{BEGIN}\n{END}\n")
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
+    assert "fewer episodes" not in capsys.readouterr().err  # no table before: nothing to compare
+    before = doc.read_text()
+    assert block_episodes(before) == {"main/curious-0": 24, "main/her-0": 24, "main/mg-te-1": 0}
+    more = before.replace("| curious | default | 0 | 24 |", "| curious | default | 0 | 1,200 |")
+    doc.write_text(more.replace("| main/her-0 |", "| main/gone-0 |"))
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
+    err = capsys.readouterr().err
+    assert "fewer episodes than the table this one replaced" in err
+    assert "main/curious-0: 24 episodes, the table before: 1,200" in err
+    assert "main/gone-0: no longer listed (the table before: 24 episodes)" in err
+    assert "main/mg-te-1" not in err and "main/her-0" not in err
+    assert curious_cli(["progress", str(campaign), "--update", str(doc)]) == 0
+    assert "fewer episodes" not in capsys.readouterr().err  # said once, by the update that saw it
+
+
+def test_block_episodes_reads_the_runs_table_of_the_block_alone():
+    text = (
+        "| run | episodes |\n|---|---:|\n| outside | 9 |\n"
+        f"{BEGIN}\nComputed at noon.\n\n"
+        "| run | condition | episodes | of |\n|---|---|---:|---:|\n"
+        "| a/seed-0 | curious | 83,200 | 300,000 |\n| b/seed-1 | m-uvfa | 0 | 50 |\n\n"
+        "| experiment | runs finished | episodes |\n|---|---:|---:|\n| a | 0 of 1 | 83,200 |\n"
+        f"{END}\n"
+    )
+    assert block_episodes(text) == {"a/seed-0": 83_200, "b/seed-1": 0}
+    assert block_episodes("no block\n") == {}
+    assert fewer_episodes({"a": 5, "b": 3}, {"a": 5, "b": 4}) == []
 
 
 @pytest.mark.parametrize(

@@ -11,7 +11,8 @@ left at the pace of the runs training now, as many side by side as the reproduct
 (reproduce.json's `at_once`; else the runs started and not finished; `--at-once N` says
 otherwise). `--update FILE` replaces the block between the lines
 `<!-- progress:begin -->` and `<!-- progress:end -->` of FILE with both tables and the time they
-were computed, leaving the rest of the file as it is.
+were computed, leaving the rest of the file as it is, and names on stderr every run the
+replaced table gave more episodes than its folder holds now (a folder lost or rolled back).
 """
 
 from __future__ import annotations
@@ -82,7 +83,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--update",
         metavar="FILE",
-        help=f"write the tables into FILE between the lines {BEGIN} and {END}",
+        help=f"write the tables into FILE between the lines {BEGIN} and {END}; a run the "
+        "table replaced gave more episodes than its folder holds now is named on stderr",
     )
     parser.set_defaults(func=run)
 
@@ -94,6 +96,44 @@ def replace_block(text: str, block: str, path: Path) -> str:
     head, rest = text.split(BEGIN, 1)
     _, tail = rest.split(END, 1)
     return f"{head}{BEGIN}\n{block}{END}{tail}"
+
+
+def block_episodes(text: str) -> dict[str, int]:
+    """The episodes of each run in the progress block of `text` (the first table's `run` and
+    `episodes` columns, as `progress_markdown` writes them); empty where there is no block or
+    no such table."""
+    if text.count(BEGIN) != 1 or text.count(END) != 1:
+        return {}
+    block = text.split(BEGIN, 1)[1].split(END, 1)[0]
+    episodes: dict[str, int] = {}
+    column = None
+    for line in block.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if not line.startswith("|"):
+            if column is not None:
+                break  # the first table ended
+            continue
+        if column is None:
+            if cells[0] == "run" and "episodes" in cells:
+                column = cells.index("episodes")
+            continue
+        value = cells[column].replace(",", "") if len(cells) > column else ""
+        if value.isdigit():
+            episodes[cells[0]] = int(value)
+    return episodes
+
+
+def fewer_episodes(before: dict[str, int], now: dict[str, int]) -> list[str]:
+    """One line per run the table before listed with more episodes than the runs hold now,
+    or that the runs no longer list: a run folder lost or rolled back, which the page should
+    say beside the block, since the next table will not show it."""
+    lines = []
+    for run, was in before.items():
+        if run not in now:
+            lines.append(f"{run}: no longer listed (the table before: {was:,} episodes)")
+        elif now[run] < was:
+            lines.append(f"{run}: {now[run]:,} episodes, the table before: {was:,}")
+    return lines
 
 
 def _read_text(path: Path) -> str:
@@ -147,8 +187,16 @@ def run(args: argparse.Namespace) -> int:
     roots = " ".join(_home_relative(r) for r in args.roots)
     given = f" --at-once {args.at_once}" if args.at_once is not None else ""
     block = f"Computed by `curious progress {roots}{given}` at {now}.\n\n{table}"
-    path.write_text(replace_block(_read_text(path), block, path), encoding="utf-8")
+    text = _read_text(path)
+    path.write_text(replace_block(text, block, path), encoding="utf-8")
     print(f"updated {path} ({len(rows)} runs)")
+    if lost := fewer_episodes(block_episodes(text), block_episodes(f"{BEGIN}\n{block}{END}")):
+        print(
+            f"curious progress: fewer episodes than the table this one replaced in {path} "
+            "(a run folder lost or rolled back; the table no longer shows what was there, so "
+            "say so beside it):\n  " + "\n  ".join(lost),
+            file=sys.stderr,
+        )
     return 0
 
 
