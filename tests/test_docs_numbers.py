@@ -84,6 +84,18 @@ def _whole_seeds(experiment: str, variant: str | None = None) -> list[Path]:
     return [DATA / r.relative_path for r in runs]
 
 
+PROSE = {"push_cube1": "push cube 1", "cube1_above_cube2": "cube 1 above cube 2"}
+"""Modules as the pages' prose names them where it differs from the module's own name."""
+
+
+def _cpus(run: Path) -> set[str]:
+    """The CPUs a run trained on, as its config.json records them (start and each resume)."""
+    import json
+
+    record = json.loads((run / "config.json").read_text())
+    return {m["machine"]["cpu"] for m in (record, *record.get("resumed", []))}
+
+
 WORDS = {0: "none", 1: "one", 2: "two", 3: "three", 4: "four", 5: "five", 6: "six", 7: "seven",
          8: "eight", 9: "nine", 10: "ten"}  # fmt: skip
 """Small counts as the pages write them in words."""
@@ -480,14 +492,13 @@ def test_c3_no_drop_in_the_study_on_a_mastered_module():
 def test_c3_when_each_module_was_first_mastered_in_the_main_comparison():
     """C3's ranges of the episode at which each module was first mastered, per condition of the
     main comparison, over its modules mastered in some run (`mastery`)."""
-    names = {"push_cube1": "push cube 1", "cube1_above_cube2": "cube 1 above cube 2"}
     paths = [p for p in _whole_seeds("main") if p.parent.name != "her"]
     table = analysis.mastery(analysis.load_runs(paths)).dropna(subset=["mastered_episode"])
     text = _text(RESULTS)
     for condition, label in (("curious", "CURIOUS"), ("mg-te", "MG-TE")):
         at = table[table["condition"] == condition].groupby("module", observed=True, sort=False)
         ranges = ", ".join(
-            f"{names.get(str(m), m)} {_span(int(e.min()), int(e.max()))}"
+            f"{PROSE.get(str(m), m)} {_span(int(e.min()), int(e.max()))}"
             for m, e in at["mastered_episode"]
         )
         assert f"{label} main, {ranges}" in text, ranges
@@ -658,12 +669,9 @@ def test_the_protocols_compute_is_the_runs_own_clocks():
 def test_the_machines_row_names_every_run_trained_on_the_intel_xeon():
     """The protocol's machines row: the runs that started or resumed on an Intel Xeon, by folder,
     every other on an AMD EPYC, as each run's config.json records its machines."""
-    import json
-
     intel, amd = set(), set()
     for config in DATA.glob("**/config.json"):
-        record = json.loads(config.read_text())
-        cpus = {m["machine"]["cpu"] for m in (record, *record.get("resumed", []))}
+        cpus = _cpus(config.parent)
         run = config.parent.relative_to(DATA).as_posix()
         assert len(cpus) == 1, f"{run} trained on several machines: say which in the row"
         (intel if "Intel" in cpus.pop() else amd).add(run)
@@ -784,12 +792,15 @@ LONG_MODULES = ("reach", "push_cube1", "stack", "cube1_above_cube2")
 
 
 def _machines(run: Path) -> str:
-    """The CPUs a run trained on, as the pages name them, from its config.json."""
-    import json
+    """The CPUs a run trained on, as the pages name them."""
+    return " and ".join(sorted("Intel Xeon" if "Intel" in c else "AMD EPYC" for c in _cpus(run)))
 
-    record = json.loads((run / "config.json").read_text())
-    cpus = {m["machine"]["cpu"] for m in (record, *record.get("resumed", []))}
-    return " and ".join(sorted("Intel Xeon" if "Intel" in c else "AMD EPYC" for c in cpus))
+
+@functools.cache
+def _long_read(run: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """A long run's table and its `mastery`, read once for the row and the words of the test."""
+    table = analysis.load_runs(run)
+    return table, analysis.mastery(table)
 
 
 def _long_run_row(run: Path) -> str:
@@ -801,8 +812,7 @@ def _long_run_row(run: Path) -> str:
     import pandas as pd
 
     (row,) = progress_table(run)
-    table = analysis.load_runs(run)
-    read = analysis.mastery(table)
+    table, read = _long_read(run)
     by_module = read.set_index("module")
     first = by_module["mastered_episode"].reindex(list(LONG_MODULES))
     at = ", ".join("never" if pd.isna(x) else f"{int(x):,}" for x in first)
@@ -829,9 +839,7 @@ def _long_run_row(run: Path) -> str:
 
 def _words(module: str) -> str:
     """A module as the pages' prose names it: "push cube 1", "cube 1 above cube 2", "stack"."""
-    return {"push_cube1": "push cube 1", "cube1_above_cube2": "cube 1 above cube 2"}.get(
-        module, module
-    )
+    return PROSE.get(module, module)
 
 
 def test_c3_the_long_runs_as_they_ship():
@@ -853,8 +861,8 @@ def test_c3_the_long_runs_as_they_ship():
     run = DATA / "long" / "curious" / "seed-0"
     (hours,) = [r.run_hours for r in progress_table(run)]
     assert f"(300,000 episodes, commit 24d01ae, {hours:.2f} run-hours on the Intel Xeon)" in text
-    table = analysis.load_runs(run)
-    read = analysis.mastery(table).set_index("module")
+    table, mastered = _long_read(run)
+    read = mastered.set_index("module")
     assert analysis.mastery_drops(table).empty and int(read["n_drops"].sum()) == 0
     at = {m: f"{int(read.at[m, 'mastered_episode']):,}" for m in read.index}
     assert (
@@ -866,14 +874,14 @@ def test_c3_the_long_runs_as_they_ship():
     assert deepest == "cube1_above_cube2"
     assert f"cube 1 above cube 2's {read.at[deepest, 'deepest_fall']:.2f} at 78,889" in text
     # the report's table past the main comparison's end (`analysis.lowest_competence`)
-    late = analysis.lowest_competence(table, 100_000)
+    late = analysis.lowest_competence(table, 100_000, read=mastered)
     assert sorted(late["module"]) == sorted(read.index), "all four mastered before 100,000"
     lowest = late.loc[late["low"].idxmin()]
     low, episode = lowest["low"], int(lowest["low_episode"])
     assert lowest["module"] == "stack" and f"went below {low:.2f} (stack, at {episode:,})" in text
     assert f"(seed 0: after episode 100,000 no mastered module below {low:.2f})" in text
     assert f"(seed 0: after episode 100,000 none below {low:.2f})" in _text(README)
-    window = analysis.lowest_competence(table, *analysis.PAPER_FORGETTING_WINDOW)
+    window = analysis.lowest_competence(table, *analysis.PAPER_FORGETTING_WINDOW, read=mastered)
     t3 = window.set_index("module").at["cube1_above_cube2", "low"]
     assert analysis.PAPER_FORGETTING_WINDOW == (245_000, 255_000)
     assert t3 == 1.0 and "stood at 1.00 from 245,000 to 255,000" in text

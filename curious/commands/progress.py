@@ -188,9 +188,10 @@ def run(args: argparse.Namespace) -> int:
     given = f" --at-once {args.at_once}" if args.at_once is not None else ""
     block = f"Computed by `curious progress {roots}{given}` at {now}.\n\n{table}"
     text = _read_text(path)
-    path.write_text(replace_block(text, block, path), encoding="utf-8")
+    updated = replace_block(text, block, path)
+    path.write_text(updated, encoding="utf-8")
     print(f"updated {path} ({len(rows)} runs)")
-    if lost := fewer_episodes(block_episodes(text), block_episodes(f"{BEGIN}\n{block}{END}")):
+    if lost := fewer_episodes(block_episodes(text), block_episodes(updated)):
         print(
             f"curious progress: fewer episodes than the table this one replaced in {path} "
             "(a run folder lost or rolled back; the table no longer shows what was there, so "
