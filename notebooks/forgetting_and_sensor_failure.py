@@ -181,6 +181,18 @@ if has_mastered:
     display(censored["runs"][["condition", "seed", "time", "event"]])
 
 # %% [markdown]
+# Beside the rules, the course of each recovery: the module's pooled test success at fixed
+# distances after the onset (`analysis.success_after_onset`, the window ending at the first
+# epoch tested at or after each point; NaN: not tested that late), and, after each run's
+# crossing, the epochs whose pooled rate was under its threshold again (`analysis.returns_below`).
+
+# %%
+if has_mastered:
+    after = analysis.success_after_onset(tests_m, onsets, [1_000, 2_000, 5_000, 10_000, 20_000])
+    display(after.pivot_table("value", ["condition", "seed"], "offset").round(2))
+    display(analysis.returns_below(tests_m, by_tests).round(3))
+
+# %% [markdown]
 # ## Part 3: spontaneous forgetting
 #
 # In every run of the `main`, `distractors` and `long` experiments that has self-evaluations (HER

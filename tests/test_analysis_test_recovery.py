@@ -1,6 +1,7 @@
 """C5's primary measure: the recovery of the perturbed module's test success after the sensory
 failure (`analysis.recovery_by_tests`), and the Welch test on the episodes to recover
-(`analysis.compare_recoveries`), on small hand-made tests tables."""
+(`analysis.compare_recoveries`), and the readings beside them (`analysis.success_after_onset`,
+`analysis.returns_below`), on small hand-made tests tables."""
 
 from __future__ import annotations
 
@@ -226,3 +227,54 @@ def test_fewer_than_two_recovered_runs_a_side_give_no_test(episodes):
     test = analysis.compare_recoveries(_per_run(episodes), "curious", "m-uvfa")
     assert np.isnan(test["p"]) and not test["significant"]
     assert len(test["unrecovered"]) == sum(v is None for vs in episodes.values() for v in vs)
+
+
+def test_the_course_after_the_onset_reads_the_first_window_wholly_after_it_at_or_past_each_point():
+    """`success_after_onset`: epochs every 200 episodes, the onset at 2,100, so the first window
+    of 5 epochs wholly after it ends at 3,000; +500 reads there, +1,000 at 3,200, +2,000 at 4,200,
+    +3,000 past the run's last tests (NaN); a run without an onset has no row."""
+    tests = pd.concat(
+        [
+            rollouts("a", [10] * 10 + [0] * 5 + [10] * 10),
+            rollouts("b", [4] * 12, "m-uvfa"),
+        ],
+        ignore_index=True,
+    )
+    offsets = [500, 1_000, 2_000, 3_000]
+    after = analysis.success_after_onset(tests, {"a": 2_100, "b": pd.NA}, offsets)
+    assert after["run"].astype(str).unique().tolist() == ["a"]
+    assert after["offset"].tolist() == offsets
+    assert after["episodes"].iloc[:3].tolist() == [3_000, 3_200, 4_200]
+    assert after["value"].iloc[:3].tolist() == pytest.approx([0.0, 10 / 50, 1.0])
+    assert np.isnan(after["value"].iat[3]) and after["n_tests"].tolist() == [50, 50, 50, 0]
+    assert after[["condition", "seed", "onset"]].iloc[0].tolist() == ["curious", 0, 2_100]
+
+
+def test_the_returns_below_count_the_epochs_under_the_threshold_after_the_crossing():
+    """`returns_below`: run a crosses back to 1.0 at 4,000 (threshold 0.9), then one failed epoch
+    keeps the next five windows at 0.8, the last tested at 5,000 (2,900 after the onset), before
+    a sixth at 1.0; run b crosses and stays; run c never recovers and is not listed."""
+    tests = pd.concat(
+        [
+            rollouts("a", [10] * 10 + [0] * 5 + [10] * 5 + [0] + [10] * 5),
+            rollouts("b", [10] * 10 + [0] * 5 + [10] * 10, seed=1),
+            rollouts("c", [10] * 10 + [3] * 12, "m-uvfa"),
+        ],
+        ignore_index=True,
+    )
+    onsets = {"a": 2_100, "b": 2_100, "c": 2_100}
+    by_tests = analysis.recovery_by_tests(tests, onsets)
+    back = analysis.returns_below(tests, by_tests).set_index("run")
+    assert back.index.astype(str).tolist() == ["a", "b"]
+    assert back.loc["a", ["n_after", "n_below", "last_below"]].tolist() == [6, 5, 2_900]
+    assert back.loc["b", ["n_after", "n_below"]].tolist() == [5, 0]
+    assert pd.isna(back.loc["b", "last_below"]) and back["threshold"].tolist() == [0.9, 0.9]
+
+
+def test_the_readings_after_the_onset_refuse_what_they_cannot_read():
+    tests = rollouts("r", [10] * 10 + [0] * 5 + [10] * 10)
+    for offsets in ([], [0, 1_000], [-200]):
+        with pytest.raises(analysis.AnalysisError, match="offsets"):
+            analysis.success_after_onset(tests, {"r": 2_100}, offsets)
+    with pytest.raises(analysis.AnalysisError, match="recovery_by_tests"):
+        analysis.returns_below(tests, pd.DataFrame({"run": ["r"]}))

@@ -575,6 +575,39 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
         assert f"p = {fmt_p(test['p'])}" in readme, welch
 
 
+def test_c5_the_course_after_the_onset_and_the_returns_below_the_threshold():
+    """The readings beside C5's fixed rules, as the report writes them: each run's test success at
+    the table's distances after its onset (`success_after_onset`), with the table's caption, and
+    after each crossing the epochs back under the run's threshold (`returns_below`)."""
+    from pipelines.report.sensory_failures import (
+        after_onset_offsets,
+        after_onset_rows,
+        returns_clauses,
+    )
+
+    _, budget = _read_by_report()
+    e = budget.experiments["sensor_failure_mastered"]
+    paths, runs, by_tests = _mastered_study()
+    tests = analysis.load_tests(paths)
+    onsets = analysis.failure_onsets(runs)["onset"]
+    offsets = after_onset_offsets(by_tests)
+    text = _text(RESULTS)
+    header = "| | " + " | ".join(f"+{d:,}" for d in offsets) + " |"
+    assert header in text, header
+    caption = "pooled over the 5 epochs ending at the first epoch tested at or after each point"
+    assert caption in text, caption
+    after = analysis.success_after_onset(tests, onsets, offsets)
+    rows = after_onset_rows(e, after)
+    assert len(rows) == len(paths)
+    for row in rows:
+        line = "| " + " | ".join(row) + " |"
+        assert line in text, line
+    clauses = returns_clauses(e, analysis.returns_below(tests, by_tests))
+    assert len(clauses) == int(by_tests["recovered"].sum())
+    for clause in clauses:
+        assert clause in text, clause
+
+
 P_QUOTED = re.compile(r"\bp(?: =| is)? (\d[\d.e-]*\d|\d)(?: (?:to|and) (\d[\d.e-]*\d|\d))?\b")
 """A p-value as the pages quote it: "p = 0.0018", "p 0.0017 to 0.0021", "exact p is 0.05",
 "at p = 0.0011 and 0.0018"."""

@@ -16,7 +16,9 @@ analysis.fig2a(tests, out_dir="figures/")           # figures/fig2a.png and figu
 runs = analysis.load_runs("runs/")                  # one row per (run, training episode)
 analysis.fig2b(runs)                                # competence per module, one run
 analysis.recovery(runs)                             # after the sensory failure, where measurable
-analysis.recovery_by_tests(tests, analysis.failure_onsets(runs)["onset"])  # ... by test success
+onsets = analysis.failure_onsets(runs)["onset"]     # each run's first episode with the failure
+analysis.recovery_by_tests(tests, onsets)           # ... its recovery by test success
+analysis.success_after_onset(tests, onsets, [1_000, 5_000])  # that test success after it
 analysis.mastery_drops(runs)                        # spontaneous drops of mastered modules
 analysis.episodes_to_test_success(tests)            # per module: episodes to 0.5 and 0.9
 analysis.module_success_rates(tests)               # per module: test success at the end
@@ -33,6 +35,7 @@ self-evaluations, which drives learning progress). `curious.analysis.statistics`
 precisely, `curious.analysis.milestones` when each module is learned,
 `curious.analysis.perturbation` the recovery after the sensory failure (of the competence, and
 of the test success, the primary measure of the study on a mastered module),
+`curious.analysis.after_onset` the course of that test success after the onset, beside the rules,
 `curious.analysis.censored` recoveries compared with the runs not recovered counted,
 `curious.analysis.drops` the spontaneous drops of mastered modules (forgetting with nothing
 perturbed), `curious.analysis.dips` the smaller falls and the practice they draw, and
@@ -41,14 +44,15 @@ are added, and `curious.analysis.lp_ablations` the readings beyond the paper (wh
 uses does the work, and whether its sign matters). Module and condition colours live in
 `curious.watching.palette`, shared with the Rerun recordings.
 
-The public names are those of `loading`, `statistics`, `milestones`, `perturbation`, `censored`,
-`drops`, `dips`, `degradation`, `lp_ablations` and `figures` (each module's ``__all__``); this
-package imports pandas, scipy and matplotlib.
+The public names are those of `loading`, `statistics`, `milestones`, `perturbation`,
+`after_onset`, `censored`, `drops`, `dips`, `degradation`, `lp_ablations` and `figures` (each
+module's ``__all__``); this package imports pandas, scipy and matplotlib.
 """
 
 from __future__ import annotations
 
 from curious.analysis import (
+    after_onset,
     censored,
     degradation,
     dips,
@@ -60,6 +64,7 @@ from curious.analysis import (
     perturbation,
     statistics,
 )
+from curious.analysis.after_onset import *  # noqa: F403
 from curious.analysis.censored import *  # noqa: F403
 from curious.analysis.degradation import *  # noqa: F403
 from curious.analysis.dips import *  # noqa: F403
@@ -76,6 +81,7 @@ __all__ += loading.__all__
 __all__ += statistics.__all__
 __all__ += milestones.__all__
 __all__ += perturbation.__all__
+__all__ += after_onset.__all__
 __all__ += censored.__all__
 __all__ += drops.__all__
 __all__ += dips.__all__

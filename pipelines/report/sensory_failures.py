@@ -188,6 +188,87 @@ def practice_share(before: float, after: float) -> str:
     return f"{before:.0%} → {after:.0%}"
 
 
+AFTER_ONSET_OFFSETS = (1_000, 2_000, 5_000, 10_000, 15_000, 20_000, 25_000, 30_000)
+"""The distances after the onset at which the report gives each run's test success, before the
+last column (`followed_by_all`)."""
+
+
+def followed_by_all(by_tests: pd.DataFrame) -> int | None:
+    """The longest stretch after the onset, in whole thousands of episodes, that every recovered
+    run was followed (None where no run recovered)."""
+    back = by_tests.loc[by_tests["recovered"].astype(bool), "episodes_left"]
+    return None if back.empty else int(back.min()) // 1_000 * 1_000
+
+
+def after_onset_offsets(by_tests: pd.DataFrame) -> list[int]:
+    """`AFTER_ONSET_OFFSETS`, then the stretch every recovered run was followed where longer."""
+    last = followed_by_all(by_tests)
+    return [*AFTER_ONSET_OFFSETS, *([last] if last and last > AFTER_ONSET_OFFSETS[-1] else [])]
+
+
+def after_onset_rows(e: Experiment, after: pd.DataFrame) -> list[tuple[str, ...]]:
+    """A row per run of `analysis.success_after_onset`: its name and onset, then a rate
+    per offset (–: not tested that late)."""
+    rows = []
+    for (_, seed), mine in in_order(after, e).groupby(["condition", "seed"], sort=False):
+        label = f"{condition_label(str(mine['condition'].iat[0]))} {seed}"
+        rates = ["–" if pd.isna(v) else f"{v:.2f}" for v in mine.sort_values("offset")["value"]]
+        rows.append((f"{label} (onset {int(mine['onset'].iat[0]):,})", *rates))
+    return rows
+
+
+def returns_clauses(e: Experiment, returns: pd.DataFrame) -> list[str]:
+    """Per recovered run of `analysis.returns_below`: the epochs under its threshold again after
+    its crossing, of those tested, and the last of them."""
+    clauses = []
+    for r in in_order(returns, e).itertuples():
+        clause = (
+            f"{condition_label(r.condition)} seed {r.seed}, {r.n_below} of {r.n_after} epochs "
+            f"(threshold {r.threshold:.2f})"
+        )
+        if r.n_below:
+            clause += f", the last {int(r.last_below):,} episodes after the onset"
+        clauses.append(clause)
+    return clauses
+
+
+def after_onset_lines(
+    e: Experiment, tests: pd.DataFrame, onsets: pd.Series, by_tests: pd.DataFrame
+) -> list[str]:
+    """The module's test success at fixed distances after each onset, and the returns below the
+    threshold after each crossing: readings beside the fixed rules, sizing the noise of a first
+    crossing."""
+    module = str(by_tests["module"].iat[0])
+    offsets = after_onset_offsets(by_tests)
+    after = analysis.success_after_onset(tests, onsets, offsets, module)
+    if after.empty:
+        return []
+    header = ("", *(f"+{d:,}" for d in offsets))
+    last = followed_by_all(by_tests)
+    lines = [
+        f"`{module}`'s test success after the onset (`curious.analysis.success_after_onset`), "
+        f"pooled over the {int(by_tests['window'].max())} epochs ending at the first epoch "
+        "tested at or after each point, every window wholly after the onset (–: the run was not "
+        "tested that late)"
+        + (
+            f"; the last column, {last:,}, is the longest stretch every recovered run was followed:"
+            if last and last > AFTER_ONSET_OFFSETS[-1]
+            else ":"
+        ),
+        "",
+        *markdown_table(header, after_onset_rows(e, after)),
+    ]
+    returns = analysis.returns_below(tests, by_tests)
+    if len(returns):
+        lines += [
+            "After each crossing, the epochs whose pooled rate was under the run's threshold "
+            "again (`curious.analysis.returns_below`; a first crossing of a noisy rate is not a "
+            f"return held): {'; '.join(returns_clauses(e, returns))}.",
+            "",
+        ]
+    return lines
+
+
 def _primary_summary(e: Experiment, by_tests: pd.DataFrame) -> list[str]:
     """Per condition, the runs recovered by test success and their episodes to recover."""
     parts = []
@@ -325,6 +406,7 @@ def sensor_failure_mastered(
     )
     lines += markdown_table(header, rows)
     lines += _primary_summary(e, by_tests)
+    lines += after_onset_lines(e, tables.tests, onsets, by_tests)
     if e.compare is not None:
         lines += _recovery_welch(e, by_tests, *e.compare)
         lines += recovery_censored(by_tests, *e.compare)
