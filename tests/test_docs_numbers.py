@@ -537,6 +537,40 @@ def test_c5_refocus_and_recoveries():
     assert not table.loc[("m-uvfa", 0), "recovered"]
 
 
+def test_c5_the_first_studys_practice_and_competence_over_the_stretch_every_run_has():
+    """The study on a module just learned: over the episodes every run had after its onset (the
+    shortest stretch, M-UVFA seed 0's), each run's share of episodes on push cube 3 before and
+    after the onset, and its competence at the table's points, read from the runs' metrics."""
+    from curious.watching.palette import condition_label
+
+    runs = analysis.load_runs(_runs("sensor_failure"))
+    onsets = analysis.failure_onsets(runs)["onset"]
+    text = _text(RESULTS)
+    stretch = min(
+        int(g["episode"].max()) + 1 - int(onsets[str(run)]) for run, g in runs.groupby("run")
+    )
+    assert f"practised, {stretch:,} episodes before → after" in text
+    assert f"over the {stretch:,} episodes after each onset (the stretch every run has)" in text
+    points = (1_000, 2_000, 3_000, 4_000, 5_000, stretch - 1)
+    assert "| | at onset | " + " | ".join(f"+{d:,}" for d in points) + " |" in text
+    for run, g in runs.groupby("run", observed=True):
+        onset, episode = int(onsets[str(run)]), g["episode"].to_numpy()
+        on_it = g["module"].astype(str).to_numpy() == "push_cube3"
+        before = on_it[(episode >= onset - stretch) & (episode < onset)].mean()
+        after = on_it[(episode >= onset) & (episode < onset + stretch)].mean()
+        label, seed = condition_label(str(g["condition"].iat[0])), int(g["seed"].iat[0])
+        assert f"| {label} | {seed} | {onset:,} |" in text, (label, seed)
+        share = f"| {100 * before:.0f} % → {100 * after:.0f} % |"
+        assert share in text, (label, seed, share)
+        competence = g["competence/push_cube3"].to_numpy()
+        at = [competence[episode == onset - 1][0]]
+        at += [competence[episode == onset + d][0] for d in points]
+        cells = " | ".join(f"{c:.2f}" for c in at)
+        quoted = f"| {label} {seed} (onset {onset:,}) | {cells} |"
+        last = f"{label} {seed}'s competence was {at[-1]:.2f} at {points[-1]:,} episodes after"
+        assert quoted in text or last in text, (quoted, last)
+
+
 def test_c5_on_a_mastered_module_by_its_fixed_rules():
     """Each run's row of the study on a mastered module as the report writes it (onset, level
     before, trough, the primary and secondary recoveries), the README's recoveries by test
