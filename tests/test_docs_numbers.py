@@ -34,6 +34,8 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "laptop"
 README = ROOT / "README.md"
 RESULTS = ROOT / "docs" / "results.md"
+OTHER_COMPARISONS = ("sensor_failure", "distractors", "sensor_failure_mastered")
+"""The experiments that compare two conditions beside the main comparison."""
 
 pytestmark = pytest.mark.skipif(
     not (DATA / "shipped.json").exists(), reason=f"{DATA} ships no runs"
@@ -43,6 +45,14 @@ pytestmark = pytest.mark.skipif(
 def _text(path: Path) -> str:
     """The page's text with its line breaks as spaces, so that a number may wrap."""
     return re.sub(r"\s+", " ", path.read_text())
+
+
+def _summary_row(page: Path, claim: str) -> str:
+    """The row of `page`'s table of claims that sums `claim` up ("C1" ... "C5"): a number that
+    also stands in the section below is checked in the row itself, not only somewhere on the
+    page."""
+    (row,) = [line for line in page.read_text().splitlines() if line.startswith(f"| {claim}: ")]
+    return row
 
 
 def _budget_runs(experiment: str, variant: str | None = None) -> list[Path]:
@@ -128,9 +138,41 @@ def test_c1_final_test_success_and_significant_bins(main_bins):
     for page in (README, RESULTS):
         text = _text(page)
         assert significant in text, (page.name, significant)
+    assert _summary_row(README, "C1").count(significant) == 2, significant
+    holm = f"in {int(welch['significant_holm'].sum())} of {len(welch)} after Holm's correction"
+    assert significant in _summary_row(RESULTS, "C1") and holm in _summary_row(RESULTS, "C1")
     assert final in _text(README), final
     ahead = (welch["mean_better"] > welch["mean_worse"]).all()
     assert ahead and "CURIOUS ahead in every 5,000-episode bin" in _text(README)
+
+
+def test_the_pages_count_the_seeds_of_the_other_comparisons_as_the_report_reads_them():
+    """The opening of docs/results.md and the README's results count the seeds a side of the
+    comparisons beside the main one as the report reads them (seeds whole in every condition),
+    and the long runs shipped."""
+    _, budget = _read_by_report()
+    counts = [len(budget.experiments[e].seeds) for e in OTHER_COMPARISONS]
+    lo, hi = min(counts), max(counts)
+    spread = f"{lo} to {hi} a side" if lo < hi else f"{lo} a side"
+    long = len(list((DATA / "long" / "curious").glob("seed-*")))
+    assert f"{spread} in the comparisons beside it" in _text(RESULTS), spread
+    assert f"(the long runs, CURIOUS alone: {long} of 5 shipped so far)" in _text(RESULTS)
+    assert f"{spread} in the other comparisons" in _text(README), spread
+
+
+def test_the_readmes_quickstart_times_are_the_benchmarks_measures():
+    """Each time the README gives for the quickstart's first command stands in docs/benchmarks.md's
+    table of the quickstart's two commands, which says the machine, date and commit."""
+    readme = _text(README)
+    opening = readme[readme.index("The first command shows") : readme.index("It writes:")]
+    times = re.findall(r"\b\d+ min \d+ s\b|\b\d+ s after it starts", opening)
+    assert len(times) == 3, times
+    table = (ROOT / "docs" / "benchmarks.md").read_text()
+    table = table[table.index("## The quickstart's two commands") :]
+    table = table[: table.index("\n## ")] if "\n## " in table else table
+    for quoted in times:
+        measured = quoted.replace(" after it starts", " to that line")
+        assert measured in table, quoted
 
 
 def test_the_main_comparisons_seeds_are_counted_as_the_report_reads_them():
@@ -196,6 +238,8 @@ def test_c1_the_bins_not_significant_are_named_with_their_means(main_bins):
         named = f"ending at {int(r.episodes):,}"
         means = f"({r.mean_better:.2f} against {r.mean_worse:.2f}, p = {format_p(r.p)})"
         assert named in text and means in text, (named, means)
+    ends = " and ".join(f"{int(e):,}" for e in welch.loc[~welch["significant"], "episodes"])
+    assert f"not in the bins ending at {ends} episodes" in _summary_row(RESULTS, "C1"), ends
 
 
 def test_c1_mg_tes_spread_in_the_last_bin():
@@ -427,6 +471,17 @@ def test_c4_degradation_between_the_settings_shipped():
     assert f"one-tailed that CURIOUS loses less, p = {p});" in text, p
     assert f"significant at {d['most']} (p = {p_7})" in text, p_7
     assert f"both are significant, at p = {p} and {p_7}." in text, (p, p_7)
+    # the rows that sum C4 up: the losses, the test and the comparison at the most distractors
+    loss, other = f"{d['loss_curious']:.2f}", f"{d['loss_m-uvfa']:.2f}"
+    most = int(d["most"])
+    seeds = f"{int(d[f'n_curious_{most}'])} seeds a side"
+    row = _summary_row(RESULTS, "C4")
+    assert f"CURIOUS's competence fell by {loss} and M-UVFA's by {other}" in row, (loss, other)
+    assert f"loses less, p = {p});" in row and f"significant at {d['most']} (p = {p_7})" in row
+    assert f"reproduced with {seeds}" in row, seeds
+    row = _summary_row(README, "C4")
+    assert f"CURIOUS lost {loss}, M-UVFA {other}" in row and f"degrades less (p = {p})" in row
+    assert f"{seeds}:" in row, seeds
 
 
 def test_c3_no_drop_of_a_mastered_module():
@@ -598,10 +653,18 @@ def test_c5_on_a_mastered_module_by_its_fixed_rules():
         else:
             unrecovered = f"not within the {int(t.episodes_left):,} episodes"
             assert unrecovered in readme and unrecovered in results, unrecovered
+            assert unrecovered in _summary_row(RESULTS, "C5"), unrecovered
+            assert unrecovered in _summary_row(README, "C5"), unrecovered
     for condition, ns in recovered.items():
         listed = " and ".join([", ".join(ns[:-1]), ns[-1]] if len(ns) > 1 else ns)
         quoted = f"{listed} episodes (CURIOUS)" if condition == "curious" else f"{listed} (M-UVFA)"
         assert not ns or quoted in readme, quoted
+        summed = (
+            f"CURIOUS's test success back after {listed} episodes"
+            if condition == "curious"
+            else f"M-UVFA's after {listed}"
+        )
+        assert not ns or summed in _summary_row(RESULTS, "C5"), summed
     test = analysis.compare_recoveries(by_tests, "curious", "m-uvfa")
     if np.isfinite(test["p"]):
         welch = f"t = {fmt(test['t'])}, p = {fmt_p(test['p'])}"
