@@ -200,3 +200,46 @@ def test_the_signed_lp_figure_draws_both_measures_as_two_conditions(beyond, tmp_
     assert "signed LP" in legend
     with pytest.raises(AnalysisError, match="of both measures' runs, or of neither"):
         signed_lp(absolute, signed, tests_a, None)
+
+
+@pytest.mark.parametrize(
+    ("absolute", "signed", "reading"),
+    [
+        ([0.2, 0.25, 0.3], [0.0, 0.01, 0.02], "the absolute value matters"),
+        ([0.2, 0.25, 0.3], [0.2, 0.27, 0.31], "the refocus comes from relearning progress"),
+        # not significant, yet signed LP rose less: too few seeds to say
+        ([0.1, 0.3, 0.5], [0.0, 0.2, 0.45], "undecided"),
+        ([0.2], [0.1], "undecided"),  # one run a side: no test
+    ],
+)
+def test_the_reading_of_lps_sign_follows_the_rule_fixed_before_the_runs(absolute, signed, reading):
+    from curious.analysis.lp_ablations import signed_lp_reading
+
+    assert signed_lp_reading(compare_refocus(_recovery(absolute), _recovery(signed))) == reading
+
+
+def test_signed_lp_is_read_against_absolute_lp_on_the_seeds_both_have():
+    """Absolute LP's runs of seeds 0-4 against signed LP's of seeds 0-2 (and a seed 7 absolute
+    LP lacks): both measures on seeds 0-2 only."""
+    from curious.analysis.lp_ablations import SIGNED_LP, signed_beside_absolute
+
+    absolute = pd.DataFrame({"condition": ["curious"] * 5 + ["m-uvfa"], "seed": [0, 1, 2, 3, 4, 0]})
+    signed = pd.DataFrame({"condition": "curious", "seed": [0, 1, 2, 7]})
+    both = signed_beside_absolute(signed, absolute)
+    assert both.groupby("condition")["seed"].apply(sorted).to_dict() == {
+        "curious": [0, 1, 2],
+        SIGNED_LP: [0, 1, 2],
+    }
+    assert signed_beside_absolute(signed, None)["seed"].tolist() == [0, 1, 2, 7]
+    with pytest.raises(AnalysisError, match="share no seed"):
+        signed_beside_absolute(signed.assign(seed=[5, 6, 8, 9]), absolute)
+
+
+def test_the_smoke_report_reads_lps_sign_by_the_rule_fixed_before_the_runs(smoke):
+    """The `signed_lp` section gives the reading fixed before the runs after its refocus test:
+    one run a side at `smoke`, so no test, and the reading is undecided."""
+    report = (smoke.out / "report.md").read_text()
+    section = report[report.index("One-tailed Welch's t-test that absolute LP raises") :]
+    refocus, reading = section.split("\n\n")[:2]
+    assert "not tested (fewer than two runs a side, or no variance)" in refocus
+    assert reading == "The reading fixed before the runs: undecided."

@@ -7,7 +7,9 @@ The rules are docs/results.md's, "Beyond the paper", fixed before any of their r
   and CURIOUS against each (the other use adds), Holm-corrected over the four, on the seeds all
   four conditions have; `lp_use_readings` turns them into the reading fixed in advance.
 * `compare_refocus`: whether absolute LP raises a failed module's p_LP more than signed LP
-  (one-tailed Welch on each run's rise, after minus before the onset, from `recovery` tables).
+  (one-tailed Welch on each run's rise, after minus before the onset, from `recovery` tables),
+  on the seeds both measures have (`signed_beside_absolute`); `signed_lp_reading` turns it into
+  the reading fixed in advance.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ __all__ = [
     "lp_use_readings",
     "lp_uses_tables",
     "signed_beside_absolute",
+    "signed_lp_reading",
     "with_paper_pair",
 ]
 
@@ -68,11 +71,20 @@ def lp_uses_tables(
 
 def signed_beside_absolute(signed: pd.DataFrame, absolute: pd.DataFrame | None) -> pd.DataFrame:
     """The CURIOUS rows of ``absolute`` (a `sensor_failure_mastered` table; None: none) and
-    those of ``signed`` (a `signed_lp` table of the same kind) named `SIGNED_LP`, one table."""
-    tables = [_curious_only(signed, "signed").assign(condition=SIGNED_LP)]
-    if absolute is not None:
-        tables.insert(0, _curious_only(absolute, "absolute"))
-    return pd.concat(tables, ignore_index=True)
+    those of ``signed`` (a `signed_lp` table of the same kind) named `SIGNED_LP`, one table, on
+    the seeds both have (docs/results.md's rule: a seed of one measure alone is not read)."""
+    mine = _curious_only(signed, "signed").assign(condition=SIGNED_LP)
+    if absolute is None:
+        return mine.reset_index(drop=True)
+    theirs = _curious_only(absolute, "absolute")
+    shared = set(mine["seed"].astype(int)) & set(theirs["seed"].astype(int))
+    if not shared:
+        raise AnalysisError(
+            f"the signed LP runs (seeds {sorted(set(mine['seed'].astype(int)))}) and the "
+            f"absolute ones (seeds {sorted(set(theirs['seed'].astype(int)))}) share no seed"
+        )
+    both = pd.concat([theirs, mine], ignore_index=True)
+    return both[both["seed"].astype(int).isin(shared)].reset_index(drop=True)
 
 
 def _curious_only(table: pd.DataFrame, measure: str) -> pd.DataFrame:
@@ -202,3 +214,18 @@ def compare_refocus(
         "significant": bool(p < alpha) if np.isfinite(p) else False,
         "left_out": left_out,
     }
+
+
+def signed_lp_reading(refocus: dict[str, object]) -> str:
+    """The reading docs/results.md fixed for LP's sign, from a `compare_refocus` result: "the
+    absolute value matters" (the refocus test significant), "the refocus comes from relearning
+    progress" (not significant, and signed LP's mean rise of p_LP at least absolute LP's), else
+    "undecided" (not significant with signed LP's rise the smaller, or no test)."""
+    if refocus.get("significant"):
+        return "the absolute value matters"
+    rises = [np.asarray(refocus[k], np.float64) for k in ("rise_absolute", "rise_signed")]
+    if not np.isfinite(float(refocus["p"])) or not all(r.size for r in rises):
+        return "undecided"
+    if rises[1].mean() >= rises[0].mean():
+        return "the refocus comes from relearning progress"
+    return "undecided"

@@ -225,7 +225,8 @@ def signed_lp(repro: Reproduction, e: Experiment, tables: ExperimentTables) -> l
     refocus = analysis.compare_refocus(
         per_run[per_run["condition"] == "curious"], per_run[per_run["condition"] == SIGNED_LP]
     )
-    lines += [_refocus_sentence(refocus), ""]
+    reading = analysis.signed_lp_reading(refocus)
+    lines += [_refocus_sentence(refocus), "", f"The reading fixed before the runs: {reading}.", ""]
     if by_tests is not None:
         lines += recovery_censored(by_tests, "curious", SIGNED_LP)
     return lines
