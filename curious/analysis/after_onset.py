@@ -51,11 +51,10 @@ def _after_onset(
     pooled = pooled[pooled["module"].astype(str) == module]
     pooled = pooled.assign(run=pooled["run"].astype(str))
     rates = pooled[["run", "epoch", "value", "n_tests"]].merge(
-        grid[["run", "epoch", "position", "onset"]], on=["run", "epoch"]
+        grid[["run", "epoch", "episodes", "position", "onset"]], on=["run", "epoch"]
     )
     rates = rates.join(first_after.rename("first_after"), on="run")
     rates = rates[rates["position"] >= rates["first_after"] + window - 1]
-    rates = rates.merge(grid[["run", "epoch", "episodes"]], on=["run", "epoch"])
     rates["since"] = (rates["episodes"] - rates["onset"]).astype(np.int64)
     return rates.sort_values(["run", "position"]).reset_index(drop=True)
 

@@ -245,15 +245,16 @@ def after_onset_lines(
     if after.empty:
         return []
     header = ("", *(f"+{d:,}" for d in offsets))
-    last = followed_by_all(by_tests)
+    last = offsets[len(AFTER_ONSET_OFFSETS) :]
     lines = [
         f"`{module}`'s test success after the onset (`curious.analysis.success_after_onset`), "
         f"pooled over the {int(by_tests['window'].max())} epochs ending at the first epoch "
         "tested at or after each point, every window wholly after the onset (–: the run was not "
         "tested that late)"
         + (
-            f"; the last column, {last:,}, is the longest stretch every recovered run was followed:"
-            if last and last > AFTER_ONSET_OFFSETS[-1]
+            f"; the last column, +{last[0]:,}, is the longest stretch every recovered run was "
+            "followed:"
+            if last
             else ":"
         ),
         "",
