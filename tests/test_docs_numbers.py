@@ -156,8 +156,63 @@ def test_the_pages_count_the_seeds_of_the_other_comparisons_as_the_report_reads_
     spread = f"{lo} to {hi} a side" if lo < hi else f"{lo} a side"
     long = len(list((DATA / "long" / "curious").glob("seed-*")))
     assert f"{spread} in the comparisons beside it" in _text(RESULTS), spread
+    assert f"with {spread} in the comparisons beside the main one" in _text(RESULTS), spread
     assert f"(the long runs, CURIOUS alone: {long} of 5 shipped so far)" in _text(RESULTS)
     assert f"{spread} in the other comparisons" in _text(README), spread
+
+
+def _progress_rows() -> dict[str, tuple[int, str]]:
+    """Each run of results.md's progress table: its episodes and its checkpoint cell ("shipped",
+    "none" or an episode count)."""
+    block = RESULTS.read_text().split("<!-- progress:begin -->", 1)[1]
+    rows = {}
+    for line in block.split("<!-- progress:end -->", 1)[0].splitlines():
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if len(cells) > 7 and "/seed-" in cells[0]:
+            rows[cells[0]] = (int(cells[4].replace(",", "")), cells[7])
+    return rows
+
+
+def test_the_pages_say_which_long_runs_are_shipped_training_and_queued():
+    """What results.md, the README and data/README.md say of the long runs' seeds agrees with the
+    shipped folders and with the progress table of results.md: shipped, training (episodes
+    logged, not shipped) or queued (none yet)."""
+    rows = {run: row for run, row in _progress_rows().items() if run.startswith("long/")}
+    assert len(rows) == 5, rows
+    shipped = sorted(int(run[-1]) for run, (_, cell) in rows.items() if cell == "shipped")
+    training = sorted(int(run[-1]) for run, (n, cell) in rows.items() if cell != "shipped" and n)
+    queued = sorted(int(run[-1]) for run, (n, _) in rows.items() if not n)
+    folders = sorted(int(p.name[-1]) for p in (DATA / "long" / "curious").glob("seed-*"))
+    assert shipped == folders, (shipped, folders)
+
+    def seeds(values: list[int]) -> str:
+        if len(values) == 1:
+            return f"seed {values[0]}"
+        if values == list(range(values[0], values[-1] + 1)):
+            return f"seeds {values[0]} to {values[-1]}"
+        return f"seeds {_listed([str(v) for v in values])}"
+
+    said = []
+    if training:
+        said.append(f"{seeds(training)} {'is' if len(training) == 1 else 'are'} training")
+    if queued:
+        said.append(f"{seeds(queued)} {'is' if len(queued) == 1 else 'are'} queued")
+    status = " and ".join(said)
+    results = _text(RESULTS)
+    assert status in results, status
+    assert status.replace(" and ", ", ") in results, status
+    assert status.replace(" are queued", " queued").replace(" and ", ", ") in _text(README)
+    data = _text(ROOT / "data" / "README.md")
+    n = len(shipped)
+    assert f"as each finishes: {n} run{'s' * (n != 1)}, {seeds(shipped)}." in data
+
+
+def test_data_readme_counts_the_study_on_a_mastered_module_as_shipped():
+    runs = sorted((DATA / "sensor_failure_mastered").glob("*/seed-*"))
+    data = _text(ROOT / "data" / "README.md")
+    assert f"then): {len(runs)} runs" in data, len(runs)
+    assert ("M-UVFA's seed 4 still training" in data) == (len(runs) < 10)
+    assert ("M-UVFA's seed 4 still training" in _text(RESULTS)) == (len(runs) < 10)
 
 
 def test_the_readmes_quickstart_times_are_the_benchmarks_measures():
