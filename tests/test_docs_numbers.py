@@ -849,6 +849,18 @@ def test_the_protocols_compute_is_the_runs_own_clocks():
             whose = f"the {names[name]}'" if names[name].endswith("s") else f"the {names[name]}'s"
             quoted = f"{whose} seed {seed}, {hours:.2f} more ({len(paths)} runs)"
             assert quoted in text, quoted
+    # runs shipped that the report does not read yet (a seed with only some of its runs shipped)
+    from curious.watching.palette import condition_label
+
+    read_paths = {r.relative_path for e in read.experiments.values() for r in e.runs()}
+    for name in whole:
+        for path in sorted((DATA / name).glob("*/seed-*")):
+            if path.relative_to(DATA).as_posix() in {str(p) for p in read_paths}:
+                continue
+            (row,) = progress_table([path])
+            label = condition_label(path.parent.name.split("@")[0])
+            quoted = f"its {label} seed {_seed(path)}, {row.run_hours:.2f} more (1 run)"
+            assert "shipped and not read yet" in text and quoted in text, quoted
 
 
 def test_the_machines_row_names_every_run_trained_on_the_intel_xeon():
