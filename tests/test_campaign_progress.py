@@ -11,7 +11,7 @@ import pytest
 
 from curious.analysis.loading import AnalysisError
 from curious.cli import main as curious_cli
-from curious.commands.progress import BEGIN, END, block_episodes, fewer_episodes
+from curious.commands.progress import BEGIN, END, block_episodes, block_rows, fewer_episodes
 from curious.reproduction.campaign_progress import (
     current_pace,
     experiment_progress,
@@ -125,6 +125,13 @@ def test_block_episodes_reads_the_runs_table_of_the_block_alone():
     )
     assert block_episodes(text) == {"a/seed-0": 83_200, "b/seed-1": 0}
     assert block_episodes("no block\n") == {}
+    assert block_rows(text)["b/seed-1"] == {
+        "run": "b/seed-1",
+        "condition": "m-uvfa",
+        "episodes": "0",
+        "of": "50",
+    }
+    assert block_rows(text.replace(END, "").replace(BEGIN, "")) == {}
     assert fewer_episodes({"a": 5, "b": 3}, {"a": 5, "b": 4}) == []
 
 

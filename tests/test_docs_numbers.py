@@ -21,6 +21,7 @@ import pytest
 
 from curious import analysis
 from curious.analysis.formatting import format_p
+from curious.commands.progress import block_rows
 from curious.reproduction.campaign_progress import progress_table
 from curious.reproduction.experiments import get_budget
 
@@ -164,13 +165,12 @@ def test_the_pages_count_the_seeds_of_the_other_comparisons_as_the_report_reads_
 def _progress_rows() -> dict[str, tuple[int, str]]:
     """Each run of results.md's progress table: its episodes and its checkpoint cell ("shipped",
     "none" or an episode count)."""
-    block = RESULTS.read_text().split("<!-- progress:begin -->", 1)[1]
-    rows = {}
-    for line in block.split("<!-- progress:end -->", 1)[0].splitlines():
-        cells = [c.strip() for c in line.strip("|").split("|")]
-        if len(cells) > 7 and "/seed-" in cells[0]:
-            rows[cells[0]] = (int(cells[4].replace(",", "")), cells[7])
-    return rows
+    rows = block_rows(RESULTS.read_text())
+    return {
+        run: (int(cells["episodes"].replace(",", "")), cells["checkpoint"])
+        for run, cells in rows.items()
+        if "/seed-" in run
+    }
 
 
 def test_the_pages_say_which_long_runs_are_shipped_training_and_queued():

@@ -28,7 +28,7 @@ from curious.analysis.perturbation import (
     _onsets_by_run,
     perturbed_module,
 )
-from curious.analysis.statistics import RUN_COLUMNS
+from curious.analysis.statistics import RUN_COLUMNS, run_identity
 from curious.config import DEFAULT_TEST_EPOCHS
 
 __all__ = ["returns_below", "success_after_onset"]
@@ -61,7 +61,7 @@ def _after_onset(
 
 def _identity(tests: pd.DataFrame) -> pd.DataFrame:
     """Each run's identity columns, indexed by the run's path as text."""
-    out = tests.groupby("run", observed=True, sort=True)[list(RUN_COLUMNS[1:])].first()
+    out = run_identity(tests)
     out.index = out.index.astype(str)
     return out
 

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from curious.analysis.loading import AnalysisError, require_count, require_runs, require_tests
-from curious.analysis.statistics import FLOAT32_SLACK, RUN_COLUMNS, on_achievable
+from curious.analysis.statistics import FLOAT32_SLACK, RUN_COLUMNS, on_achievable, run_identity
 from curious.config import DEFAULT_TEST_EPOCHS
 
 __all__ = [
@@ -71,11 +71,6 @@ def _check_levels(levels: Sequence[float] | float) -> tuple[float, ...]:
     if not levels or any(not 0.0 < v <= 1.0 for v in levels):
         raise ValueError(f"levels must lie in (0, 1], got {levels}")
     return levels
-
-
-def _identity(tests: pd.DataFrame) -> pd.DataFrame:
-    """The run columns of each run of a tests table, indexed by ``run``."""
-    return tests.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
 
 
 def _achievable(identity: pd.DataFrame) -> pd.DataFrame:
@@ -123,7 +118,7 @@ def module_success_rates(
         }
     )
     counts = kept.groupby(["run", "module"], observed=True)["won"].agg(won="sum", n="size")
-    identity = _identity(tests)
+    identity = run_identity(tests)
     out = _achievable(identity).join(counts, on=["run", "module"]).fillna({"won": 0, "n": 0})
     out["episodes"] = out["run"].map(tests.groupby("run", observed=True)["episode"].max())
     out["n_tests"] = out["n"].astype(np.int64)
@@ -149,7 +144,7 @@ def module_test_success(tests: pd.DataFrame, window: int = DEFAULT_TEST_EPOCHS) 
     require_count(window, "window", "epoch")
     epochs = tests.groupby(["run", "epoch"], observed=True, sort=True)["episode"].max()
     epochs = epochs.rename("episodes").reset_index()
-    identity = _identity(tests)
+    identity = run_identity(tests)
     modules = _achievable(identity)
     hit = on_achievable(tests)
     counts = (
@@ -196,7 +191,7 @@ def episodes_to_test_success(
     """
     levels = _check_levels(levels)
     success = module_test_success(tests, window)
-    identity = _identity(tests)
+    identity = run_identity(tests)
     base = _achievable(identity).merge(pd.DataFrame({"level": levels}), how="cross")
     reached = [
         success[success["value"] >= level]

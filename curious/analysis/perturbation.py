@@ -43,6 +43,7 @@ from curious.analysis.statistics import (
     FLOAT32_SLACK,
     RUN_COLUMNS,
     run_arrays,
+    run_identity,
     welch_greater,
 )
 from curious.config import DEFAULT_TEST_EPOCHS, LEARNED_COMPETENCE
@@ -544,7 +545,7 @@ def recovery_by_tests(
     last_before = grid["position"].where(grid["before"]).groupby(grid["run"]).max()
     first_after = grid["position"].where(grid["after"]).groupby(grid["run"]).min()
     steps = per_run["episodes"].diff().groupby(grid["run"]).median()
-    out = tests.groupby("run", observed=True, sort=True)[list(RUN_COLUMNS[1:])].first()
+    out = run_identity(tests)
     out.index = out.index.astype(str)
     out["onset"] = per_run["onset"].first().astype("Int64")
     out["last"] = per_run["episodes"].max()

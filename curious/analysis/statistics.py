@@ -112,6 +112,12 @@ RUN_COLUMNS: tuple[str, ...] = (
 """The columns that say which run a row of a per-run table belongs to."""
 
 
+def run_identity(frame: pd.DataFrame) -> pd.DataFrame:
+    """Each run's `RUN_COLUMNS` but ``run`` (its first row's), indexed by ``run``: what a per-run
+    table joins to say which run a row belongs to."""
+    return frame.groupby("run", observed=True, sort=True)[list(RUN_COLUMNS[1:])].first()
+
+
 def achievable_competence(df: pd.DataFrame) -> pd.Series:
     """Per row: mean of ``competence/<m>`` over the run's achievable modules (see module doc)."""
     require_runs(df)
@@ -460,7 +466,7 @@ def epoch_success(tests: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     out = out[out["episodes"] <= out["run"].map(last)]
     if out.empty and bin_size is not None:
         raise _longer_than_every_run(bin_size, int(episodes.max()), "was tested up to")
-    identity = tests.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
+    identity = run_identity(tests)
     out = out.join(identity, on="run")
     out["run"] = out["run"].astype(tests["run"].dtype)
     out.attrs["bin_size"] = bin_size
@@ -579,7 +585,7 @@ def distractor_share(df: pd.DataFrame, bin_size: int | None = None) -> pd.DataFr
     out = out.reset_index()
     done = pd.Series(episode + 1, index=frame["run"]).groupby(level=0, observed=True).max()
     out = out[out["episodes"] <= out["run"].map(done).astype(np.int64)]
-    identity = df.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
+    identity = run_identity(df)
     out = out.join(identity, on="run")
     out.attrs["bin_size"] = bin_size
     return out[[*RUN_COLUMNS, "episodes", "value"]].reset_index(drop=True)
@@ -633,7 +639,7 @@ def replay_share(learner: pd.DataFrame, bin_size: int | None = None) -> pd.DataF
     )
     out = out[whole & (out["replayed"] > 0)]
     out = out.assign(value=out["distracting"] / out["replayed"])
-    identity = learner.groupby("run", observed=True)[list(RUN_COLUMNS[1:])].first()
+    identity = run_identity(learner)
     out = out.join(identity, on="run")
     out.attrs["bin_size"] = bin_size
     return out[[*RUN_COLUMNS, "episodes", "value"]].reset_index(drop=True)

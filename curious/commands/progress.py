@@ -98,28 +98,38 @@ def replace_block(text: str, block: str, path: Path) -> str:
     return f"{head}{BEGIN}\n{block}{END}{tail}"
 
 
-def block_episodes(text: str) -> dict[str, int]:
-    """The episodes of each run in the progress block of `text` (the first table's `run` and
-    `episodes` columns, as `progress_markdown` writes them); empty where there is no block or
-    no such table."""
+def block_rows(text: str) -> dict[str, dict[str, str]]:
+    """Each run of the progress block of `text` (the first table, as `progress_markdown` writes
+    it): its cells by column name; empty where there is no block or no such table."""
     if text.count(BEGIN) != 1 or text.count(END) != 1:
         return {}
     block = text.split(BEGIN, 1)[1].split(END, 1)[0]
-    episodes: dict[str, int] = {}
-    column = None
+    rows: dict[str, dict[str, str]] = {}
+    header: list[str] | None = None
     for line in block.splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         if not line.startswith("|"):
-            if column is not None:
+            if header is not None:
                 break  # the first table ended
             continue
-        if column is None:
-            if cells[0] == "run" and "episodes" in cells:
-                column = cells.index("episodes")
+        if header is None:
+            if cells[0] == "run":
+                header = cells
             continue
-        value = cells[column].replace(",", "") if len(cells) > column else ""
+        if set(line.strip()) <= set("|-: "):
+            continue  # the alignment row
+        rows[cells[0]] = dict(zip(header, cells, strict=False))  # a short row keeps its cells
+    return rows
+
+
+def block_episodes(text: str) -> dict[str, int]:
+    """The episodes of each run in the progress block of `text` (the `episodes` column of
+    `block_rows`); empty where there is no block or no such table."""
+    episodes: dict[str, int] = {}
+    for run, cells in block_rows(text).items():
+        value = cells.get("episodes", "").replace(",", "")
         if value.isdigit():
-            episodes[cells[0]] = int(value)
+            episodes[run] = int(value)
     return episodes
 
 
