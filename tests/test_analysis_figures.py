@@ -305,10 +305,8 @@ def test_the_sensor_failure_figure_draws_every_run_over_its_whole_recovery():
     assert sorted(x for c in circles for x in c.get_xdata()) == sorted(recovered.astype(int))
 
 
-def test_five_seeds_of_a_condition_draw_in_five_line_styles():
-    """The sensory-failure figures tell a condition's runs apart by line style, seed by seed: the
-    five seeds a side of the study on a mastered module need five patterns (its seed 3 was drawn
-    like seed 0 while there were four)."""
+def _seed_patterns() -> list[tuple[float, ...]]:
+    """The on-off dash pattern of each of `SEED_STYLES`, in points at a line width of 1."""
     from matplotlib import rcParams
 
     from curious.analysis.figures.failure_recovery import SEED_STYLES
@@ -319,8 +317,31 @@ def test_five_seeds_of_a_condition_draw_in_five_line_styles():
         ":": tuple(rcParams["lines.dotted_pattern"]),
         "-.": tuple(rcParams["lines.dashdot_pattern"]),
     }
-    patterns = [named[s] if isinstance(s, str) else tuple(s[1]) for s in SEED_STYLES]
+    return [named[s] if isinstance(s, str) else tuple(s[1]) for s in SEED_STYLES]
+
+
+def test_five_seeds_of_a_condition_draw_in_five_line_styles():
+    """The sensory-failure figures tell a condition's runs apart by line style, seed by seed: the
+    five seeds a side of the study on a mastered module need five patterns (its seed 3 was drawn
+    like seed 0 while there were four)."""
+    patterns = _seed_patterns()
     assert len(set(patterns[:5])) == 5, patterns
+
+
+@pytest.mark.skipif(not (SHIPPED / "sensor_failure").is_dir(), reason="no shipped runs")
+def test_the_run_legend_shows_a_whole_period_of_every_line_style():
+    """Each handle of the figure's run legend is long enough to show one whole period of any
+    seed's line style at the widest line drawn (dashes scale with the width): shorter, the
+    dash-dot-dot of seed 4 showed as seed 1's dashes and seed 3's dash-dot as seed 0's line."""
+    from matplotlib import rcParams
+
+    fig, _ = analysis.sensor_failure(analysis.load_runs(SHIPPED / "sensor_failure"))
+    legend = fig.axes[1].get_legend()
+    assert legend.get_title().get_text() == "each run"
+    assert rcParams["lines.scale_dashes"]
+    width = max(line.get_linewidth() for line in legend.get_lines())
+    longest = max(sum(pattern) for pattern in _seed_patterns()) * width
+    assert legend.handlelength * legend.prop.get_size_in_points() >= longest
 
 
 def test_distractors_plots_one_line_per_condition_over_distractor_counts(studies):

@@ -400,6 +400,7 @@ def _draw_aligned(
         title="each run",
         alignment="left",
         fontsize=7.5,
+        handlelength=5.0,  # long enough to show a whole dash-dot-dot and long-dash period
         title_fontsize=8,
     )
     top.annotate(
