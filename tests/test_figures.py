@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
 import pandas as pd
 import pytest
 from matplotlib.figure import Figure
@@ -52,3 +53,32 @@ def test_every_figure_is_drawn_from_the_smoke_tables_with_its_caption(name, smok
         assert caption.endswith(SMOKE.caption_note_for(e)), (name, experiment)
         for path in inputs.written.values():
             assert path.parent == tmp_path and not pd.read_csv(path).empty
+
+
+@pytest.mark.parametrize("name", ["sensor_failure", "signed_lp"])
+def test_a_failure_figures_side_table_holds_its_per_run_values_exactly(name, smoke, tmp_path):
+    """The report reads each run's onset, p_LP and practice shares from the CSV beside a failure
+    figure: read back, it holds what the analysis computed to the last bit, so that the report's
+    tests and readings (a mean rise of p_LP at least another's) are the notebooks'."""
+    from curious import analysis
+
+    spec = FIGURES[name]
+    experiment = next((e for e in spec.experiments if e in SMOKE.experiments), None)
+    if experiment is None:
+        pytest.skip(f"figure {name!r}: none of its experiments is in the smoke budget")
+    repro = Reproduction(SMOKE, OutputLayout.at(smoke.out), make_pool=LocalPool)
+    e = SMOKE.experiments[experiment]
+    inputs = figure_inputs(repro, e, spec, load_metrics(repro, experiment))
+    inputs = replace(inputs, out_dir=tmp_path)
+    spec.draw(inputs)
+    written = pd.read_csv(inputs.written["csv"])
+    floats = [c for c in written.columns if written[c].dtype == "float64"]
+    assert {"p_lp_before", "p_lp_after", "practice_before", "practice_after"} <= set(floats)
+    if name == "signed_lp":  # signed LP's runs beside the absolute ones they are read against
+        _, per_run = analysis.signed_lp(inputs.other("sensor_failure_mastered")[0], inputs.metrics)
+    else:
+        _, per_run = analysis.sensor_failure(inputs.metrics)
+    expected = per_run.drop(columns=["run"]).reset_index(drop=True)
+    assert len(written) == len(expected) > 0
+    for column in floats:
+        np.testing.assert_array_equal(written[column], expected[column].astype("float64"))

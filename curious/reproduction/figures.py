@@ -260,7 +260,7 @@ def _sensor_failure(with_tests: bool) -> DrawFn:
             inputs.metrics, note=inputs.note, name=inputs.stem, tests=tests
         )
         csv = inputs.side_file(".csv")
-        per_run.drop(columns=["run"]).to_csv(csv, index=False, float_format="%.6g")
+        per_run.drop(columns=["run"]).to_csv(csv, index=False)  # exact: the report reads it
         return fig
 
     return draw
@@ -342,7 +342,7 @@ def _signed_lp(inputs: FigureInputs) -> Figure:
     fig, per_run = analysis.signed_lp(
         absolute, signed, absolute_tests, signed_tests, note=inputs.note, name=inputs.stem
     )
-    per_run.drop(columns=["run"]).to_csv(inputs.side_file(".csv"), index=False, float_format="%.6g")
+    per_run.drop(columns=["run"]).to_csv(inputs.side_file(".csv"), index=False)  # exact, as above
     return fig
 
 
