@@ -337,8 +337,23 @@ def test_shipped_runs_of_some_variants_rebuild_those_variants_figures_and_number
         "finished; `curious reproduce --budget smoke --experiments "
         "sensor_failure,sensor_failure_mastered,long,lp_uses,signed_lp` trains them." in report
     )
+    assert "shipped, left out by" not in report  # main is read: nothing shipped goes unread
     row = next(line for line in report.splitlines() if line.startswith("| 7 |"))
     assert row in (smoke.out / "report.md").read_text().splitlines()
+    asked = tmp_path / "asked"
+    code, _, err = cli(
+        ["reproduce", "--from-data", str(data), "--out", str(asked), "--experiments",
+         "distractors", "--no-progress"]
+    )  # fmt: skip
+    assert code == 0, err[-3000:]
+    asked_report = (asked / "report.md").read_text()
+    assert (
+        "Not in this report (shipped, left out by `--experiments`): main; the same command with "
+        "them in `--experiments`, or without it, reads them." in asked_report
+    )
+    assert "Not in this report (not shipped yet): sensor_failure, sensor_failure_mastered, " in (
+        asked_report
+    )
     assert not any(line.startswith(("| 0 |", "| 4 |")) for line in report.splitlines())
     assert (out / "figures" / "distractors.png").is_file()
     metrics = pd.read_parquet(out / "metrics" / "distractors.parquet")

@@ -47,6 +47,30 @@ def _shown_anyway(repro: Reproduction, e: Experiment) -> str:
     )
 
 
+def _not_read(repro: Reproduction, missing: list[str]) -> list[str]:
+    """What a report built from shipped data says of the budget's experiments it does not read:
+    those the data holds whole, left out by `--experiments`, apart from those not shipped."""
+    assert repro.data is not None
+    budget = repro.budget
+    shipped = [name for name in missing if not repro.data.missing(budget.experiments[name])]
+    unshipped = [name for name in missing if name not in shipped]
+    lines = []
+    if shipped:
+        lines += [
+            f"Not in this report (shipped, left out by `--experiments`): {', '.join(shipped)}; "
+            "the same command with them in `--experiments`, or without it, reads them.",
+            "",
+        ]
+    if unshipped:
+        lines += [
+            f"Not in this report (not shipped yet): {', '.join(unshipped)}, whose runs the data "
+            "this report was built from does not hold all finished; `curious reproduce --budget "
+            f"{budget.name} --experiments {','.join(unshipped)}` trains them.",
+            "",
+        ]
+    return lines
+
+
 def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
     """Write report.md for every experiment whose metrics table exists; returns (path, names)."""
     layout, budget = repro.layout, repro.budget
@@ -122,14 +146,10 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         lines += SECTIONS.get(e.name, figures_only)(repro, e, by_experiment[e.name])
         lines += ["### Runs", "", *runs_table(by_experiment[e.name])]
     missing = [name for name in budget.experiments if name not in tables]
-    command = f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`"
     if missing and included and repro.data is not None:
-        lines += [
-            f"Not in this report (not shipped yet): {', '.join(missing)}, whose runs the data "
-            f"this report was built from does not hold all finished; {command} trains them.",
-            "",
-        ]
+        lines += _not_read(repro, missing)
     elif missing and included:
+        command = f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`"
         lines += [
             f"Not in this report (not reproduced yet): {', '.join(missing)}; run {command}.",
             "",
