@@ -6,14 +6,23 @@ every registered task)."""
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from matplotlib.figure import Figure
 
+from curious import analysis
 from curious.reproduction.experiments import experiment_names, get_budget
-from curious.reproduction.figures import BUILT_IN_FIGURES, FIGURES, check_figures, figures_of
+from curious.reproduction.figures import (
+    BUILT_IN_FIGURES,
+    FIGURES,
+    FigureInputs,
+    FigureSpec,
+    check_figures,
+    figures_of,
+)
 from pipelines.assets import figure_inputs, load_metrics
 from pipelines.executors import LocalPool
 from pipelines.resources import OutputLayout, Reproduction
@@ -35,6 +44,16 @@ def test_every_figure_names_known_experiments_and_a_file_of_its_own():
     assert len(stems) == len(set(stems)), stems
 
 
+def _smoke_inputs(spec: FigureSpec, experiment: str, smoke, out_dir: Path) -> FigureInputs:
+    """What `spec` draws from for `experiment` in the smoke reproduction, its side files
+    written to `out_dir` rather than into that output."""
+    repro = Reproduction(SMOKE, OutputLayout.at(smoke.out), make_pool=LocalPool)
+    inputs = figure_inputs(
+        repro, SMOKE.experiments[experiment], spec, load_metrics(repro, experiment)
+    )
+    return replace(inputs, out_dir=out_dir)
+
+
 @pytest.mark.parametrize("name", list(FIGURES))
 def test_every_figure_is_drawn_from_the_smoke_tables_with_its_caption(name, smoke, tmp_path):
     spec = FIGURES[name]
@@ -42,43 +61,45 @@ def test_every_figure_is_drawn_from_the_smoke_tables_with_its_caption(name, smok
     trained = [e for e in spec.experiments if e in SMOKE.experiments]
     if not trained:
         pytest.skip(f"figure {name!r}: none of its experiments is in the smoke budget")
-    repro = Reproduction(SMOKE, OutputLayout.at(smoke.out), make_pool=LocalPool)
     for experiment in trained:
-        e = SMOKE.experiments[experiment]
-        inputs = figure_inputs(repro, e, spec, load_metrics(repro, experiment))
-        inputs = replace(inputs, out_dir=tmp_path)  # the side files here, not in the output
+        inputs = _smoke_inputs(spec, experiment, smoke, tmp_path)
         fig = spec.draw(inputs)
         assert isinstance(fig, Figure), (name, experiment)
         caption = " ".join(fig.get_supxlabel().split())
-        assert caption.endswith(SMOKE.caption_note_for(e)), (name, experiment)
+        note = SMOKE.caption_note_for(SMOKE.experiments[experiment])
+        assert caption.endswith(note), (name, experiment)
         for path in inputs.written.values():
             assert path.parent == tmp_path and not pd.read_csv(path).empty
 
 
-@pytest.mark.parametrize("name", ["sensor_failure", "signed_lp"])
-def test_a_failure_figures_side_table_holds_its_per_run_values_exactly(name, smoke, tmp_path):
+@pytest.mark.parametrize(
+    ("name", "per_run_of"),
+    [
+        ("sensor_failure", lambda inputs: analysis.sensor_failure(inputs.metrics)[1]),
+        (  # signed LP's runs beside the absolute ones they are read against
+            "signed_lp",
+            lambda inputs: analysis.signed_lp(
+                inputs.other("sensor_failure_mastered")[0], inputs.metrics
+            )[1],
+        ),
+    ],
+)
+def test_a_failure_figures_side_table_holds_its_per_run_values_exactly(
+    name, per_run_of, smoke, tmp_path
+):
     """The report reads each run's onset, p_LP and practice shares from the CSV beside a failure
     figure: read back, it holds what the analysis computed to the last bit, so that the report's
     tests and readings (a mean rise of p_LP at least another's) are the notebooks'."""
-    from curious import analysis
-
     spec = FIGURES[name]
     experiment = next((e for e in spec.experiments if e in SMOKE.experiments), None)
     if experiment is None:
         pytest.skip(f"figure {name!r}: none of its experiments is in the smoke budget")
-    repro = Reproduction(SMOKE, OutputLayout.at(smoke.out), make_pool=LocalPool)
-    e = SMOKE.experiments[experiment]
-    inputs = figure_inputs(repro, e, spec, load_metrics(repro, experiment))
-    inputs = replace(inputs, out_dir=tmp_path)
+    inputs = _smoke_inputs(spec, experiment, smoke, tmp_path)
     spec.draw(inputs)
     written = pd.read_csv(inputs.written["csv"])
     floats = [c for c in written.columns if written[c].dtype == "float64"]
     assert {"p_lp_before", "p_lp_after", "practice_before", "practice_after"} <= set(floats)
-    if name == "signed_lp":  # signed LP's runs beside the absolute ones they are read against
-        _, per_run = analysis.signed_lp(inputs.other("sensor_failure_mastered")[0], inputs.metrics)
-    else:
-        _, per_run = analysis.sensor_failure(inputs.metrics)
-    expected = per_run.drop(columns=["run"]).reset_index(drop=True)
+    expected = per_run_of(inputs).drop(columns=["run"]).reset_index(drop=True)
     assert len(written) == len(expected) > 0
     for column in floats:
         np.testing.assert_array_equal(written[column], expected[column].astype("float64"))

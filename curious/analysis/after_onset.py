@@ -25,10 +25,11 @@ from curious.analysis.milestones import module_test_success
 from curious.analysis.perturbation import (
     _RATE_SLACK,
     _epoch_grid,
+    _identity_by_path,
     _onsets_by_run,
     perturbed_module,
 )
-from curious.analysis.statistics import RUN_COLUMNS, run_identity
+from curious.analysis.statistics import RUN_COLUMNS
 from curious.config import DEFAULT_TEST_EPOCHS
 
 __all__ = ["returns_below", "success_after_onset"]
@@ -57,13 +58,6 @@ def _after_onset(
     rates = rates[rates["position"] >= rates["first_after"] + window - 1]
     rates["since"] = (rates["episodes"] - rates["onset"]).astype(np.int64)
     return rates.sort_values(["run", "position"]).reset_index(drop=True)
-
-
-def _identity(tests: pd.DataFrame) -> pd.DataFrame:
-    """Each run's identity columns, indexed by the run's path as text."""
-    out = run_identity(tests)
-    out.index = out.index.astype(str)
-    return out
 
 
 def success_after_onset(
@@ -102,7 +96,7 @@ def success_after_onset(
                 }
             )
     out = pd.DataFrame(rows, columns=["run", "onset", "offset", "episodes", "value", "n_tests"])
-    return out.join(_identity(tests), on="run")[
+    return out.join(_identity_by_path(tests), on="run")[
         [*RUN_COLUMNS, "onset", "offset", "episodes", "value", "n_tests"]
     ]
 
@@ -142,5 +136,5 @@ def returns_below(
     out["n_after"] = later.groupby("run").size().reindex(out.index, fill_value=0)
     out["n_below"] = below.groupby("run").size().reindex(out.index, fill_value=0)
     out["last_below"] = below.groupby("run")["since"].max().reindex(out.index).astype("Int64")
-    out = out.join(_identity(tests)).rename_axis("run").reset_index()
+    out = out.join(_identity_by_path(tests)).rename_axis("run").reset_index()
     return out[columns]

@@ -488,6 +488,14 @@ def _onsets_by_run(onsets: pd.Series | Mapping[str, object]) -> pd.Series:
     return out
 
 
+def _identity_by_path(tests: pd.DataFrame) -> pd.DataFrame:
+    """Each run's identity columns (`run_identity`), indexed by the run's path as text, as the
+    readings after an onset key their runs."""
+    out = run_identity(tests)
+    out.index = out.index.astype(str)
+    return out
+
+
 def recovery_by_tests(
     tests: pd.DataFrame,
     onsets: pd.Series | Mapping[str, object],
@@ -545,8 +553,7 @@ def recovery_by_tests(
     last_before = grid["position"].where(grid["before"]).groupby(grid["run"]).max()
     first_after = grid["position"].where(grid["after"]).groupby(grid["run"]).min()
     steps = per_run["episodes"].diff().groupby(grid["run"]).median()
-    out = run_identity(tests)
-    out.index = out.index.astype(str)
+    out = _identity_by_path(tests)
     out["onset"] = per_run["onset"].first().astype("Int64")
     out["last"] = per_run["episodes"].max()
     out["epoch_episodes"] = steps.fillna(per_run["episodes"].min()).round().astype(np.int64)

@@ -6,7 +6,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from curious.reproduction.experiments import Experiment
+from curious.reproduction.experiments import Experiment, ReproduceBudget
+from pipelines.from_data import ShippedData
 from pipelines.report.blocks import ExperimentTables, lead_figure, other_figures
 from pipelines.report.distracting_modules import distractors
 from pipelines.report.long_study import long_runs
@@ -47,12 +48,10 @@ def _shown_anyway(repro: Reproduction, e: Experiment) -> str:
     )
 
 
-def _not_read(repro: Reproduction, missing: list[str]) -> list[str]:
-    """What a report built from shipped data says of the budget's experiments it does not read:
-    those the data holds whole, left out by `--experiments`, apart from those not shipped."""
-    assert repro.data is not None
-    budget = repro.budget
-    shipped = [name for name in missing if not repro.data.missing(budget.experiments[name])]
+def _not_read(data: ShippedData, budget: ReproduceBudget, missing: list[str]) -> list[str]:
+    """What a report built from shipped `data` says of the `budget`'s experiments it does not
+    read: those the data holds whole, left out by `--experiments`, apart from those not shipped."""
+    shipped = [name for name in missing if not data.missing(budget.experiments[name])]
     unshipped = [name for name in missing if name not in shipped]
     lines = []
     if shipped:
@@ -147,7 +146,7 @@ def write_report(repro: Reproduction) -> tuple[Path, list[str]]:
         lines += ["### Runs", "", *runs_table(by_experiment[e.name])]
     missing = [name for name in budget.experiments if name not in tables]
     if missing and included and repro.data is not None:
-        lines += _not_read(repro, missing)
+        lines += _not_read(repro.data, budget, missing)
     elif missing and included:
         command = f"`curious reproduce --budget {budget.name} --experiments {','.join(missing)}`"
         lines += [
