@@ -3,9 +3,11 @@ one line, never silently losing or replacing part of the run."""
 
 from __future__ import annotations
 
+import gc
 import hashlib
 import json
 import shutil
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +19,7 @@ from toy_env import make_toy_envs
 from curious.agent.agent import Agent
 from curious.cli import main
 from curious.presets import resolve
+from curious.runs import checkpoint
 from curious.runs.driver import train
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_layout import list_checkpoints
@@ -170,6 +173,36 @@ def test_a_deleted_tests_parquet_is_refused_instead_of_leaving_a_run_without_hal
     trainer = run(out, resume=True, total_episodes=48)
     assert trainer.episodes == 48
     assert len(pq.read_table(out / "tests.parquet")) == 12
+
+
+def test_a_resumed_run_trains_without_a_second_copy_of_its_replay(tmp_path, monkeypatch):
+    """The checkpoint's replay arrays, once copied into the trainer's replay, are let go: held
+    for the rest of the run, they doubled the replay's memory (docs/benchmarks.md)."""
+    out = tmp_path / "r"
+    run(out, stop=3, total_episodes=24)
+    loaded: list[weakref.ref] = []
+    load_latest = checkpoint.load_latest
+
+    def load_and_watch(*args, **kwargs):
+        latest = load_latest(*args, **kwargs)
+        loaded.extend(weakref.ref(array) for array in latest[2].values())
+        return latest
+
+    monkeypatch.setattr(checkpoint, "load_latest", load_and_watch)
+    alive_while_training: list[int] = []
+
+    def count_alive() -> bool:
+        gc.collect()
+        alive_while_training.append(sum(ref() is not None for ref in loaded))
+        return False
+
+    config = resolve("smoke", "curious", 0, {**SMALL, "total_episodes": 24})
+    trainer = train(
+        config, out, resume=True, make_envs=lambda c: make_toy_envs(c.seed, 2), stop=count_alive
+    )
+    assert trainer.episodes == 24
+    assert len(loaded) >= 6  # states, achieved, actions, modules, goals, moved, counters
+    assert alive_while_training and set(alive_while_training) == {0}
 
 
 # ------------------------------------------------------------------------------ divergence
