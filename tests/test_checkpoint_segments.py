@@ -148,3 +148,25 @@ def test_a_checkpoint_written_whole_resumes_and_the_next_starts_the_segments(tmp
     path = checkpoint.save(tmp_path, 20, {}, grown(8), base=path)
     assert [row[1:] for row in manifest(path)["segments"]] == [[0, 8]]
     np.testing.assert_array_equal(checkpoint.load(path)[1]["modules"], np.arange(8))
+
+
+def test_a_replay_is_read_into_the_arrays_that_will_hold_it(tmp_path):
+    """A resume reads the segments into its replay's own arrays (`into`) rather than into new
+    ones, so that it holds the replay once while it loads; arrays that cannot hold them (too
+    few episodes, another type) are left as they are and new ones come back."""
+    paths = save_run(tmp_path, [5, 12])
+    room = {
+        "states": np.full((20, 3), -1, np.float32),
+        "modules": np.full(20, -1, np.int64),
+    }
+    _, replay = checkpoint.load(paths[-1], into=room)
+    for key in ("states", "modules"):
+        assert np.shares_memory(replay[key], room[key]), key
+        np.testing.assert_array_equal(room[key][:12], grown(12)[key], err_msg=key)
+        assert (room[key][12:] == -1).all(), key  # the slots after the replay untouched
+    small = {"states": np.zeros((10, 3), np.float32), "modules": np.zeros(20, np.int32)}
+    _, replay = checkpoint.load(paths[-1], into=small)
+    for key in ("states", "modules"):
+        assert not np.shares_memory(replay[key], small[key]), key
+        assert not small[key].any(), key
+        np.testing.assert_array_equal(replay[key], grown(12)[key], err_msg=key)

@@ -100,8 +100,18 @@ class EpisodeReplay:
 
     @property
     def nbytes(self) -> int:
-        arrays = (self.states, self.achieved, self.actions, self.modules, self.goals, self.moved)
-        return sum(a.nbytes for a in arrays)
+        return sum(a.nbytes for a in self.arrays().values())
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The stored arrays, whole (every slot), by their names in `state_dict`."""
+        return {
+            "states": self.states,
+            "achieved": self.achieved,
+            "actions": self.actions,
+            "modules": self.modules,
+            "goals": self.goals,
+            "moved": self.moved,
+        }
 
     def store(
         self,
@@ -246,12 +256,7 @@ class EpisodeReplay:
     def state_dict(self) -> dict[str, Any]:
         n = self.size
         return {
-            "states": self.states[:n],
-            "achieved": self.achieved[:n],
-            "actions": self.actions[:n],
-            "modules": self.modules[:n],
-            "goals": self.goals[:n],
-            "moved": self.moved[:n],
+            **{key: array[:n] for key, array in self.arrays().items()},
             "size": np.int64(n),
             "ptr": np.int64(self.ptr),
             "evicted": np.bool_(self.evicted),
@@ -259,21 +264,23 @@ class EpisodeReplay:
 
     def load_state_dict(self, state: dict[str, Any]) -> None:
         """Load a `state_dict`, into a replay of the same or a larger capacity (a run resumed
-        with more episodes); episodes are laid out oldest first, so eviction order is kept."""
+        with more episodes); episodes are laid out oldest first, so eviction order is kept. An
+        array that is already this replay's first episodes (read into `arrays()` by
+        `curious.runs.checkpoint.load`) is not copied."""
         n = int(state["size"])
         if n > self.capacity:
             raise ValueError(f"checkpoint replay holds {n} episodes, capacity is {self.capacity}")
         oldest = int(state["ptr"]) % n if n else 0  # a full ring's oldest episode sits at ptr
-        for key in ("states", "achieved", "actions", "modules", "goals", "moved"):
+        for key, target in self.arrays().items():
             array = np.asarray(state[key])
             if oldest:  # no copy of the whole replay where it is laid out oldest first
                 array = np.roll(array, -oldest, axis=0)
-            target = getattr(self, key)
             if array.shape[1:] != target.shape[1:]:
                 raise ValueError(
                     f"replay {key}: checkpoint shape {array.shape[1:]}, expected {target.shape[1:]}"
                 )
-            target[:n] = array
+            if not _is_first_episodes_of(array, target):
+                target[:n] = array
         self.size = n
         self.ptr = n % self.capacity
         # a dict without the flag (written before it existed) is taken as evicted unless its
@@ -281,3 +288,13 @@ class EpisodeReplay:
         ptr = int(state["ptr"])
         self.evicted = bool(state["evicted"]) if "evicted" in state else ptr != n
         self._pools = None
+
+
+def _is_first_episodes_of(array: np.ndarray, target: np.ndarray) -> bool:
+    """Whether `array` is `target[:len(array)]` itself (the same memory, laid out alike)."""
+    return (
+        array.ctypes.data == target.ctypes.data
+        and array.dtype == target.dtype
+        and array.strides == target.strides
+        and array.shape[1:] == target.shape[1:]
+    )

@@ -30,7 +30,7 @@ import pickle
 import shutil
 import warnings
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -229,10 +229,14 @@ def _write_segments(directory: Path, replay: dict[str, Any], base: Path | None) 
     return {"size": size, "scalars": scalars, "segments": segments}
 
 
-def _read_segments(path: Path, replay: bool) -> dict[str, np.ndarray]:
+def _read_segments(
+    path: Path, replay: bool, into: Mapping[str, np.ndarray] | None = None
+) -> dict[str, np.ndarray]:
     """The replay arrays a checkpoint's manifest lists, filled in order into one array each (the
     memory of the replay and one segment at most; empty with `replay` False, once every segment
-    has been opened and listed)."""
+    has been opened and listed). An array of `into` of the same name that holds them (as many
+    episodes or more, the same shape and type otherwise) is filled in place of a new one, and
+    its first episodes come back."""
     manifest = _read_manifest(path)
     folder = path.parent / SEGMENTS
     size = manifest["size"]
@@ -254,7 +258,7 @@ def _read_segments(path: Path, replay: bool) -> dict[str, np.ndarray]:
                         f"not {end - first}"
                     )
                 if key not in arrays:
-                    arrays[key] = np.empty((size, *part.shape[1:]), part.dtype)
+                    arrays[key] = _first_episodes(into, key, size, part)
                 arrays[key][first:end] = part
         expected = end
     if expected != size:
@@ -262,6 +266,21 @@ def _read_segments(path: Path, replay: bool) -> dict[str, np.ndarray]:
     if not replay:
         return arrays  # empty: every segment was opened and listed
     return {**arrays, **{k: np.asarray(v) for k, v in manifest["scalars"].items()}}
+
+
+def _first_episodes(
+    into: Mapping[str, np.ndarray] | None, key: str, size: int, part: np.ndarray
+) -> np.ndarray:
+    """The array a segmented replay's `key` is read into: the first `size` episodes of
+    `into[key]` where they fit `part`'s episodes, else a new array."""
+    target = into.get(key) if into is not None else None
+    fits = (
+        target is not None
+        and len(target) >= size
+        and target.shape[1:] == part.shape[1:]
+        and target.dtype == part.dtype
+    )
+    return target[:size] if fits else np.empty((size, *part.shape[1:]), part.dtype)
 
 
 def _remove_temporary_segments(directory: Path) -> None:
@@ -302,16 +321,22 @@ def remove_partial(directory: Path) -> None:
 
 
 def load(
-    path: Path, map_location: str | torch.device = "cpu", replay: bool = True
+    path: Path,
+    map_location: str | torch.device = "cpu",
+    replay: bool = True,
+    into: Mapping[str, np.ndarray] | None = None,
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """(state, replay arrays) of the checkpoint at `path`. With `replay=False` the replay's
     arrays are not read (an evaluation needs only the networks: the replay is most of a
     checkpoint's size): its archive is opened and listed, so that a truncated one is still
-    refused, and the arrays come back empty."""
+    refused, and the arrays come back empty. `into`: the arrays of the replay that will take
+    them (`EpisodeReplay.arrays`), read into where they fit, so that a resume holds the replay
+    once rather than twice while it loads (segmented replays; one that evicted episodes is read
+    whole, as written)."""
     try:
         state = torch.load(path / "state.pt", map_location=map_location, weights_only=False)
         if (path / MANIFEST).exists():
-            arrays = _read_segments(path, replay)
+            arrays = _read_segments(path, replay, into)
         else:
             with np.load(path / "replay.npz") as data:
                 arrays = {k: data[k] for k in data.files} if replay else {}
@@ -336,7 +361,10 @@ def load(
 
 
 def load_latest(
-    directory: Path, map_location: str | torch.device = "cpu", replay: bool = True
+    directory: Path,
+    map_location: str | torch.device = "cpu",
+    replay: bool = True,
+    into: Mapping[str, np.ndarray] | None = None,
 ) -> tuple[Path, dict[str, Any], dict[str, np.ndarray]] | None:
     """(path, state, replay) of the newest readable checkpoint in `directory`, None when there is
     none. An unreadable newest one is passed over for the one before, with a warning naming
@@ -345,12 +373,12 @@ def load_latest(
     A checkpoint is taken by its state's own episode counter, which must be the episode its
     folder's name says: one renamed or copied under another name (`ep-000000000999` holding
     episode 24) is passed over like a damaged one, so that a name never sends a run back to an
-    older state. `replay=False`: as `load`'s."""
+    older state. `replay=False` and `into`: as `load`'s."""
     found = list_checkpoints(directory)
     errors = []
     for path in reversed(found):
         try:
-            state, arrays = load(path, map_location, replay)
+            state, arrays = load(path, map_location, replay, into)
         except CheckpointError as exc:
             errors.append(str(exc))
             continue

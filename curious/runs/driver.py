@@ -161,10 +161,13 @@ def resume_checks(
 def _load_latest(trainer: Trainer, folder: RunFolder) -> Path | None:
     """Load the run's newest readable checkpoint into `trainer`; its path, None without one.
 
-    The checkpoint's replay arrays are copied into the trainer's replay and let go on return:
-    held for the rest of the run, they would be a second copy of the replay as large as it was
-    at the checkpoint (up to the 4.64 GiB of a 300,000-episode run's replay, docs/agent.md)."""
-    latest = checkpoint.load_latest(folder.checkpoints, trainer.agent.device)
+    The checkpoint's replay is read into the trainer's own replay arrays (where it was written
+    as segments: every replay that never evicted an episode), and what was read is let go on
+    return: a second copy, held while loading or for the rest of the run, would be as large as
+    the replay at the checkpoint (up to the 4.64 GiB of a 300,000-episode run's, docs/agent.md)."""
+    latest = checkpoint.load_latest(
+        folder.checkpoints, trainer.agent.device, into=trainer.replay.arrays()
+    )
     if latest is None:
         return None
     path, state, replay = latest

@@ -588,6 +588,6 @@ class Trainer:
         return path
 
     def load_checkpoint(self, path: Path) -> None:
-        state, replay = checkpoint.load(path, map_location=self.agent.device)
+        state, replay = checkpoint.load(path, self.agent.device, into=self.replay.arrays())
         self.load_state_dict(state, replay)
         self.last_checkpoint = path
