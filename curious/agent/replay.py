@@ -279,8 +279,8 @@ class EpisodeReplay:
                 raise ValueError(
                     f"replay {key}: checkpoint shape {array.shape[1:]}, expected {target.shape[1:]}"
                 )
-            if not _is_first_episodes_of(array, target):
-                target[:n] = array
+            if not (len(array) == n and _is_first_episodes_of(array, target)):
+                target[:n] = array  # a length other than n raises here, as it always did
         self.size = n
         self.ptr = n % self.capacity
         # a dict without the flag (written before it existed) is taken as evicted unless its
@@ -291,7 +291,7 @@ class EpisodeReplay:
 
 
 def _is_first_episodes_of(array: np.ndarray, target: np.ndarray) -> bool:
-    """Whether `array` is `target[:len(array)]` itself (the same memory, laid out alike)."""
+    """Whether `array` starts where `target` does, laid out alike: `target[:len(array)]`."""
     return (
         array.ctypes.data == target.ctypes.data
         and array.dtype == target.dtype
