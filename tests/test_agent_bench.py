@@ -105,6 +105,21 @@ def test_the_checkpoint_benchmark_keeps_the_replay_once_where_the_peer_keeps_it_
     assert both < result["disk_two_checkpoints_peer_mb"] < 1.1 * both
 
 
+def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twice():
+    from benchmarks import resume_memory
+
+    parser = argparse.ArgumentParser()
+    resume_memory.add_arguments(parser)
+    args = ["--episodes", "2000", "--every", "400", "--rounds", "1"]
+    result = resume_memory.measure(parser.parse_args(args))
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    replay = result["bound"]  # 33 MB of the default variant's replay
+    assert replay < result["ours"] < 1.5 * replay  # the replay once, and little beside
+    assert result["held_ours_mb"] < 1.5 * replay
+    assert result["peer"] > result["ours"] + 0.8 * replay  # a second copy
+    assert result["held_peer_mb"] > result["held_ours_mb"] + 0.8 * replay
+
+
 def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
     from benchmarks import relabel_speed
 

@@ -1,5 +1,5 @@
-"""`curious bench {env,learner,relabel,cycle,rollouts,seeds,recording,checkpoint}`: speed
-benchmarks, ours side by side with a bound and a peer.
+"""`curious bench {env,learner,relabel,cycle,rollouts,seeds,recording,checkpoint,resume}`:
+speed and memory benchmarks, ours side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
 at least the keys `ours`, `bound`, `peer` and `unit` (plus whatever detail it reports), and
@@ -48,6 +48,11 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
     "checkpoint": (
         "benchmarks.checkpoint_cost",
         "a checkpoint's replay: only the new episodes vs the whole replay vs the raw write",
+    ),
+    "resume": (
+        "benchmarks.resume_memory",
+        "a resume's memory: the replay read into its own arrays vs read, copied and kept vs "
+        "the replay's bytes",
     ),
 }
 

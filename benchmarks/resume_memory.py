@@ -1,0 +1,148 @@
+"""`curious bench resume`: the memory a resumed run takes to load its checkpoint's replay.
+
+A replay of the suite's variant holding `--episodes` episodes (random values, the real shapes;
+`checkpoint_cost._replay`) is checkpointed as a run writes it (a segment every `--every`
+episodes, each checkpoint building on the one before), then loaded into a
+fresh replay of that capacity as a resume loads it, each way in a process of its own (so that
+the pages one touched do not count for the other), in interleaved rounds:
+
+* ours: the segments read straight into the replay's own arrays (`checkpoint.load`'s `into`);
+* peer: read into arrays of their own, copied into the replay, and those arrays kept, as a
+  resume kept them for the rest of its run at the commits before 0f0f896;
+* bound: the bytes of the replay's filled part, what a run holds once it is loaded.
+
+Reported, in MB over what the process held before the load: the peak while loading and what it
+holds once loaded (the peer's arrays let go, it holds what ours does: 0f0f896).
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from benchmarks import AtLeast
+from benchmarks.checkpoint_cost import _prefix, _replay
+from curious.runs.folder_lock import check_writable
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--episodes", type=AtLeast(1), default=20_000, help="episodes in the replay (20,000)"
+    )
+    parser.add_argument(
+        "--every",
+        type=AtLeast(1),
+        default=800,
+        help="episodes between checkpoints, one segment each (800: a `laptop` run's interval)",
+    )
+    parser.add_argument("--variant", default="default", help="the suite's variant (default)")
+    parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
+    parser.add_argument(
+        "--dir",
+        default=None,
+        help="folder to write the checkpoint in, made if missing (default: a temporary one "
+        "under TMPDIR)",
+    )
+
+
+def _resident_bytes() -> int:
+    """This process's resident memory now (Linux: /proc/self/statm)."""
+    with open("/proc/self/statm") as handle:
+        return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def _reset_peak() -> None:
+    """Start this process's peak resident memory afresh from now (Linux 4.0 and later)."""
+    with open("/proc/self/clear_refs", "w") as handle:
+        handle.write("5")
+
+
+def _peak_bytes() -> int:
+    """This process's peak resident memory since `_reset_peak` (VmHWM, in kB)."""
+    with open("/proc/self/status") as handle:
+        line = next(line for line in handle if line.startswith("VmHWM:"))
+    return int(line.split()[1]) * 1024
+
+
+def _load(path: str, variant: str, capacity: int, into: bool) -> dict[str, float]:
+    """In a fresh process: load the checkpoint at `path` into a replay of `capacity` episodes,
+    ours (`into`) or the peer's way; bytes added at the peak and once loaded, and seconds."""
+    import gc
+
+    from curious.agent.replay import EpisodeReplay
+    from curious.envs.goal_env import SuiteEnv
+    from curious.runs import checkpoint
+
+    replay = EpisodeReplay(SuiteEnv(variant).spec, capacity)
+    gc.collect()
+    _reset_peak()
+    before = _resident_bytes()
+    tic = time.perf_counter()
+    _, arrays = checkpoint.load(Path(path), into=replay.arrays() if into else None)
+    replay.load_state_dict(arrays)
+    seconds = time.perf_counter() - tic
+    if into:
+        del arrays  # the peer keeps its arrays, as the resume did
+    gc.collect()
+    held = _resident_bytes() - before
+    peak = _peak_bytes() - before
+    return {"peak": float(peak), "held": float(held), "seconds": seconds}
+
+
+def measure(args: argparse.Namespace) -> dict[str, Any]:
+    """Loads the checkpoint both ways, `--rounds` times each; returns ours/bound/peer/unit (the
+    load's peak, MB) and what each holds once loaded."""
+    from curious.runs import checkpoint
+
+    if args.dir is not None:
+        check_writable(args.dir, "--dir", folder=True)
+        Path(args.dir).mkdir(parents=True, exist_ok=True)
+    full = _replay(args.variant, args.episodes)
+    replay_bytes = sum(v.nbytes for v in full.values() if v.ndim > 0)
+    results: dict[str, list[dict[str, float]]] = {"ours": [], "peer": []}
+    context = multiprocessing.get_context("spawn")
+    with tempfile.TemporaryDirectory(prefix="curious-bench-resume-", dir=args.dir) as tmp:
+        path = None
+        for end in [*range(args.every, args.episodes, args.every), args.episodes]:
+            state = {"note": "the replay alone"}
+            path = checkpoint.save(Path(tmp), end, state, _prefix(full, end), base=path)
+        del full
+        with context.Pool(1, maxtasksperchild=1) as pool:  # a fresh process for each load
+            for r in range(args.rounds):
+                order = ["ours", "peer"] if r % 2 == 0 else ["peer", "ours"]
+                for kind in order:
+                    task = (str(path), args.variant, args.episodes, kind == "ours")
+                    results[kind].append(pool.apply(_load, task))
+    mb = 1e6
+
+    def least(kind: str, key: str) -> float:
+        return min(row[key] for row in results[kind]) / (mb if key != "seconds" else 1)
+
+    return {
+        "ours": least("ours", "peak"),
+        "bound": replay_bytes / mb,
+        "peer": least("peer", "peak"),
+        "unit": "MB added at the load's peak (least of the rounds)",
+        "episodes": args.episodes,
+        "every": args.every,
+        "variant": args.variant,
+        "held_ours_mb": least("ours", "held"),
+        "held_peer_mb": least("peer", "held"),
+        "seconds_ours": least("ours", "seconds"),
+        "seconds_peer": least("peer", "seconds"),
+        "peak_ours_mb_all": [round(row["peak"] / mb, 1) for row in results["ours"]],
+        "peak_peer_mb_all": [round(row["peak"] / mb, 1) for row in results["peer"]],
+    }
+
+
+if __name__ == "__main__":
+    import json
+
+    cli = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_arguments(cli)
+    print(json.dumps(measure(cli.parse_args()), indent=1))
