@@ -25,29 +25,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks import AtLeast
+from benchmarks import checkpoint_cost
 from benchmarks.checkpoint_cost import _prefix, _replay
 from curious.runs.folder_lock import check_writable
 
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--episodes", type=AtLeast(1), default=20_000, help="episodes in the replay (20,000)"
-    )
-    parser.add_argument(
-        "--every",
-        type=AtLeast(1),
-        default=800,
-        help="episodes between checkpoints, one segment each (800: a `laptop` run's interval)",
-    )
-    parser.add_argument("--variant", default="default", help="the suite's variant (default)")
-    parser.add_argument("--rounds", type=AtLeast(1), default=3, help="interleaved rounds (3)")
-    parser.add_argument(
-        "--dir",
-        default=None,
-        help="folder to write the checkpoint in, made if missing (default: a temporary one "
-        "under TMPDIR)",
-    )
+add_arguments = checkpoint_cost.add_arguments
+"""The checkpoint benchmark's options: `--episodes`, `--every` (a segment each), `--variant`,
+`--rounds` and `--dir` mean the same here."""
 
 
 def _resident_bytes() -> int:
