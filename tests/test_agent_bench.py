@@ -17,6 +17,19 @@ from curious.commands.bench import BENCHMARKS
 from curious.presets import resolve
 
 
+def _benchmark_parser(name: str) -> argparse.ArgumentParser:
+    """`curious bench NAME`'s own options, as the command line builds them."""
+    parser = argparse.ArgumentParser(prog=f"curious bench {name}", exit_on_error=False)
+    importlib.import_module(BENCHMARKS[name][0]).add_arguments(parser)
+    return parser
+
+
+def measured(name: str, args: list[str]) -> dict:
+    """What `curious bench NAME ARGS` measures, measured in this process."""
+    module = importlib.import_module(BENCHMARKS[name][0])
+    return module.measure(_benchmark_parser(name).parse_args(args))
+
+
 @pytest.mark.parametrize("algorithm_sizes", [(256, 77, 4, 256, 3), (32, 10, 2, 16, 2)])
 def test_bound_counts_exactly_the_products_of_one_update(algorithm_sizes):
     batch, inputs, actions, hidden, layers = algorithm_sizes
@@ -53,11 +66,7 @@ def test_measure_reports_ours_bound_peer_unit():
 
 
 def test_the_cycle_benchmark_reports_every_contender_and_its_parts():
-    from benchmarks import cycle_speed
-
-    parser = argparse.ArgumentParser()
-    cycle_speed.add_arguments(parser)
-    result = cycle_speed.measure(parser.parse_args(["--preset", "smoke", "--cycles", "1"]))
+    result = measured("cycle", ["--preset", "smoke", "--cycles", "1"])
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     assert result["unit"] == "episodes/s"
     for name in ("peer", "ours", "workers", "ours_workers", "ours_workspace", "ours_threads"):
@@ -69,34 +78,22 @@ def test_the_cycle_benchmark_reports_every_contender_and_its_parts():
 def test_the_cycle_benchmark_times_more_cycles_than_the_preset_holds():
     """7 timed cycles and the warm-up outlast the smoke preset's 24 episodes (6 cycles): the
     benchmark gives its trainers the episodes it times."""
-    from benchmarks import cycle_speed
-
-    parser = argparse.ArgumentParser()
-    cycle_speed.add_arguments(parser)
     args = ["--preset", "smoke", "--cycles", "7", "--contenders", ""]
-    result = cycle_speed.measure(parser.parse_args(args))
+    result = measured("cycle", args)
     assert result["peer"] > 0 and result["ours"] > 0 and "workers" not in result
 
 
 def test_the_rollout_scaling_benchmark_reports_every_process_count():
-    from benchmarks import rollout_scaling
-
-    parser = argparse.ArgumentParser()
-    rollout_scaling.add_arguments(parser)
     args = ["--preset", "quick", "--episodes", "1", "--max-processes", "2"]
-    result = rollout_scaling.measure(parser.parse_args(args))
+    result = measured("rollouts", args)
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     assert result["processes_1"] > 0 and result["processes_2"] == result["ours"]
     assert result["bound"] == 2 * result["physics_episodes_per_s_one_core"]
 
 
 def test_the_checkpoint_benchmark_keeps_the_replay_once_where_the_peer_keeps_it_twice():
-    from benchmarks import checkpoint_cost
-
-    parser = argparse.ArgumentParser()
-    checkpoint_cost.add_arguments(parser)
     args = ["--episodes", "300", "--every", "100", "--rounds", "1"]
-    result = checkpoint_cost.measure(parser.parse_args(args))
+    result = measured("checkpoint", args)
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     assert result["ours"] > 0 and result["peer"] > 0 and result["bound"] > 0
     replay_mb = result["replay_kb_per_episode"] * 300 / 1e3
@@ -106,12 +103,8 @@ def test_the_checkpoint_benchmark_keeps_the_replay_once_where_the_peer_keeps_it_
 
 
 def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twice():
-    from benchmarks import resume_memory
-
-    parser = argparse.ArgumentParser()
-    resume_memory.add_arguments(parser)
     args = ["--episodes", "2000", "--every", "400", "--rounds", "1"]
-    result = resume_memory.measure(parser.parse_args(args))
+    result = measured("resume", args)
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     replay = result["bound"]  # 33 MB of the default variant's replay
     assert replay < result["ours"] < 1.5 * replay  # the replay once, and little beside
@@ -121,23 +114,12 @@ def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twic
 
 
 def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
-    from benchmarks import relabel_speed
-
-    parser = argparse.ArgumentParser()
-    relabel_speed.add_arguments(parser)
     args = ["--batch", "64", "--episodes", "40", "--seconds", "0.05", "--rounds", "1"]
-    result = relabel_speed.measure(parser.parse_args(args))
+    result = measured("relabel", args)
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     assert result["unit"] == "minibatches/s" and result["batch"] == 64
     assert result["ours"] > 0 and result["peer"] > 0 and result["bound"] > 0
     assert 0 < result["rewards_met"] < 1  # some relabelled goals met, some not
-
-
-def _benchmark_parser(name: str) -> argparse.ArgumentParser:
-    """`curious bench NAME`'s own options, as the command line builds them."""
-    parser = argparse.ArgumentParser(prog=f"curious bench {name}", exit_on_error=False)
-    importlib.import_module(BENCHMARKS[name][0]).add_arguments(parser)
-    return parser
 
 
 def _count_options() -> list[tuple[str, str, int]]:
