@@ -107,10 +107,11 @@ def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twic
     result = measured("resume", args)
     assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
     replay = result["bound"]  # 33 MB of the default variant's replay
-    assert replay < result["ours"] < 1.5 * replay  # the replay once, and little beside
-    assert result["held_ours_mb"] < 1.5 * replay
-    assert result["peer"] > result["ours"] + 0.8 * replay  # a second copy
-    assert result["held_peer_mb"] > result["held_ours_mb"] + 0.8 * replay
+    assert replay < result["held_ours_mb"] < 1.5 * replay  # the replay once, and little beside
+    assert result["held_peer_mb"] > result["held_ours_mb"] + 0.8 * replay  # a second copy
+    if result["peak_reset"]:  # else the peaks count the process's start-up too
+        assert replay < result["ours"] < 1.5 * replay
+        assert result["peer"] > result["ours"] + 0.8 * replay
 
 
 def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():

@@ -228,6 +228,32 @@ def test_checkpoint_from_another_config_is_refused_untouched(tmp_path):
     assert snapshot(tmp_path / "seed0") == before
 
 
+def test_a_trainer_refusing_another_runs_checkpoint_keeps_its_replay(tmp_path):
+    """A checkpoint's replay is read into the replay's own arrays only while it is empty: a
+    trainer with episodes that loads another run's checkpoint, refused after the read, still
+    holds its own."""
+    from curious.envs.batch import LocalEnvs
+    from curious.runs.trainer import Trainer
+
+    def trainer(seed: int) -> Trainer:
+        config = resolve("smoke", "curious", seed, SMALL)
+        return Trainer(config, LocalEnvs(toy_envs(config)))
+
+    other, own = trainer(0), trainer(1)
+    try:
+        for t in (other, own):
+            t.cycle()
+        path = other.save_checkpoint(tmp_path / "other")
+        kept = {key: array[: own.replay.size].copy() for key, array in own.replay.arrays().items()}
+        with pytest.raises(CheckpointError, match=r"another config .*seed"):
+            own.load_checkpoint(path)
+        for key, array in own.replay.arrays().items():
+            np.testing.assert_array_equal(array[: own.replay.size], kept[key], err_msg=key)
+    finally:
+        other.close()
+        own.close()
+
+
 def test_nothing_to_resume(tmp_path):
     with pytest.raises(RunFolderError, match="nothing to resume"):
         run(tmp_path / "absent", resume=True)

@@ -164,7 +164,8 @@ def _load_latest(trainer: Trainer, folder: RunFolder) -> Path | None:
     The checkpoint's replay is read into the trainer's own replay arrays (where it was written
     as segments: every replay that never evicted an episode), and what was read is let go on
     return: a second copy, held while loading or for the rest of the run, would be as large as
-    the replay at the checkpoint (up to the 4.64 GiB of a 300,000-episode run's, docs/agent.md)."""
+    the replay at the checkpoint (a 300,000-episode run's is 4.64 GiB, 6.02 GiB on
+    `distractors_7`: docs/agent.md). The trainer is a fresh one, its replay empty."""
     latest = checkpoint.load_latest(
         folder.checkpoints, trainer.agent.device, into=trainer.replay.arrays()
     )
