@@ -113,6 +113,12 @@ class EpisodeReplay:
             "moved": self.moved,
         }
 
+    def load_room(self) -> dict[str, np.ndarray] | None:
+        """The arrays a checkpoint's replay may be read straight into (`arrays()`), while this
+        replay holds nothing; None once it holds episodes, since a load refused after the read
+        (another run's checkpoint) must leave a replay in use as it was."""
+        return self.arrays() if self.size == 0 else None
+
     def store(
         self,
         states: np.ndarray,

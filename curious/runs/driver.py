@@ -165,9 +165,9 @@ def _load_latest(trainer: Trainer, folder: RunFolder) -> Path | None:
     as segments: every replay that never evicted an episode), and what was read is let go on
     return: a second copy, held while loading or for the rest of the run, would be as large as
     the replay at the checkpoint (a 300,000-episode run's is 4.64 GiB, 6.02 GiB on
-    `distractors_7`: docs/agent.md). The trainer is a fresh one, its replay empty."""
+    `distractors_7`: docs/agent.md)."""
     latest = checkpoint.load_latest(
-        folder.checkpoints, trainer.agent.device, into=trainer.replay.arrays()
+        folder.checkpoints, trainer.agent.device, into=trainer.replay.load_room()
     )
     if latest is None:
         return None

@@ -588,9 +588,6 @@ class Trainer:
         return path
 
     def load_checkpoint(self, path: Path) -> None:
-        # read into the replay's own arrays only while it holds nothing: a load refused after
-        # the read (another config) must leave a replay in use as it was
-        into = self.replay.arrays() if self.replay.size == 0 else None
-        state, replay = checkpoint.load(path, self.agent.device, into=into)
+        state, replay = checkpoint.load(path, self.agent.device, into=self.replay.load_room())
         self.load_state_dict(state, replay)
         self.last_checkpoint = path
