@@ -11,8 +11,14 @@ the pages one touched do not count for the other), in interleaved rounds:
   resume kept them for the rest of its run at the commits before 0f0f896;
 * bound: the bytes of the replay's filled part, what a run holds once it is loaded.
 
-Reported, in MB over what the process held before the load: the peak while loading and what it
-holds once loaded (the peer's arrays let go, it holds what ours does: 0f0f896).
+Reported, in MB over what the process held before the load: the peak while loading (the
+kernel's high-water mark of resident memory), what it holds once loaded (anonymous memory, the
+peer's arrays let go, it holds what ours does: 0f0f896), and the peak of the allocations the
+load made (`tracemalloc`: numpy reports its arrays to it). The high-water mark counts file pages
+too, which the kernel may drop under memory pressure, from counters that it keeps per CPU and
+reads approximately: on a machine of many CPUs it can be some MB off, and a small replay's
+comparison then rests on the two exact ones (anonymous memory from `/proc/self/smaps_rollup`,
+which walks the page tables, and the allocations' peak).
 """
 
 from __future__ import annotations
@@ -35,9 +41,17 @@ add_arguments = checkpoint_cost.add_arguments
 
 
 def _resident_bytes() -> int:
-    """This process's resident memory now (Linux: /proc/self/statm)."""
+    """This process's resident memory now, as the high-water mark counts it (/proc/self/statm)."""
     with open("/proc/self/statm") as handle:
         return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def _anonymous_bytes() -> int:
+    """This process's anonymous resident memory now, counted page by page (Linux 4.14 and later:
+    /proc/self/smaps_rollup), so neither file pages nor the kernel's per-CPU counters move it."""
+    with open("/proc/self/smaps_rollup") as handle:
+        line = next(line for line in handle if line.startswith("Anonymous:"))
+    return int(line.split()[1]) * 1024
 
 
 def _reset_peak() -> bool:
@@ -60,8 +74,10 @@ def _peak_bytes() -> int:
 
 def _load(path: str, variant: str, capacity: int, into: bool) -> dict[str, Any]:
     """In a fresh process: load the checkpoint at `path` into a replay of `capacity` episodes,
-    ours (`into`) or the peer's way; bytes added at the peak and once loaded, and seconds."""
+    ours (`into`) or the peer's way; bytes added at the peak, held once loaded and allocated at
+    the allocations' peak, and seconds."""
     import gc
+    import tracemalloc
 
     from curious.agent.replay import EpisodeReplay
     from curious.envs.goal_env import SuiteEnv
@@ -69,18 +85,25 @@ def _load(path: str, variant: str, capacity: int, into: bool) -> dict[str, Any]:
 
     replay = EpisodeReplay(SuiteEnv(variant).spec, capacity)
     gc.collect()
+    tracemalloc.start()
     reset = _reset_peak()
-    before = _resident_bytes()
+    before, resident = _anonymous_bytes(), _resident_bytes()
     tic = time.perf_counter()
     _, arrays = checkpoint.load(Path(path), into=replay.arrays() if into else None)
     replay.load_state_dict(arrays)
     seconds = time.perf_counter() - tic
+    allocated = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
     if into:
         del arrays  # the peer keeps its arrays, as the resume did
     gc.collect()
-    held = _resident_bytes() - before
-    peak = _peak_bytes() - before
-    return {"peak": float(peak), "held": float(held), "seconds": seconds, "reset": reset}
+    return {
+        "peak": float(_peak_bytes() - resident),
+        "held": float(_anonymous_bytes() - before),
+        "allocated": float(allocated),
+        "seconds": seconds,
+        "reset": reset,
+    }
 
 
 def measure(args: argparse.Namespace) -> dict[str, Any]:
@@ -122,6 +145,8 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         "variant": args.variant,
         "held_ours_mb": least("ours", "held"),
         "held_peer_mb": least("peer", "held"),
+        "allocated_ours_mb": least("ours", "allocated"),
+        "allocated_peer_mb": least("peer", "allocated"),
         "seconds_ours": least("ours", "seconds"),
         "seconds_peer": least("peer", "seconds"),
         "peak_ours_mb_all": [round(row["peak"] / mb, 1) for row in results["ours"]],

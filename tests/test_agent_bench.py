@@ -109,9 +109,12 @@ def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twic
     replay = result["bound"]  # 33 MB of the default variant's replay
     assert replay < result["held_ours_mb"] < 1.5 * replay  # the replay once, and little beside
     assert result["held_peer_mb"] > result["held_ours_mb"] + 0.8 * replay  # a second copy
-    if result["peak_reset"]:  # else the peaks count the process's start-up too
-        assert replay < result["ours"] < 1.5 * replay
-        assert result["peer"] > result["ours"] + 0.8 * replay
+    assert result["allocated_ours_mb"] < 0.5 * replay  # a segment at a time, read into the replay
+    assert result["allocated_peer_mb"] > replay  # arrays of its own for the whole replay
+    # The peaks (the kernel's high-water mark) are not asserted: it counts file pages, which the
+    # kernel may drop, from per-CPU counters read approximately; CI's kernel once counted the
+    # peer 13 MB short of its two copies, as much as this small replay's difference.
+    assert result["ours"] > 0 and result["peer"] > 0
 
 
 def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
