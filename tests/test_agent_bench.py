@@ -117,6 +117,17 @@ def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twic
     assert result["ours"] > 0 and result["peer"] > 0
 
 
+def test_the_heap_benchmark_trains_both_ways_each_with_its_allocators_settings(tmp_path):
+    args = ["--preset", "smoke", "--episodes", "8", "--speed-rounds", "1", "--dir", str(tmp_path)]
+    result = measured("heap", args)
+    assert list(result)[:4] == ["ours", "bound", "peer", "unit"]
+    assert (result["purge_delay_ours"], result["purge_delay_peer"]) == ("0", "10")
+    assert 0 < result["bound"] and 0 < result["ours"] < result["peak_anonymous_ours_mb"]
+    assert 0 < result["peer"] < result["peak_anonymous_peer_mb"]
+    assert result["episodes_per_s_ours"] > 0 and result["episodes_per_s_peer"] > 0
+    assert list(tmp_path.iterdir()) == []  # the runs are removed
+
+
 def test_the_relabel_benchmark_times_both_routes_on_the_same_minibatches():
     args = ["--batch", "64", "--episodes", "40", "--seconds", "0.05", "--rounds", "1"]
     result = measured("relabel", args)

@@ -1,4 +1,4 @@
-"""`curious bench {env,learner,relabel,cycle,rollouts,seeds,recording,checkpoint,resume}`:
+"""`curious bench {env,learner,relabel,cycle,rollouts,seeds,recording,checkpoint,resume,heap}`:
 speed and memory benchmarks, ours side by side with a bound and a peer.
 
 Each benchmark lives in a module of `benchmarks/` and exposes `measure(args) -> dict` with
@@ -53,6 +53,11 @@ BENCHMARKS: dict[str, tuple[str, str]] = {
         "benchmarks.resume_memory",
         "a resume's memory: the replay read into its own arrays vs read, copied and kept vs "
         "the replay's bytes",
+    ),
+    "heap": (
+        "benchmarks.heap_growth",
+        "a training process's heap: freed memory given back vs the allocators' defaults vs "
+        "what it holds in use",
     ),
 }
 

@@ -23,6 +23,7 @@ from curious.config import Config, ConfigError
 from curious.envs.batch import EnvBatch, LocalEnvs, ProcessEnvs
 from curious.envs.goal_env import GoalEnv, suite_env_fns
 from curious.runs import checkpoint
+from curious.runs.allocator import return_freed_memory
 from curious.runs.folder import RunFolder
 from curious.runs.folder_errors import RunFolderError
 from curious.runs.folder_lock import folder_lock
@@ -59,6 +60,7 @@ def train(
     checkpoint (how `curious train --seeds` stops its runs on Ctrl-C); `position` is the line of
     its progress bar among several runs' bars.
     """
+    return_freed_memory()  # a long run's heap would otherwise grow with memory it freed
     with folder_lock(out):
         folder = RunFolder.prepare(out, config, resume, restart)
         envs, test_envs, condition = _environments(config, make_envs)

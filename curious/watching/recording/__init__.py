@@ -11,6 +11,8 @@ Rerun nor MuJoCo.
 
 import os
 
+from curious.runs.allocator import MIMALLOC_PURGE_DELAY
+
 RERUN_LOG_FILTER = (
     "warn,re_log_encoding::rrd::file_sink=off,re_log_encoding::rrd::encoder=off,"
     "re_sdk::recording_stream=off"
@@ -21,3 +23,4 @@ the recording stream about its sinks, which say in Rerun's terms what `curious` 
 in one line, naming the file (a full disk:
 `curious.watching.recording.rrd_files.RecordingWriteError`)."""
 os.environ.setdefault("RUST_LOG", RERUN_LOG_FILTER)
+os.environ.setdefault("MIMALLOC_PURGE_DELAY", MIMALLOC_PURGE_DELAY)  # read when rerun loads
