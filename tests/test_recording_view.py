@@ -216,16 +216,23 @@ def test_stopping_curious_view_stops_the_viewers_children_too(tmp_path: Path) ->
         view.run_viewer(["sh", "-c", f"sleep 60 & echo $! > {pidfile}; wait"])
     assert stopped.value.code == 128 + signal.SIGTERM
     server = int(pidfile.read_text())
+
+    def state() -> str | None:
+        """The child's state letter (Z: stopped, waiting to be reaped), None once it is gone."""
+        try:
+            return Path(f"/proc/{server}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError, IndexError):
+            return None
+
     deadline = time.time() + 5
     while time.time() < deadline:
-        try:
-            os.kill(server, 0)
-        except ProcessLookupError:
+        if state() in (None, "Z", "X"):  # an orphan's reaping is up to the system's init
             break
         time.sleep(0.05)
     else:
+        seen = state()
         os.kill(server, signal.SIGKILL)
-        raise AssertionError("the viewer's child outlived `curious view`")
+        raise AssertionError(f"the viewer's child outlived `curious view` (state {seen})")
 
 
 def test_the_printed_addresses_name_this_machine_or_localhost_never_a_placeholder(
