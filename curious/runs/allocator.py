@@ -3,12 +3,11 @@
 Two allocators hold memory a run has freed, unless told otherwise:
 
 * glibc's `malloc` raises its mmap threshold to the size of each large block freed (up to
-  32 MiB), after which blocks of that size come from the heap; a training cycle's large
-  temporaries then leave holes that the rows each cycle keeps until the next checkpoint pin in
-  place. Measured on a resumed `long` run (docs/benchmarks.md, `curious bench heap`): the heap
-  grew by about 0.7 GiB over one checkpoint interval while what it held in use stayed flat.
-  `return_freed_memory` fixes the threshold at glibc's default of 128 KiB (`mallopt`), so
-  blocks above it are mapped on their own and unmapped when freed.
+  32 MiB), after which blocks of that size come from the heap, and the heap keeps what it
+  frees unless it is at its top. Measured on a resumed `long` run (docs/benchmarks.md,
+  `curious bench heap`): the heap grew by about 0.7 GB over one checkpoint interval while what
+  it held in use stayed flat. `return_freed_memory` fixes the threshold at glibc's default of
+  128 KiB (`mallopt`), so blocks above it are mapped on their own and unmapped when freed.
 * Rerun's `mimalloc` keeps freed pages until its thread next allocates; a resumed run re-sends
   its recording at once and then held about five times that file's size.
   `MIMALLOC_PURGE_DELAY` is set to 0 (`curious.watching.recording`, before Rerun is imported;
