@@ -59,3 +59,20 @@ class CountList:
 
     def __call__(self, text: str) -> list[int]:
         return [AtLeast(self.minimum)(part.strip()) for part in text.split(",")]
+
+
+def anonymous_memory() -> tuple[int, int]:
+    """This process's anonymous memory, in all and in glibc's heap (`[heap]`), in bytes, counted
+    page by page (Linux: /proc/self/smaps), so neither file pages nor the kernel's per-CPU
+    counters move it."""
+    total = heap = 0
+    in_heap = False
+    with open("/proc/self/smaps") as handle:
+        for line in handle:
+            if line[0] in "0123456789abcdef" and "-" in line.split(" ", 1)[0]:
+                in_heap = line.rstrip().endswith("[heap]")
+            elif line.startswith("Anonymous:"):
+                nbytes = int(line.split()[1]) * 1024
+                total += nbytes
+                heap += nbytes if in_heap else 0
+    return total, heap

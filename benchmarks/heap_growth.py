@@ -15,7 +15,7 @@ preset (no test rollouts) runs two cycles a block with glibc's threshold fixed a
 and at its ceiling of 32 MiB (the peer's threshold once large blocks were freed), the blocks
 alternating for `--speed-rounds` rounds after two untimed cycles: `episodes_per_s_*`.
 
-Sampled every half second from `/proc/self/smaps_rollup` and `/proc/self/smaps`, page by page:
+Sampled every half second, page by page (`benchmarks.anonymous_memory`, /proc/self/smaps):
 the peak of the process's anonymous memory and of glibc's heap (`[heap]`), in MB, and at the
 end what the heap held in use and free (`mallinfo2`, glibc 2.33 and later), and episodes per
 second over each whole run (start-up included, the runs one after the other).
@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks import AtLeast
+from benchmarks import AtLeast, anonymous_memory
 from curious.runs.allocator import MIMALLOC_PURGE_DELAY
 from curious.runs.folder_lock import check_writable
 
@@ -90,21 +90,6 @@ def _glibc_heap() -> tuple[float, float]:
     return float(info.uordblks), float(info.fordblks)
 
 
-def _anonymous() -> tuple[int, int]:
-    """This process's anonymous memory, in all and in glibc's heap (`[heap]`), in bytes."""
-    total = heap = 0
-    in_heap = False
-    with open("/proc/self/smaps") as handle:
-        for line in handle:
-            if line[0] in "0123456789abcdef" and "-" in line.split(" ", 1)[0]:
-                in_heap = line.rstrip().endswith("[heap]")
-            elif line.startswith("Anonymous:"):
-                kb = int(line.split()[1]) * 1024
-                total += kb
-                heap += kb if in_heap else 0
-    return total, heap
-
-
 def _train(kind: str, folder: str, preset: str, episodes: int) -> dict[str, Any]:
     """In a fresh process: train the run, `kind` ours or peer; peaks and end state in bytes."""
     from curious.cli import main
@@ -117,7 +102,7 @@ def _train(kind: str, folder: str, preset: str, episodes: int) -> dict[str, Any]
 
     def sample() -> None:
         while not done.wait(0.5):
-            total, heap = _anonymous()
+            total, heap = anonymous_memory()
             peaks[0], peaks[1] = max(peaks[0], total), max(peaks[1], heap)
 
     sampler = threading.Thread(target=sample, daemon=True)

@@ -17,8 +17,8 @@ peer's arrays let go, it holds what ours does: 0f0f896), and the peak of the all
 load made (`tracemalloc`: numpy reports its arrays to it). The high-water mark counts file pages
 too, which the kernel may drop under memory pressure, from counters that it keeps per CPU and
 reads approximately: on a machine of many CPUs it can be some MB off, and a small replay's
-comparison then rests on the two exact ones (anonymous memory from `/proc/self/smaps_rollup`,
-which walks the page tables, and the allocations' peak).
+comparison then rests on the two exact ones (anonymous memory counted page by page,
+`benchmarks.anonymous_memory`, and the allocations' peak).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks import checkpoint_cost
+from benchmarks import anonymous_memory, checkpoint_cost
 from benchmarks.checkpoint_cost import _prefix, _replay
 from curious.runs.folder_lock import check_writable
 
@@ -44,14 +44,6 @@ def _resident_bytes() -> int:
     """This process's resident memory now, as the high-water mark counts it (/proc/self/statm)."""
     with open("/proc/self/statm") as handle:
         return int(handle.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
-
-
-def _anonymous_bytes() -> int:
-    """This process's anonymous resident memory now, counted page by page (Linux 4.14 and later:
-    /proc/self/smaps_rollup), so neither file pages nor the kernel's per-CPU counters move it."""
-    with open("/proc/self/smaps_rollup") as handle:
-        line = next(line for line in handle if line.startswith("Anonymous:"))
-    return int(line.split()[1]) * 1024
 
 
 def _reset_peak() -> bool:
@@ -87,7 +79,7 @@ def _load(path: str, variant: str, capacity: int, into: bool) -> dict[str, Any]:
     gc.collect()
     tracemalloc.start()
     reset = _reset_peak()
-    before, resident = _anonymous_bytes(), _resident_bytes()
+    before, resident = anonymous_memory()[0], _resident_bytes()
     tic = time.perf_counter()
     _, arrays = checkpoint.load(Path(path), into=replay.arrays() if into else None)
     replay.load_state_dict(arrays)
@@ -99,7 +91,7 @@ def _load(path: str, variant: str, capacity: int, into: bool) -> dict[str, Any]:
     gc.collect()
     return {
         "peak": float(_peak_bytes() - resident),
-        "held": float(_anonymous_bytes() - before),
+        "held": float(anonymous_memory()[0] - before),
         "allocated": float(allocated),
         "seconds": seconds,
         "reset": reset,

@@ -22,17 +22,11 @@ _HEAP_GROWTH = textwrap.dedent(
     """
     import sys
     import numpy as np
+    from benchmarks import anonymous_memory
     from curious.runs.allocator import return_freed_memory
 
     def heap():
-        size, in_heap = 0, False
-        with open("/proc/self/smaps") as handle:
-            for line in handle:
-                if line[0] in "0123456789abcdef" and "-" in line.split(" ", 1)[0]:
-                    in_heap = line.rstrip().endswith("[heap]")
-                elif in_heap and line.startswith("Anonymous:"):
-                    size += int(line.split()[1]) * 1024
-        return size
+        return anonymous_memory()[1]
 
     if sys.argv[1] == "fixed":
         assert return_freed_memory()
