@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import multiprocessing
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 
 @dataclass(frozen=True)
@@ -76,3 +79,16 @@ def anonymous_memory() -> tuple[int, int]:
                 total += nbytes
                 heap += nbytes if in_heap else 0
     return total, heap
+
+
+def in_fresh_process(function: Callable[..., Any], *args: Any) -> Any:
+    """`function(*args)` in a spawned process of its own, which is closed and joined so that it
+    ends as a process ends (its finalizers run, its semaphores are released), not killed as a
+    pool's `with` block kills its workers (which leaves the resource tracker warning of a
+    leaked semaphore)."""
+    pool = multiprocessing.get_context("spawn").Pool(1)
+    try:
+        return pool.apply(function, args)
+    finally:
+        pool.close()
+        pool.join()

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import ctypes
-import multiprocessing
 import os
 import tempfile
 import threading
@@ -33,7 +32,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks import AtLeast, anonymous_memory
+from benchmarks import AtLeast, anonymous_memory, in_fresh_process
 from curious.runs.allocator import MIMALLOC_PURGE_DELAY
 from curious.runs.folder_lock import check_writable
 
@@ -164,7 +163,6 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
         check_writable(args.dir, "--dir", folder=True)
         Path(args.dir).mkdir(parents=True, exist_ok=True)
     results: dict[str, list[dict[str, Any]]] = {"ours": [], "peer": []}
-    context = multiprocessing.get_context("spawn")
     before = os.environ.get("MIMALLOC_PURGE_DELAY")
     with tempfile.TemporaryDirectory(prefix="curious-bench-heap-", dir=args.dir) as tmp:
         for r in range(args.rounds):
@@ -173,16 +171,14 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
                 delay = PEER_PURGE_DELAY if kind == "peer" else MIMALLOC_PURGE_DELAY
                 os.environ["MIMALLOC_PURGE_DELAY"] = delay
                 try:
-                    with context.Pool(1) as pool:
-                        task = (kind, f"{tmp}/{kind}-{r}", args.preset, args.episodes)
-                        results[kind].append(pool.apply(_train, task))
+                    task = (kind, f"{tmp}/{kind}-{r}", args.preset, args.episodes)
+                    results[kind].append(in_fresh_process(_train, *task))
                 finally:
                     if before is None:
                         os.environ.pop("MIMALLOC_PURGE_DELAY", None)
                     else:
                         os.environ["MIMALLOC_PURGE_DELAY"] = before
-        with context.Pool(1) as pool:
-            speed = pool.apply(_speed, (args.preset, args.speed_rounds))
+        speed = in_fresh_process(_speed, args.preset, args.speed_rounds)
     mb = 1e6
 
     def least(kind: str, key: str) -> float:

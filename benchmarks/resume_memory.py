@@ -24,14 +24,13 @@ comparison then rests on the two exact ones (anonymous memory counted page by pa
 from __future__ import annotations
 
 import argparse
-import multiprocessing
 import os
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from benchmarks import anonymous_memory, checkpoint_cost
+from benchmarks import anonymous_memory, checkpoint_cost, in_fresh_process
 from benchmarks.checkpoint_cost import _prefix, _replay
 from curious.runs.folder_lock import check_writable
 
@@ -109,19 +108,16 @@ def measure(args: argparse.Namespace) -> dict[str, Any]:
     full = _replay(args.variant, args.episodes)
     replay_bytes = sum(v.nbytes for v in full.values() if v.ndim > 0)
     results: dict[str, list[dict[str, Any]]] = {"ours": [], "peer": []}
-    context = multiprocessing.get_context("spawn")
     with tempfile.TemporaryDirectory(prefix="curious-bench-resume-", dir=args.dir) as tmp:
         path = None
         for end in [*range(args.every, args.episodes, args.every), args.episodes]:
             state = {"note": "the replay alone"}
             path = checkpoint.save(Path(tmp), end, state, _prefix(full, end), base=path)
         del full
-        with context.Pool(1, maxtasksperchild=1) as pool:  # a fresh process for each load
-            for r in range(args.rounds):
-                order = ["ours", "peer"] if r % 2 == 0 else ["peer", "ours"]
-                for kind in order:
-                    task = (str(path), args.variant, args.episodes, kind == "ours")
-                    results[kind].append(pool.apply(_load, task))
+        for r in range(args.rounds):
+            for kind in ["ours", "peer"] if r % 2 == 0 else ["peer", "ours"]:
+                task = (str(path), args.variant, args.episodes, kind == "ours")
+                results[kind].append(in_fresh_process(_load, *task))  # a fresh process each
     mb = 1e6
 
     def least(kind: str, key: str) -> float:

@@ -3,6 +3,8 @@ options every benchmark refuses."""
 
 import argparse
 import importlib
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -297,3 +299,46 @@ def test_a_benchmark_too_large_for_the_memory_is_one_line(capsys):
     err = capsys.readouterr().err
     assert err.startswith("curious bench: error: not enough memory: Unable to allocate")
     assert err.count("\n") == 1
+
+
+_ENDS_AS_A_PROCESS_ENDS = """
+import multiprocessing.util
+import sys
+import time
+from pathlib import Path
+
+from benchmarks import in_fresh_process
+
+
+def mark_slowly(path):
+    time.sleep(1)  # an exit as slow as a trained run's
+    Path(path).touch()
+
+
+def hold_a_semaphore(path):
+    # finalizers run last-made first: the semaphore's (unlink, then tell the tracker), then the mark
+    multiprocessing.util.Finalize(None, mark_slowly, (path,), exitpriority=0)
+    hold_a_semaphore.lock = multiprocessing.get_context("spawn").Lock()
+    return 7
+
+
+if __name__ == "__main__":
+    print(in_fresh_process(hold_a_semaphore, sys.argv[1]))
+"""
+
+
+def test_a_benchmarks_fresh_process_ends_as_a_process_ends_not_killed(tmp_path):
+    # A pool's `with` block kills its worker while it is ending: its finalizers are cut short,
+    # and the resource tracker then warns of a leaked semaphore at the benchmark's end.
+    script, marker = tmp_path / "script.py", tmp_path / "ended"
+    script.write_text(_ENDS_AS_A_PROCESS_ENDS)
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, str(script), str(marker)],
+        capture_output=True, text=True, timeout=120, cwd=root,
+        env={**os.environ, "PYTHONPATH": str(root)},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "7"  # the function's result comes back
+    assert marker.exists()  # its process ran its finalizers at exit
+    assert "leaked" not in done.stderr
