@@ -235,6 +235,68 @@ def test_stopping_curious_view_stops_the_viewers_children_too(tmp_path: Path) ->
         raise AssertionError(f"the viewer's child outlived `curious view` (state {seen})")
 
 
+def _group_members(group: int) -> dict[int, str]:
+    """pid -> state letter of every process of the group, from /proc."""
+    members = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        if int(fields[2]) == group:
+            members[int(stat.parent.name)] = fields[0]
+    return members
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc (Linux)")
+def test_a_viewer_group_left_with_a_zombie_alone_counts_as_stopped() -> None:
+    """Where the first process of a container reaps nobody, an orphaned child of the viewer
+    stays a zombie in the viewer's group: the group answers signals, but nothing in it runs,
+    and `curious view` must not wait its grace period for it."""
+    import ctypes
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    # zombies are kept for their parent to reap (a SIGCHLD ignored, as some libraries set it,
+    # would have the kernel reap them at once)
+    previous = signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+    libc = ctypes.CDLL(None, use_errno=True)
+    pr_set_child_subreaper = 36  # orphans come to this process, which reaps none of them here
+    zombies: list[int] = []
+    try:
+        if libc.prctl(pr_set_child_subreaper, 1, 0, 0, 0) != 0:
+            pytest.skip("prctl(PR_SET_CHILD_SUBREAPER) refused")
+        live = subprocess.Popen(["sleep", "60"], start_new_session=True)
+        assert view.group_running(live.pid)
+        live.kill()
+        live.wait()
+        assert not view.group_running(live.pid)  # the group is gone
+
+        # a viewer that starts a child and ends without reaping it: the child, ended, is left
+        # a zombie in the viewer's group
+        script = "import subprocess, time; subprocess.Popen(['true']); time.sleep(0.2)"
+        viewer = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
+        viewer.wait()
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            members = _group_members(viewer.pid)
+            if members and set(members.values()) == {"Z"}:
+                break
+            time.sleep(0.02)
+        zombies = list(members)
+        assert zombies and set(members.values()) == {"Z"}, members
+        os.killpg(viewer.pid, 0)  # the group still answers a signal (what was read before)
+        assert not view.group_running(viewer.pid)
+    finally:
+        for pid in zombies:
+            os.waitpid(pid, 0)
+        libc.prctl(pr_set_child_subreaper, 0, 0, 0, 0)
+        signal.signal(signal.SIGCHLD, previous)
+
+
 def test_the_printed_addresses_name_this_machine_or_localhost_never_a_placeholder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch, no_display: None
 ) -> None:

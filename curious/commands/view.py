@@ -326,15 +326,37 @@ def _stop_group(proc: subprocess.Popen) -> None:
     deadline = time.monotonic() + 5
     while time.monotonic() < deadline:
         proc.poll()
-        try:
-            os.killpg(group, 0)
-        except ProcessLookupError:
+        if not group_running(group):
             break
         time.sleep(0.05)
     else:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(group, signal.SIGKILL)
     proc.wait()
+
+
+def group_running(group: int) -> bool:
+    """Whether a process of the group still runs. A zombie (ended, waiting for its parent to
+    reap it) counts as ended: where the container's first process reaps nobody, an orphaned
+    child of the viewer stays a zombie in the group for good, and would otherwise hold
+    `curious view` for the whole grace period. Read from /proc where there is one."""
+    proc_root = Path("/proc")
+    if not (proc_root / "self" / "stat").exists():
+        try:
+            os.killpg(group, 0)
+        except ProcessLookupError:
+            return False
+        return True
+    for stat in proc_root.glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:  # the process ended while the folder was read
+            continue
+        # after the command's name, in parentheses (which may hold any character): state, ppid, pgrp
+        fields = text[text.rindex(")") + 2 :].split()
+        if int(fields[2]) == group and fields[0] not in ("Z", "X"):
+            return True
+    return False
 
 
 def run(args: argparse.Namespace) -> int:
