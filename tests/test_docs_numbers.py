@@ -188,7 +188,7 @@ def test_the_pages_say_which_long_runs_are_shipped_training_and_queued():
     def seeds(values: list[int]) -> str:
         if len(values) == 1:
             return f"seed {values[0]}"
-        if values == list(range(values[0], values[-1] + 1)):
+        if len(values) > 2 and values == list(range(values[0], values[-1] + 1)):
             return f"seeds {values[0]} to {values[-1]}"
         return f"seeds {_listed([str(v) for v in values])}"
 
