@@ -82,13 +82,18 @@ def anonymous_memory() -> tuple[int, int]:
 
 
 def in_fresh_process(function: Callable[..., Any], *args: Any) -> Any:
-    """`function(*args)` in a spawned process of its own, which is closed and joined so that it
-    ends as a process ends (its finalizers run, its semaphores are released), not killed as a
-    pool's `with` block kills its workers (which leaves the resource tracker warning of a
-    leaked semaphore)."""
+    """`function(*args)` in a spawned process of its own. After a result the pool is closed and
+    joined, so that its process ends as a process ends (its finalizers run, its semaphores are
+    released) rather than killed as a pool's `with` block kills its workers, which left the
+    resource tracker warning of a leaked semaphore. On an error or a Ctrl-C the process is
+    stopped at once, as before: joining then would wait for the whole measure, or for a result
+    that never comes."""
     pool = multiprocessing.get_context("spawn").Pool(1)
     try:
-        return pool.apply(function, args)
-    finally:
-        pool.close()
-        pool.join()
+        result = pool.apply(function, args)
+    except BaseException:
+        pool.terminate()
+        raise
+    pool.close()
+    pool.join()
+    return result

@@ -336,7 +336,9 @@ def test_a_benchmarks_fresh_process_ends_as_a_process_ends_not_killed(tmp_path):
     done = subprocess.run(
         [sys.executable, str(script), str(marker)],
         capture_output=True, text=True, timeout=120, cwd=root,
-        env={**os.environ, "PYTHONPATH": str(root)},
+        env={**os.environ, "PYTHONPATH": os.pathsep.join(
+            [str(root), *filter(None, [os.environ.get("PYTHONPATH")])]
+        )},
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "7"  # the function's result comes back
