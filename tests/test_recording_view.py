@@ -253,6 +253,7 @@ def test_a_viewer_group_left_with_a_zombie_alone_counts_as_stopped() -> None:
     """Where the first process of a container reaps nobody, an orphaned child of the viewer
     stays a zombie in the viewer's group: the group answers signals, but nothing in it runs,
     and `curious view` must not wait its grace period for it."""
+    import contextlib
     import ctypes
     import os
     import signal
@@ -266,6 +267,7 @@ def test_a_viewer_group_left_with_a_zombie_alone_counts_as_stopped() -> None:
     libc = ctypes.CDLL(None, use_errno=True)
     pr_set_child_subreaper = 36  # orphans come to this process, which reaps none of them here
     zombies: list[int] = []
+    live = None
     try:
         if libc.prctl(pr_set_child_subreaper, 1, 0, 0, 0) != 0:
             pytest.skip("prctl(PR_SET_CHILD_SUBREAPER) refused")
@@ -275,9 +277,9 @@ def test_a_viewer_group_left_with_a_zombie_alone_counts_as_stopped() -> None:
         live.wait()
         assert not view.group_running(live.pid)  # the group is gone
 
-        # a viewer that starts a child and ends without reaping it: the child, ended, is left
-        # a zombie in the viewer's group
-        script = "import subprocess, time; subprocess.Popen(['true']); time.sleep(0.2)"
+        # a viewer that forks a child, which ends at once, and ends without reaping it: the
+        # child is left a zombie in the viewer's group
+        script = "import os, time\nif os.fork() == 0:\n    os._exit(0)\ntime.sleep(0.2)"
         viewer = subprocess.Popen([sys.executable, "-c", script], start_new_session=True)
         viewer.wait()
         deadline = time.monotonic() + 10
@@ -291,10 +293,14 @@ def test_a_viewer_group_left_with_a_zombie_alone_counts_as_stopped() -> None:
         os.killpg(viewer.pid, 0)  # the group still answers a signal (what was read before)
         assert not view.group_running(viewer.pid)
     finally:
-        for pid in zombies:
-            os.waitpid(pid, 0)
         libc.prctl(pr_set_child_subreaper, 0, 0, 0, 0)
         signal.signal(signal.SIGCHLD, previous)
+        if live is not None and live.poll() is None:
+            live.kill()
+            live.wait()
+        for pid in zombies:
+            with contextlib.suppress(ChildProcessError):
+                os.waitpid(pid, 0)
 
 
 def test_the_printed_addresses_name_this_machine_or_localhost_never_a_placeholder(
@@ -457,6 +463,39 @@ def test_a_sigterm_as_the_viewer_starts_is_already_taken(monkeypatch) -> None:
     assert view.run_viewer(["true"]) == 0
     assert seen and callable(seen[0]) and seen[0] not in (signal.SIG_DFL, signal.SIG_IGN, before)
     assert signal.getsignal(signal.SIGTERM) == before  # put back
+
+
+@pytest.mark.parametrize("signum", ["SIGTERM", "SIGINT"])
+def test_a_signal_while_the_viewer_starts_stops_the_viewer_too(monkeypatch, signum) -> None:
+    """A signal that comes while `Popen` returns (the viewer forked, `proc` not yet set) stops
+    the viewer with `curious view`: raised there, it used to leave the viewer serving."""
+    import os
+    import signal
+    import subprocess
+
+    started = []
+    real = subprocess.Popen
+
+    def popen(*args, **kwargs):
+        child = real(*args, **kwargs)
+        started.append(child)
+        os.kill(os.getpid(), getattr(signal, signum))  # its handler runs before the return
+        return child
+
+    monkeypatch.setattr(view.subprocess, "Popen", popen)
+    if signum == "SIGTERM":
+        with pytest.raises(SystemExit) as stopped:
+            view.run_viewer(["sleep", "60"])
+        assert stopped.value.code == 128 + signal.SIGTERM
+    else:
+        assert view.run_viewer(["sleep", "60"]) == 130  # Ctrl-C, as `curious view` ends on it
+    (child,) = started
+    try:
+        assert child.poll() is not None, "the viewer outlived `curious view`"
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
 
 
 def test_the_viewer_runs_with_rerun_analytics_off_unless_the_user_opts_in(

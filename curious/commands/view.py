@@ -293,17 +293,33 @@ def run_viewer(command: list[str]) -> int:
     would leave serving (and holding its ports). The viewer runs with Rerun's usage analytics
     off (`curious.watching.viewer_analytics`)."""
 
+    received: list[int] = []
+
+    def note(signum: int, frame: object) -> None:
+        received.append(signum)
+
     def stop(signum: int, frame: object) -> None:
         raise SystemExit(128 + signum)
 
-    # the handlers first: a SIGTERM just after the start would otherwise end this process with
-    # the signal's default action, leaving the viewer (in its own session) serving
-    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    # While the viewer starts, a signal is only noted: raised inside `Popen`, after the fork but
+    # before `proc` is set, it would leave the viewer (in its own session) serving, unknown to
+    # the cleanup below. Noted from the start: a SIGTERM just after the start would otherwise
+    # end this process with the signal's default action, leaving the viewer serving as well.
+    signals = [signal.SIGTERM, signal.SIGHUP]
+    if signal.getsignal(signal.SIGINT) not in (signal.SIG_IGN, None):  # Ctrl-C, unless ignored
+        signals.append(signal.SIGINT)
+    previous = {sig: signal.signal(sig, note) for sig in signals}
     proc = None
     try:
         with viewer_environment() as env:  # Rerun's analytics off (viewer_analytics)
             try:
                 proc = subprocess.Popen(command, start_new_session=True, env=env)
+                for sig in signals:
+                    signal.signal(sig, previous[sig] if sig == signal.SIGINT else stop)
+                if received:  # a signal came while the viewer started: stop both now
+                    if received[0] == signal.SIGINT:
+                        raise KeyboardInterrupt
+                    raise SystemExit(128 + received[0])
                 return proc.wait()
             finally:
                 if proc is not None:
@@ -339,24 +355,39 @@ def group_running(group: int) -> bool:
     """Whether a process of the group still runs. A zombie (ended, waiting for its parent to
     reap it) counts as ended: where the container's first process reaps nobody, an orphaned
     child of the viewer stays a zombie in the group for good, and would otherwise hold
-    `curious view` for the whole grace period. Read from /proc where there is one."""
+    `curious view` for the whole grace period. The states are read from /proc where there is
+    one, and only while the group answers a signal."""
+    try:
+        os.killpg(group, 0)
+    except ProcessLookupError:
+        return False
     proc_root = Path("/proc")
     if not (proc_root / "self" / "stat").exists():
-        try:
-            os.killpg(group, 0)
-        except ProcessLookupError:
-            return False
-        return True
-    for stat in proc_root.glob("[0-9]*/stat"):
-        try:
-            text = stat.read_text()
-        except OSError:  # the process ended while the folder was read
-            continue
-        # after the command's name, in parentheses (which may hold any character): state, ppid, pgrp
-        fields = text[text.rindex(")") + 2 :].split()
-        if int(fields[2]) == group and fields[0] not in ("Z", "X"):
-            return True
-    return False
+        return True  # no /proc: the group answers, so it counts as running
+    members = [stat.parent for stat in proc_root.glob("[0-9]*/stat") if _group(stat) == group]
+    return any(_runs(process) for process in members)
+
+
+def _stat_fields(stat: Path) -> list[str]:
+    """The fields of a /proc stat file after the command's name, which is in parentheses and
+    may hold any character: state, ppid, pgrp, ...; [] where the process has just ended."""
+    try:
+        text = stat.read_text()
+        return text[text.rindex(")") + 2 :].split()
+    except (OSError, ValueError):
+        return []
+
+
+def _group(stat: Path) -> int | None:
+    fields = _stat_fields(stat)
+    return int(fields[2]) if len(fields) > 2 else None
+
+
+def _runs(process: Path) -> bool:
+    """Whether a process has a thread that has not ended: a process whose main thread ended
+    shows as a zombie while its other threads still run."""
+    states = [fields[0] for t in process.glob("task/*/stat") if (fields := _stat_fields(t))]
+    return any(state not in ("Z", "X") for state in states)
 
 
 def run(args: argparse.Namespace) -> int:
