@@ -179,8 +179,10 @@ def test_the_pages_say_which_long_runs_are_shipped_training_and_queued():
     logged, not shipped) or queued (none yet)."""
     rows = {run: row for run, row in _progress_rows().items() if run.startswith("long/")}
     assert len(rows) == 5, rows
-    shipped = sorted(int(run[-1]) for run, (_, cell) in rows.items() if cell == "shipped")
-    training = sorted(int(run[-1]) for run, (n, cell) in rows.items() if cell != "shipped" and n)
+    # the checkpoint cell: "shipped", or "300,000, shipped" while the run folder keeps its last
+    done = {run for run, (_, cell) in rows.items() if cell.endswith("shipped")}
+    shipped = sorted(int(run[-1]) for run in done)
+    training = sorted(int(run[-1]) for run, (n, _) in rows.items() if run not in done and n)
     queued = sorted(int(run[-1]) for run, (n, _) in rows.items() if not n)
     folders = sorted(int(p.name[-1]) for p in (DATA / "long" / "curious").glob("seed-*"))
     assert shipped == folders, (shipped, folders)
@@ -1107,19 +1109,83 @@ def test_c3_the_long_runs_as_they_ship():
         runs == 14
         and f"*The dips' test on the pool as it stands* ({runs} runs, {standing})" in text
     )
-    assert analysis.dip_test(analysis.dip_responses(pooled, analysis.TEST_DEPTH))["n_runs"] == 0
-    found = analysis.dip_responses(pooled, 0.05)
-    p_lp, practice = (analysis.dip_test(found, c) for c in ("excess_p_lp", "excess_practice"))
-    n = p_lp["n_runs"]
-    assert f"{p_lp['n_dips']} read dips in {n} runs, p_LP's excess" in text
-    assert f"{p_lp['mean']:+.2f} by run (above 0 in {p_lp['n_positive']} of {n})" in text
-    assert p_lp["p"] == practice["p"]
-    assert f"exact sign-flip p = {format_p(p_lp['p'])} for p_LP and practice alike" in text
+    pool = text[text.index("*The dips' test on the pool as it stands*") :]
+    for depth in (analysis.TEST_DEPTH, 0.05):
+        found = analysis.dip_responses(pooled, depth)
+        p_lp, practice = (analysis.dip_test(found, c) for c in ("excess_p_lp", "excess_practice"))
+        n = p_lp["n_runs"]
+        if n == 0:
+            assert f"at {depth:g} no dip read" in pool
+            continue
+        runs_word = f"{n} run{'s' * (n != 1)}"
+        assert f"at {depth:g}, {p_lp['n_dips']} read dips in {runs_word}, p_LP's excess" in pool
+        assert f"{p_lp['mean']:+.2f} by run (above 0 in {p_lp['n_positive']} of {n})" in pool
+        assert p_lp["p"] == practice["p"]
+        assert f"exact sign-flip p = {format_p(p_lp['p'])} for p_LP and practice alike" in pool
     assert len(shipped) < 5 and "This reading decides nothing" in text
     # the summary table's row gives the pool as it stands
     assert (
         f"in {practice['n_positive']} of {n} CURIOUS runs (p = {format_p(practice['p'])} on the "
         "pool as it stands" in text
+    )
+
+
+def test_c3_long_seed_1_in_words():
+    """Seed 1's reading in results.md: its one drop by 0.2 (cube 1 above cube 2, near the run's
+    end) with its LP, p_LP and practice over its course, and its two dips read at 0.1."""
+    run = DATA / "long" / "curious" / "seed-1"
+    if not run.is_dir():
+        pytest.skip("long seed 1 not shipped yet")
+    text = _text(RESULTS)
+    words = text[text.index("Seed 1, in words:") : text.index("*The dips' test on the pool")]
+    (hours,) = [r.run_hours for r in progress_table(run)]
+    assert f"(300,000 episodes, commit 24d01ae, {hours:.2f} run-hours on the AMD EPYC)" in text
+    assert _machines(run) == "AMD EPYC"
+    table, mastered = _long_read(run)
+    read = mastered.set_index("module")
+    at = {m: f"{int(read.at[m, 'mastered_episode']):,}" for m in read.index}
+    assert (
+        f"(reach at episode {at['reach']}, push cube 1 at {at['push_cube1']}, cube 1 above cube 2 "
+        f"at {at['cube1_above_cube2']}, stack at {at['stack']})"
+    ) in words
+    assert f"{int(read['mastered_episodes'].sum()):,} module-episodes read as mastered" in words
+    (drop,) = analysis.mastery_drops(table).itertuples()
+    assert drop.module == "cube1_above_cube2"
+    assert (
+        f"fell from {drop.peak:.2f} (its descent from {drop.start_episode:,}), was read as a drop "
+        f"at {drop.drop_episode:,}, reached {drop.trough:.2f} at {drop.trough_episode:,} and was "
+        f"back at 0.9 at {drop.recovery_episode:,}, {int(drop.recovery_episodes):,} episodes "
+        "after the drop"
+    ) in words
+    assert (
+        f"(mean {drop.lp_before:.2f} before, {drop.lp_after:.2f} over the course, "
+        f"{drop.lp_trough:.2f} at the trough)"
+    ) in words
+    assert drop.p_lp_after < drop.p_lp_before and drop.practice_after < drop.practice_before
+    assert (
+        f"({drop.p_lp_before:.2f} to {drop.p_lp_after:.2f}, and {drop.practice_before:.0%} to "
+        f"{drop.practice_after:.0%})".replace("%", " %")
+    ) in words
+    window = analysis.lowest_competence(table, *analysis.PAPER_FORGETTING_WINDOW, read=mastered)
+    low = window.set_index("module").at["cube1_above_cube2", "low"]
+    assert f"255,000 the module stood no lower than {low:.2f}" in words
+    deep = analysis.dip_responses(table, analysis.TEST_DEPTH)
+    assert deep["status"].tolist() == ["read", "read", "past_end"]
+    first, second = (d for d in deep.itertuples() if d.status == "read")
+    assert (
+        f"at {first.detect_episode:,} ({first.peak:.2f} to {first.trough:.2f}) and "
+        f"{second.detect_episode:,} ({second.peak:.2f} to {second.trough:.2f})"
+    ) in words
+    assert (
+        f"its p_LP rose by {first.p_lp_change:.2f} and {second.p_lp_change:.2f} and its share of "
+        f"practice by {first.practice_change:.2f} and {second.practice_change:.2f}, against "
+        f"{first.p_lp_change - first.excess_p_lp:+.3f} and "
+        f"{first.practice_change - first.excess_practice:+.3f}"
+    ) in words
+    assert f"(detected at {deep.iloc[2].detect_episode:,})" in words
+    shallow = analysis.dip_responses(table, 0.05)
+    assert (
+        f"At 0.05, {WORDS[len(shallow)]}, {WORDS[int((shallow.status == 'read').sum())]}" in words
     )
 
 
