@@ -1044,6 +1044,25 @@ def _words(module: str) -> str:
     return PROSE.get(module, module)
 
 
+def _long_words_opening(
+    run: Path, machine: str, text: str, words: str
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Checks what every long run's reading opens with: its episodes, commit, run-hours and
+    machine (in `text`), then its modules in the order it mastered them, each with the episode,
+    and its module-episodes read as mastered (in `words`, the run's own paragraph); returns the
+    run's table and its `mastery`."""
+    (hours,) = [r.run_hours for r in progress_table(run)]
+    assert _machines(run) == machine
+    assert f"(300,000 episodes, commit 24d01ae, {hours:.2f} run-hours on the {machine})" in text
+    table, mastered = _long_read(run)
+    first = mastered.set_index("module")["mastered_episode"].sort_values()
+    order = [f"{_words(m)} at {int(e):,}" for m, e in first.items()]
+    order[0] = order[0].replace(" at ", " at episode ", 1)
+    assert f"({', '.join(order)})" in words
+    assert f"{int(mastered['mastered_episodes'].sum()):,} module-episodes read as mastered" in words
+    return table, mastered
+
+
 def test_c3_the_long_runs_as_they_ship():
     """C3 on the long runs shipped so far (results.md, "The long runs as they ship", by the
     amended rules): how many, a row per run of its masteries, drops, falls and dips, seed 0's
@@ -1061,17 +1080,9 @@ def test_c3_the_long_runs_as_they_ship():
     assert not missing, "the long runs' table lacks these rows:\n" + "\n".join(missing)
     # seed 0's reading in words
     run = DATA / "long" / "curious" / "seed-0"
-    (hours,) = [r.run_hours for r in progress_table(run)]
-    assert f"(300,000 episodes, commit 24d01ae, {hours:.2f} run-hours on the Intel Xeon)" in text
-    table, mastered = _long_read(run)
+    table, mastered = _long_words_opening(run, "Intel Xeon", text, text)
     read = mastered.set_index("module")
     assert analysis.mastery_drops(table).empty and int(read["n_drops"].sum()) == 0
-    at = {m: f"{int(read.at[m, 'mastered_episode']):,}" for m in read.index}
-    assert (
-        f"(reach at episode {at['reach']}, push cube 1 at {at['push_cube1']}, stack at "
-        f"{at['stack']}, cube 1 above cube 2 at {at['cube1_above_cube2']})"
-    ) in text
-    assert f"{int(read['mastered_episodes'].sum()):,} module-episodes read as mastered" in text
     deepest = read["deepest_fall"].idxmax()
     assert deepest == "cube1_above_cube2"
     assert f"cube 1 above cube 2's {read.at[deepest, 'deepest_fall']:.2f} at 78,889" in text
@@ -1138,17 +1149,7 @@ def test_c3_long_seed_1_in_words():
         pytest.skip("long seed 1 not shipped yet")
     text = _text(RESULTS)
     words = text[text.index("Seed 1, in words:") : text.index("*The dips' test on the pool")]
-    (hours,) = [r.run_hours for r in progress_table(run)]
-    assert f"(300,000 episodes, commit 24d01ae, {hours:.2f} run-hours on the AMD EPYC)" in text
-    assert _machines(run) == "AMD EPYC"
-    table, mastered = _long_read(run)
-    read = mastered.set_index("module")
-    at = {m: f"{int(read.at[m, 'mastered_episode']):,}" for m in read.index}
-    assert (
-        f"(reach at episode {at['reach']}, push cube 1 at {at['push_cube1']}, cube 1 above cube 2 "
-        f"at {at['cube1_above_cube2']}, stack at {at['stack']})"
-    ) in words
-    assert f"{int(read['mastered_episodes'].sum()):,} module-episodes read as mastered" in words
+    table, mastered = _long_words_opening(run, "AMD EPYC", text, words)
     (drop,) = analysis.mastery_drops(table).itertuples()
     assert drop.module == "cube1_above_cube2"
     assert (
