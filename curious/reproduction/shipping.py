@@ -15,7 +15,7 @@ episodes and test rollouts counted), and only then put in `out`'s place, so a re
 ship leaves `out` as it was; an `out` holding an earlier shipped folder is replaced as a whole.
 A ship stopped by Ctrl-C, SIGTERM or SIGHUP at any step leaves nothing beside `out`: the staging
 folder is removed, and the swap into `out`'s place with the removal of the earlier ship runs to
-its end before the signal is taken (`_signals_held`). What a ship killed outright (SIGKILL, a
+its end before the signal is taken (`signals_held`). What a ship killed outright (SIGKILL, a
 lost machine) left beside `out` (its staging folder, the earlier ship it had set aside) is
 cleaned by the next ship to the same `out` (`clean_leftovers`).
 Nothing below `root` is written. Refused with a `ShippedError` before anything is written: a
@@ -32,7 +32,6 @@ import os
 import re
 import shutil
 import signal
-import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -58,6 +57,7 @@ from curious.runs.shipped_folder import (
     ShippedRun,
     shipped_metadata,
 )
+from curious.runs.signals import in_main_thread, signals_held
 
 
 @dataclass(frozen=True)
@@ -332,7 +332,7 @@ def ship(
             f"none of the {len(found)} run(s) below {runs} is finished ({detail}){hint}"
         )
     with _locked(out), _stopped_by_signals():
-        with _signals_held():
+        with signals_held():
             clean_leftovers(out)
         _check_out(out, root)  # again, now that no other ship can write it
         _check_replaced(out, budget)
@@ -351,10 +351,10 @@ def ship(
             manifest = _write(chosen, staging, budget, kept, earlier)
             _verify(staging, manifest)
             sizes = _sizes(staging)
-            with _signals_held():
+            with signals_held():
                 _replace(staging, out)
         finally:
-            with _signals_held():
+            with signals_held():
                 shutil.rmtree(staging, ignore_errors=True)
     return ShipResult(
         out,
@@ -367,21 +367,12 @@ def ship(
     )
 
 
-STOPPING_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-"""The signals that stop a ship (Ctrl-C, `kill`, a closed terminal), each with its cleanup."""
-
-
-def _in_main_thread() -> bool:
-    """Whether signal handlers can be set here (Python runs them in the main thread only)."""
-    return threading.current_thread() is threading.main_thread()
-
-
 @contextlib.contextmanager
 def _stopped_by_signals() -> Iterator[None]:
     """SIGTERM and SIGHUP raise `SystemExit` (status 128 + the signal) while the block runs, as
     Ctrl-C raises `KeyboardInterrupt`, so that the ship's cleanup runs before it ends (by
     default they end the process at once, leaving its staging folder beside `out`)."""
-    if not _in_main_thread():
+    if not in_main_thread():
         yield
         return
 
@@ -394,27 +385,6 @@ def _stopped_by_signals() -> Iterator[None]:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
-
-
-@contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """The stopping signals that come while the block runs taken only once it has ended: a
-    rename and a removal of folders beside `out` are not cut half-way (a Ctrl-C in the middle of
-    removing the earlier ship would leave part of it beside `out`). The block's own work is a
-    few renames and removals, seconds at most. Python's handlers are set aside rather than the
-    signals blocked, since any of the process's threads (pyarrow's) may receive a signal."""
-    if not _in_main_thread():
-        yield
-        return
-    caught: list[int] = []
-    previous = {sig: signal.signal(sig, lambda n, f: caught.append(n)) for sig in STOPPING_SIGNALS}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
-        for sig in dict.fromkeys(caught):
-            signal.raise_signal(sig)
 
 
 def _alive(pid: int) -> bool:

@@ -4,7 +4,8 @@ A checkpoint is a folder `checkpoints/ep-<episodes>/` (its name and the listing 
 ones are the run folder's layout: `curious.runs.folder_layout`) holding `state.pt` (networks,
 optimisers, normalisers, competence queues, RNG states, counters, the config) and the replay
 buffer's filled part. It is written under a temporary name and renamed when complete, so a crash
-leaves either the previous checkpoint or the new one, never half of one. The two newest are kept
+leaves either the previous checkpoint or the new one, never half of one, and a Ctrl-C that comes
+while one is written is taken once it is written (`curious.runs.signals`). The two newest are kept
 (older ones are removed after the rename), so that a checkpoint damaged later (a disk error, a
 truncated copy) is not the end of a run: `load_latest` falls back to the one before, saying so.
 
@@ -38,6 +39,7 @@ import numpy as np
 import torch
 
 from curious.runs.folder_layout import checkpoint_episodes, checkpoint_name, list_checkpoints
+from curious.runs.signals import signals_held
 
 KEEP = 2
 """Checkpoints kept in a run folder: the newest and the one before."""
@@ -85,14 +87,16 @@ def save(
     resumed from: where it lists segments and nothing was evicted since, only the episodes after
     it are written (module docstring). A failed write (a full disk, a read-only folder) is a
     `CheckpointError` naming the cause and the file, and leaves the earlier checkpoints as they
-    were."""
+    were. A Ctrl-C (or SIGTERM, SIGHUP) that comes while it is written is taken once it is
+    written (`curious.runs.signals`): a checkpoint begun is a checkpoint kept."""
     tmp = directory / f".tmp-{checkpoint_name(episodes)}"
-    try:
-        return _save(directory, episodes, state, replay, keep, base)
-    except (OSError, RuntimeError) as exc:
-        shutil.rmtree(tmp, ignore_errors=True)
-        _remove_temporary_segments(directory)
-        raise CheckpointError(_write_failure(exc, directory, tmp)) from exc
+    with signals_held():
+        try:
+            return _save(directory, episodes, state, replay, keep, base)
+        except (OSError, RuntimeError) as exc:
+            shutil.rmtree(tmp, ignore_errors=True)
+            _remove_temporary_segments(directory)
+            raise CheckpointError(_write_failure(exc, directory, tmp)) from exc
 
 
 def _write_failure(exc: OSError | RuntimeError, directory: Path, tmp: Path) -> str:
