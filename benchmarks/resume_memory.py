@@ -63,22 +63,31 @@ def _peak_bytes() -> int:
     return int(line.split()[1]) * 1024
 
 
-def _load(path: str, variant: str, capacity: int, into: bool) -> dict[str, Any]:
+def load_and_count(path: str, variant: str, capacity: int, into: bool) -> dict[str, Any]:
     """In a fresh process: load the checkpoint at `path` into a replay of `capacity` episodes,
-    ours (`into`) or the peer's way; bytes added at the peak, held once loaded and allocated at
-    the allocations' peak, and seconds."""
+    ours (`into`) or the peer's way; bytes added at the load's peak, held once loaded (the
+    replay's arrays and what the load keeps), allocated at the load's allocations' peak, and
+    seconds."""
     import gc
     import tracemalloc
 
     from curious.agent.replay import EpisodeReplay
     from curious.envs.goal_env import SuiteEnv
     from curious.runs import checkpoint
+    from curious.runs.allocator import release_free_heap, return_freed_memory
 
-    replay = EpisodeReplay(SuiteEnv(variant).spec, capacity)
+    return_freed_memory()  # glibc's threshold fixed, as `curious.runs.driver.train` has it
+    spec = SuiteEnv(variant).spec
     gc.collect()
+    # The heap's free pages given back before the count starts: the replay's arrays and the
+    # load's may be served from memory freed before, which, resident already, no count of what
+    # they add would see (CI's peer once held 13 MB less than its two copies so).
+    release_free_heap()
+    before = anonymous_memory()[0]
+    replay = EpisodeReplay(spec, capacity)
     tracemalloc.start()
     reset = _reset_peak()
-    before, resident = anonymous_memory()[0], _resident_bytes()
+    resident = _resident_bytes()
     tic = time.perf_counter()
     _, arrays = checkpoint.load(Path(path), into=replay.arrays() if into else None)
     replay.load_state_dict(arrays)
@@ -97,27 +106,34 @@ def _load(path: str, variant: str, capacity: int, into: bool) -> dict[str, Any]:
     }
 
 
+def write_checkpoints(folder: Path, variant: str, episodes: int, every: int) -> tuple[Path, int]:
+    """Checkpoints of a replay of `episodes` random episodes of `variant` into `folder`, as a run
+    writes them (a segment every `every` episodes, each checkpoint building on the one before);
+    the last one's path and the replay's bytes."""
+    from curious.runs import checkpoint
+
+    full = _replay(variant, episodes)
+    path = None
+    for end in [*range(every, episodes, every), episodes]:
+        state = {"note": "the replay alone"}
+        path = checkpoint.save(folder, end, state, _prefix(full, end), base=path)
+    assert path is not None
+    return path, sum(v.nbytes for v in full.values() if v.ndim > 0)
+
+
 def measure(args: argparse.Namespace) -> dict[str, Any]:
     """Loads the checkpoint both ways, `--rounds` times each; returns ours/bound/peer/unit (the
     load's peak, MB) and what each holds once loaded."""
-    from curious.runs import checkpoint
-
     if args.dir is not None:
         check_writable(args.dir, "--dir", folder=True)
         Path(args.dir).mkdir(parents=True, exist_ok=True)
-    full = _replay(args.variant, args.episodes)
-    replay_bytes = sum(v.nbytes for v in full.values() if v.ndim > 0)
     results: dict[str, list[dict[str, Any]]] = {"ours": [], "peer": []}
     with tempfile.TemporaryDirectory(prefix="curious-bench-resume-", dir=args.dir) as tmp:
-        path = None
-        for end in [*range(args.every, args.episodes, args.every), args.episodes]:
-            state = {"note": "the replay alone"}
-            path = checkpoint.save(Path(tmp), end, state, _prefix(full, end), base=path)
-        del full
+        path, replay_bytes = write_checkpoints(Path(tmp), args.variant, args.episodes, args.every)
         for r in range(args.rounds):
             for kind in ["ours", "peer"] if r % 2 == 0 else ["peer", "ours"]:
                 task = (str(path), args.variant, args.episodes, kind == "ours")
-                results[kind].append(in_fresh_process(_load, *task))  # a fresh process each
+                results[kind].append(in_fresh_process(load_and_count, *task))  # fresh each
     mb = 1e6
 
     def least(kind: str, key: str) -> float:

@@ -12,7 +12,7 @@ import pytest
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
-from benchmarks import AtLeast, CountList
+from benchmarks import AtLeast, CountList, in_fresh_process
 from benchmarks.learner_speed import add_arguments, measure, update_gemms
 from curious.agent.learner import Learner
 from curious.commands.bench import BENCHMARKS
@@ -117,6 +117,39 @@ def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twic
     # kernel may drop, from per-CPU counters read approximately; CI's kernel once counted the
     # peer 13 MB short of its two copies, as much as this small replay's difference.
     assert result["ours"] > 0 and result["peer"] > 0
+
+
+def _load_after_freeing_heap(path: str, capacity: int, into: bool) -> float:
+    """MB the resume benchmark counts held by a load, in a process that first left 40 MB free
+    in its heap, resident, with glibc's threshold risen as freeing large blocks raises it."""
+    import numpy as np
+
+    from benchmarks.resume_memory import load_and_count
+    from curious.runs.allocator import mmap_threshold
+
+    mmap_threshold(32 * 2**20)
+    freed = [np.ones(2**18, np.float32) for _ in range(40)]  # 40 blocks of 1 MiB, on the heap
+    above = np.ones(2**16)  # the heap's top in use, so that freeing them does not trim it
+    del freed
+    held = load_and_count(path, "default", capacity, into)["held"] / 1e6
+    del above
+    return held
+
+
+def test_the_resume_benchmark_counts_what_a_load_adds_where_the_heap_held_memory_freed(
+    tmp_path,
+):
+    # Without the heap given back first, the load's arrays came from memory already resident:
+    # ours counted under the replay, the peer under its two copies (as on CI).
+    from benchmarks.resume_memory import write_checkpoints
+
+    path, replay_bytes = write_checkpoints(tmp_path, "default", 2000, 400)
+    replay = replay_bytes / 1e6
+    ours, peer = (
+        in_fresh_process(_load_after_freeing_heap, str(path), 2000, into) for into in (True, False)
+    )
+    assert replay < ours < 1.5 * replay
+    assert peer > ours + 0.8 * replay
 
 
 def test_the_heap_benchmark_trains_both_ways_each_with_its_allocators_settings(tmp_path):

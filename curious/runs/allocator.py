@@ -23,7 +23,13 @@ import ctypes.util
 import functools
 import platform
 
-__all__ = ["GLIBC_MMAP_THRESHOLD", "MIMALLOC_PURGE_DELAY", "mmap_threshold", "return_freed_memory"]
+__all__ = [
+    "GLIBC_MMAP_THRESHOLD",
+    "MIMALLOC_PURGE_DELAY",
+    "mmap_threshold",
+    "release_free_heap",
+    "return_freed_memory",
+]
 
 GLIBC_MMAP_THRESHOLD = 128 * 1024
 """Bytes from which glibc maps a block on its own (its default, which `mallopt` then keeps
@@ -45,12 +51,30 @@ def return_freed_memory() -> bool:
 def mmap_threshold(nbytes: int) -> bool:
     """Fix glibc's mmap threshold at `nbytes` (it no longer moves by itself); False where the C
     library is not glibc or refuses."""
+    libc = _glibc()
+    return (
+        libc is not None
+        and hasattr(libc, "mallopt")
+        and bool(libc.mallopt(_M_MMAP_THRESHOLD, nbytes))
+    )
+
+
+def release_free_heap() -> bool:
+    """Give the pages the heap holds free back to the system now (glibc's `malloc_trim`); False
+    where the C library is not glibc. A fixed threshold keeps the heap from growing, but a
+    request the heap's free blocks can serve is served there: a measure of the memory some work
+    adds starts after this, so that memory freed before it is not already resident."""
+    libc = _glibc()
+    if libc is None or not hasattr(libc, "malloc_trim"):
+        return False
+    libc.malloc_trim(0)
+    return True
+
+
+@functools.cache
+def _glibc() -> ctypes.CDLL | None:
+    """The C library, where it is glibc; None elsewhere."""
     if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
-        return False
+        return None
     name = ctypes.util.find_library("c")
-    if name is None:
-        return False
-    libc = ctypes.CDLL(name)
-    if not hasattr(libc, "mallopt"):
-        return False
-    return bool(libc.mallopt(_M_MMAP_THRESHOLD, nbytes))
+    return None if name is None else ctypes.CDLL(name)
