@@ -14,6 +14,8 @@ Two allocators hold memory a run has freed, unless told otherwise:
   a value the user set wins), so freed pages go back at once.
 
 Neither changes what a run computes: the same episodes, to the bit (`tools/fingerprint.py`).
+`release_free_heap` gives the heap's free pages back at once; a run does not call it, the memory
+benchmarks do before they count what some work adds (`benchmarks/resume_memory.py`).
 """
 
 from __future__ import annotations
