@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import torch
+from freed_heap import leave_freed_heap
 from torch.utils.flop_counter import FlopCounterMode
 
 from benchmarks import AtLeast, CountList, in_fresh_process
@@ -122,15 +123,9 @@ def test_the_resume_benchmark_loads_the_replay_once_where_the_peer_holds_it_twic
 def _load_after_freeing_heap(path: str, capacity: int, into: bool) -> float:
     """MB the resume benchmark counts held by a load, in a process that first left 40 MB free
     in its heap, resident, with glibc's threshold risen as freeing large blocks raises it."""
-    import numpy as np
-
     from benchmarks.resume_memory import load_and_count
-    from curious.runs.allocator import mmap_threshold
 
-    mmap_threshold(32 * 2**20)
-    freed = [np.ones(2**18, np.float32) for _ in range(40)]  # 40 blocks of 1 MiB, on the heap
-    above = np.ones(2**16)  # the heap's top in use, so that freeing them does not trim it
-    del freed
+    above = leave_freed_heap(40)
     held = load_and_count(path, "default", capacity, into)["held"] / 1e6
     del above
     return held
